@@ -1,0 +1,1 @@
+"""Warp kernels and functions of warp_tube: pure functions of arrays (no pxr, no allocation, no I/O)."""

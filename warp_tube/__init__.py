@@ -1,0 +1,36 @@
+"""warp_tube: global deformation of tube-shaped soft bodies on NVIDIA Warp.
+
+A deformable mass-spring centerline and a hubs-and-spokes medial surface (Huang, Gu et al.,
+ISBMS 2006), with USD scenes in and time-sampled USD meshes out.
+"""
+
+from .scene import ForceSpec, Scene, SceneError, SimulationSettings, StageInfo, TubeParams, TubeSpec
+
+__all__ = [
+    "ForceSpec",
+    "Scene",
+    "SceneError",
+    "SimulationSettings",
+    "StageInfo",
+    "TubeParams",
+    "TubeSpec",
+    "load_scene",
+    "Simulation",
+]
+
+__version__ = "0.1.0"
+
+
+def load_scene(path):
+    """Read and validate a USD scene; see :func:`warp_tube.usd_scene.load_scene`."""
+    from .usd_scene import load_scene as _load
+
+    return _load(path)
+
+
+def __getattr__(name):
+    if name == "Simulation":
+        from .simulation import Simulation
+
+        return Simulation
+    raise AttributeError(name)

@@ -1,0 +1,140 @@
+"""Twist-free frames along a polyline (NumPy reference).
+
+These functions define the frame convention that the whole package shares: the surface kernels
+(`warp_tube.kernels.frames`), the bending springs of curved rest shapes and the spoke measurement of
+centerline extraction all follow it, and the tests compare the Warp kernels against it.
+
+Convention, for the hubs x_0..x_{n-1} of one tube:
+
+- Tangent at a hub: the normalised sum of the unit vectors of its two edges (the bisector), and the
+  unit edge vector at the two ends.
+- Frame of the first hub: ``(t_0, r_0, s_0)`` with ``r_0`` the reference normal projected onto the
+  plane normal to ``t_0`` and ``s_0 = t_0 x r_0``. Without a reference normal, ``r_0`` is the world
+  axis least aligned with ``t_0``, projected (deterministic).
+- Later hubs: the double-reflection rotation-minimizing frame of Wang, Juttler, Zheng and Liu,
+  "Computation of rotation minimizing frames", ACM TOG 27(1), 2008: reflect ``(r_i, t_i)`` in the
+  bisecting plane of ``x_i x_{i+1}``, then in the plane that takes the reflected tangent onto
+  ``t_{i+1}``.
+- Spoke ``j`` of ``S`` at a body hub points along ``cos(phi_j) r_i + sin(phi_j) s_i`` with
+  ``phi_j = 2 pi j / S``.
+"""
+
+from __future__ import annotations
+
+import numpy as np
+
+__all__ = [
+    "hub_tangents",
+    "initial_normal",
+    "rotation_minimizing_frames",
+    "minimal_rotation",
+    "spoke_directions",
+]
+
+
+def _normalize(v: np.ndarray) -> np.ndarray:
+    n = np.linalg.norm(v, axis=-1, keepdims=True)
+    return v / np.where(n > 0.0, n, 1.0)
+
+
+def hub_tangents(points: np.ndarray) -> np.ndarray:
+    """Unit tangents at the hubs of one polyline.
+
+    Args:
+        points: hub positions [any length unit], shape (n, 3), n >= 2.
+
+    Returns:
+        Unit tangents, shape (n, 3): edge bisectors inside, edge directions at the ends.
+    """
+    p = np.asarray(points, dtype=np.float64)
+    e = _normalize(p[1:] - p[:-1])
+    t = np.empty_like(p)
+    t[0] = e[0]
+    t[-1] = e[-1]
+    t[1:-1] = _normalize(e[:-1] + e[1:])
+    return t
+
+
+def initial_normal(tangent: np.ndarray, reference: np.ndarray | None = None) -> np.ndarray:
+    """Unit normal of the first hub: ``reference`` made perpendicular to ``tangent``.
+
+    Without a reference (or one parallel to the tangent) the world axis least aligned with the
+    tangent is used, so the choice is deterministic.
+    """
+    t = np.asarray(tangent, dtype=np.float64)
+    if reference is not None:
+        r = np.asarray(reference, dtype=np.float64)
+        r = r - np.dot(r, t) * t
+        if np.linalg.norm(r) > 1e-8 * max(1.0, np.linalg.norm(reference)):
+            return r / np.linalg.norm(r)
+    axis = np.zeros(3)
+    axis[int(np.argmin(np.abs(t)))] = 1.0
+    r = axis - np.dot(axis, t) * t
+    return r / np.linalg.norm(r)
+
+
+def rotation_minimizing_frames(
+    points: np.ndarray, tangents: np.ndarray | None = None, normal0: np.ndarray | None = None
+) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """Double-reflection rotation-minimizing frames along one polyline.
+
+    Args:
+        points: hub positions, shape (n, 3).
+        tangents: unit tangents, shape (n, 3); default :func:`hub_tangents`.
+        normal0: reference normal of the first hub, shape (3,); see :func:`initial_normal`.
+
+    Returns:
+        ``(t, r, s)``, each shape (n, 3): tangent, normal (spoke 0) and ``s = t x r``.
+    """
+    x = np.asarray(points, dtype=np.float64)
+    t = hub_tangents(x) if tangents is None else np.asarray(tangents, dtype=np.float64)
+    n = len(x)
+    r = np.empty_like(x)
+    r[0] = initial_normal(t[0], normal0)
+    for i in range(n - 1):
+        v1 = x[i + 1] - x[i]
+        c1 = float(np.dot(v1, v1))
+        if c1 <= 0.0:
+            r[i + 1] = r[i]
+            continue
+        r_l = r[i] - (2.0 / c1) * np.dot(v1, r[i]) * v1
+        t_l = t[i] - (2.0 / c1) * np.dot(v1, t[i]) * v1
+        v2 = t[i + 1] - t_l
+        c2 = float(np.dot(v2, v2))
+        r_n = r_l - (2.0 / c2) * np.dot(v2, r_l) * v2 if c2 > 1e-30 else r_l
+        # Re-orthonormalise against round-off so long tubes keep an orthonormal frame.
+        r_n = r_n - np.dot(r_n, t[i + 1]) * t[i + 1]
+        r[i + 1] = r_n / np.linalg.norm(r_n)
+    s = np.cross(t, r)
+    return t, r, s
+
+
+def minimal_rotation(a: np.ndarray, b: np.ndarray) -> np.ndarray:
+    """Rotation matrix (3, 3) of least angle taking unit vector ``a`` to unit vector ``b``.
+
+    For ``b = -a`` (a half turn, where the least rotation is not unique) the turn is taken about
+    :func:`initial_normal` of ``a``.
+    """
+    a = np.asarray(a, dtype=np.float64)
+    b = np.asarray(b, dtype=np.float64)
+    v = np.cross(a, b)
+    c = float(np.dot(a, b))
+    if c < -1.0 + 1e-12:
+        k = initial_normal(a)
+        return 2.0 * np.outer(k, k) - np.eye(3)
+    vx = np.array([[0.0, -v[2], v[1]], [v[2], 0.0, -v[0]], [-v[1], v[0], 0.0]])
+    return np.eye(3) + vx + vx @ vx / (1.0 + c)
+
+
+def spoke_directions(r: np.ndarray, s: np.ndarray, spokes: int) -> np.ndarray:
+    """Unit spoke directions of body hubs (90 degrees to the tangent).
+
+    Args:
+        r, s: frame normals, shape (n, 3).
+        spokes: spokes per hub, S.
+
+    Returns:
+        Directions, shape (n, S, 3); spoke j at angle 2 pi j / S from ``r`` towards ``s``.
+    """
+    phi = 2.0 * np.pi * np.arange(spokes) / spokes
+    return np.cos(phi)[None, :, None] * r[:, None, :] + np.sin(phi)[None, :, None] * s[:, None, :]

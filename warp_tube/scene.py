@@ -1,0 +1,317 @@
+"""Scene description: frozen dataclasses in SI units, read from USD or built in Python.
+
+A :class:`Scene` holds everything a run needs and nothing about USD. :mod:`warp_tube.usd_scene`
+reads one from a stage (validating every attribute) and writes one back.
+
+Geometry (points, widths, spoke lengths) is stored in SI metres here; the stage's
+``metersPerUnit`` is kept in :class:`StageInfo` so results go back out in stage units.
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass, field
+
+import numpy as np
+
+__all__ = [
+    "StageInfo",
+    "SimulationSettings",
+    "TubeParams",
+    "TubeSpec",
+    "ForceSpec",
+    "Scene",
+    "SceneError",
+    "INTEGRATORS",
+    "FRAME_MODES",
+]
+
+INTEGRATORS = ("auto", "semiImplicitEuler", "implicitEuler")
+FRAME_MODES = ("rotationMinimizing", "local")
+
+
+class SceneError(ValueError):
+    """Invalid scene or request; the message names where and what (CLI exit status 2)."""
+
+
+@dataclass(frozen=True)
+class StageInfo:
+    """Stage metadata carried from the scene to the output.
+
+    Attributes:
+        meters_per_unit: length of one stage unit [m].
+        up_axis: "Y" or "Z".
+        time_codes_per_second: time codes per second [1/s].
+        frames_per_second: frames per second for playback [1/s].
+        start_time_code: first frame [time code].
+        end_time_code: last frame [time code].
+        authored: names of the metadata fields the scene authored (others took USD's fallbacks).
+    """
+
+    meters_per_unit: float = 0.01
+    up_axis: str = "Y"
+    time_codes_per_second: float = 24.0
+    frames_per_second: float = 24.0
+    start_time_code: float = 0.0
+    end_time_code: float = 48.0
+    authored: tuple[str, ...] = ()
+
+    @property
+    def frame_count(self) -> int:
+        """Number of output frames, one per time code from start to end inclusive."""
+        return int(math.floor(self.end_time_code - self.start_time_code + 1e-9)) + 1
+
+    @property
+    def frame_dt(self) -> float:
+        """Time between output frames [s]."""
+        return 1.0 / self.time_codes_per_second
+
+
+@dataclass(frozen=True)
+class SimulationSettings:
+    """Solver settings.
+
+    Attributes:
+        time_step: forced substep [s], or None to let the integrator choose.
+        integrator: one of :data:`INTEGRATORS`.
+        gravity: gravitational acceleration [m/s^2], world frame, or None for none.
+    """
+
+    time_step: float | None = None
+    integrator: str = "auto"
+    gravity: tuple[float, float, float] | None = None
+
+    def __post_init__(self):
+        if self.integrator not in INTEGRATORS:
+            raise SceneError(f"integrator {self.integrator!r}: expected one of {', '.join(INTEGRATORS)}")
+        if self.time_step is not None and not (math.isfinite(self.time_step) and self.time_step > 0.0):
+            raise SceneError(f"timeStep {self.time_step!r}: expected a positive finite number of seconds")
+
+
+@dataclass(frozen=True)
+class TubeParams:
+    """Material and surface parameters of one tube prim (all its curves), SI units.
+
+    Attributes:
+        density: mass density [kg/m^3].
+        youngs_modulus: Young's modulus [Pa], or None when both stiffnesses are given.
+        stretch_stiffness: axial stiffness EA [N]; default E * pi r^2 per segment.
+        bend_stiffness: bending stiffness EI [N m^2]; default E * pi r^4 / 4 per hub.
+        damping: mass-proportional damping rate [1/s].
+        spring_damping: stiffness-proportional damping time [s] (along springs).
+        anchor_stiffness: stiffness of the returning springs [N/m].
+        spokes: spokes per hub, S.
+        frames: "rotationMinimizing" or "local".
+        caps: close the ends with rounded caps.
+        reference_normal: direction of spoke 0 at each curve's first hub, or None.
+    """
+
+    density: float
+    youngs_modulus: float | None = None
+    stretch_stiffness: float | None = None
+    bend_stiffness: float | None = None
+    damping: float = 0.0
+    spring_damping: float = 0.0
+    anchor_stiffness: float = 0.0
+    spokes: int = 16
+    frames: str = "rotationMinimizing"
+    caps: bool = False
+    reference_normal: tuple[float, float, float] | None = None
+
+    def __post_init__(self):
+        def positive(name, v):
+            if not (math.isfinite(v) and v > 0.0):
+                raise SceneError(f"{name} {v!r}: expected a positive finite number")
+
+        def nonneg(name, v):
+            if not (math.isfinite(v) and v >= 0.0):
+                raise SceneError(f"{name} {v!r}: expected a finite number >= 0")
+
+        positive("density", self.density)
+        if self.youngs_modulus is not None:
+            positive("youngsModulus", self.youngs_modulus)
+        for name, v in (("stretchStiffness", self.stretch_stiffness), ("bendStiffness", self.bend_stiffness)):
+            if v is not None:
+                nonneg(name, v)
+        if self.youngs_modulus is None and (self.stretch_stiffness is None or self.bend_stiffness is None):
+            raise SceneError("youngsModulus missing: expected youngsModulus, or both stretchStiffness and bendStiffness")
+        if self.youngs_modulus is None and self.stretch_stiffness == 0.0:
+            raise SceneError("stretchStiffness 0: expected a positive axial stiffness [N]")
+        nonneg("damping", self.damping)
+        nonneg("springDamping", self.spring_damping)
+        nonneg("anchorStiffness", self.anchor_stiffness)
+        if not (3 <= self.spokes <= 1024):
+            raise SceneError(f"spokes {self.spokes}: expected an integer from 3 to 1024")
+        if self.frames not in FRAME_MODES:
+            raise SceneError(f"frames {self.frames!r}: expected one of {', '.join(FRAME_MODES)}")
+
+    def axial_stiffness(self, radius: np.ndarray) -> np.ndarray:
+        """EA [N] for cross-section radii ``radius`` [m]."""
+        if self.stretch_stiffness is not None:
+            return np.full_like(radius, self.stretch_stiffness, dtype=np.float64)
+        return self.youngs_modulus * np.pi * radius**2
+
+    def bending_stiffness(self, radius: np.ndarray) -> np.ndarray:
+        """EI [N m^2] for cross-section radii ``radius`` [m] (solid circular section)."""
+        if self.bend_stiffness is not None:
+            return np.full_like(radius, self.bend_stiffness, dtype=np.float64)
+        return self.youngs_modulus * np.pi * radius**4 / 4.0
+
+
+@dataclass(frozen=True)
+class TubeSpec:
+    """One tube prim: one or more curves sharing material parameters.
+
+    Attributes:
+        path: prim path (the output writes its Centerline and Surface under it).
+        points: rest positions [m], world frame, shape (P, 3), all curves in order.
+        curve_counts: points per curve, shape (C,), sum P, each >= 2.
+        radius: cross-section radius per point [m], shape (P,).
+        params: material and surface parameters.
+        pinned: indices into ``points`` of hard-pinned points.
+        anchors: indices into ``points`` of points held by returning springs.
+        spoke_lengths: per point and spoke [m], shape (P, S), or None for circular sections.
+        pin_track: positions of the pinned points per output frame [m], shape (F, len(pinned), 3),
+            or None when the points are not time-sampled (pins stay at rest).
+    """
+
+    path: str
+    points: np.ndarray
+    curve_counts: np.ndarray
+    radius: np.ndarray
+    params: TubeParams
+    pinned: np.ndarray = field(default_factory=lambda: np.zeros(0, dtype=np.int64))
+    anchors: np.ndarray = field(default_factory=lambda: np.zeros(0, dtype=np.int64))
+    spoke_lengths: np.ndarray | None = None
+    pin_track: np.ndarray | None = None
+    metadata: dict = field(default_factory=dict)
+
+    def __post_init__(self):
+        pts = np.asarray(self.points, dtype=np.float64)
+        where = f"tube {self.path}"
+        if pts.ndim != 2 or pts.shape[1] != 3 or len(pts) < 2:
+            raise SceneError(f"{where}: points shape {pts.shape}: expected (P >= 2, 3)")
+        if not np.isfinite(pts).all():
+            bad = int(np.argwhere(~np.isfinite(pts).all(axis=1))[0, 0])
+            raise SceneError(f"{where}: points[{bad}] = {pts[bad].tolist()}: expected finite values")
+        counts = np.asarray(self.curve_counts, dtype=np.int64)
+        if counts.ndim != 1 or counts.sum() != len(pts) or (counts < 2).any():
+            raise SceneError(
+                f"{where}: curveVertexCounts {counts.tolist()}: expected counts >= 2 summing to {len(pts)} points"
+            )
+        rad = np.asarray(self.radius, dtype=np.float64)
+        if rad.shape != (len(pts),):
+            raise SceneError(f"{where}: widths give {rad.shape} radii: expected one or {len(pts)}")
+        if not (np.isfinite(rad).all() and (rad > 0).all()):
+            bad = int(np.argwhere(~(np.isfinite(rad) & (rad > 0)))[0, 0])
+            raise SceneError(f"{where}: widths[{bad}] = {2 * rad[bad]!r}: expected a positive finite diameter")
+        object.__setattr__(self, "points", pts)
+        object.__setattr__(self, "curve_counts", counts)
+        object.__setattr__(self, "radius", rad)
+        for name in ("pinned", "anchors"):
+            idx = np.unique(np.asarray(getattr(self, name), dtype=np.int64).reshape(-1))
+            if len(idx) and (idx.min() < 0 or idx.max() >= len(pts)):
+                bad = idx[(idx < 0) | (idx >= len(pts))][0]
+                attr = "pinnedPoints" if name == "pinned" else "anchorPoints"
+                raise SceneError(f"{where}: {attr} holds {bad}: expected indices 0..{len(pts) - 1}")
+            object.__setattr__(self, name, idx)
+        if self.spoke_lengths is not None:
+            sl = np.asarray(self.spoke_lengths, dtype=np.float64)
+            if sl.shape != (len(pts), self.params.spokes):
+                raise SceneError(
+                    f"{where}: spokeLengths has {sl.size} values: expected points x spokes = "
+                    f"{len(pts)} x {self.params.spokes} = {len(pts) * self.params.spokes}"
+                )
+            if not (np.isfinite(sl).all() and (sl > 0).all()):
+                raise SceneError(f"{where}: spokeLengths: expected positive finite lengths")
+            object.__setattr__(self, "spoke_lengths", sl)
+        if self.pin_track is not None:
+            tr = np.asarray(self.pin_track, dtype=np.float64)
+            if tr.ndim != 3 or tr.shape[1:] != (len(self.pinned), 3) or not np.isfinite(tr).all():
+                raise SceneError(f"{where}: time-sampled points: expected finite (frames, pinned, 3) positions")
+            object.__setattr__(self, "pin_track", tr)
+        # Coincident or near-coincident consecutive points make segments of no length.
+        seg = np.linalg.norm(pts[1:] - pts[:-1], axis=1)
+        starts = np.concatenate([[0], np.cumsum(counts)[:-1]])
+        inside = np.ones(len(pts) - 1, dtype=bool)
+        inside[(starts[1:] - 1)] = False  # the link from one curve's last point to the next curve's first
+        scale = float(np.max(np.ptp(pts, axis=0))) or 1.0
+        short = inside & (seg <= 1e-6 * scale)
+        if short.any():
+            i = int(np.argmax(short))
+            raise SceneError(
+                f"{where}: points[{i}] and points[{i + 1}] are {seg[i]:.3g} m apart: expected distinct "
+                f"consecutive points (segments longer than 1e-6 of the tube's extent)"
+            )
+
+    @property
+    def curve_starts(self) -> np.ndarray:
+        """Index of each curve's first point, shape (C,)."""
+        return np.concatenate([[0], np.cumsum(self.curve_counts)[:-1]]).astype(np.int64)
+
+
+@dataclass(frozen=True)
+class ForceSpec:
+    """A point force on one point of one tube.
+
+    Attributes:
+        path: prim path of the force.
+        tube: index of the target tube in :attr:`Scene.tubes`.
+        point: index into the target's ``points``.
+        times: sample times [s] from the first frame, shape (K,), increasing; K >= 1.
+        values: force at those times [N], world frame, shape (K, 3). Linear between samples, held
+            after the last, held before the first.
+        assistant_line: build the assistant line while the force acts.
+    """
+
+    path: str
+    tube: int
+    point: int
+    times: np.ndarray
+    values: np.ndarray
+    assistant_line: bool = True
+
+    def __post_init__(self):
+        t = np.asarray(self.times, dtype=np.float64).reshape(-1)
+        v = np.asarray(self.values, dtype=np.float64).reshape(-1, 3)
+        if len(t) != len(v) or len(t) == 0:
+            raise SceneError(f"force {self.path}: {len(t)} times for {len(v)} values")
+        if not (np.isfinite(t).all() and np.isfinite(v).all()):
+            raise SceneError(f"force {self.path}: force: expected finite values")
+        if (np.diff(t) <= 0).any():
+            raise SceneError(f"force {self.path}: sample times must increase")
+        object.__setattr__(self, "times", t)
+        object.__setattr__(self, "values", v)
+
+    def at(self, time: float) -> np.ndarray:
+        """Force [N] at ``time`` [s]: linear between samples, held outside them."""
+        if len(self.times) == 1:
+            return self.values[0].copy()
+        return np.array([np.interp(time, self.times, self.values[:, k]) for k in range(3)])
+
+
+@dataclass(frozen=True)
+class Scene:
+    """A whole scene: tubes, forces, settings and stage metadata."""
+
+    tubes: tuple[TubeSpec, ...]
+    forces: tuple[ForceSpec, ...] = ()
+    settings: SimulationSettings = field(default_factory=SimulationSettings)
+    stage: StageInfo = field(default_factory=StageInfo)
+    source: str = "<python>"
+
+    def __post_init__(self):
+        if not self.tubes:
+            raise SceneError(
+                f"{self.source}: no tube: expected a BasisCurves prim carrying warptube: attributes "
+                "(or a Mesh with warptube:extract = true)"
+            )
+        for f in self.forces:
+            if not (0 <= f.tube < len(self.tubes)):
+                raise SceneError(f"force {f.path}: target tube index {f.tube} out of range")
+            n = len(self.tubes[f.tube].points)
+            if not (0 <= f.point < n):
+                raise SceneError(
+                    f"force {f.path}: warptube:point {f.point}: expected an index 0..{n - 1} of "
+                    f"{self.tubes[f.tube].path}.points"
+                )
