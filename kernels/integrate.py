@@ -1,0 +1,426 @@
+"""Semi-implicit Euler integration of the centerline, specialised to a scene's features.
+
+:func:`make_kernels` builds, for one combination of :class:`Features`, two kernels that share the
+same force functions:
+
+- ``substeps``: one thread per (world, tube) runs a whole frame's substeps in a loop, with no
+  round trip to Python between them (the CPU path: a launch costs ~15 us there, a substep of a
+  20-point tube well under that).
+- ``step_nodes`` (+ ``step_al``, ``targets``): one thread per (world, node) advances one substep
+  from ``*_in`` to ``*_out`` (the GPU path; the host captures a frame's substeps in a graph).
+
+Features a scene does not use are compiled out with ``wp.static``: a straight tube with no anchors,
+gravity, damping or assistant line evaluates only its structural and bending springs.
+
+Update per substep (mass-proportional damping ``alpha`` taken implicitly, so it never limits the
+time step)::
+
+    v' = (v + dt * f / m) / (1 + alpha * dt)        x' = x + dt * v'
+
+Pinned nodes (inverse mass 0) follow their targets, interpolated linearly over the frame from
+``pin_q_start`` to ``pin_q_end``; their velocity is the target's.
+"""
+
+from __future__ import annotations
+
+import functools
+from typing import NamedTuple
+
+import warp as wp
+
+from .springs import bend_force_on, curvature_targets, spring_force
+
+
+class Features(NamedTuple):
+    """Which terms a scene uses; each False term is compiled out."""
+
+    bending: bool = True
+    curved: bool = False
+    anchors: bool = False
+    gravity: bool = False
+    mass_damping: bool = False
+    spring_damping: bool = False
+    external: bool = False
+    assistant_line: bool = False
+
+
+@functools.cache
+def make_kernels(features: Features):
+    """Kernels specialised to ``features``; cached, so each combination compiles once."""
+    BENDING = features.bending
+    CURVED = features.curved
+    ANCHORS = features.anchors
+    GRAVITY = features.gravity
+    MASS_DAMPING = features.mass_damping
+    SPRING_DAMPING = features.spring_damping
+    EXTERNAL = features.external
+    AL = features.assistant_line
+
+    @wp.func
+    def node_force(
+        w: int,
+        pw: int,
+        i: int,
+        start: int,
+        end: int,
+        t: int,
+        # model:
+        node_rest_q: wp.array2d[wp.vec3],
+        node_mass: wp.array2d[float],
+        seg_rest_length: wp.array2d[float],
+        seg_ke: wp.array2d[float],
+        seg_kd: wp.array2d[float],
+        node_bend_k: wp.array2d[float],
+        node_anchor_k: wp.array2d[float],
+        node_anchor_kd: wp.array2d[float],
+        gravity: wp.vec3,
+        tube_force_start: wp.array[int],
+        force_node: wp.array[int],
+        al_start: wp.array[int],
+        # state in:
+        node_q: wp.array2d[wp.vec3],
+        node_qd: wp.array2d[wp.vec3],
+        node_kappa_target: wp.array2d[wp.vec3],
+        al_q: wp.array2d[wp.vec3],
+        al_qd: wp.array2d[wp.vec3],
+        # control:
+        node_f_ext: wp.array2d[wp.vec3],
+        al_active: wp.array2d[int],
+        al_link_length: wp.array2d[float],
+        al_fwd_length: wp.array2d[float],
+        al_bwd_length: wp.array2d[float],
+    ) -> wp.vec3:
+        """Total force on node ``i`` of world ``w`` [N]."""
+        x = node_q[w, i]
+        v = node_qd[w, i]
+        f = wp.vec3(0.0)
+        # Structural springs: segment i-1 (node i is its end b) and segment i (its end a).
+        if i > start:
+            kd = float(0.0)
+            if wp.static(SPRING_DAMPING):
+                kd = seg_kd[pw, i - 1]
+            f += spring_force(x, node_q[w, i - 1], v, node_qd[w, i - 1], seg_rest_length[pw, i - 1], seg_ke[pw, i - 1], kd)
+        if i < end - 1:
+            kd = float(0.0)
+            if wp.static(SPRING_DAMPING):
+                kd = seg_kd[pw, i]
+            f += spring_force(x, node_q[w, i + 1], v, node_qd[w, i + 1], seg_rest_length[pw, i], seg_ke[pw, i], kd)
+        if wp.static(BENDING):
+            # Stencils centred on i-1, i and i+1 (interior nodes only).
+            if i - 1 > start:
+                f += bend_force_on(i - 1, 1, pw, w, node_q, node_bend_k, node_kappa_target)
+            if i > start and i < end - 1:
+                f += bend_force_on(i, 0, pw, w, node_q, node_bend_k, node_kappa_target)
+            if i + 1 < end - 1:
+                f += bend_force_on(i + 1, -1, pw, w, node_q, node_bend_k, node_kappa_target)
+        if wp.static(ANCHORS):
+            ka = node_anchor_k[pw, i]
+            if ka > 0.0:
+                f -= (x - node_rest_q[pw, i]) * ka + v * node_anchor_kd[pw, i]
+        if wp.static(GRAVITY):
+            f += gravity * node_mass[pw, i]
+        if wp.static(EXTERNAL):
+            f += node_f_ext[w, i]
+        if wp.static(AL):
+            # Links P_i - P_i' and the tractive springs that end on P_i (see step_al).
+            for a in range(tube_force_start[t], tube_force_start[t + 1]):
+                if al_active[w, a] != 0:
+                    p = al_start[a] + (i - start)
+                    k = force_node[a]
+                    s = wp.min(i, end - 2)
+                    kd = float(0.0)
+                    if wp.static(SPRING_DAMPING):
+                        kd = seg_kd[pw, s]
+                    f += spring_force(x, al_q[w, p], v, al_qd[w, p], al_link_length[w, p], seg_ke[pw, s], kd)
+                    if i > k:
+                        f += spring_force(x, al_q[w, p - 1], v, al_qd[w, p - 1], al_fwd_length[w, p - 1], seg_ke[pw, i - 1], kd)
+                    if i < k:
+                        f += spring_force(x, al_q[w, p + 1], v, al_qd[w, p + 1], al_bwd_length[w, p + 1], seg_ke[pw, i], kd)
+        return f
+
+    @wp.func
+    def al_force(
+        w: int,
+        pw: int,
+        a: int,
+        p: int,
+        i: int,
+        start: int,
+        end: int,
+        # model:
+        seg_ke: wp.array2d[float],
+        seg_kd: wp.array2d[float],
+        force_node: wp.array[int],
+        # state in:
+        node_q: wp.array2d[wp.vec3],
+        node_qd: wp.array2d[wp.vec3],
+        al_q: wp.array2d[wp.vec3],
+        al_qd: wp.array2d[wp.vec3],
+        # control:
+        al_link_length: wp.array2d[float],
+        al_chord_length: wp.array2d[float],
+        al_fwd_length: wp.array2d[float],
+        al_bwd_length: wp.array2d[float],
+    ) -> wp.vec3:
+        """Force on assistant-line point P_i' (AL slot ``p`` of force ``a``) [N].
+
+        P_i' is linked to P_i, to its neighbours P_{i-1}', P_{i+1}' (the offset copy of the
+        centerline's structural springs), and by a tractive spring to P_{i+1} when i >= k and to
+        P_{i-1} when i <= k, k being the force's point (section 2.2 of the seed paper). Each spring
+        has the axial stiffness of the centerline segment beside it.
+        """
+        x = al_q[w, p]
+        v = al_qd[w, p]
+        k = force_node[a]
+        s = wp.min(i, end - 2)
+        kd_link = float(0.0)
+        if wp.static(SPRING_DAMPING):
+            kd_link = seg_kd[pw, s]
+        f = spring_force(x, node_q[w, i], v, node_qd[w, i], al_link_length[w, p], seg_ke[pw, s], kd_link)
+        if i > start:
+            kd = float(0.0)
+            if wp.static(SPRING_DAMPING):
+                kd = seg_kd[pw, i - 1]
+            f += spring_force(x, al_q[w, p - 1], v, al_qd[w, p - 1], al_chord_length[w, p - 1], seg_ke[pw, i - 1], kd)
+            if i <= k:
+                f += spring_force(x, node_q[w, i - 1], v, node_qd[w, i - 1], al_bwd_length[w, p], seg_ke[pw, i - 1], kd)
+        if i < end - 1:
+            kd = float(0.0)
+            if wp.static(SPRING_DAMPING):
+                kd = seg_kd[pw, i]
+            f += spring_force(x, al_q[w, p + 1], v, al_qd[w, p + 1], al_chord_length[w, p], seg_ke[pw, i], kd)
+            if i >= k:
+                f += spring_force(x, node_q[w, i + 1], v, node_qd[w, i + 1], al_fwd_length[w, p], seg_ke[pw, i], kd)
+        return f
+
+    @wp.func
+    def advance(x: wp.vec3, v: wp.vec3, f: wp.vec3, inv_mass: float, alpha: float, dt: float):
+        """Semi-implicit Euler with implicit mass-proportional damping; returns (x', v')."""
+        v_new = v + f * (inv_mass * dt)
+        if wp.static(MASS_DAMPING):
+            v_new = v_new / (1.0 + alpha * dt)
+        return x + v_new * dt, v_new
+
+    @wp.kernel(enable_backward=False, module="unique")
+    def substeps(
+        substep_count: int,
+        dt: float,
+        # model:
+        tube_node_start: wp.array[int],
+        node_rest_q: wp.array2d[wp.vec3],
+        node_mass: wp.array2d[float],
+        node_inv_mass: wp.array2d[float],
+        node_damping: wp.array2d[float],
+        seg_rest_length: wp.array2d[float],
+        seg_ke: wp.array2d[float],
+        seg_kd: wp.array2d[float],
+        node_bend_k: wp.array2d[float],
+        node_kappa_rest: wp.array2d[wp.vec3],
+        node_anchor_k: wp.array2d[float],
+        node_anchor_kd: wp.array2d[float],
+        gravity: wp.vec3,
+        tube_force_start: wp.array[int],
+        force_node: wp.array[int],
+        al_start: wp.array[int],
+        # state in:
+        node_q_in: wp.array2d[wp.vec3],
+        node_qd_in: wp.array2d[wp.vec3],
+        al_q_in: wp.array2d[wp.vec3],
+        al_qd_in: wp.array2d[wp.vec3],
+        # control:
+        node_f_ext: wp.array2d[wp.vec3],
+        pin_q_start: wp.array2d[wp.vec3],
+        pin_q_end: wp.array2d[wp.vec3],
+        al_active: wp.array2d[int],
+        al_link_length: wp.array2d[float],
+        al_chord_length: wp.array2d[float],
+        al_fwd_length: wp.array2d[float],
+        al_bwd_length: wp.array2d[float],
+        # scratch:
+        node_f: wp.array2d[wp.vec3],
+        al_f: wp.array2d[wp.vec3],
+        node_kappa_target: wp.array2d[wp.vec3],
+        # out:
+        node_q_out: wp.array2d[wp.vec3],
+        node_qd_out: wp.array2d[wp.vec3],
+        al_q_out: wp.array2d[wp.vec3],
+        al_qd_out: wp.array2d[wp.vec3],
+    ):
+        """Advance one tube of one world by ``substep_count`` substeps of ``dt`` [s]."""
+        w, t = wp.tid()
+        pw = w % node_mass.shape[0]
+        start = tube_node_start[t]
+        end = tube_node_start[t + 1]
+        for i in range(start, end):
+            node_q_out[w, i] = node_q_in[w, i]
+            node_qd_out[w, i] = node_qd_in[w, i]
+        if wp.static(AL):
+            for a in range(tube_force_start[t], tube_force_start[t + 1]):
+                for p in range(al_start[a], al_start[a] + end - start):
+                    al_q_out[w, p] = al_q_in[w, p]
+                    al_qd_out[w, p] = al_qd_in[w, p]
+        for step in range(substep_count):
+            frac = float(step + 1) / float(substep_count)
+            if wp.static(CURVED):
+                curvature_targets(w, pw, start, end, node_q_out, node_rest_q, node_kappa_rest, node_kappa_target)
+            for i in range(start, end):
+                node_f[w, i] = node_force(
+                    w, pw, i, start, end, t,
+                    node_rest_q, node_mass, seg_rest_length, seg_ke, seg_kd, node_bend_k,
+                    node_anchor_k, node_anchor_kd, gravity, tube_force_start, force_node, al_start,
+                    node_q_out, node_qd_out, node_kappa_target, al_q_out, al_qd_out,
+                    node_f_ext, al_active, al_link_length, al_fwd_length, al_bwd_length,
+                )  # fmt: skip
+            if wp.static(AL):
+                for a in range(tube_force_start[t], tube_force_start[t + 1]):
+                    if al_active[w, a] != 0:
+                        for i in range(start, end):
+                            p = al_start[a] + (i - start)
+                            al_f[w, p] = al_force(
+                                w, pw, a, p, i, start, end, seg_ke, seg_kd, force_node,
+                                node_q_out, node_qd_out, al_q_out, al_qd_out,
+                                al_link_length, al_chord_length, al_fwd_length, al_bwd_length,
+                            )  # fmt: skip
+            for i in range(start, end):
+                im = node_inv_mass[pw, i]
+                if im == 0.0:
+                    x_new = wp.lerp(pin_q_start[w, i], pin_q_end[w, i], frac)
+                    node_qd_out[w, i] = (x_new - node_q_out[w, i]) / dt
+                    node_q_out[w, i] = x_new
+                else:
+                    x_new, v_new = advance(node_q_out[w, i], node_qd_out[w, i], node_f[w, i], im, node_damping[pw, i], dt)
+                    node_q_out[w, i] = x_new
+                    node_qd_out[w, i] = v_new
+            if wp.static(AL):
+                for a in range(tube_force_start[t], tube_force_start[t + 1]):
+                    if al_active[w, a] != 0:
+                        for i in range(start, end):
+                            p = al_start[a] + (i - start)
+                            x_new, v_new = advance(al_q_out[w, p], al_qd_out[w, p], al_f[w, p], 1.0 / node_mass[pw, i], node_damping[pw, i], dt)
+                            al_q_out[w, p] = x_new
+                            al_qd_out[w, p] = v_new
+
+    @wp.kernel(enable_backward=False, module="unique")
+    def targets(
+        # model:
+        tube_node_start: wp.array[int],
+        node_rest_q: wp.array2d[wp.vec3],
+        node_kappa_rest: wp.array2d[wp.vec3],
+        # state in:
+        node_q: wp.array2d[wp.vec3],
+        # out:
+        node_kappa_target: wp.array2d[wp.vec3],
+    ):
+        """Curvature targets of curved rest shapes, one thread per (world, tube)."""
+        w, t = wp.tid()
+        pw = w % node_rest_q.shape[0]
+        curvature_targets(w, pw, tube_node_start[t], tube_node_start[t + 1], node_q, node_rest_q, node_kappa_rest, node_kappa_target)
+
+    @wp.kernel(enable_backward=False, module="unique")
+    def step_nodes(
+        frac: float,
+        dt: float,
+        # model:
+        node_tube: wp.array[int],
+        tube_node_start: wp.array[int],
+        node_rest_q: wp.array2d[wp.vec3],
+        node_mass: wp.array2d[float],
+        node_inv_mass: wp.array2d[float],
+        node_damping: wp.array2d[float],
+        seg_rest_length: wp.array2d[float],
+        seg_ke: wp.array2d[float],
+        seg_kd: wp.array2d[float],
+        node_bend_k: wp.array2d[float],
+        node_anchor_k: wp.array2d[float],
+        node_anchor_kd: wp.array2d[float],
+        gravity: wp.vec3,
+        tube_force_start: wp.array[int],
+        force_node: wp.array[int],
+        al_start: wp.array[int],
+        # state in:
+        node_q_in: wp.array2d[wp.vec3],
+        node_qd_in: wp.array2d[wp.vec3],
+        node_kappa_target: wp.array2d[wp.vec3],
+        al_q_in: wp.array2d[wp.vec3],
+        al_qd_in: wp.array2d[wp.vec3],
+        # control:
+        node_f_ext: wp.array2d[wp.vec3],
+        pin_q_start: wp.array2d[wp.vec3],
+        pin_q_end: wp.array2d[wp.vec3],
+        al_active: wp.array2d[int],
+        al_link_length: wp.array2d[float],
+        al_fwd_length: wp.array2d[float],
+        al_bwd_length: wp.array2d[float],
+        # out:
+        node_q_out: wp.array2d[wp.vec3],
+        node_qd_out: wp.array2d[wp.vec3],
+    ):
+        """One substep of ``dt`` [s] for one node; ``frac`` is the pin targets' progress."""
+        w, i = wp.tid()
+        pw = w % node_mass.shape[0]
+        im = node_inv_mass[pw, i]
+        if im == 0.0:
+            x_new = wp.lerp(pin_q_start[w, i], pin_q_end[w, i], frac)
+            node_qd_out[w, i] = (x_new - node_q_in[w, i]) / dt
+            node_q_out[w, i] = x_new
+            return
+        t = node_tube[i]
+        f = node_force(
+            w, pw, i, tube_node_start[t], tube_node_start[t + 1], t,
+            node_rest_q, node_mass, seg_rest_length, seg_ke, seg_kd, node_bend_k,
+            node_anchor_k, node_anchor_kd, gravity, tube_force_start, force_node, al_start,
+            node_q_in, node_qd_in, node_kappa_target, al_q_in, al_qd_in,
+            node_f_ext, al_active, al_link_length, al_fwd_length, al_bwd_length,
+        )  # fmt: skip
+        x_new, v_new = advance(node_q_in[w, i], node_qd_in[w, i], f, im, node_damping[pw, i], dt)
+        node_q_out[w, i] = x_new
+        node_qd_out[w, i] = v_new
+
+    @wp.kernel(enable_backward=False, module="unique")
+    def step_al(
+        dt: float,
+        # model:
+        force_tube: wp.array[int],
+        tube_node_start: wp.array[int],
+        node_mass: wp.array2d[float],
+        node_damping: wp.array2d[float],
+        seg_ke: wp.array2d[float],
+        seg_kd: wp.array2d[float],
+        force_node: wp.array[int],
+        al_start: wp.array[int],
+        al_force_index: wp.array[int],
+        # state in:
+        node_q_in: wp.array2d[wp.vec3],
+        node_qd_in: wp.array2d[wp.vec3],
+        al_q_in: wp.array2d[wp.vec3],
+        al_qd_in: wp.array2d[wp.vec3],
+        # control:
+        al_active: wp.array2d[int],
+        al_link_length: wp.array2d[float],
+        al_chord_length: wp.array2d[float],
+        al_fwd_length: wp.array2d[float],
+        al_bwd_length: wp.array2d[float],
+        # out:
+        al_q_out: wp.array2d[wp.vec3],
+        al_qd_out: wp.array2d[wp.vec3],
+    ):
+        """One substep for one assistant-line point (thread per (world, AL slot))."""
+        w, p = wp.tid()
+        a = al_force_index[p]
+        if al_active[w, a] == 0:
+            return
+        pw = w % node_mass.shape[0]
+        t = force_tube[a]
+        start = tube_node_start[t]
+        end = tube_node_start[t + 1]
+        i = start + (p - al_start[a])
+        f = al_force(
+            w, pw, a, p, i, start, end, seg_ke, seg_kd, force_node,
+            node_q_in, node_qd_in, al_q_in, al_qd_in,
+            al_link_length, al_chord_length, al_fwd_length, al_bwd_length,
+        )  # fmt: skip
+        x_new, v_new = advance(al_q_in[w, p], al_qd_in[w, p], f, 1.0 / node_mass[pw, i], node_damping[pw, i], dt)
+        al_q_out[w, p] = x_new
+        al_qd_out[w, p] = v_new
+
+    return substeps, targets, step_nodes, step_al

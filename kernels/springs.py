@@ -1,0 +1,145 @@
+"""Forces of the deformable centerline, as `wp.func`s that gather onto one node.
+
+Every force a node feels is computed from its own neighbourhood (two nodes either side), so a
+node's force is one function call and no atomics are needed: the per-tube substep kernel and the
+per-node kernel of :mod:`warp_tube.kernels.integrate` share these functions.
+
+Array conventions (see ``warp_tube.model.TubeModel``): nodes of all tubes of one world are
+concatenated; state arrays are (world_count, node_count); parameter arrays are
+(1 or world_count, node_count) and read at row ``pw = w % rows``. Segment ``i`` joins node ``i``
+to node ``i + 1`` of the same tube. Units: m, kg, s, N.
+"""
+
+import warp as wp
+
+EPS = wp.constant(1.0e-12)
+
+
+@wp.func
+def spring_force(
+    xa: wp.vec3, xb: wp.vec3, va: wp.vec3, vb: wp.vec3, rest_length: float, ke: float, kd: float
+) -> wp.vec3:
+    """Force on end ``a`` of a spring from ``a`` to ``b`` [N].
+
+    Hookean along the spring, ``ke * (|d| - L)`` with ``d = xb - xa``, plus damping along it,
+    ``kd * (vb - va) . d_hat``. A zero-length spring exerts no force (no direction to push along).
+    """
+    d = xb - xa
+    length = wp.length(d)
+    if length < EPS:
+        return wp.vec3(0.0)
+    n = d / length
+    return n * (ke * (length - rest_length) + kd * wp.dot(vb - va, n))
+
+
+@wp.func
+def curvature_binormal(a: wp.vec3, b: wp.vec3) -> wp.vec3:
+    """Discrete curvature binormal ``2 a x b / (|a||b| + a.b)`` of edges ``a``, ``b`` [1].
+
+    Its length is ``2 tan(phi / 2)`` for the turning angle ``phi`` between the edges.
+    """
+    la = wp.length(a)
+    lb = wp.length(b)
+    den = wp.max(la * lb + wp.dot(a, b), 1.0e-6 * la * lb + EPS)
+    return wp.cross(a, b) * (2.0 / den)
+
+
+@wp.func
+def bend_gradients(a: wp.vec3, b: wp.vec3, g: wp.vec3):
+    """Transposed Jacobians of the curvature binormal applied to ``g``.
+
+    For ``kb = 2 a x b / D`` with ``D = |a||b| + a.b`` returns ``(dkb/da)^T g`` and
+    ``(dkb/db)^T g``; the bending force on the stencil nodes (prev, mid, next) is then
+    ``(+ga, gb - ga, -gb)`` for ``g = dE/dkb``.
+    """
+    la = wp.length(a)
+    lb = wp.length(b)
+    den = wp.max(la * lb + wp.dot(a, b), 1.0e-6 * la * lb + EPS)
+    kb = wp.cross(a, b) * (2.0 / den)
+    kg = wp.dot(kb, g)
+    ga = (2.0 * wp.cross(b, g) - kg * (a * (lb / wp.max(la, EPS)) + b)) / den
+    gb = (-2.0 * wp.cross(a, g) - kg * (b * (la / wp.max(lb, EPS)) + a)) / den
+    return ga, gb
+
+
+@wp.func
+def bend_force_on(
+    j: int,
+    role: int,
+    pw: int,
+    w: int,
+    node_q: wp.array2d[wp.vec3],
+    node_bend_k: wp.array2d[float],
+    node_kappa_target: wp.array2d[wp.vec3],
+):
+    """Force [N] that the bending stencil centred on node ``j`` puts on its node ``j + role``.
+
+    ``role`` is -1 (previous), 0 (centre) or +1 (next). The stencil's energy is
+    ``E = k/2 |kb - kb_target|^2`` with ``k = node_bend_k = EI / l_voronoi`` [N m].
+    """
+    k = node_bend_k[pw, j]
+    if k == 0.0:
+        return wp.vec3(0.0)
+    a = node_q[w, j] - node_q[w, j - 1]
+    b = node_q[w, j + 1] - node_q[w, j]
+    g = (curvature_binormal(a, b) - node_kappa_target[w % node_kappa_target.shape[0], j]) * k
+    ga, gb = bend_gradients(a, b, g)
+    if role < 0:
+        return ga
+    if role > 0:
+        return -gb
+    return gb - ga
+
+
+@wp.func
+def rotate_minimal(x: wp.vec3, a: wp.vec3, b: wp.vec3) -> wp.vec3:
+    """Rotate ``x`` by the least rotation taking unit vector ``a`` to unit vector ``b``.
+
+    Rodrigues with ``v = a x b``, ``c = a . b``: ``x + v x x + v x (v x x) / (1 + c)``. Near a half
+    turn (``c -> -1``) the least rotation is not unique; ``1 + c`` is floored so the result stays
+    finite.
+    """
+    v = wp.cross(a, b)
+    c = wp.dot(a, b)
+    vx = wp.cross(v, x)
+    return x + vx + wp.cross(v, vx) / wp.max(1.0 + c, 1.0e-6)
+
+
+@wp.func
+def curvature_targets(
+    w: int,
+    pw: int,
+    start: int,
+    end: int,
+    node_q: wp.array2d[wp.vec3],
+    node_rest_q: wp.array2d[wp.vec3],
+    node_kappa_rest: wp.array2d[wp.vec3],
+    node_kappa_target_out: wp.array2d[wp.vec3],
+):
+    """Rest curvature of each interior node of one tube, carried into the current shape.
+
+    The rest curvature binormal of node ``j`` is stored in the rest twist-free (Bishop) frame of
+    edge ``j - 1`` as ``node_kappa_rest`` = (along tangent, along u, along v). The current Bishop
+    frame is carried from the first edge (least rotation of its rest direction onto its current
+    one) edge to edge by least rotations, and the target is rebuilt in it. A straight rest tube has
+    zero targets and never calls this.
+    """
+    t_rest = wp.normalize(node_rest_q[pw, start + 1] - node_rest_q[pw, start])
+    t = wp.normalize(node_q[w, start + 1] - node_q[w, start])
+    # Rest frame of the first edge: any fixed perpendicular pair; the stored coordinates use the
+    # same construction (warp_tube.model), so only consistency matters.
+    u_rest = wp.vec3(1.0, 0.0, 0.0)
+    if wp.abs(t_rest[0]) > 0.6:
+        u_rest = wp.vec3(0.0, 1.0, 0.0)
+    u_rest = wp.normalize(u_rest - t_rest * wp.dot(u_rest, t_rest))
+    u = rotate_minimal(u_rest, t_rest, t)
+    node_kappa_target_out[w, start] = wp.vec3(0.0)
+    node_kappa_target_out[w, end - 1] = wp.vec3(0.0)
+    for j in range(start + 1, end - 1):
+        c = node_kappa_rest[pw, j]
+        v = wp.cross(t, u)
+        node_kappa_target_out[w, j] = t * c[0] + u * c[1] + v * c[2]
+        t_next = wp.normalize(node_q[w, j + 1] - node_q[w, j])
+        u = rotate_minimal(u, t, t_next)
+        u = wp.normalize(u - t_next * wp.dot(u, t_next))
+        t = t_next

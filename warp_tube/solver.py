@@ -1,0 +1,119 @@
+"""Solvers: launch order and scratch allocation for the centerline kernels.
+
+``solver.step(state_in, state_out, control, dt)`` advances one substep;
+``solver.integrate(state_in, state_out, control, dt, substeps)`` advances a whole frame. On the
+CPU a frame is a single launch of the per-tube substep kernel; on CUDA it is ``substeps``
+per-node launches, captured once into a graph and replayed.
+"""
+
+from __future__ import annotations
+
+import warp as wp
+
+from warp_tube.kernels.integrate import make_kernels
+
+from .model import TubeControl, TubeModel, TubeState
+
+__all__ = ["SemiImplicitEulerSolver"]
+
+
+class SemiImplicitEulerSolver:
+    """Semi-implicit (symplectic) Euler, specialised to the model's features.
+
+    Args:
+        model: the discretised scene.
+        per_node: use the per-node kernel (default: on CUDA devices); else the per-tube loop.
+    """
+
+    name = "semiImplicitEuler"
+
+    def __init__(self, model: TubeModel, per_node: bool | None = None):
+        self.model = model
+        self.device = wp.get_device(model.device)
+        self.per_node = self.device.is_cuda if per_node is None else per_node
+        self.substeps_kernel, self.targets_kernel, self.step_kernel, self.al_kernel = make_kernels(model.features)
+        W, N = model.world_count, model.node_count
+        slots = max(model.al_slots, 1)
+        self._node_f = wp.zeros((W, N), dtype=wp.vec3, device=self.device)
+        self._al_f = wp.zeros((W, slots), dtype=wp.vec3, device=self.device)
+        rows = W if model.features.curved else 1
+        self._kappa_target = wp.zeros((rows, N), dtype=wp.vec3, device=self.device)
+        self._tmp = model.state() if self.per_node else None
+        self._graphs = {}
+
+    # -- one substep on the per-node path ------------------------------------------------------
+    def _launch_step(self, s_in: TubeState, s_out: TubeState, c: TubeControl, dt: float, frac: float):
+        m = self.model
+        if m.features.curved:
+            wp.launch(self.targets_kernel, (m.world_count, m.tube_count), device=self.device,
+                      inputs=[m.tube_node_start, m.node_rest_q, m.node_kappa_rest, s_in.node_q],
+                      outputs=[self._kappa_target])  # fmt: skip
+        wp.launch(
+            self.step_kernel, (m.world_count, m.node_count), device=self.device,
+            inputs=[frac, dt, m.node_tube, m.tube_node_start, m.node_rest_q, m.node_mass, m.node_inv_mass,
+                    m.node_damping, m.seg_rest_length, m.seg_ke, m.seg_kd, m.node_bend_k, m.node_anchor_k,
+                    m.node_anchor_kd, m.gravity, m.tube_force_start, m.force_node, m.al_start,
+                    s_in.node_q, s_in.node_qd, self._kappa_target, s_in.al_q, s_in.al_qd,
+                    c.node_f_ext, c.pin_q_start, c.pin_q_end, c.al_active, c.al_link_length,
+                    c.al_fwd_length, c.al_bwd_length],
+            outputs=[s_out.node_q, s_out.node_qd],
+        )  # fmt: skip
+        if m.features.assistant_line:
+            wp.launch(
+                self.al_kernel, (m.world_count, m.al_slots), device=self.device,
+                inputs=[dt, m.force_tube, m.tube_node_start, m.node_mass, m.node_damping, m.seg_ke, m.seg_kd,
+                        m.force_node, m.al_start, m.al_force_index, s_in.node_q, s_in.node_qd, s_in.al_q,
+                        s_in.al_qd, c.al_active, c.al_link_length, c.al_chord_length, c.al_fwd_length,
+                        c.al_bwd_length],
+                outputs=[s_out.al_q, s_out.al_qd],
+            )  # fmt: skip
+
+    def _launch_substeps(self, s_in: TubeState, s_out: TubeState, c: TubeControl, dt: float, substeps: int):
+        m = self.model
+        wp.launch(
+            self.substeps_kernel, (m.world_count, m.tube_count), device=self.device,
+            inputs=[int(substeps), dt, m.tube_node_start, m.node_rest_q, m.node_mass, m.node_inv_mass,
+                    m.node_damping, m.seg_rest_length, m.seg_ke, m.seg_kd, m.node_bend_k, m.node_kappa_rest,
+                    m.node_anchor_k, m.node_anchor_kd, m.gravity, m.tube_force_start, m.force_node, m.al_start,
+                    s_in.node_q, s_in.node_qd, s_in.al_q, s_in.al_qd,
+                    c.node_f_ext, c.pin_q_start, c.pin_q_end, c.al_active, c.al_link_length,
+                    c.al_chord_length, c.al_fwd_length, c.al_bwd_length,
+                    self._node_f, self._al_f, self._kappa_target],
+            outputs=[s_out.node_q, s_out.node_qd, s_out.al_q, s_out.al_qd],
+        )  # fmt: skip
+
+    def step(self, state_in: TubeState, state_out: TubeState, control: TubeControl, dt: float):
+        """Advance one substep of ``dt`` [s]; pins reach ``control.pin_q_end``."""
+        self.integrate(state_in, state_out, control, dt, 1)
+
+    def integrate(self, state_in: TubeState, state_out: TubeState, control: TubeControl, dt: float, substeps: int):
+        """Advance ``substeps`` substeps of ``dt`` [s] from ``state_in`` into ``state_out``.
+
+        ``state_in`` is left unchanged; pins move linearly from ``control.pin_q_start`` to
+        ``control.pin_q_end`` over the interval.
+        """
+        if not self.per_node:
+            self._launch_substeps(state_in, state_out, control, float(dt), int(substeps))
+            return
+        key = (id(state_in), id(state_out), id(control), float(dt), int(substeps))
+        graph = self._graphs.get(key)
+        if graph is not None:
+            wp.capture_launch(graph)
+            return
+        use_graph = self.device.is_cuda and wp.is_mempool_enabled(self.device) is not None
+        if use_graph:
+            with wp.ScopedCapture(self.device) as cap:
+                self._chain(state_in, state_out, control, dt, substeps)
+            if len(self._graphs) > 16:
+                self._graphs.clear()
+            self._graphs[key] = cap.graph
+            wp.capture_launch(cap.graph)
+        else:
+            self._chain(state_in, state_out, control, dt, substeps)
+
+    def _chain(self, state_in, state_out, control, dt, substeps):
+        src = state_in
+        for s in range(substeps):
+            dst = state_out if (substeps - s) % 2 == 1 else self._tmp
+            self._launch_step(src, dst, control, float(dt), float(s + 1) / float(substeps))
+            src = dst
