@@ -1,0 +1,211 @@
+"""Boundary points and normals of the hubs-and-spokes surface (Warp), one thread per spoke.
+
+A ring is a set of ``S`` spokes leaving one hub at the same angle ``theta`` to the hub tangent
+(see :mod:`warp_tube.topology` for the ring table): body rings at 90 degrees, cap rings at smaller
+angles to the outward axis, and a cap's pole (one vertex, on the axis). Spoke ``j`` of a ring
+points along::
+
+    d_j = cos(theta) t + sin(theta) u_j,    u_j = cos(phi_j) r + sin(phi_j) s,    phi_j = 2 pi j / S
+
+with ``(t, r, s = t x r)`` the hub's frame (:mod:`warp_tube.kernels.frames`); its end is
+``x + L d_j`` with ``L`` the spoke's length (a pole: the mean of the hub's spoke lengths).
+
+Normals are those of the smooth surface ``p(s, phi) = x(s) + L(s, phi) u(s, phi)`` that the spokes
+sample, with the frame carried without twist (so ``du/ds = -(kappa . u) t``)::
+
+    n ~ d - (L_phi / (L sin theta)) (t x u) - [body rings] (L_s / (1 - L kappa . u)) t
+
+where ``L_phi`` is the central difference of the (guarded) lengths of the neighbouring spokes of
+the ring, ``L_s`` the difference of the given lengths of the neighbouring hubs over their chord
+lengths (one-sided at a tube's ends), ``kappa = (e1/|e1| - e0/|e0|) / l_v`` the hub's curvature
+vector (exact, ``1 / rho`` towards the centre, on a circle; zero at the ends) and ``1 - L kappa . u``
+is floored at :data:`MIN_STRETCH`. For a circular tube this is exactly the spoke direction ``u``.
+
+Inner-bend guard. Where ``radius x curvature`` approaches 1, inner spokes reach the centre of
+curvature, where the neighbouring rings' planes cross their own: past it, rings would cross and the
+surface would fold through itself. With ``guard_reach = g > 0``, each spoke's length is limited so
+that its end stays at most the fraction ``g`` of the way, along the spoke, to the plane of either
+neighbouring ring (the plane through a neighbour hub normal to its tangent) where the spoke heads
+into that plane: ``L <= g ((x_k - x) . t_k) / (d . t_k)`` for ``k = i - 1, i + 1`` when the quotient
+is positive. On a circular arc all ring planes meet in the arc's axis (through the centre of
+curvature), so every ring stays in its own half-plane: rings never touch, and the strips between
+consecutive rings lie in disjoint wedges, so the surface has no self-intersection at any bend.
+Cost in shape: where it acts the inner side of a ring is cut flat along a straight chord at
+distance ``g rho`` from the hub (``rho`` the bend radius), parallel to the bend axis, so the
+cross-section loses the circular segment beyond that chord and the inner wall becomes a thin
+surface of revolution of radius ``(1 - g) rho`` around the bend axis. On a circular tube it acts
+only where ``radius x curvature > g`` (for the innermost spoke); below that the surface is exact.
+It costs three plane tests per spoke.
+"""
+
+import warp as wp
+
+from .frames import safe_normalize
+
+RING_BODY = wp.constant(0)
+RING_CAP = wp.constant(1)
+RING_POLE = wp.constant(2)
+MIN_STRETCH = wp.constant(1.0e-2)
+"""Floor of ``1 - L kappa . u`` (the surface's stretch along the tube at a spoke end) in normals."""
+
+
+@wp.func
+def guarded_length(
+    length: float, d: wp.vec3, x: wp.vec3, x_k: wp.vec3, t_k: wp.vec3, guard_reach: float
+) -> float:
+    """Spoke length limited so its end stays ``guard_reach`` of the way to neighbour ``k``'s plane.
+
+    ``x``: the spoke's hub; ``d``: its unit direction; ``x_k``, ``t_k``: the neighbour hub and its
+    unit tangent. Returns ``length`` unchanged where the spoke does not head into that plane.
+    """
+    num = wp.dot(x_k - x, t_k)
+    den = wp.dot(d, t_k)
+    if num * den > 0.0:
+        return wp.min(length, guard_reach * num / den)
+    return length
+
+
+@wp.func
+def spoke_length_at(
+    length: float,
+    d: wp.vec3,
+    x: wp.vec3,
+    has_prev: int,
+    x_prev: wp.vec3,
+    t_prev: wp.vec3,
+    has_next: int,
+    x_next: wp.vec3,
+    t_next: wp.vec3,
+    guard_reach: float,
+) -> float:
+    """Spoke length [length unit] after the inner-bend guard against both neighbouring rings."""
+    out = length
+    if guard_reach > 0.0:
+        if has_prev != 0:
+            out = guarded_length(out, d, x, x_prev, t_prev, guard_reach)
+        if has_next != 0:
+            out = guarded_length(out, d, x, x_next, t_next, guard_reach)
+    return out
+
+
+@wp.kernel(enable_backward=False)
+def spoke_points_kernel(
+    # model:
+    node_offset: int,
+    spoke_count: int,
+    guard_reach: float,
+    tube_node_start: wp.array[wp.int32],
+    node_tube: wp.array[wp.int32],
+    ring_hub: wp.array[wp.int32],
+    ring_kind: wp.array[wp.int32],
+    ring_cos: wp.array[float],
+    ring_sin: wp.array[float],
+    ring_vertex: wp.array[wp.int32],
+    spoke_length: wp.array3d[float],
+    # state in:
+    node_q: wp.array2d[wp.vec3],
+    hub_t: wp.array2d[wp.vec3],
+    hub_r: wp.array2d[wp.vec3],
+    # out:
+    surface_q_out: wp.array2d[wp.vec3],
+    surface_n_out: wp.array2d[wp.vec3],
+):
+    """Write one spoke's boundary point and unit normal; one thread per (world, ring, spoke).
+
+    Args:
+        node_offset: column of ``node_q`` holding hub 0.
+        spoke_count: spokes per ring, S.
+        guard_reach: inner-bend guard fraction in (0, 1); 0 turns the guard off.
+        tube_node_start: first hub of each tube, (tube_count + 1,).
+        node_tube: tube of each hub, (node_count,).
+        ring_hub, ring_kind, ring_cos, ring_sin, ring_vertex: the ring table, (ring_count,) each.
+        spoke_length: spoke lengths [length unit], shape (1 or world_count, node_count, S).
+        node_q: hub positions [length unit], shape (world_count, >= node_offset + node_count).
+        hub_t, hub_r: hub unit tangents and normals [1], shape (world_count, node_count).
+        surface_q_out: boundary points [length unit], shape (world_count, vertex_count).
+        surface_n_out: unit outward normals [1], shape (world_count, vertex_count).
+    """
+    w, ring, j = wp.tid()
+    kind = ring_kind[ring]
+    if kind == RING_POLE and j > 0:
+        return
+    h = ring_hub[ring]
+    pw = w % spoke_length.shape[0]
+    tube = node_tube[h]
+    has_prev = int(h > tube_node_start[tube])
+    has_next = int(h < tube_node_start[tube + 1] - 1)
+
+    x = node_q[w, node_offset + h]
+    t = hub_t[w, h]
+    r = hub_r[w, h]
+    s = wp.cross(t, r)
+    x_prev = x
+    t_prev = t
+    x_next = x
+    t_next = t
+    if has_prev != 0:
+        x_prev = node_q[w, node_offset + h - 1]
+        t_prev = hub_t[w, h - 1]
+    if has_next != 0:
+        x_next = node_q[w, node_offset + h + 1]
+        t_next = hub_t[w, h + 1]
+    c = ring_cos[ring]
+    sn = ring_sin[ring]
+
+    if kind == RING_POLE:
+        mean = float(0.0)
+        for k in range(spoke_count):
+            mean += spoke_length[pw, h, k]
+        d = c * t
+        length = spoke_length_at(
+            mean / float(spoke_count), d, x, has_prev, x_prev, t_prev, has_next, x_next, t_next, guard_reach
+        )
+        v = ring_vertex[ring]
+        surface_q_out[w, v] = x + length * d
+        surface_n_out[w, v] = d
+        return
+
+    dphi = 2.0 * wp.pi / float(spoke_count)
+    phi = float(j) * dphi
+    u = wp.cos(phi) * r + wp.sin(phi) * s
+    u_perp = wp.cross(t, u)
+    d = c * t + sn * u
+    length = spoke_length_at(
+        spoke_length[pw, h, j], d, x, has_prev, x_prev, t_prev, has_next, x_next, t_next, guard_reach
+    )
+
+    # Around the ring: central difference of the neighbouring spokes' (guarded) lengths.
+    jm = (j + spoke_count - 1) % spoke_count
+    jp = (j + 1) % spoke_count
+    d_m = c * t + sn * (wp.cos(phi - dphi) * r + wp.sin(phi - dphi) * s)
+    d_p = c * t + sn * (wp.cos(phi + dphi) * r + wp.sin(phi + dphi) * s)
+    length_m = spoke_length_at(
+        spoke_length[pw, h, jm], d_m, x, has_prev, x_prev, t_prev, has_next, x_next, t_next, guard_reach
+    )
+    length_p = spoke_length_at(
+        spoke_length[pw, h, jp], d_p, x, has_prev, x_prev, t_prev, has_next, x_next, t_next, guard_reach
+    )
+    n = d - ((length_p - length_m) / (2.0 * dphi * length * sn)) * u_perp
+
+    if kind == RING_BODY:
+        # Along the tube: the given lengths of the neighbouring hubs over their chords.
+        l_prev = wp.length(x - x_prev)
+        l_next = wp.length(x_next - x)
+        dl = float(0.0)
+        ds = l_prev + l_next
+        if has_prev != 0 and has_next != 0:
+            dl = spoke_length[pw, h + 1, j] - spoke_length[pw, h - 1, j]
+        elif has_next != 0:
+            dl = spoke_length[pw, h + 1, j] - spoke_length[pw, h, j]
+        elif has_prev != 0:
+            dl = spoke_length[pw, h, j] - spoke_length[pw, h - 1, j]
+        kappa = wp.vec3(0.0)
+        if has_prev != 0 and has_next != 0:
+            kappa = (safe_normalize(x_next - x) - safe_normalize(x - x_prev)) / (0.5 * ds)
+        stretch = wp.max(1.0 - length * wp.dot(kappa, u), MIN_STRETCH)
+        if ds > 0.0:
+            n = n - (dl / (ds * stretch)) * t
+
+    v = ring_vertex[ring] + j
+    surface_q_out[w, v] = x + length * d
+    surface_n_out[w, v] = wp.normalize(n)

@@ -1,0 +1,290 @@
+"""Host side of the hubs-and-spokes surface: allocation, rest frames and launch order.
+
+:class:`SurfaceBuilder` serves one tube prim (one spoke count S; all its curves). It is built once
+from the rest centerline and the spoke lengths, allocates everything then, and at every output
+frame rebuilds the boundary from the deformed centerline with two launches:
+
+1. frames: :func:`~warp_tube.kernels.frames.rotation_minimizing_frames_kernel` (one thread per
+   (world, tube)) or :func:`~warp_tube.kernels.frames.local_frames_kernel` (one per (world, hub));
+2. spokes: :func:`~warp_tube.kernels.surface.spoke_points_kernel`, one thread per
+   (world, ring, spoke), writing points and normals.
+
+Rest frames (tangent and spoke-0 normal of every hub at rest) follow :mod:`warp_tube.frames`
+in float64: the first hub's normal is the tube's reference normal (or the convention's default),
+and the rest normals are carried along the rest centerline by double reflection.
+"""
+
+from __future__ import annotations
+
+import numpy as np
+import warp as wp
+
+from . import frames as ref_frames
+from .kernels.frames import local_frames_kernel, rotation_minimizing_frames_kernel
+from .kernels.surface import spoke_points_kernel
+from .topology import SurfaceTopology, build_topology
+
+__all__ = ["SurfaceBuilder", "FRAME_MODES", "DEFAULT_GUARD_REACH"]
+
+FRAME_MODES = ("rotationMinimizing", "local")
+DEFAULT_GUARD_REACH = 0.95
+"""Spoke ends stay within 95% of the way to a neighbouring ring's plane (see kernels.surface)."""
+
+
+def rest_frames(
+    rest_q: np.ndarray, tube_node_start: np.ndarray, reference_normal: np.ndarray | None = None
+) -> tuple[np.ndarray, np.ndarray]:
+    """Rest tangents and normals of every hub, each (N, 3) float64, per :mod:`warp_tube.frames`.
+
+    Args:
+        rest_q: rest hub positions, (N, 3).
+        tube_node_start: first hub of each tube, (T + 1,), starting at 0.
+        reference_normal: None, one direction (3,) for every tube, or (T, 3) with NaN rows for
+            tubes without one.
+    """
+    x = np.asarray(rest_q, dtype=np.float64)
+    starts = np.asarray(tube_node_start, dtype=np.int64)
+    n_tubes = len(starts) - 1
+    refs = None
+    if reference_normal is not None:
+        refs = np.asarray(reference_normal, dtype=np.float64)
+        refs = np.broadcast_to(refs, (n_tubes, 3)) if refs.ndim == 1 else refs
+    t = np.empty_like(x)
+    r = np.empty_like(x)
+    for tube in range(n_tubes):
+        a, b = starts[tube], starts[tube + 1]
+        ref = None
+        if refs is not None and np.all(np.isfinite(refs[tube])):
+            ref = refs[tube]
+        t[a:b], r[a:b], _ = ref_frames.rotation_minimizing_frames(x[a:b], normal0=ref)
+    return t, r
+
+
+class SurfaceBuilder:
+    """Rebuilds the surface of one tube prim (all its curves, one spoke count) from its centerline.
+
+    Args:
+        tube_node_start: first node of each tube as a column index of the ``node_q`` arrays that
+            :meth:`compute` gets, int (T + 1,); it may start above 0 when ``node_q`` holds other
+            prims' nodes first (their nodes are skipped). Every tube needs >= 2 hubs.
+        rest_q: rest hub positions of this prim's N hubs, (N, 3) [length unit L], where
+            ``N = tube_node_start[-1] - tube_node_start[0]``.
+        spokes: spokes per hub, S >= 3.
+        spoke_lengths: spoke lengths [L]: (N, S), (world_count, N, S) for per-world variants, or
+            (N,) for a circular tube (the radius per hub).
+        reference_normal: direction of spoke 0 at each tube's first hub at rest: None, (3,) for
+            all tubes, or (T, 3) with NaN rows for tubes without one.
+        frames: "rotationMinimizing" (default) or "local" (the paper's local rotation).
+        caps: close both ends of every tube with a rounded cap.
+        world_count: worlds W of the batch (rows of ``node_q``).
+        device: Warp device (default: Warp's default device).
+        guard_reach: inner-bend guard fraction in (0, 1), 0 to turn it off (see
+            :mod:`warp_tube.kernels.surface`).
+
+    All lengths share one unit L (the core passes metres); points come out in L.
+    """
+
+    def __init__(
+        self,
+        tube_node_start,
+        rest_q,
+        spokes: int,
+        spoke_lengths,
+        reference_normal=None,
+        *,
+        frames: str = "rotationMinimizing",
+        caps: bool = False,
+        world_count: int = 1,
+        device=None,
+        guard_reach: float = DEFAULT_GUARD_REACH,
+    ):
+        if frames not in FRAME_MODES:
+            raise ValueError(f"frames must be one of {FRAME_MODES}, got {frames!r}")
+        if not 0.0 <= guard_reach < 1.0:
+            raise ValueError(f"guard_reach must be in [0, 1), got {guard_reach}")
+        if world_count < 1:
+            raise ValueError(f"world_count must be >= 1, got {world_count}")
+        starts = np.asarray(tube_node_start, dtype=np.int64)
+        self.node_offset = int(starts[0])
+        local_starts = starts - self.node_offset
+        rest = np.asarray(rest_q, dtype=np.float64)
+        n_hubs = int(local_starts[-1])
+        if rest.shape != (n_hubs, 3):
+            raise ValueError(f"rest_q must be shaped ({n_hubs}, 3), got {rest.shape}")
+        S = int(spokes)
+        lengths = np.asarray(spoke_lengths, dtype=np.float64)
+        if lengths.ndim == 1:
+            lengths = np.repeat(lengths[:, None], S, axis=1)
+        if lengths.ndim == 2:
+            lengths = lengths[None]
+        if lengths.shape[1:] != (n_hubs, S) or lengths.shape[0] not in (1, world_count):
+            raise ValueError(
+                f"spoke_lengths must be ({n_hubs},), ({n_hubs}, {S}) or ({world_count}, {n_hubs}, {S}), "
+                f"got {np.shape(spoke_lengths)}"
+            )
+        if not np.all(np.isfinite(lengths)) or np.any(lengths <= 0.0):
+            raise ValueError("spoke_lengths must be finite and positive")
+
+        cap_radius = None
+        if caps:
+            mean = lengths[0].mean(axis=1)
+            cap_radius = np.stack([mean[local_starts[:-1]], mean[local_starts[1:] - 1]], axis=1)
+        self.topology: SurfaceTopology = build_topology(
+            local_starts, S, caps=caps, rest_q=rest, cap_radius=cap_radius
+        )
+        self.spokes = S
+        self.frames = frames
+        self.caps = bool(caps)
+        self.world_count = int(world_count)
+        self.hub_count = n_hubs
+        self.tube_count = len(starts) - 1
+        self.guard_reach = float(guard_reach)
+        self._local_starts = local_starts
+        self.device = wp.get_device(device)
+
+        rest_t, rest_r = rest_frames(rest, local_starts, reference_normal)
+        node_tube = np.repeat(np.arange(self.tube_count), np.diff(local_starts))
+        topo = self.topology
+        with wp.ScopedDevice(self.device):
+            self._tube_node_start = wp.array(local_starts.astype(np.int32), dtype=wp.int32)
+            self._node_tube = wp.array(node_tube.astype(np.int32), dtype=wp.int32)
+            self._rest_t = wp.array(rest_t[None].astype(np.float32), dtype=wp.vec3)
+            self._rest_r = wp.array(rest_r[None].astype(np.float32), dtype=wp.vec3)
+            self._spoke_length = wp.array(lengths.astype(np.float32), dtype=float)
+            self._ring_hub = wp.array(topo.ring_hub, dtype=wp.int32)
+            self._ring_kind = wp.array(topo.ring_kind, dtype=wp.int32)
+            self._ring_cos = wp.array(topo.ring_cos, dtype=float)
+            self._ring_sin = wp.array(topo.ring_sin, dtype=float)
+            self._ring_vertex = wp.array(topo.ring_vertex, dtype=wp.int32)
+            self.hub_t = wp.zeros((self.world_count, n_hubs), dtype=wp.vec3)
+            self.hub_r = wp.zeros((self.world_count, n_hubs), dtype=wp.vec3)
+            self.points = wp.zeros((self.world_count, topo.vertex_count), dtype=wp.vec3)
+            self.normals = wp.zeros((self.world_count, topo.vertex_count), dtype=wp.vec3)
+        self._launches: dict = {}
+
+    # -- topology ------------------------------------------------------------------------------
+    @property
+    def vertex_count(self) -> int:
+        return self.topology.vertex_count
+
+    @property
+    def face_vertex_counts(self) -> np.ndarray:
+        """int32 (F,), all 3."""
+        return self.topology.face_vertex_counts
+
+    @property
+    def face_vertex_indices(self) -> np.ndarray:
+        """int32 (3 F,), counter-clockwise seen from outside."""
+        return self.topology.face_vertex_indices
+
+    @property
+    def st(self) -> np.ndarray:
+        """float32 (3 F,) x 2 face-varying texture coordinates (u around, v along)."""
+        return self.topology.st
+
+    @property
+    def st_interpolation(self) -> str:
+        return self.topology.st_interpolation
+
+    def tube_vertex_indices(self, tube: int) -> np.ndarray:
+        """Vertex indices (ring vertices, then cap vertices) of tube ``tube`` of this prim."""
+        topo = self.topology
+        first, last = self._local_starts[tube], self._local_starts[tube + 1]
+        mask = (topo.ring_hub >= first) & (topo.ring_hub < last)
+        out = []
+        for ring in np.flatnonzero(mask):
+            count = 1 if topo.ring_sin[ring] == 0.0 else self.spokes
+            out.append(topo.ring_vertex[ring] + np.arange(count))
+        return np.concatenate(out)
+
+    # -- per frame -----------------------------------------------------------------------------
+    def _record(self, node_q: wp.array):
+        dims_frames = (self.world_count, self.tube_count)
+        if self.frames == "rotationMinimizing":
+            frames = wp.launch(
+                rotation_minimizing_frames_kernel,
+                dim=dims_frames,
+                inputs=[self.node_offset, self._tube_node_start, self._rest_t, self._rest_r, node_q],
+                outputs=[self.hub_t, self.hub_r],
+                device=self.device,
+                record_cmd=True,
+            )
+        else:
+            frames = wp.launch(
+                local_frames_kernel,
+                dim=(self.world_count, self.hub_count),
+                inputs=[self.node_offset, self._tube_node_start, self._node_tube, self._rest_t, self._rest_r, node_q],
+                outputs=[self.hub_t, self.hub_r],
+                device=self.device,
+                record_cmd=True,
+            )
+        topo = self.topology
+        spokes = wp.launch(
+            spoke_points_kernel,
+            dim=(self.world_count, len(topo.ring_hub), self.spokes),
+            inputs=[
+                self.node_offset,
+                self.spokes,
+                self.guard_reach,
+                self._tube_node_start,
+                self._node_tube,
+                self._ring_hub,
+                self._ring_kind,
+                self._ring_cos,
+                self._ring_sin,
+                self._ring_vertex,
+                self._spoke_length,
+                node_q,
+                self.hub_t,
+                self.hub_r,
+            ],
+            outputs=[self.points, self.normals],
+            device=self.device,
+            record_cmd=True,
+        )
+        return frames, spokes
+
+    def compute(self, node_q: wp.array) -> tuple[wp.array, wp.array]:
+        """Rebuild the surface from hub positions; no allocation after the first call per array.
+
+        Args:
+            node_q: hub positions [L], ``wp.array2d`` of ``wp.vec3``, shape
+                (world_count, >= node_offset + N), on this builder's device.
+
+        Returns:
+            ``(points, normals)``: this builder's own arrays, shaped (world_count, V), boundary
+            points [L] and unit outward normals; overwritten by the next call.
+        """
+        key = (node_q.ptr, node_q.shape, node_q.strides)
+        launches = self._launches.get(key)
+        if launches is None:
+            if node_q.dtype != wp.vec3 or node_q.ndim != 2:
+                raise ValueError(f"node_q must be a 2-d array of vec3, got {node_q.dtype} with {node_q.ndim} dims")
+            if node_q.shape[0] != self.world_count or node_q.shape[1] < self.node_offset + self.hub_count:
+                raise ValueError(
+                    f"node_q must be shaped ({self.world_count}, >= {self.node_offset + self.hub_count}), "
+                    f"got {node_q.shape}"
+                )
+            if node_q.device != self.device:
+                raise ValueError(f"node_q is on {node_q.device}, the surface on {self.device}")
+            if len(self._launches) >= 4:  # solvers swap a few state arrays; keep the cache small
+                self._launches.clear()
+            launches = self._record(node_q)
+            self._launches[key] = launches
+        for launch in launches:
+            launch.launch()
+        return self.points, self.normals
+
+    def points_numpy(self, world: int = 0) -> np.ndarray:
+        """Boundary points of one world [L], float32 (V, 3) (a copy)."""
+        return self.points.numpy()[world]
+
+    def normals_numpy(self, world: int = 0) -> np.ndarray:
+        """Unit normals of one world, float32 (V, 3) (a copy)."""
+        return self.normals.numpy()[world]
+
+    def frames_numpy(self, world: int = 0) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+        """Hub frames ``(t, r, s)`` of one world from the last :meth:`compute`, each (N, 3)."""
+        t = self.hub_t.numpy()[world].astype(np.float64)
+        r = self.hub_r.numpy()[world].astype(np.float64)
+        return t, r, np.cross(t, r)
