@@ -47,6 +47,7 @@ class Features(NamedTuple):
 @functools.cache
 def make_kernels(features: Features):
     """Kernels specialised to ``features``; cached, so each combination compiles once."""
+    features = Features(*(bool(v) for v in features))
     BENDING = features.bending
     CURVED = features.curved
     ANCHORS = features.anchors

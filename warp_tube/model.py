@@ -195,7 +195,7 @@ def build_model(scene: Scene, world_count: int = 1, device=None) -> TubeModel:
 
     device = str(wp.get_device(device))
     pts, tube_start, node_tube = [], [0], []
-    mass, inv_mass, damping, rest_len, ke, kd, bend_k, kappa, anchor_k, anchor_kd = ([] for _ in range(10))
+    mass, inv_mass, damping, rest_len, ke, kd, bend_k, kappa, anchor_k, anchor_kd, radius = ([] for _ in range(11))
     prim_node_start = []
     curved = False
     t_index = 0
@@ -225,6 +225,7 @@ def build_model(scene: Scene, world_count: int = 1, device=None) -> TubeModel:
             bk[0] = bk[-1] = 0.0
             k_ax = p.axial_stiffness(r_seg) / seg
             pts.append(x)
+            radius.append(r)
             mass.append(m)
             inv_mass.append(np.where(pin, 0.0, 1.0 / m))
             damping.append(np.full(cn, p.damping))
@@ -233,7 +234,7 @@ def build_model(scene: Scene, world_count: int = 1, device=None) -> TubeModel:
             kd.append(np.append(k_ax * p.spring_damping, 0.0))
             bend_k.append(bk)
             kap = rest_curvature_coordinates(x)
-            if np.abs(kap).max() > 1e-6:
+            if float(np.abs(kap).max()) > 1e-6:
                 curved = True
             kappa.append(kap)
             ka = np.where(anchored[c0 : c0 + cn], p.anchor_stiffness, 0.0)
@@ -246,7 +247,7 @@ def build_model(scene: Scene, world_count: int = 1, device=None) -> TubeModel:
     host = dict(
         node_rest_q=cat(pts), node_mass=cat(mass), node_inv_mass=cat(inv_mass), node_damping=cat(damping),
         seg_rest_length=cat(rest_len), seg_ke=cat(ke), seg_kd=cat(kd), node_bend_k=cat(bend_k),
-        node_kappa_rest=cat(kappa), node_anchor_k=cat(anchor_k), node_anchor_kd=cat(anchor_kd),
+        node_kappa_rest=cat(kappa), node_anchor_k=cat(anchor_k), node_anchor_kd=cat(anchor_kd), node_radius=cat(radius),
         tube_node_start=np.array(tube_start), node_tube=cat(node_tube), prim_node_start=np.array(prim_node_start),
     )  # fmt: skip
     n_nodes = tube_start[-1]

@@ -1,0 +1,445 @@
+"""Read a USD stage into a validated :class:`~warp_tube.scene.Scene`, and write one back.
+
+The scene contract (README, "Scene format"): a tube is a ``BasisCurves`` prim of type "linear"
+carrying at least one ``warptube:`` attribute, each curve one tube; the settings are the one prim
+carrying ``warptube:timeStep``, ``warptube:integrator`` or ``warptube:gravity``; a force is any prim
+with a ``warptube:target`` relationship; a ``Mesh`` with ``warptube:extract = true`` is a tube given
+as a surface, extracted at load. Every error names the file, the prim, the attribute, what was
+found and what was expected.
+"""
+
+from __future__ import annotations
+
+import logging
+import math
+import os
+
+import numpy as np
+
+from .scene import (
+    FRAME_MODES,
+    INTEGRATORS,
+    ForceSpec,
+    Scene,
+    SceneError,
+    SimulationSettings,
+    StageInfo,
+    TubeParams,
+    TubeSpec,
+)
+
+log = logging.getLogger(__name__)
+
+__all__ = ["load_scene", "open_stage", "save_scene"]
+
+SETTINGS_ATTRS = ("warptube:timeStep", "warptube:integrator", "warptube:gravity")
+REAL = ("float", "double", "half")
+REAL3 = ("float3", "double3", "half3", "vector3f", "vector3d", "vector3h", "point3f", "point3d", "normal3f", "normal3d")
+TUBE_ATTRS = {
+    "warptube:youngsModulus", "warptube:stretchStiffness", "warptube:bendStiffness", "warptube:density",
+    "warptube:damping", "warptube:springDamping", "warptube:pinnedPoints", "warptube:anchorPoints",
+    "warptube:anchorStiffness", "warptube:spokes", "warptube:spokeLengths", "warptube:referenceNormal",
+    "warptube:frames", "warptube:caps",
+}  # fmt: skip
+
+
+def open_stage(path: str):
+    """Open a USD stage, turning every failure into a :class:`SceneError` naming the file."""
+    from pxr import Tf, Usd
+
+    if not os.path.exists(path):
+        raise SceneError(f"{path}: no such file")
+    if os.path.isdir(path):
+        raise SceneError(f"{path}: is a folder, expected a USD file (.usda, .usdc, .usd)")
+    try:
+        stage = Usd.Stage.Open(path, Usd.Stage.LoadAll)
+    except Tf.ErrorException as e:
+        msg = str(e).strip().splitlines()
+        raise SceneError(f"{path}: not a readable USD stage ({msg[-1] if msg else 'parse error'})") from None
+    if stage is None:
+        raise SceneError(f"{path}: not a readable USD stage")
+    return stage
+
+
+class _Reader:
+    """Typed access to one prim's ``warptube:`` attributes with contract-style errors."""
+
+    def __init__(self, file: str, prim):
+        self.file = file
+        self.prim = prim
+
+    def where(self, name: str) -> str:
+        return f"{self.file}: {self.prim.GetPath()}.{name}"
+
+    def fail(self, name: str, found, expected: str):
+        raise SceneError(f"{self.where(name)}: found {found}: expected {expected}")
+
+    def attr(self, name: str):
+        a = self.prim.GetAttribute(name)
+        return a if a and a.HasAuthoredValue() else None
+
+    def _typed(self, name, allowed, expected, time=None):
+        a = self.attr(name)
+        if a is None:
+            return None, None
+        tname = str(a.GetTypeName())
+        if tname not in allowed:
+            self.fail(name, f"type {tname}", expected)
+        from pxr import Usd
+
+        return a, a.Get(Usd.TimeCode.Default() if time is None else time)
+
+    def real(self, name, default=None, required=False, minimum=None, positive=False):
+        a, v = self._typed(name, REAL, "a float or double")
+        if a is None:
+            if required:
+                raise SceneError(f"{self.where(name)}: missing: expected a float or double (required)")
+            return default
+        v = float(v)
+        if not math.isfinite(v):
+            self.fail(name, v, "a finite number")
+        if positive and v <= 0.0:
+            self.fail(name, v, "a number > 0")
+        if minimum is not None and v < minimum:
+            self.fail(name, v, f"a number >= {minimum}")
+        return v
+
+    def integer(self, name, default=None, required=False, lo=None, hi=None):
+        a, v = self._typed(name, ("int", "int64", "uint", "uchar"), "an int")
+        if a is None:
+            if required:
+                raise SceneError(f"{self.where(name)}: missing: expected an int (required)")
+            return default
+        v = int(v)
+        if (lo is not None and v < lo) or (hi is not None and v > hi):
+            self.fail(name, v, f"an int from {lo} to {hi}")
+        return v
+
+    def ints(self, name):
+        a, v = self._typed(name, ("int[]", "int64[]", "uint[]"), "an int[] array")
+        return np.zeros(0, dtype=np.int64) if a is None else np.asarray(v, dtype=np.int64).reshape(-1)
+
+    def reals(self, name):
+        a, v = self._typed(name, ("float[]", "double[]", "half[]"), "a float[] or double[] array")
+        if a is None:
+            return None
+        arr = np.asarray(v, dtype=np.float64).reshape(-1)
+        if not np.isfinite(arr).all():
+            i = int(np.argmax(~np.isfinite(arr)))
+            self.fail(name, f"{arr[i]} at index {i}", "finite values")
+        return arr
+
+    def vec3(self, name, default=None, time=None):
+        a, v = self._typed(name, REAL3, "a float3 or double3", time)
+        if a is None:
+            return default
+        arr = np.asarray(v, dtype=np.float64).reshape(3)
+        if not np.isfinite(arr).all():
+            self.fail(name, tuple(arr.tolist()), "finite values")
+        return tuple(float(x) for x in arr)
+
+    def token(self, name, allowed, default):
+        a, v = self._typed(name, ("token", "string"), "a token")
+        if a is None:
+            return default
+        if v not in allowed:
+            self.fail(name, repr(v), " | ".join(repr(x) for x in allowed))
+        return str(v)
+
+    def boolean(self, name, default):
+        a, v = self._typed(name, ("bool",), "a bool")
+        return default if a is None else bool(v)
+
+
+def _stage_info(stage) -> StageInfo:
+    from pxr import UsdGeom
+
+    authored = tuple(
+        k for k in ("metersPerUnit", "upAxis", "timeCodesPerSecond", "framesPerSecond", "startTimeCode", "endTimeCode")
+        if stage.HasAuthoredMetadata(k)
+    )  # fmt: skip
+    mpu = float(UsdGeom.GetStageMetersPerUnit(stage))
+    tcps = float(stage.GetTimeCodesPerSecond())
+    fps = float(stage.GetFramesPerSecond())
+    start, end = float(stage.GetStartTimeCode()), float(stage.GetEndTimeCode())
+    path = stage.GetRootLayer().identifier
+    if not (math.isfinite(mpu) and mpu > 0):
+        raise SceneError(f"{path}: metersPerUnit {mpu}: expected a positive number")
+    if not (math.isfinite(tcps) and tcps > 0):
+        raise SceneError(f"{path}: timeCodesPerSecond {tcps}: expected a positive number")
+    if not (math.isfinite(start) and math.isfinite(end)) or end < start:
+        raise SceneError(f"{path}: startTimeCode {start}, endTimeCode {end}: expected end >= start")
+    if end - start > 1e6:
+        raise SceneError(f"{path}: {end - start:.0f} frames: expected at most 1,000,000")
+    return StageInfo(
+        meters_per_unit=mpu, up_axis=str(UsdGeom.GetStageUpAxis(stage)), time_codes_per_second=tcps,
+        frames_per_second=fps, start_time_code=start, end_time_code=end, authored=authored,
+    )  # fmt: skip
+
+
+def _to_world(prim, pts: np.ndarray, time) -> tuple[np.ndarray, float]:
+    """Points (P, 3) to world space; also the transform's mean length scale."""
+    from pxr import UsdGeom
+
+    m = np.array(UsdGeom.Xformable(prim).ComputeLocalToWorldTransform(time), dtype=np.float64)
+    out = pts @ m[:3, :3] + m[3, :3]
+    scale = abs(np.linalg.det(m[:3, :3])) ** (1.0 / 3.0)
+    return out, scale
+
+
+def _read_tube(file: str, prim, info: StageInfo, frame_times) -> TubeSpec:
+    from pxr import Usd, UsdGeom
+
+    r = _Reader(file, prim)
+    curves = UsdGeom.BasisCurves(prim)
+    ctype = curves.GetTypeAttr().Get()
+    if ctype != "linear":
+        r.fail("type", repr(ctype), "'linear' (each point of a curve is a centerline point)")
+    pattr = curves.GetPointsAttr()
+    pts = pattr.Get(Usd.TimeCode(info.start_time_code)) if pattr.HasAuthoredValue() else None
+    if pts is None or len(pts) == 0:
+        raise SceneError(f"{r.where('points')}: missing or empty: expected point3f[] with at least 2 points")
+    pts = np.asarray(pts, dtype=np.float64)
+    if not np.isfinite(pts).all():
+        i = int(np.argmax(~np.isfinite(pts).all(axis=1)))
+        r.fail("points", f"{pts[i].tolist()} at index {i}", "finite values")
+    counts = curves.GetCurveVertexCountsAttr().Get()
+    counts = np.asarray(counts if counts is not None else [len(pts)], dtype=np.int64)
+    if counts.sum() != len(pts) or (counts < 2).any():
+        r.fail("curveVertexCounts", counts.tolist(), f"counts >= 2 summing to the {len(pts)} points")
+    start_tc = Usd.TimeCode(info.start_time_code)
+    world, scale = _to_world(prim, pts, start_tc)
+    mpu = info.meters_per_unit
+    widths = curves.GetWidthsAttr().Get(start_tc) if curves.GetWidthsAttr().HasAuthoredValue() else None
+    if widths is None or len(widths) == 0:
+        raise SceneError(f"{r.where('widths')}: missing: expected float[] diameters (one, or one per point)")
+    widths = np.asarray(widths, dtype=np.float64)
+    if len(widths) == 1:
+        widths = np.full(len(pts), widths[0])
+    elif len(widths) != len(pts):
+        r.fail("widths", f"{len(widths)} values", f"1 (constant) or {len(pts)} (one per point)")
+    bad = ~(np.isfinite(widths) & (widths > 0))
+    if bad.any():
+        i = int(np.argmax(bad))
+        r.fail("widths", f"{widths[i]} at index {i}", "positive finite diameters")
+    radius = 0.5 * widths * scale * mpu
+    E = r.real("warptube:youngsModulus", positive=True)
+    EA = r.real("warptube:stretchStiffness", minimum=0.0)
+    EI = r.real("warptube:bendStiffness", minimum=0.0)
+    if E is None and (EA is None or EI is None):
+        raise SceneError(
+            f"{r.where('warptube:youngsModulus')}: missing: expected youngsModulus [Pa], or both "
+            "warptube:stretchStiffness [N] and warptube:bendStiffness [N m^2]"
+        )
+    if EA is not None and EA == 0.0:
+        r.fail("warptube:stretchStiffness", 0.0, "a positive axial stiffness [N]")
+    spokes = r.integer("warptube:spokes", default=16, lo=3, hi=1024)
+    rn = r.vec3("warptube:referenceNormal")
+    if rn is not None and np.linalg.norm(rn) == 0.0:
+        r.fail("warptube:referenceNormal", rn, "a non-zero direction")
+    try:
+        params = TubeParams(
+            density=r.real("warptube:density", required=True, positive=True),
+            youngs_modulus=E, stretch_stiffness=EA, bend_stiffness=EI,
+            damping=r.real("warptube:damping", 0.0, minimum=0.0),
+            spring_damping=r.real("warptube:springDamping", 0.0, minimum=0.0),
+            anchor_stiffness=r.real("warptube:anchorStiffness", 0.0, minimum=0.0),
+            spokes=spokes, frames=r.token("warptube:frames", FRAME_MODES, "rotationMinimizing"),
+            caps=r.boolean("warptube:caps", False), reference_normal=rn,
+        )  # fmt: skip
+    except SceneError as e:
+        raise SceneError(f"{file}: {prim.GetPath()}: {e}") from None
+    if params.density > 1e6 or (E is not None and E > 1e13):
+        raise SceneError(f"{file}: {prim.GetPath()}: density {params.density} kg/m^3 or youngsModulus {E} Pa "
+                         "out of physical range (density <= 1e6, youngsModulus <= 1e13)")  # fmt: skip
+    n = len(pts)
+    idx = {}
+    for attr in ("warptube:pinnedPoints", "warptube:anchorPoints"):
+        v = r.ints(attr)
+        if len(v) and (v.min() < 0 or v.max() >= n):
+            b = int(v[(v < 0) | (v >= n)][0])
+            r.fail(attr, f"index {b}", f"indices 0..{n - 1} into points")
+        idx[attr] = v
+    if len(idx["warptube:anchorPoints"]) and params.anchor_stiffness == 0.0:
+        log.warning("%s: anchorPoints given with anchorStiffness 0: the returning springs do nothing", r.where("warptube:anchorStiffness"))
+    sl = r.reals("warptube:spokeLengths")
+    if sl is not None:
+        if len(sl) != n * spokes:
+            r.fail("warptube:spokeLengths", f"{len(sl)} values", f"points x spokes = {n} x {spokes} = {n * spokes}")
+        if (sl <= 0).any():
+            i = int(np.argmax(sl <= 0))
+            r.fail("warptube:spokeLengths", f"{sl[i]} at index {i}", "positive lengths")
+        sl = sl.reshape(n, spokes) * scale * mpu
+    pin_track = None
+    pinned = np.unique(idx["warptube:pinnedPoints"])
+    if pattr.GetNumTimeSamples() > 1 and len(pinned):
+        track = []
+        for tc in frame_times:
+            p = np.asarray(pattr.Get(Usd.TimeCode(tc)), dtype=np.float64)
+            if p.shape != pts.shape or not np.isfinite(p).all():
+                r.fail("points", f"a sample at time {tc} of shape {p.shape}", f"finite points of shape {pts.shape}")
+            track.append(_to_world(prim, p, Usd.TimeCode(tc))[0][pinned])
+        pin_track = np.asarray(track) * mpu
+    try:
+        return TubeSpec(
+            path=str(prim.GetPath()), points=world * mpu, curve_counts=counts, radius=radius, params=params,
+            pinned=pinned, anchors=idx["warptube:anchorPoints"], spoke_lengths=sl, pin_track=pin_track,
+        )  # fmt: skip
+    except SceneError as e:
+        raise SceneError(f"{file}: {e}") from None
+
+
+def _read_force(file: str, prim, tubes_by_path: dict, tube_specs, info: StageInfo) -> ForceSpec:
+    r = _Reader(file, prim)
+    targets = prim.GetRelationship("warptube:target").GetTargets()
+    if len(targets) != 1:
+        r.fail("warptube:target", f"{len(targets)} targets", "exactly one tube prim")
+    tpath = str(targets[0])
+    if tpath not in tubes_by_path:
+        r.fail("warptube:target", tpath, "the path of a tube (a linear BasisCurves prim with warptube: attributes)")
+    t = tubes_by_path[tpath]
+    n = len(tube_specs[t].points)
+    point = r.integer("warptube:point", required=True)
+    if not (0 <= point < n):
+        r.fail("warptube:point", point, f"an index 0..{n - 1} into {tpath}.points")
+    a = r.attr("warptube:force")
+    if a is None:
+        raise SceneError(f"{r.where('warptube:force')}: missing: expected a float3 force [N] (may be time-sampled)")
+    if str(a.GetTypeName()) not in REAL3:
+        r.fail("warptube:force", f"type {a.GetTypeName()}", "a float3 or double3")
+    samples = a.GetTimeSamples()
+    if samples:
+        times = np.array([(tc - info.start_time_code) / info.time_codes_per_second for tc in samples])
+        values = np.array([r.vec3("warptube:force", time=tc) for tc in samples])
+    else:
+        times, values = np.zeros(1), np.array([r.vec3("warptube:force")])
+    if np.abs(values).max() > 1e9:
+        r.fail("warptube:force", f"|f| = {np.abs(values).max():.3g} N", "at most 1e9 N")
+    if point in set(tube_specs[t].pinned.tolist()):
+        log.warning("%s: point %d of %s is pinned: this force does nothing", r.where("warptube:point"), point, tpath)
+    return ForceSpec(
+        path=str(prim.GetPath()), tube=t, point=point, times=times, values=values,
+        assistant_line=r.boolean("warptube:assistantLine", True),
+    )  # fmt: skip
+
+
+def _read_settings(file: str, prim) -> SimulationSettings:
+    r = _Reader(file, prim)
+    g = r.vec3("warptube:gravity")
+    ts = r.real("warptube:timeStep", positive=True)
+    if ts is not None and ts > 10.0:
+        r.fail("warptube:timeStep", ts, "a substep of at most 10 s")
+    return SimulationSettings(time_step=ts, integrator=r.token("warptube:integrator", INTEGRATORS, "auto"), gravity=g)
+
+
+def load_scene(path: str, extract=None) -> Scene:
+    """Read and validate the scene at ``path``.
+
+    Args:
+        path: a USD file (.usda, .usdc, .usd).
+        extract: callable ``(file, prim, info) -> TubeSpec`` for ``Mesh`` prims with
+            ``warptube:extract = true``; default :func:`warp_tube.extract_usd.tube_from_mesh_prim`.
+
+    Raises:
+        SceneError: the first problem found, naming file, prim, attribute, found and expected.
+    """
+    from pxr import UsdGeom
+
+    path = os.fspath(path)
+    stage = open_stage(path)
+    info = _stage_info(stage)
+    frame_times = [info.start_time_code + k for k in range(info.frame_count)]
+    tubes, settings_prims, force_prims, mesh_prims = [], [], [], []
+    for prim in stage.Traverse():
+        names = [a.GetName() for a in prim.GetAttributes() if a.GetName().startswith("warptube:")]
+        if prim.GetRelationship("warptube:target"):
+            force_prims.append(prim)
+        elif any(n in SETTINGS_ATTRS for n in names):
+            settings_prims.append(prim)
+        elif prim.IsA(UsdGeom.BasisCurves) and names:
+            tubes.append(prim)
+        elif prim.IsA(UsdGeom.Mesh) and "warptube:extract" in names:
+            if _Reader(path, prim).boolean("warptube:extract", False):
+                mesh_prims.append(prim)
+        elif names:
+            log.info("%s: %s carries warptube: attributes but is not a tube, force or settings prim: ignored", path, prim.GetPath())
+    if len(settings_prims) > 1:
+        raise SceneError(
+            f"{path}: {len(settings_prims)} simulation settings prims "
+            f"({', '.join(str(p.GetPath()) for p in settings_prims)}): expected at most one prim carrying "
+            "warptube:timeStep, warptube:integrator or warptube:gravity"
+        )
+    settings = _read_settings(path, settings_prims[0]) if settings_prims else SimulationSettings()
+    specs = [_read_tube(path, p, info, frame_times) for p in tubes]
+    if mesh_prims:
+        if extract is None:
+            from .extract_usd import tube_from_mesh_prim as extract
+        specs += [extract(path, p, info) for p in mesh_prims]
+    by_path = {s.path: k for k, s in enumerate(specs)}
+    forces = tuple(_read_force(path, p, by_path, specs, info) for p in force_prims)
+    return Scene(tubes=tuple(specs), forces=forces, settings=settings, stage=info, source=path)
+
+
+def save_scene(scene: Scene, path: str) -> None:
+    """Write ``scene`` as a USD stage following the scene contract (points in stage units)."""
+    from pxr import Gf, Sdf, Usd, UsdGeom, Vt
+
+    info = scene.stage
+    mpu = info.meters_per_unit
+    stage = Usd.Stage.CreateNew(os.fspath(path))
+    UsdGeom.SetStageMetersPerUnit(stage, mpu)
+    UsdGeom.SetStageUpAxis(stage, info.up_axis)
+    stage.SetTimeCodesPerSecond(info.time_codes_per_second)
+    stage.SetFramesPerSecond(info.frames_per_second)
+    stage.SetStartTimeCode(info.start_time_code)
+    stage.SetEndTimeCode(info.end_time_code)
+    root_name = scene.tubes[0].path.strip("/").split("/")[0]
+    stage.SetDefaultPrim(UsdGeom.Xform.Define(stage, "/" + root_name).GetPrim())
+    s = scene.settings
+    sim = UsdGeom.Scope.Define(stage, f"/{root_name}/Simulation").GetPrim()
+    sim.CreateAttribute("warptube:integrator", Sdf.ValueTypeNames.Token).Set(s.integrator)
+    if s.time_step is not None:
+        sim.CreateAttribute("warptube:timeStep", Sdf.ValueTypeNames.Double).Set(s.time_step)
+    if s.gravity is not None:
+        sim.CreateAttribute("warptube:gravity", Sdf.ValueTypeNames.Float3).Set(Gf.Vec3f(*s.gravity))
+    for t in scene.tubes:
+        c = UsdGeom.BasisCurves.Define(stage, t.path)
+        c.CreateTypeAttr("linear")
+        c.CreatePointsAttr(Vt.Vec3fArray.FromNumpy((t.points / mpu).astype(np.float32)))
+        c.CreateCurveVertexCountsAttr(Vt.IntArray([int(v) for v in t.curve_counts]))
+        c.CreateWidthsAttr(Vt.FloatArray.FromNumpy((2.0 * t.radius / mpu).astype(np.float32)))
+        c.SetWidthsInterpolation(UsdGeom.Tokens.vertex)
+        p, prim = t.params, c.GetPrim()
+        D = Sdf.ValueTypeNames.Double
+        prim.CreateAttribute("warptube:density", D).Set(p.density)
+        for name, v in (("youngsModulus", p.youngs_modulus), ("stretchStiffness", p.stretch_stiffness),
+                        ("bendStiffness", p.bend_stiffness)):  # fmt: skip
+            if v is not None:
+                prim.CreateAttribute(f"warptube:{name}", D).Set(v)
+        prim.CreateAttribute("warptube:damping", D).Set(p.damping)
+        prim.CreateAttribute("warptube:springDamping", D).Set(p.spring_damping)
+        prim.CreateAttribute("warptube:anchorStiffness", D).Set(p.anchor_stiffness)
+        prim.CreateAttribute("warptube:spokes", Sdf.ValueTypeNames.Int).Set(p.spokes)
+        prim.CreateAttribute("warptube:frames", Sdf.ValueTypeNames.Token).Set(p.frames)
+        prim.CreateAttribute("warptube:caps", Sdf.ValueTypeNames.Bool).Set(p.caps)
+        if len(t.pinned):
+            prim.CreateAttribute("warptube:pinnedPoints", Sdf.ValueTypeNames.IntArray).Set(Vt.IntArray([int(v) for v in t.pinned]))
+        if len(t.anchors):
+            prim.CreateAttribute("warptube:anchorPoints", Sdf.ValueTypeNames.IntArray).Set(Vt.IntArray([int(v) for v in t.anchors]))
+        if t.spoke_lengths is not None:
+            prim.CreateAttribute("warptube:spokeLengths", Sdf.ValueTypeNames.FloatArray).Set(
+                Vt.FloatArray.FromNumpy((t.spoke_lengths.reshape(-1) / mpu).astype(np.float32)))  # fmt: skip
+        if p.reference_normal is not None:
+            prim.CreateAttribute("warptube:referenceNormal", Sdf.ValueTypeNames.Float3).Set(Gf.Vec3f(*p.reference_normal))
+    for k, f in enumerate(scene.forces):
+        prim = UsdGeom.Scope.Define(stage, f.path).GetPrim()
+        prim.CreateRelationship("warptube:target").SetTargets([scene.tubes[f.tube].path])
+        prim.CreateAttribute("warptube:point", Sdf.ValueTypeNames.Int).Set(int(f.point))
+        prim.CreateAttribute("warptube:assistantLine", Sdf.ValueTypeNames.Bool).Set(bool(f.assistant_line))
+        a = prim.CreateAttribute("warptube:force", Sdf.ValueTypeNames.Float3)
+        if len(f.times) == 1:
+            a.Set(Gf.Vec3f(*f.values[0]))
+        for tm, v in zip(f.times, f.values):
+            if len(f.times) > 1:
+                a.Set(Gf.Vec3f(*v), info.start_time_code + tm * info.time_codes_per_second)
+    stage.GetRootLayer().Save()

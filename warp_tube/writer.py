@@ -1,0 +1,150 @@
+"""Time-sampled USD output (the output contract in the README).
+
+For each tube prim at path P the stage holds an ``Xform`` at P with ``P/Centerline`` (BasisCurves,
+``points`` time-sampled) and, unless disabled, ``P/Surface`` (Mesh: static triangle topology and
+``primvars:st``; ``points``, ``normals`` and ``extent`` time-sampled). Samples are written straight
+into the layer (``Sdf.Layer.SetTimeSample`` of ``Vt.*Array.FromNumpy`` values inside one
+``Sdf.ChangeBlock`` per frame). The stage is saved under a temporary name beside the target and
+renamed over it only when :meth:`StageWriter.close` runs, so an existing file is replaced only by a
+complete one; on failure or interrupt the caller still closes, keeping the frames written so far.
+"""
+
+from __future__ import annotations
+
+import os
+
+import numpy as np
+
+from .scene import Scene, SceneError
+
+__all__ = ["StageWriter", "check_output_path"]
+
+
+def check_output_path(path: str) -> str:
+    """Validate an output path before any simulation; returns it absolute."""
+    path = os.path.abspath(os.fspath(path))
+    ext = os.path.splitext(path)[1].lower()
+    if ext not in (".usdc", ".usda", ".usd"):
+        raise SceneError(f"{path}: output extension {ext or '(none)'}: expected .usdc, .usda or .usd")
+    folder = os.path.dirname(path)
+    if not os.path.isdir(folder):
+        raise SceneError(f"{path}: folder {folder} does not exist")
+    if not os.access(folder, os.W_OK):
+        raise SceneError(f"{path}: folder {folder} is not writable")
+    if os.path.isdir(path):
+        raise SceneError(f"{path}: is a folder, expected a file name")
+    return path
+
+
+class StageWriter:
+    """Writes one output stage, frame by frame.
+
+    Args:
+        path: final output path (.usdc, .usda or .usd).
+        scene: the scene (stage metadata, tube prim paths, curve counts).
+        surfaces: per tube prim, ``None`` or an object with ``face_vertex_counts``,
+            ``face_vertex_indices`` (NumPy int arrays) and ``st`` ((K, 2) float), ``st_interpolation``.
+    """
+
+    def __init__(self, path: str, scene: Scene, surfaces=None):
+        from pxr import Sdf, Usd, UsdGeom, Vt
+
+        self.path = check_output_path(path)
+        folder, name = os.path.split(self.path)
+        stem, ext = os.path.splitext(name)
+        self.tmp = os.path.join(folder, f".{stem}.partial-{os.getpid()}{ext}")
+        info = scene.stage
+        self.info = info
+        self.mpu = info.meters_per_unit
+        self.stage = Usd.Stage.CreateNew(self.tmp)
+        st = self.stage
+        UsdGeom.SetStageMetersPerUnit(st, info.meters_per_unit)
+        UsdGeom.SetStageUpAxis(st, UsdGeom.Tokens.z if info.up_axis.upper() == "Z" else UsdGeom.Tokens.y)
+        st.SetTimeCodesPerSecond(info.time_codes_per_second)
+        st.SetFramesPerSecond(info.frames_per_second)
+        st.SetStartTimeCode(info.start_time_code)
+        st.SetEndTimeCode(info.start_time_code)
+        self.layer = st.GetRootLayer()
+        surfaces = surfaces or [None] * len(scene.tubes)
+        self.tubes = []
+        for spec, surf in zip(scene.tubes, surfaces):
+            path_p = Sdf.Path(spec.path)
+            for anc in path_p.GetPrefixes():
+                if anc != path_p and not st.GetPrimAtPath(anc):
+                    UsdGeom.Xform.Define(st, anc)
+            UsdGeom.Xform.Define(st, path_p)
+            cl = UsdGeom.BasisCurves.Define(st, path_p.AppendChild("Centerline"))
+            cl.CreateTypeAttr(UsdGeom.Tokens.linear)
+            cl.CreateCurveVertexCountsAttr(Vt.IntArray([int(c) for c in spec.curve_counts]))
+            cl.CreateWidthsAttr(Vt.FloatArray.FromNumpy((2.0 * spec.radius / self.mpu).astype(np.float32)))
+            cl.SetWidthsInterpolation(UsdGeom.Tokens.vertex)
+            cl.CreatePointsAttr()
+            entry = {"centerline": cl.GetPointsAttr().GetPath(), "surface": None}
+            if surf is not None:
+                mesh = UsdGeom.Mesh.Define(st, path_p.AppendChild("Surface"))
+                mesh.CreateSubdivisionSchemeAttr(UsdGeom.Tokens.none)
+                mesh.CreateFaceVertexCountsAttr(Vt.IntArray.FromNumpy(np.ascontiguousarray(surf.face_vertex_counts, dtype=np.int32)))
+                mesh.CreateFaceVertexIndicesAttr(Vt.IntArray.FromNumpy(np.ascontiguousarray(surf.face_vertex_indices, dtype=np.int32)))
+                mesh.CreatePointsAttr()
+                mesh.CreateNormalsAttr()
+                mesh.SetNormalsInterpolation(UsdGeom.Tokens.vertex)
+                mesh.CreateExtentAttr()
+                pv = UsdGeom.PrimvarsAPI(mesh).CreatePrimvar(
+                    "st", Sdf.ValueTypeNames.TexCoord2fArray, getattr(surf, "st_interpolation", UsdGeom.Tokens.vertex)
+                )
+                pv.Set(Vt.Vec2fArray.FromNumpy(np.ascontiguousarray(surf.st, dtype=np.float32)))
+                if getattr(surf, "st_indices", None) is not None:
+                    pv.SetIndices(Vt.IntArray.FromNumpy(np.ascontiguousarray(surf.st_indices, dtype=np.int32)))
+                entry["surface"] = (mesh.GetPointsAttr().GetPath(), mesh.GetNormalsAttr().GetPath(), mesh.GetExtentAttr().GetPath())
+            self.tubes.append(entry)
+        first = Sdf.Path(scene.tubes[0].path)
+        root = first.GetPrefixes()[0]
+        st.SetDefaultPrim(st.GetPrimAtPath(root))
+        self.frames_written = 0
+        self.last_time = info.start_time_code
+        self.closed = False
+
+    def write_frame(self, time_code: float, centerlines, surfaces=None):
+        """Add one frame.
+
+        Args:
+            time_code: the frame's time code.
+            centerlines: per tube prim, points in stage units, shape (P, 3).
+            surfaces: per tube prim, ``(points, normals)`` in stage units, shapes (V, 3), or None.
+        """
+        from pxr import Sdf, Vt
+
+        with Sdf.ChangeBlock():
+            for k, entry in enumerate(self.tubes):
+                pts = np.ascontiguousarray(centerlines[k], dtype=np.float32)
+                self.layer.SetTimeSample(entry["centerline"], time_code, Vt.Vec3fArray.FromNumpy(pts))
+                if entry["surface"] is not None and surfaces is not None and surfaces[k] is not None:
+                    p_path, n_path, e_path = entry["surface"]
+                    sp, sn = surfaces[k]
+                    sp = np.ascontiguousarray(sp, dtype=np.float32)
+                    self.layer.SetTimeSample(p_path, time_code, Vt.Vec3fArray.FromNumpy(sp))
+                    self.layer.SetTimeSample(n_path, time_code, Vt.Vec3fArray.FromNumpy(np.ascontiguousarray(sn, dtype=np.float32)))
+                    ext = np.stack([sp.min(axis=0), sp.max(axis=0)])
+                    self.layer.SetTimeSample(e_path, time_code, Vt.Vec3fArray.FromNumpy(ext))
+        self.frames_written += 1
+        self.last_time = time_code
+
+    def close(self) -> str:
+        """Finish the stage: endTimeCode = last frame written, save, rename over the target."""
+        if self.closed:
+            return self.path
+        self.stage.SetEndTimeCode(self.last_time)
+        self.layer.Save()
+        self.closed = True
+        del self.stage, self.layer
+        os.replace(self.tmp, self.path)
+        return self.path
+
+    def abort(self):
+        """Drop the partial stage without touching the target."""
+        if not self.closed:
+            self.closed = True
+            try:
+                os.remove(self.tmp)
+            except FileNotFoundError:
+                pass
