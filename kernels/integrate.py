@@ -15,7 +15,7 @@ gravity, damping or assistant line evaluates only its structural and bending spr
 Update per substep (mass-proportional damping ``alpha`` taken implicitly, so it never limits the
 time step)::
 
-    v' = (v + dt * f / m) / (1 + alpha * dt)        x' = x + dt * v'
+    v' = (v + dt * f / m) / (1 + alpha * dt)        x' = x + dt * v'   (compensated sum)
 
 Pinned nodes (inverse mass 0) follow their targets, interpolated linearly over the frame from
 ``pin_q_start`` to ``pin_q_end``; their velocity is the target's.
@@ -28,7 +28,7 @@ from typing import NamedTuple
 
 import warp as wp
 
-from .springs import bend_force_on, curvature_targets, spring_force
+from .springs import bend_force_on, curvature_targets, node_delta, spring_force
 
 
 class Features(NamedTuple):
@@ -80,6 +80,7 @@ def make_kernels(features: Features):
         al_start: wp.array[int],
         # state in:
         node_q: wp.array2d[wp.vec3],
+        node_q_lo: wp.array2d[wp.vec3],
         node_qd: wp.array2d[wp.vec3],
         node_kappa_target: wp.array2d[wp.vec3],
         al_q: wp.array2d[wp.vec3],
@@ -100,20 +101,20 @@ def make_kernels(features: Features):
             kd = float(0.0)
             if wp.static(SPRING_DAMPING):
                 kd = seg_kd[pw, i - 1]
-            f += spring_force(x, node_q[w, i - 1], v, node_qd[w, i - 1], seg_rest_length[pw, i - 1], seg_ke[pw, i - 1], kd)
+            f += spring_force(node_delta(node_q, node_q_lo, w, i, i - 1), node_qd[w, i - 1] - v, seg_rest_length[pw, i - 1], seg_ke[pw, i - 1], kd)
         if i < end - 1:
             kd = float(0.0)
             if wp.static(SPRING_DAMPING):
                 kd = seg_kd[pw, i]
-            f += spring_force(x, node_q[w, i + 1], v, node_qd[w, i + 1], seg_rest_length[pw, i], seg_ke[pw, i], kd)
+            f += spring_force(node_delta(node_q, node_q_lo, w, i, i + 1), node_qd[w, i + 1] - v, seg_rest_length[pw, i], seg_ke[pw, i], kd)
         if wp.static(BENDING):
             # Stencils centred on i-1, i and i+1 (interior nodes only).
             if i - 1 > start:
-                f += bend_force_on(i - 1, 1, pw, w, node_q, node_bend_k, node_kappa_target)
+                f += bend_force_on(i - 1, 1, pw, w, node_q, node_q_lo, node_bend_k, node_kappa_target)
             if i > start and i < end - 1:
-                f += bend_force_on(i, 0, pw, w, node_q, node_bend_k, node_kappa_target)
+                f += bend_force_on(i, 0, pw, w, node_q, node_q_lo, node_bend_k, node_kappa_target)
             if i + 1 < end - 1:
-                f += bend_force_on(i + 1, -1, pw, w, node_q, node_bend_k, node_kappa_target)
+                f += bend_force_on(i + 1, -1, pw, w, node_q, node_q_lo, node_bend_k, node_kappa_target)
         if wp.static(ANCHORS):
             ka = node_anchor_k[pw, i]
             if ka > 0.0:
@@ -132,11 +133,11 @@ def make_kernels(features: Features):
                     kd = float(0.0)
                     if wp.static(SPRING_DAMPING):
                         kd = seg_kd[pw, s]
-                    f += spring_force(x, al_q[w, p], v, al_qd[w, p], al_link_length[w, p], seg_ke[pw, s], kd)
+                    f += spring_force(al_q[w, p] - x, al_qd[w, p] - v, al_link_length[w, p], seg_ke[pw, s], kd)
                     if i > k:
-                        f += spring_force(x, al_q[w, p - 1], v, al_qd[w, p - 1], al_fwd_length[w, p - 1], seg_ke[pw, i - 1], kd)
+                        f += spring_force(al_q[w, p - 1] - x, al_qd[w, p - 1] - v, al_fwd_length[w, p - 1], seg_ke[pw, i - 1], kd)
                     if i < k:
-                        f += spring_force(x, al_q[w, p + 1], v, al_qd[w, p + 1], al_bwd_length[w, p + 1], seg_ke[pw, i], kd)
+                        f += spring_force(al_q[w, p + 1] - x, al_qd[w, p + 1] - v, al_bwd_length[w, p + 1], seg_ke[pw, i], kd)
         return f
 
     @wp.func
@@ -177,30 +178,37 @@ def make_kernels(features: Features):
         kd_link = float(0.0)
         if wp.static(SPRING_DAMPING):
             kd_link = seg_kd[pw, s]
-        f = spring_force(x, node_q[w, i], v, node_qd[w, i], al_link_length[w, p], seg_ke[pw, s], kd_link)
+        f = spring_force(node_q[w, i] - x, node_qd[w, i] - v, al_link_length[w, p], seg_ke[pw, s], kd_link)
         if i > start:
             kd = float(0.0)
             if wp.static(SPRING_DAMPING):
                 kd = seg_kd[pw, i - 1]
-            f += spring_force(x, al_q[w, p - 1], v, al_qd[w, p - 1], al_chord_length[w, p - 1], seg_ke[pw, i - 1], kd)
+            f += spring_force(al_q[w, p - 1] - x, al_qd[w, p - 1] - v, al_chord_length[w, p - 1], seg_ke[pw, i - 1], kd)
             if i <= k:
-                f += spring_force(x, node_q[w, i - 1], v, node_qd[w, i - 1], al_bwd_length[w, p], seg_ke[pw, i - 1], kd)
+                f += spring_force(node_q[w, i - 1] - x, node_qd[w, i - 1] - v, al_bwd_length[w, p], seg_ke[pw, i - 1], kd)
         if i < end - 1:
             kd = float(0.0)
             if wp.static(SPRING_DAMPING):
                 kd = seg_kd[pw, i]
-            f += spring_force(x, al_q[w, p + 1], v, al_qd[w, p + 1], al_chord_length[w, p], seg_ke[pw, i], kd)
+            f += spring_force(al_q[w, p + 1] - x, al_qd[w, p + 1] - v, al_chord_length[w, p], seg_ke[pw, i], kd)
             if i >= k:
-                f += spring_force(x, node_q[w, i + 1], v, node_qd[w, i + 1], al_fwd_length[w, p], seg_ke[pw, i], kd)
+                f += spring_force(node_q[w, i + 1] - x, node_qd[w, i + 1] - v, al_fwd_length[w, p], seg_ke[pw, i], kd)
         return f
 
     @wp.func
-    def advance(x: wp.vec3, v: wp.vec3, f: wp.vec3, inv_mass: float, alpha: float, dt: float):
-        """Semi-implicit Euler with implicit mass-proportional damping; returns (x', v')."""
+    def advance(x: wp.vec3, lo: wp.vec3, v: wp.vec3, f: wp.vec3, inv_mass: float, alpha: float, dt: float):
+        """Semi-implicit Euler with implicit mass-proportional damping; returns (x', lo', v').
+
+        The position sum is compensated (Kahan): ``lo`` carries the low-order bits that adding a
+        small ``v dt`` to a float32 position drops. Without it the dropped bits act as white noise
+        that heats the stiff axial modes of a long undamped run.
+        """
         v_new = v + f * (inv_mass * dt)
         if wp.static(MASS_DAMPING):
             v_new = v_new / (1.0 + alpha * dt)
-        return x + v_new * dt, v_new
+        y = v_new * dt + lo
+        x_new = x + y
+        return x_new, y - (x_new - x), v_new
 
     @wp.kernel(enable_backward=False, module="unique")
     def substeps(
@@ -225,6 +233,7 @@ def make_kernels(features: Features):
         al_start: wp.array[int],
         # state in:
         node_q_in: wp.array2d[wp.vec3],
+        node_q_lo_in: wp.array2d[wp.vec3],
         node_qd_in: wp.array2d[wp.vec3],
         al_q_in: wp.array2d[wp.vec3],
         al_qd_in: wp.array2d[wp.vec3],
@@ -243,6 +252,7 @@ def make_kernels(features: Features):
         node_kappa_target: wp.array2d[wp.vec3],
         # out:
         node_q_out: wp.array2d[wp.vec3],
+        node_q_lo_out: wp.array2d[wp.vec3],
         node_qd_out: wp.array2d[wp.vec3],
         al_q_out: wp.array2d[wp.vec3],
         al_qd_out: wp.array2d[wp.vec3],
@@ -254,6 +264,7 @@ def make_kernels(features: Features):
         end = tube_node_start[t + 1]
         for i in range(start, end):
             node_q_out[w, i] = node_q_in[w, i]
+            node_q_lo_out[w, i] = node_q_lo_in[w, i]
             node_qd_out[w, i] = node_qd_in[w, i]
         if wp.static(AL):
             for a in range(tube_force_start[t], tube_force_start[t + 1]):
@@ -269,7 +280,7 @@ def make_kernels(features: Features):
                     w, pw, i, start, end, t,
                     node_rest_q, node_mass, seg_rest_length, seg_ke, seg_kd, node_bend_k,
                     node_anchor_k, node_anchor_kd, gravity, tube_force_start, force_node, al_start,
-                    node_q_out, node_qd_out, node_kappa_target, al_q_out, al_qd_out,
+                    node_q_out, node_q_lo_out, node_qd_out, node_kappa_target, al_q_out, al_qd_out,
                     node_f_ext, al_active, al_link_length, al_fwd_length, al_bwd_length,
                 )  # fmt: skip
             if wp.static(AL):
@@ -288,16 +299,18 @@ def make_kernels(features: Features):
                     x_new = wp.lerp(pin_q_start[w, i], pin_q_end[w, i], frac)
                     node_qd_out[w, i] = (x_new - node_q_out[w, i]) / dt
                     node_q_out[w, i] = x_new
+                    node_q_lo_out[w, i] = wp.vec3(0.0)
                 else:
-                    x_new, v_new = advance(node_q_out[w, i], node_qd_out[w, i], node_f[w, i], im, node_damping[pw, i], dt)
+                    x_new, lo_new, v_new = advance(node_q_out[w, i], node_q_lo_out[w, i], node_qd_out[w, i], node_f[w, i], im, node_damping[pw, i], dt)
                     node_q_out[w, i] = x_new
+                    node_q_lo_out[w, i] = lo_new
                     node_qd_out[w, i] = v_new
             if wp.static(AL):
                 for a in range(tube_force_start[t], tube_force_start[t + 1]):
                     if al_active[w, a] != 0:
                         for i in range(start, end):
                             p = al_start[a] + (i - start)
-                            x_new, v_new = advance(al_q_out[w, p], al_qd_out[w, p], al_f[w, p], 1.0 / node_mass[pw, i], node_damping[pw, i], dt)
+                            x_new, lo_new, v_new = advance(al_q_out[w, p], wp.vec3(0.0), al_qd_out[w, p], al_f[w, p], 1.0 / node_mass[pw, i], node_damping[pw, i], dt)
                             al_q_out[w, p] = x_new
                             al_qd_out[w, p] = v_new
 
@@ -340,6 +353,7 @@ def make_kernels(features: Features):
         al_start: wp.array[int],
         # state in:
         node_q_in: wp.array2d[wp.vec3],
+        node_q_lo_in: wp.array2d[wp.vec3],
         node_qd_in: wp.array2d[wp.vec3],
         node_kappa_target: wp.array2d[wp.vec3],
         al_q_in: wp.array2d[wp.vec3],
@@ -354,6 +368,7 @@ def make_kernels(features: Features):
         al_bwd_length: wp.array2d[float],
         # out:
         node_q_out: wp.array2d[wp.vec3],
+        node_q_lo_out: wp.array2d[wp.vec3],
         node_qd_out: wp.array2d[wp.vec3],
     ):
         """One substep of ``dt`` [s] for one node; ``frac`` is the pin targets' progress."""
@@ -364,17 +379,19 @@ def make_kernels(features: Features):
             x_new = wp.lerp(pin_q_start[w, i], pin_q_end[w, i], frac)
             node_qd_out[w, i] = (x_new - node_q_in[w, i]) / dt
             node_q_out[w, i] = x_new
+            node_q_lo_out[w, i] = wp.vec3(0.0)
             return
         t = node_tube[i]
         f = node_force(
             w, pw, i, tube_node_start[t], tube_node_start[t + 1], t,
             node_rest_q, node_mass, seg_rest_length, seg_ke, seg_kd, node_bend_k,
             node_anchor_k, node_anchor_kd, gravity, tube_force_start, force_node, al_start,
-            node_q_in, node_qd_in, node_kappa_target, al_q_in, al_qd_in,
+            node_q_in, node_q_lo_in, node_qd_in, node_kappa_target, al_q_in, al_qd_in,
             node_f_ext, al_active, al_link_length, al_fwd_length, al_bwd_length,
         )  # fmt: skip
-        x_new, v_new = advance(node_q_in[w, i], node_qd_in[w, i], f, im, node_damping[pw, i], dt)
+        x_new, lo_new, v_new = advance(node_q_in[w, i], node_q_lo_in[w, i], node_qd_in[w, i], f, im, node_damping[pw, i], dt)
         node_q_out[w, i] = x_new
+        node_q_lo_out[w, i] = lo_new
         node_qd_out[w, i] = v_new
 
     @wp.kernel(enable_backward=False, module="unique")
@@ -420,7 +437,7 @@ def make_kernels(features: Features):
             node_q_in, node_qd_in, al_q_in, al_qd_in,
             al_link_length, al_chord_length, al_fwd_length, al_bwd_length,
         )  # fmt: skip
-        x_new, v_new = advance(al_q_in[w, p], al_qd_in[w, p], f, 1.0 / node_mass[pw, i], node_damping[pw, i], dt)
+        x_new, lo_new, v_new = advance(al_q_in[w, p], wp.vec3(0.0), al_qd_in[w, p], f, 1.0 / node_mass[pw, i], node_damping[pw, i], dt)
         al_q_out[w, p] = x_new
         al_qd_out[w, p] = v_new
 

@@ -16,20 +16,29 @@ EPS = wp.constant(1.0e-12)
 
 
 @wp.func
-def spring_force(
-    xa: wp.vec3, xb: wp.vec3, va: wp.vec3, vb: wp.vec3, rest_length: float, ke: float, kd: float
-) -> wp.vec3:
-    """Force on end ``a`` of a spring from ``a`` to ``b`` [N].
+def spring_force(d: wp.vec3, dv: wp.vec3, rest_length: float, ke: float, kd: float) -> wp.vec3:
+    """Force on end ``a`` of a spring from ``a`` to ``b`` [N], given ``d = xb - xa`` [m] and
+    ``dv = vb - va`` [m/s].
 
-    Hookean along the spring, ``ke * (|d| - L)`` with ``d = xb - xa``, plus damping along it,
-    ``kd * (vb - va) . d_hat``. A zero-length spring exerts no force (no direction to push along).
+    Hookean along the spring, ``ke * (|d| - L)``, plus damping along it, ``kd * dv . d_hat``. A
+    zero-length spring exerts no force (no direction to push along).
     """
-    d = xb - xa
     length = wp.length(d)
     if length < EPS:
         return wp.vec3(0.0)
     n = d / length
-    return n * (ke * (length - rest_length) + kd * wp.dot(vb - va, n))
+    return n * (ke * (length - rest_length) + kd * wp.dot(dv, n))
+
+
+@wp.func
+def node_delta(node_q: wp.array2d[wp.vec3], node_q_lo: wp.array2d[wp.vec3], w: int, i: int, j: int) -> wp.vec3:
+    """``x_j - x_i`` [m] from the compensated positions ``node_q + node_q_lo``.
+
+    The float32 difference of nearby positions is exact, so adding the difference of the
+    low-order parts recovers the segment to well below the positions' own rounding (which times a
+    stiff spring would be force noise that heats a long undamped run).
+    """
+    return (node_q[w, j] - node_q[w, i]) + (node_q_lo[w, j] - node_q_lo[w, i])
 
 
 @wp.func
@@ -69,6 +78,7 @@ def bend_force_on(
     pw: int,
     w: int,
     node_q: wp.array2d[wp.vec3],
+    node_q_lo: wp.array2d[wp.vec3],
     node_bend_k: wp.array2d[float],
     node_kappa_target: wp.array2d[wp.vec3],
 ):
@@ -80,8 +90,8 @@ def bend_force_on(
     k = node_bend_k[pw, j]
     if k == 0.0:
         return wp.vec3(0.0)
-    a = node_q[w, j] - node_q[w, j - 1]
-    b = node_q[w, j + 1] - node_q[w, j]
+    a = node_delta(node_q, node_q_lo, w, j - 1, j)
+    b = node_delta(node_q, node_q_lo, w, j, j + 1)
     g = (curvature_binormal(a, b) - node_kappa_target[w % node_kappa_target.shape[0], j]) * k
     ga, gb = bend_gradients(a, b, g)
     if role < 0:

@@ -40,7 +40,7 @@ It costs three plane tests per spoke.
 
 import warp as wp
 
-from .frames import safe_normalize
+from .frames import rotate_minimal, safe_normalize
 
 RING_BODY = wp.constant(0)
 RING_CAP = wp.constant(1)
@@ -76,15 +76,25 @@ def spoke_length_at(
     has_next: int,
     x_next: wp.vec3,
     t_next: wp.vec3,
+    has_centre: int,
+    centre: wp.vec3,
+    k_perp: wp.vec3,
     guard_reach: float,
 ) -> float:
-    """Spoke length [length unit] after the inner-bend guard against both neighbouring rings."""
+    """Spoke length [length unit] after the inner-bend guard.
+
+    Limited against both neighbouring rings' planes (:func:`guarded_length`) and against the
+    plane through the local centre of curvature ``centre`` normal to ``k_perp`` (the curvature
+    direction in the ring's plane).
+    """
     out = length
     if guard_reach > 0.0:
         if has_prev != 0:
             out = guarded_length(out, d, x, x_prev, t_prev, guard_reach)
         if has_next != 0:
             out = guarded_length(out, d, x, x_next, t_next, guard_reach)
+        if has_centre != 0:
+            out = guarded_length(out, d, x, centre, k_perp, guard_reach)
     return out
 
 
@@ -152,13 +162,59 @@ def spoke_points_kernel(
     c = ring_cos[ring]
     sn = ring_sin[ring]
 
+    # Curvature vector at the hub (an end hub borrows its interior neighbour's) and the local
+    # centre of curvature, for the guard and the normals.
+    first = tube_node_start[tube]
+    last = tube_node_start[tube + 1] - 1
+    hc = wp.clamp(h, first + 1, last - 1)
+    kappa = wp.vec3(0.0)
+    has_centre = int(0)
+    centre = x
+    k_perp = wp.vec3(0.0)
+    if last - first >= 2:
+        xc = node_q[w, node_offset + hc]
+        xa = node_q[w, node_offset + hc - 1]
+        xb = node_q[w, node_offset + hc + 1]
+        lv = 0.5 * (wp.length(xc - xa) + wp.length(xb - xc))
+        if lv > 0.0:
+            kappa = (safe_normalize(xb - xc) - safe_normalize(xc - xa)) / lv
+        k2 = wp.dot(kappa, kappa)
+        if k2 > 0.0:
+            centre = xc + kappa / k2
+            k_perp = kappa - wp.dot(kappa, t) * t
+            has_centre = 1
+
+    # Guard planes: the neighbouring rings', and for a body ring at a tube's end (3+ hubs) a
+    # virtual ring one hub beyond it, continuing the last segment's bend (the end ring is normal to
+    # its edge, not to the bend, and would otherwise reach behind its hub near the centre of
+    # curvature). Cap rings, which lie beyond the end ring, are not limited by the virtual ring.
+    g_prev = has_prev
+    xg_prev = x_prev
+    tg_prev = t_prev
+    g_next = has_next
+    xg_next = x_next
+    tg_next = t_next
+    if last - first >= 2 and kind == RING_BODY:
+        if has_prev == 0:
+            e = safe_normalize(x_next - x)
+            t_star = 2.0 * wp.dot(t_next, e) * e - t_next
+            xg_prev = x - rotate_minimal(t_next, t_star, x_next - x)
+            tg_prev = rotate_minimal(t_next, t_star, t_star)
+            g_prev = 1
+        if has_next == 0:
+            e = safe_normalize(x - x_prev)
+            t_star = 2.0 * wp.dot(t_prev, e) * e - t_prev
+            xg_next = x + rotate_minimal(t_prev, t_star, x - x_prev)
+            tg_next = rotate_minimal(t_prev, t_star, t_star)
+            g_next = 1
+
     if kind == RING_POLE:
         mean = float(0.0)
         for k in range(spoke_count):
             mean += spoke_length[pw, h, k]
         d = c * t
         length = spoke_length_at(
-            mean / float(spoke_count), d, x, has_prev, x_prev, t_prev, has_next, x_next, t_next, guard_reach
+            mean / float(spoke_count), d, x, g_prev, xg_prev, tg_prev, g_next, xg_next, tg_next, has_centre, centre, k_perp, guard_reach
         )
         v = ring_vertex[ring]
         surface_q_out[w, v] = x + length * d
@@ -171,7 +227,7 @@ def spoke_points_kernel(
     u_perp = wp.cross(t, u)
     d = c * t + sn * u
     length = spoke_length_at(
-        spoke_length[pw, h, j], d, x, has_prev, x_prev, t_prev, has_next, x_next, t_next, guard_reach
+        spoke_length[pw, h, j], d, x, g_prev, xg_prev, tg_prev, g_next, xg_next, tg_next, has_centre, centre, k_perp, guard_reach
     )
 
     # Around the ring: central difference of the neighbouring spokes' (guarded) lengths.
@@ -180,10 +236,10 @@ def spoke_points_kernel(
     d_m = c * t + sn * (wp.cos(phi - dphi) * r + wp.sin(phi - dphi) * s)
     d_p = c * t + sn * (wp.cos(phi + dphi) * r + wp.sin(phi + dphi) * s)
     length_m = spoke_length_at(
-        spoke_length[pw, h, jm], d_m, x, has_prev, x_prev, t_prev, has_next, x_next, t_next, guard_reach
+        spoke_length[pw, h, jm], d_m, x, g_prev, xg_prev, tg_prev, g_next, xg_next, tg_next, has_centre, centre, k_perp, guard_reach
     )
     length_p = spoke_length_at(
-        spoke_length[pw, h, jp], d_p, x, has_prev, x_prev, t_prev, has_next, x_next, t_next, guard_reach
+        spoke_length[pw, h, jp], d_p, x, g_prev, xg_prev, tg_prev, g_next, xg_next, tg_next, has_centre, centre, k_perp, guard_reach
     )
     n = d - ((length_p - length_m) / (2.0 * dphi * length * sn)) * u_perp
 
@@ -199,9 +255,6 @@ def spoke_points_kernel(
             dl = spoke_length[pw, h + 1, j] - spoke_length[pw, h, j]
         elif has_prev != 0:
             dl = spoke_length[pw, h, j] - spoke_length[pw, h - 1, j]
-        kappa = wp.vec3(0.0)
-        if has_prev != 0 and has_next != 0:
-            kappa = (safe_normalize(x_next - x) - safe_normalize(x - x_prev)) / (0.5 * ds)
         stretch = wp.max(1.0 - length * wp.dot(kappa, u), MIN_STRETCH)
         if ds > 0.0:
             n = n - (dl / (ds * stretch)) * t

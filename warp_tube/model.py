@@ -86,19 +86,22 @@ class TubeState:
 
     Attributes:
         node_q: node positions [m], shape (world_count, node_count), vec3.
+        node_q_lo: low-order part of the positions [m] (compensated summation; the position is
+            ``node_q + node_q_lo``, of which ``node_q`` is the float32 rounding), same shape.
         node_qd: node velocities [m/s], shape (world_count, node_count), vec3.
         al_q: assistant-line point positions [m], shape (world_count, al_slots), vec3.
         al_qd: assistant-line point velocities [m/s], shape (world_count, al_slots), vec3.
     """
 
     node_q: wp.array
+    node_q_lo: wp.array
     node_qd: wp.array
     al_q: wp.array
     al_qd: wp.array
 
     def assign(self, other: "TubeState"):
         """Copy ``other`` into this state (same shapes)."""
-        for name in ("node_q", "node_qd", "al_q", "al_qd"):
+        for name in ("node_q", "node_q_lo", "node_qd", "al_q", "al_qd"):
             wp.copy(getattr(self, name), getattr(other, name))
 
 
@@ -167,6 +170,7 @@ class TubeModel:
         shape_al = (self.world_count, max(self.al_slots, 1))
         return TubeState(
             node_q=wp.array(q, dtype=wp.vec3, device=self.device),
+            node_q_lo=wp.zeros((self.world_count, self.node_count), dtype=wp.vec3, device=self.device),
             node_qd=wp.zeros((self.world_count, self.node_count), dtype=wp.vec3, device=self.device),
             al_q=wp.zeros(shape_al, dtype=wp.vec3, device=self.device),
             al_qd=wp.zeros(shape_al, dtype=wp.vec3, device=self.device),

@@ -53,10 +53,10 @@ class SemiImplicitEulerSolver:
             inputs=[frac, dt, m.node_tube, m.tube_node_start, m.node_rest_q, m.node_mass, m.node_inv_mass,
                     m.node_damping, m.seg_rest_length, m.seg_ke, m.seg_kd, m.node_bend_k, m.node_anchor_k,
                     m.node_anchor_kd, m.gravity, m.tube_force_start, m.force_node, m.al_start,
-                    s_in.node_q, s_in.node_qd, self._kappa_target, s_in.al_q, s_in.al_qd,
+                    s_in.node_q, s_in.node_q_lo, s_in.node_qd, self._kappa_target, s_in.al_q, s_in.al_qd,
                     c.node_f_ext, c.pin_q_start, c.pin_q_end, c.al_active, c.al_link_length,
                     c.al_fwd_length, c.al_bwd_length],
-            outputs=[s_out.node_q, s_out.node_qd],
+            outputs=[s_out.node_q, s_out.node_q_lo, s_out.node_qd],
         )  # fmt: skip
         if m.features.assistant_line:
             wp.launch(
@@ -75,11 +75,11 @@ class SemiImplicitEulerSolver:
             inputs=[int(substeps), dt, m.tube_node_start, m.node_rest_q, m.node_mass, m.node_inv_mass,
                     m.node_damping, m.seg_rest_length, m.seg_ke, m.seg_kd, m.node_bend_k, m.node_kappa_rest,
                     m.node_anchor_k, m.node_anchor_kd, m.gravity, m.tube_force_start, m.force_node, m.al_start,
-                    s_in.node_q, s_in.node_qd, s_in.al_q, s_in.al_qd,
+                    s_in.node_q, s_in.node_q_lo, s_in.node_qd, s_in.al_q, s_in.al_qd,
                     c.node_f_ext, c.pin_q_start, c.pin_q_end, c.al_active, c.al_link_length,
                     c.al_chord_length, c.al_fwd_length, c.al_bwd_length,
                     self._node_f, self._al_f, self._kappa_target],
-            outputs=[s_out.node_q, s_out.node_qd, s_out.al_q, s_out.al_qd],
+            outputs=[s_out.node_q, s_out.node_q_lo, s_out.node_qd, s_out.al_q, s_out.al_qd],
         )  # fmt: skip
 
     def step(self, state_in: TubeState, state_out: TubeState, control: TubeControl, dt: float):
