@@ -1,0 +1,177 @@
+"""Distance-from-boundary field on a voxel grid and most-centred paths through it.
+
+This is the "distance mapping" of Wan et al., "Automatic centerline extraction for virtual
+colonoscopy", IEEE TMI 21(12), 2002, as the seed paper (Huang et al. 2006) uses it:
+
+1. Voxels inside the tube: crossing parity of one ray per (x, y) column against the mesh with its
+   open ends capped (kernel :func:`warp_tube.kernels.raycast.fill_inside_columns`). Parity needs
+   no consistent face orientation.
+2. Distance from boundary (DFB) of each inside voxel centre: the exact distance to the surface
+   (closest-point query on a ``wp.Mesh``, kernel ``closest_distance``), not a voxel distance
+   transform. Distances only go to inside voxels (a few percent of a convoluted tube's bounding
+   box), so this costs ~0.05-0.4 s on one CPU core for the test meshes, about what
+   ``scipy.ndimage.distance_transform_edt`` takes on the whole box, and it is exact: the graph
+   below relies on it to keep edges from crossing the surface.
+3. Voxel graph: 26-neighbour edges between inside voxels ``a``, ``b`` with
+   ``DFB(a) + DFB(b) > |a - b|``. If the segment ``ab`` crossed the surface at ``p`` then
+   ``DFB(a) + DFB(b) <= |a - p| + |p - b| = |a - b|``, so kept edges never leave the tube, and a
+   path cannot leak through a thin gap between two touching loops of an intestine.
+4. Geodesic distances (edge weight = length) find end points; most-centred paths use edge weights
+   ``length * (1/DFB(a)^2 + 1/DFB(b)^2) / 2`` (Dijkstra, ``scipy.sparse.csgraph``), which keeps a
+   path on the medial axis of a bend of any curvature radius larger than the tube radius.
+
+Lengths are in the mesh's units. Voxel sizes are chosen by the caller (see
+:func:`voxel_size_for`).
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import numpy as np
+import scipy.sparse as sp
+import warp as wp
+from scipy.sparse.csgraph import dijkstra
+
+from .kernels import raycast
+
+__all__ = ["DistanceMap", "build_distance_map", "voxel_size_for", "shortest_tree", "trace_path"]
+
+# 13 of the 26 neighbour offsets; with the graph made symmetric they give all 26.
+_OFFSETS = np.array(
+    [(i, j, k) for i in (-1, 0, 1) for j in (-1, 0, 1) for k in (-1, 0, 1) if (i, j, k) > (0, 0, 0)],
+    dtype=np.int64,
+)
+
+
+@dataclass
+class DistanceMap:
+    """Inside voxels of a tube with their distance from the boundary and neighbour graphs.
+
+    Attributes:
+        origin: centre of voxel (0, 0, 0) [mesh units], shape (3,).
+        voxel_size: edge of a voxel [mesh units].
+        shape: grid size (nx, ny, nz).
+        ijk: grid indices of the M inside voxels, shape (M, 3).
+        points: their centres [mesh units], shape (M, 3).
+        dfb: distance from each centre to the surface [mesh units], shape (M,).
+        length_graph: CSR (M, M), edge lengths [mesh units], symmetric.
+        centred_graph: CSR (M, M), the same edges weighted to prefer large DFB.
+    """
+
+    origin: np.ndarray
+    voxel_size: float
+    shape: tuple[int, int, int]
+    ijk: np.ndarray
+    points: np.ndarray
+    dfb: np.ndarray
+    length_graph: sp.csr_matrix
+    centred_graph: sp.csr_matrix
+
+    @property
+    def count(self) -> int:
+        """Number of inside voxels, M."""
+        return len(self.dfb)
+
+
+def voxel_size_for(lo: np.ndarray, hi: np.ndarray, narrow_radius: float, *, per_radius=4.0, max_voxels=6e6):
+    """Voxel edge [mesh units]: ``narrow_radius / per_radius``, coarsened to fit ``max_voxels``.
+
+    Args:
+        lo, hi: bounding box corners, shape (3,).
+        narrow_radius: radius of the narrow parts of the tube [mesh units].
+    """
+    ext = np.maximum(np.asarray(hi) - np.asarray(lo), 1e-12)
+    h = narrow_radius / per_radius
+    h_budget = float(np.cbrt(np.prod(ext + 4.0 * h) / max_voxels))
+    return max(h, h_budget)
+
+
+def build_distance_map(
+    closed_mesh: wp.Mesh, surface_mesh: wp.Mesh, lo: np.ndarray, hi: np.ndarray, voxel_size: float, device=None
+) -> DistanceMap:
+    """Voxelise the inside of ``closed_mesh`` and measure distances to ``surface_mesh``.
+
+    Args:
+        closed_mesh: the tube with its open ends capped (inside test).
+        surface_mesh: the tube's real surface (distances; open ends stay open, so voxels near an
+            open end keep their distance to the wall rather than to the cap).
+        lo, hi: bounding box corners of the mesh [mesh units], shape (3,).
+        voxel_size: voxel edge [mesh units].
+        device: Warp device of both meshes.
+    """
+    h = float(voxel_size)
+    lo = np.asarray(lo, dtype=np.float64)
+    hi = np.asarray(hi, dtype=np.float64)
+    # Odd fractions of a voxel keep the parity columns off mesh edges and vertices of regular grids.
+    jitter = np.array([0.1234567, 0.3456789, 0.0], dtype=np.float64) * h
+    origin = lo - 1.5 * h + jitter
+    shape = tuple(int(n) for n in np.ceil((hi - origin) / h).astype(np.int64) + 2)
+    nx, ny, nz = shape
+    inside = wp.zeros((nx * ny, nz), dtype=wp.uint8, device=device)
+    wp.launch(
+        raycast.fill_inside_columns,
+        dim=nx * ny,
+        inputs=[closed_mesh.id, wp.vec3(*origin.astype(np.float32)), h, ny, nz, 4096],
+        outputs=[inside],
+        device=device,
+    )
+    flat = np.flatnonzero(inside.numpy().reshape(-1))
+    ijk = np.stack(np.unravel_index(flat, shape), axis=1).astype(np.int64)
+    pts = origin + h * ijk
+    dfb = np.zeros(len(flat))
+    if len(flat):
+        pts_wp = wp.array(pts.astype(np.float32), dtype=wp.vec3, device=device)
+        out = wp.empty(len(flat), dtype=float, device=device)
+        diag = float(np.linalg.norm(hi - lo)) + 4.0 * h
+        wp.launch(raycast.closest_distance, dim=len(flat), inputs=[surface_mesh.id, pts_wp, diag], outputs=[out],
+                  device=device)
+        dfb = out.numpy().astype(np.float64)
+    length_graph, centred_graph = _graphs(ijk, flat, shape, dfb, h)
+    return DistanceMap(origin, h, shape, ijk, pts, dfb, length_graph, centred_graph)
+
+
+def _graphs(ijk, flat, shape, dfb, h):
+    m = len(flat)
+    lookup = np.full(int(np.prod(shape)), -1, dtype=np.int64)
+    lookup[flat] = np.arange(m)
+    rows, cols, lens = [], [], []
+    for off in _OFFSETS:
+        nb = ijk + off
+        ok = ((nb >= 0) & (nb < np.asarray(shape))).all(axis=1)
+        a = np.flatnonzero(ok)
+        b = lookup[np.ravel_multi_index(nb[ok].T, shape)]
+        keep = b >= 0
+        a, b = a[keep], b[keep]
+        length = h * float(np.linalg.norm(off))
+        keep = dfb[a] + dfb[b] > length
+        rows.append(a[keep])
+        cols.append(b[keep])
+        lens.append(np.full(int(keep.sum()), length))
+    r = np.concatenate(rows + cols)
+    c = np.concatenate(cols + rows)
+    ln = np.concatenate(lens + lens)
+    d = np.maximum(dfb, 1e-3 * h)
+    ref = float(np.median(d)) ** 2 if m else 1.0
+    w = ln * 0.5 * (1.0 / d[r] ** 2 + 1.0 / d[c] ** 2) * ref
+    length_graph = sp.csr_matrix((ln, (r, c)), shape=(m, m))
+    centred_graph = sp.csr_matrix((w, (r, c)), shape=(m, m))
+    return length_graph, centred_graph
+
+
+def shortest_tree(graph: sp.csr_matrix, sources) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """Multi-source Dijkstra: ``(distance, predecessor, source)`` per node, shape (M,) each.
+
+    Unreached nodes have distance ``inf``, predecessor -9999 and source -9999.
+    """
+    src = np.atleast_1d(np.asarray(sources, dtype=np.int64))
+    dist, pred, origin = dijkstra(graph, directed=True, indices=src, return_predecessors=True, min_only=True)
+    return dist, pred, origin
+
+
+def trace_path(pred: np.ndarray, target: int) -> np.ndarray:
+    """Node indices from the tree's source to ``target`` (inclusive), following predecessors."""
+    out = [int(target)]
+    while pred[out[-1]] >= 0:
+        out.append(int(pred[out[-1]]))
+    return np.asarray(out[::-1], dtype=np.int64)

@@ -1,0 +1,263 @@
+"""Tube meshes for centerline extraction: loading, cleaning, boundary loops and capping.
+
+Meshes come from STL/PLY/OBJ files (through trimesh) or from the points and faces of a USD
+``Mesh`` prim carrying ``warptube:extract = true``. Everything that is wrong with the input becomes
+a :class:`~warp_tube.scene.SceneError` naming the source and what was found.
+"""
+
+from __future__ import annotations
+
+import logging
+import os
+from dataclasses import dataclass
+
+import numpy as np
+import trimesh
+
+from .scene import SceneError
+
+__all__ = [
+    "load_mesh",
+    "mesh_from_arrays",
+    "load_usd_mesh",
+    "clean_mesh",
+    "BoundaryLoop",
+    "boundary_loops",
+    "cap_loops",
+]
+
+log = logging.getLogger(__name__)
+
+
+def _scale3(scale) -> np.ndarray:
+    s = np.asarray(scale, dtype=np.float64).reshape(-1)
+    if s.size == 1:
+        s = np.repeat(s, 3)
+    if s.size != 3 or not (np.isfinite(s).all() and (s > 0).all()):
+        raise SceneError(f"scale {np.asarray(scale).tolist()}: expected one or three positive finite factors")
+    return s
+
+
+def clean_mesh(mesh: trimesh.Trimesh, source: str, scale=(1.0, 1.0, 1.0)) -> trimesh.Trimesh:
+    """Checked, scaled, welded copy of ``mesh``, reduced to its largest connected component.
+
+    Args:
+        mesh: input triangle mesh [mesh units].
+        source: name used in messages (file or prim path).
+        scale: factor per axis (or one for all) applied to the vertices, e.g. CT voxel sizes.
+
+    Returns:
+        A new mesh with merged duplicate vertices and without degenerate or duplicate faces.
+
+    Raises:
+        SceneError: not a triangle mesh, empty, NaN or infinite coordinates, face indices out of range,
+            or no face with area left.
+    """
+    s = _scale3(scale)
+    if not isinstance(mesh, trimesh.Trimesh):
+        raise SceneError(f"{source}: holds a {type(mesh).__name__}, expected a triangle mesh")
+    v = np.asarray(mesh.vertices, dtype=np.float64)
+    f = np.asarray(mesh.faces, dtype=np.int64)
+    if len(v) == 0 or len(f) == 0:
+        raise SceneError(f"{source}: empty mesh ({len(v)} vertices, {len(f)} faces): expected a tube surface")
+    if f.ndim != 2 or f.shape[1] != 3:
+        raise SceneError(f"{source}: faces shape {f.shape}: expected triangles (F, 3)")
+    if f.min() < 0 or f.max() >= len(v):
+        raise SceneError(f"{source}: face indices span {f.min()}..{f.max()}: expected 0..{len(v) - 1}")
+    bad = ~np.isfinite(v).all(axis=1)
+    if bad.any():
+        raise SceneError(
+            f"{source}: {int(bad.sum())} vertices with NaN or infinite coordinates "
+            f"(first: vertex {int(np.argmax(bad))}): expected finite coordinates"
+        )
+    out = trimesh.Trimesh(v * s, f, process=False)
+    out.merge_vertices()
+    out.update_faces(out.nondegenerate_faces())
+    out.update_faces(out.unique_faces())
+    out.remove_unreferenced_vertices()
+    if len(out.faces) == 0:
+        raise SceneError(f"{source}: every face has zero area: expected a tube surface")
+    labels = trimesh.graph.connected_component_labels(out.face_adjacency, node_count=len(out.faces))
+    counts = np.bincount(labels)
+    if len(counts) > 1:
+        keep = int(np.argmax(counts))
+        log.warning(
+            "%s: %d connected components; using the largest (%d of %d faces)",
+            source, len(counts), counts[keep], len(out.faces),
+        )
+        out.update_faces(labels == keep)
+        out.remove_unreferenced_vertices()
+    if len(out.faces) < 8:
+        raise SceneError(f"{source}: only {len(out.faces)} faces: expected a tube surface")
+    return out
+
+
+def load_mesh(path, scale=(1.0, 1.0, 1.0)) -> trimesh.Trimesh:
+    """Read a triangle mesh file (STL, PLY, OBJ, ... as trimesh reads them) and clean it.
+
+    Args:
+        path: mesh file.
+        scale: one factor or (fx, fy, fz) applied to the vertices [units of the result per file unit];
+            e.g. CT voxel sizes in mm.
+
+    Returns:
+        A cleaned mesh (see :func:`clean_mesh`).
+
+    Raises:
+        SceneError: no such file, unreadable, not a mesh, empty, NaN coordinates, ...
+    """
+    path = os.fspath(path)
+    if not os.path.isfile(path):
+        raise SceneError(f"{path}: no such file")
+    try:
+        mesh = trimesh.load(path, force="mesh", process=False)
+    except Exception as e:  # trimesh raises many kinds (ValueError, KeyError, struct.error, ...)
+        raise SceneError(f"{path}: cannot read as a mesh ({type(e).__name__}: {e})") from None
+    if isinstance(mesh, trimesh.Scene) or not hasattr(mesh, "faces"):
+        raise SceneError(f"{path}: holds no triangle faces: expected a surface mesh")
+    return clean_mesh(mesh, path, scale)
+
+
+def mesh_from_arrays(points, face_vertex_counts, face_vertex_indices, *, source="<mesh>", scale=(1.0, 1.0, 1.0)):
+    """Triangle mesh from polygon arrays as USD stores them (fan-triangulating each polygon).
+
+    Args:
+        points: vertex positions, shape (V, 3).
+        face_vertex_counts: vertices per polygon, shape (F,), each >= 3.
+        face_vertex_indices: polygon vertex indices, concatenated, shape (sum(counts),).
+        source: name used in messages (e.g. "scene.usda: /World/Colon").
+        scale: as in :func:`clean_mesh`.
+
+    Raises:
+        SceneError: mismatched counts and indices, polygons of fewer than 3 vertices, plus all of
+            :func:`clean_mesh`.
+    """
+    p = np.asarray(points, dtype=np.float64).reshape(-1, 3) if len(points) else np.zeros((0, 3))
+    counts = np.asarray(face_vertex_counts, dtype=np.int64).reshape(-1)
+    idx = np.asarray(face_vertex_indices, dtype=np.int64).reshape(-1)
+    if len(counts) == 0 or len(p) == 0:
+        raise SceneError(f"{source}: empty mesh ({len(p)} points, {len(counts)} faces): expected a tube surface")
+    if (counts < 3).any():
+        i = int(np.argmax(counts < 3))
+        raise SceneError(f"{source}: faceVertexCounts[{i}] = {counts[i]}: expected polygons of 3 or more vertices")
+    if counts.sum() != len(idx):
+        raise SceneError(
+            f"{source}: faceVertexCounts sum to {counts.sum()} but faceVertexIndices has {len(idx)} entries"
+        )
+    if idx.min() < 0 or idx.max() >= len(p):
+        raise SceneError(f"{source}: faceVertexIndices span {idx.min()}..{idx.max()}: expected 0..{len(p) - 1}")
+    starts = np.concatenate([[0], np.cumsum(counts)[:-1]])
+    # Fan triangulation: polygon k gives triangles (v0, v_j, v_{j+1}) for j = 1 .. n_k - 2.
+    tri_per = counts - 2
+    owner = np.repeat(np.arange(len(counts)), tri_per)
+    j = np.arange(tri_per.sum()) - np.repeat(np.cumsum(tri_per) - tri_per, tri_per) + 1
+    s0 = starts[owner]
+    faces = np.stack([idx[s0], idx[s0 + j], idx[s0 + j + 1]], axis=1)
+    return clean_mesh(trimesh.Trimesh(p, faces, process=False), source, scale)
+
+
+def load_usd_mesh(prim, *, source=None, scale=(1.0, 1.0, 1.0), time=None) -> trimesh.Trimesh:
+    """Triangle mesh of a ``UsdGeom.Mesh`` prim in world space (parent transforms applied).
+
+    Args:
+        prim: a ``Usd.Prim`` of type Mesh.
+        source: name used in messages (default: the prim path).
+        scale: as in :func:`clean_mesh`, applied after the world transform.
+        time: ``Usd.TimeCode`` to read (default: the earliest, i.e. the rest pose).
+    """
+    from pxr import Usd, UsdGeom
+
+    where = source or str(prim.GetPath())
+    if not prim.IsA(UsdGeom.Mesh):
+        raise SceneError(f"{where}: is a {prim.GetTypeName() or 'typeless prim'}, expected a Mesh")
+    tc = Usd.TimeCode.EarliestTime() if time is None else time
+    m = UsdGeom.Mesh(prim)
+    pts = m.GetPointsAttr().Get(tc)
+    counts = m.GetFaceVertexCountsAttr().Get(tc)
+    idx = m.GetFaceVertexIndicesAttr().Get(tc)
+    if pts is None or counts is None or idx is None:
+        raise SceneError(f"{where}: points, faceVertexCounts or faceVertexIndices not authored")
+    p = np.asarray(pts, dtype=np.float64).reshape(-1, 3)
+    xf = np.asarray(UsdGeom.Xformable(prim).ComputeLocalToWorldTransform(tc), dtype=np.float64)
+    if len(p):
+        p = p @ xf[:3, :3] + xf[3, :3]  # USD matrices act on row vectors
+    return mesh_from_arrays(p, np.asarray(counts), np.asarray(idx), source=where, scale=scale)
+
+
+@dataclass(frozen=True)
+class BoundaryLoop:
+    """One closed loop of boundary edges (an open end or a hole).
+
+    Attributes:
+        vertices: vertex indices in loop order, shape (k,).
+        centroid: mean of the loop's vertices [mesh units], shape (3,).
+        radius: mean distance of the loop's vertices from the centroid [mesh units].
+        normal: unit normal of the loop's best-fit plane, shape (3,) (sign arbitrary).
+    """
+
+    vertices: np.ndarray
+    centroid: np.ndarray
+    radius: float
+    normal: np.ndarray
+
+
+def boundary_loops(mesh: trimesh.Trimesh) -> list[BoundaryLoop]:
+    """Closed loops of the edges that belong to one face only, largest radius first."""
+    f = np.asarray(mesh.faces, dtype=np.int64)
+    directed = np.concatenate([f[:, [0, 1]], f[:, [1, 2]], f[:, [2, 0]]])
+    key = np.sort(directed, axis=1)
+    _, inv, cnt = np.unique(key, axis=0, return_inverse=True, return_counts=True)
+    bnd = directed[cnt[inv.reshape(-1)] == 1]
+    if len(bnd) == 0:
+        return []
+    nxt: dict[int, list[int]] = {}
+    for a, b in bnd.tolist():
+        nxt.setdefault(a, []).append(b)
+    used: set[tuple[int, int]] = set()
+    v = np.asarray(mesh.vertices, dtype=np.float64)
+    loops = []
+    for a0, b0 in bnd.tolist():
+        if (a0, b0) in used:
+            continue
+        chain = [a0]
+        a, b = a0, b0
+        while (a, b) not in used:
+            used.add((a, b))
+            if b == a0:
+                break
+            chain.append(b)
+            cands = [c for c in nxt.get(b, []) if (b, c) not in used]
+            if not cands:
+                break
+            a, b = b, cands[0]
+        if len(chain) < 3:
+            continue
+        pts = v[chain]
+        c = pts.mean(axis=0)
+        _, _, vt = np.linalg.svd(pts - c, full_matrices=False)
+        loops.append(
+            BoundaryLoop(
+                np.asarray(chain, dtype=np.int64), c, float(np.linalg.norm(pts - c, axis=1).mean()), vt[2]
+            )
+        )
+    loops.sort(key=lambda lp: -lp.radius)
+    return loops
+
+
+def cap_loops(mesh: trimesh.Trimesh, loops: list[BoundaryLoop]) -> tuple[np.ndarray, np.ndarray]:
+    """Vertices and faces of ``mesh`` with every loop closed by a fan around its centroid.
+
+    Returns:
+        ``(vertices (V + L, 3), faces (F + sum k, 3))``; the fans' orientation is arbitrary, which
+        is fine for ray parity and distances.
+    """
+    v = [np.asarray(mesh.vertices, dtype=np.float64)]
+    f = [np.asarray(mesh.faces, dtype=np.int64)]
+    n = len(v[0])
+    for lp in loops:
+        ring = lp.vertices
+        fan = np.stack([np.full(len(ring), n), ring, np.roll(ring, -1)], axis=1)
+        v.append(lp.centroid[None, :])
+        f.append(fan)
+        n += 1
+    return np.concatenate(v), np.concatenate(f)
