@@ -18,24 +18,38 @@ sample, with the frame carried without twist (so ``du/ds = -(kappa . u) t``)::
 where ``L_phi`` is the central difference of the (guarded) lengths of the neighbouring spokes of
 the ring, ``L_s`` the difference of the given lengths of the neighbouring hubs over their chord
 lengths (one-sided at a tube's ends), ``kappa = (e1/|e1| - e0/|e0|) / l_v`` the hub's curvature
-vector (exact, ``1 / rho`` towards the centre, on a circle; zero at the ends) and ``1 - L kappa . u``
+vector (exact, ``1 / rho`` towards the centre, on a circle; an end hub uses its neighbour's) and ``1 - L kappa . u``
 is floored at :data:`MIN_STRETCH`. For a circular tube this is exactly the spoke direction ``u``.
 
 Inner-bend guard. Where ``radius x curvature`` approaches 1, inner spokes reach the centre of
 curvature, where the neighbouring rings' planes cross their own: past it, rings would cross and the
-surface would fold through itself. With ``guard_reach = g > 0``, each spoke's length is limited so
-that its end stays at most the fraction ``g`` of the way, along the spoke, to the plane of either
-neighbouring ring (the plane through a neighbour hub normal to its tangent) where the spoke heads
-into that plane: ``L <= g ((x_k - x) . t_k) / (d . t_k)`` for ``k = i - 1, i + 1`` when the quotient
-is positive. On a circular arc all ring planes meet in the arc's axis (through the centre of
-curvature), so every ring stays in its own half-plane: rings never touch, and the strips between
-consecutive rings lie in disjoint wedges, so the surface has no self-intersection at any bend.
-Cost in shape: where it acts the inner side of a ring is cut flat along a straight chord at
-distance ``g rho`` from the hub (``rho`` the bend radius), parallel to the bend axis, so the
-cross-section loses the circular segment beyond that chord and the inner wall becomes a thin
-surface of revolution of radius ``(1 - g) rho`` around the bend axis. On a circular tube it acts
-only where ``radius x curvature > g`` (for the innermost spoke); below that the surface is exact.
-It costs three plane tests per spoke.
+surface would fold through itself. With ``guard_reach = g`` in (0, 1) (0: off), a spoke's length is
+limited so that its end stays at most the fraction ``g`` of the way, along the spoke, to
+
+- the plane of either neighbouring ring (through the neighbour hub, normal to its tangent), where
+  the spoke heads into it: ``L <= g ((x_k - x) . t_k) / (d . t_k)``;
+- the plane through the local centre of curvature ``x + kappa / |kappa|^2`` normal to ``kappa``'s
+  part in the ring plane (an end hub uses its interior neighbour's ``kappa``);
+- for a body ring at a tube's end, a virtual ring one hub beyond the end that continues the last
+  segment's bend. An end ring is normal to its edge, not radial to the bend, so near the centre of
+  curvature it would reach behind its hub (into the place of the other end of a tube bent into a
+  nearly closed loop). This limit is blended in as the spoke's unguarded reach goes from 0.9 to 1
+  times the distance to the centre's plane, so the shape stays continuous and tubes with
+  ``radius x curvature <= 0.9`` are not affected by it.
+
+On a circular arc all interior ring planes meet in the arc's axis (through the centre of
+curvature), so every ring stays in its own wedge: rings never touch and the strips between them lie
+in disjoint wedges; an open tube has no self-intersection at any curvature as long as its arc angle
+leaves a gap of more than two hub spacings (the virtual rings) before closing into a loop. Caps are
+not limited by the virtual rings: a cap's dome of radius ``r`` is real geometry, and on a loop it can
+reach the tube's other end (contact, not modelled).
+
+Cost in shape: where the guard acts the inner side of a ring is cut flat along a straight chord at
+distance ``g rho`` from the hub (``rho`` the bend radius; about ``2/3 g rho`` at an end ring), parallel
+to the bend axis: the cross-section loses the circular segment beyond that chord and the inner wall
+becomes a thin surface of revolution of radius ``(1 - g) rho`` around the bend axis. On a circular
+tube it acts only where ``radius x curvature > g`` for the innermost spoke; below that the surface is
+exact. It costs five plane tests per spoke (three spokes are evaluated per thread, for normals).
 """
 
 import warp as wp
@@ -47,22 +61,38 @@ RING_CAP = wp.constant(1)
 RING_POLE = wp.constant(2)
 MIN_STRETCH = wp.constant(1.0e-2)
 """Floor of ``1 - L kappa . u`` (the surface's stretch along the tube at a spoke end) in normals."""
+VIRTUAL_BLEND = wp.constant(0.9)
+"""Reach (fraction of the distance to the centre of curvature) where an end ring starts to feel the
+virtual ring beyond the tube's end."""
 
 
 @wp.func
-def guarded_length(
-    length: float, d: wp.vec3, x: wp.vec3, x_k: wp.vec3, t_k: wp.vec3, guard_reach: float
-) -> float:
-    """Spoke length limited so its end stays ``guard_reach`` of the way to neighbour ``k``'s plane.
-
-    ``x``: the spoke's hub; ``d``: its unit direction; ``x_k``, ``t_k``: the neighbour hub and its
-    unit tangent. Returns ``length`` unchanged where the spoke does not head into that plane.
-    """
+def plane_distance(d: wp.vec3, x: wp.vec3, x_k: wp.vec3, t_k: wp.vec3) -> float:
+    """Distance [length unit] along unit ``d`` from ``x`` to the plane through ``x_k`` normal to
+    ``t_k``, where the ray from ``x`` heads into that plane; -1 where it does not."""
     num = wp.dot(x_k - x, t_k)
     den = wp.dot(d, t_k)
     if num * den > 0.0:
-        return wp.min(length, guard_reach * num / den)
-    return length
+        return num / den
+    return -1.0
+
+
+@wp.func
+def neighbour_limit(length: float, kind: int, l_k: float, l_c: float, guard_reach: float) -> float:
+    """Limit of a spoke of given ``length`` from one neighbour ring's plane at distance ``l_k``.
+
+    ``kind`` 1: a real neighbour, limit ``guard_reach l_k``. ``kind`` 2: the virtual ring beyond a
+    tube's end, blended in as the spoke's reach goes from :data:`VIRTUAL_BLEND` to 1 times ``l_c``,
+    the distance to the centre of curvature's plane, so that the shape changes continuously.
+    """
+    out = length
+    if l_k > 0.0:
+        if kind == 1:
+            out = wp.min(length, guard_reach * l_k)
+        elif kind == 2 and l_c > 0.0:
+            blend = wp.clamp((length / l_c - VIRTUAL_BLEND) / (1.0 - VIRTUAL_BLEND), 0.0, 1.0)
+            out = length + blend * (wp.min(length, guard_reach * l_k) - length)
+    return out
 
 
 @wp.func
@@ -70,10 +100,10 @@ def spoke_length_at(
     length: float,
     d: wp.vec3,
     x: wp.vec3,
-    has_prev: int,
+    prev_kind: int,
     x_prev: wp.vec3,
     t_prev: wp.vec3,
-    has_next: int,
+    next_kind: int,
     x_next: wp.vec3,
     t_next: wp.vec3,
     has_centre: int,
@@ -83,18 +113,21 @@ def spoke_length_at(
 ) -> float:
     """Spoke length [length unit] after the inner-bend guard.
 
-    Limited against both neighbouring rings' planes (:func:`guarded_length`) and against the
-    plane through the local centre of curvature ``centre`` normal to ``k_perp`` (the curvature
-    direction in the ring's plane).
+    Limited against the previous and next rings' planes (kind 0: none, 1: real, 2: virtual, see
+    :func:`neighbour_limit`) and against the plane through the local centre of curvature
+    ``centre`` normal to ``k_perp`` (the curvature direction in the ring's plane).
     """
     out = length
     if guard_reach > 0.0:
-        if has_prev != 0:
-            out = guarded_length(out, d, x, x_prev, t_prev, guard_reach)
-        if has_next != 0:
-            out = guarded_length(out, d, x, x_next, t_next, guard_reach)
+        l_c = float(-1.0)
         if has_centre != 0:
-            out = guarded_length(out, d, x, centre, k_perp, guard_reach)
+            l_c = plane_distance(d, x, centre, k_perp)
+        if prev_kind != 0:
+            out = wp.min(out, neighbour_limit(length, prev_kind, plane_distance(d, x, x_prev, t_prev), l_c, guard_reach))
+        if next_kind != 0:
+            out = wp.min(out, neighbour_limit(length, next_kind, plane_distance(d, x, x_next, t_next), l_c, guard_reach))
+        if l_c > 0.0:
+            out = wp.min(out, guard_reach * l_c)
     return out
 
 
@@ -200,13 +233,13 @@ def spoke_points_kernel(
             t_star = 2.0 * wp.dot(t_next, e) * e - t_next
             xg_prev = x - rotate_minimal(t_next, t_star, x_next - x)
             tg_prev = rotate_minimal(t_next, t_star, t_star)
-            g_prev = 1
+            g_prev = 2
         if has_next == 0:
             e = safe_normalize(x - x_prev)
             t_star = 2.0 * wp.dot(t_prev, e) * e - t_prev
             xg_next = x + rotate_minimal(t_prev, t_star, x - x_prev)
             tg_next = rotate_minimal(t_prev, t_star, t_star)
-            g_next = 1
+            g_next = 2
 
     if kind == RING_POLE:
         mean = float(0.0)
