@@ -1,0 +1,291 @@
+"""Hubs-and-spokes surface: exact geometry, normals, topology, volume and the inner-bend guard."""
+
+import numpy as np
+import pytest
+import warp as wp
+
+from warp_tube import frames as ref
+from warp_tube.surface import SurfaceBuilder
+from warp_tube.topology import RING_BODY, RING_POLE, build_topology
+
+DEVICE = "cpu"
+
+
+def arc(n, rho, angle):
+    """n hubs on a circular arc of radius rho [m] and angle [rad] in the xy-plane, from the origin
+    along +x, bending towards +y (axis of the bend: +z through (0, rho, 0))."""
+    phi = np.linspace(0.0, angle, n)
+    return np.stack([rho * np.sin(phi), rho * (1.0 - np.cos(phi)), np.zeros(n)], 1)
+
+
+def straight(n, length):
+    x = np.zeros((n, 3))
+    x[:, 0] = np.linspace(0.0, length, n)
+    return x
+
+
+def build(x, spokes, lengths, *, caps=False, guard=0.95, frames="rotationMinimizing", normal=(0.0, 0.0, 1.0)):
+    n = len(x)
+    b = SurfaceBuilder(
+        [0, n], x, spokes, lengths, np.array(normal), frames=frames, caps=caps, device=DEVICE, guard_reach=guard
+    )
+    b.compute(wp.array(x[None].astype(np.float32), dtype=wp.vec3, device=DEVICE))
+    return b
+
+
+def volume(points, faces):
+    """Signed volume [m^3] enclosed by a closed, outward-oriented triangle mesh (divergence theorem)."""
+    a, b, c = (points[faces[:, k]] for k in range(3))
+    return float(np.einsum("ij,ij->i", a, np.cross(b, c)).sum() / 6.0)
+
+
+def closed_mesh(b, x):
+    """Points and faces of a builder's surface; an open tube is closed by a fan to each end hub."""
+    P = b.points_numpy().astype(np.float64)
+    F = b.topology.faces.astype(np.int64)
+    if b.caps:
+        return P, F
+    S, n = b.spokes, len(x)
+    j = np.arange(S)
+    j1 = (j + 1) % S
+    c0, c1 = len(P), len(P) + 1
+    P = np.vstack([P, x[0], x[-1]])
+    fans = [np.stack([j, np.full(S, c0), j1], 1), np.stack([(n - 1) * S + j, (n - 1) * S + j1, np.full(S, c1)], 1)]
+    return P, np.vstack([F] + fans)
+
+
+# -- exact geometry ----------------------------------------------------------------------------
+
+
+@pytest.mark.parametrize("frames", ["rotationMinimizing", "local"])
+def test_spokes_at_length_and_angle_on_a_gentle_curve(frames):
+    """Away from the guard (radius x curvature < 0.3 here), every spoke end is at its length from
+    its hub, at its ring's angle to the tangent, and spoke j lies at phi_j from the reference r."""
+    rng = np.random.default_rng(11)
+    n, S = 24, 9
+    s = np.linspace(0.0, 1.0, n)
+    x = np.stack([s, 0.1 * np.sin(2.0 * s), 0.08 * np.cos(3.0 * s)], 1)
+    rest = straight(n, 1.0)
+    lengths = rng.uniform(0.02, 0.04, size=(n, S))
+    b = SurfaceBuilder([0, n], rest, S, lengths, frames=frames, caps=True, device=DEVICE)
+    b.compute(wp.array(x[None].astype(np.float32), dtype=wp.vec3, device=DEVICE))
+    P = b.points_numpy().astype(np.float64)
+    t, r, sv = b.frames_numpy()
+    topo = b.topology
+    xq = x.astype(np.float32).astype(np.float64)
+    for ring in range(len(topo.ring_hub)):
+        h, v0 = topo.ring_hub[ring], topo.ring_vertex[ring]
+        count = 1 if topo.ring_kind[ring] == RING_POLE else S
+        spoke = P[v0 : v0 + count] - xq[h]
+        expected_len = lengths[h].mean() if count == 1 else lengths[h]
+        # float32: points of O(1) coordinates carry ~1e-7 absolute error, i.e. ~5e-6 of a 0.02 spoke.
+        np.testing.assert_allclose(np.linalg.norm(spoke, axis=1), expected_len, rtol=2e-5)
+        cos_theta = spoke @ t[h] / np.linalg.norm(spoke, axis=1)
+        np.testing.assert_allclose(cos_theta, topo.ring_cos[ring], atol=2e-5)
+        if count == S:
+            phi = 2 * np.pi * np.arange(S) / S
+            u = np.cos(phi)[:, None] * r[h] + np.sin(phi)[:, None] * sv[h]
+            d = topo.ring_cos[ring] * t[h] + topo.ring_sin[ring] * u
+            np.testing.assert_allclose(spoke / expected_len[:, None], d, atol=2e-5)
+    # body vertex order: hub i, spoke j at i * S + j
+    assert np.all(topo.ring_vertex[topo.ring_kind == RING_BODY] == np.arange(n) * S)
+
+
+def test_straight_tube_is_the_exact_polygonal_cylinder():
+    n, S, radius = 10, 12, 0.05
+    x = straight(n, 0.5)
+    b = build(x, S, np.full(n, radius), normal=(0.0, 1.0, 0.0))
+    phi = 2 * np.pi * np.arange(S) / S
+    # t = +x, r = +y (the reference normal), s = t x r = +z
+    u = np.stack([np.zeros(S), np.cos(phi), np.sin(phi)], 1)
+    expected = x[:, None, :] + radius * u[None]
+    # float32 round-off of coordinates <= 0.55: 1e-7 absolute; 1e-6 leaves 10x.
+    np.testing.assert_allclose(b.points_numpy().reshape(n, S, 3), expected, atol=1e-6)
+    np.testing.assert_allclose(b.normals_numpy().reshape(n, S, 3), np.broadcast_to(u, (n, S, 3)), atol=1e-6)
+
+
+def test_normals_of_a_bent_circular_tube_are_the_spoke_directions():
+    """A canal surface of constant radius has the spoke direction as its normal, bent or not."""
+    n, S, radius = 20, 10, 0.1
+    x = arc(n, 0.3, 1.5)  # radius x curvature = 1/3: guard inactive
+    b = build(x, S, np.full(n, radius))
+    P = b.points_numpy().astype(np.float64).reshape(n, S, 3)
+    u = (P - x.astype(np.float32)[:, None, :]) / radius
+    np.testing.assert_allclose(b.normals_numpy().reshape(n, S, 3), u, atol=2e-5)  # float32, as above
+
+
+def elliptic_normal_error(S, a=0.06, bb=0.04, n=6):
+    phi = 2 * np.pi * np.arange(S) / S
+    L = a * bb / np.sqrt((bb * np.cos(phi)) ** 2 + (a * np.sin(phi)) ** 2)
+    b = build(straight(n, 0.3), S, np.tile(L, (n, 1)), normal=(0.0, 1.0, 0.0))
+    exact = np.stack([np.zeros(S), L * np.cos(phi) / a**2, L * np.sin(phi) / bb**2], 1)
+    exact /= np.linalg.norm(exact, axis=1, keepdims=True)
+    u = np.stack([np.zeros(S), np.cos(phi), np.sin(phi)], 1)
+    got = b.normals_numpy().reshape(n, S, 3)
+    return np.max(np.linalg.norm(got - exact[None], axis=2)), np.max(np.linalg.norm(u - exact, axis=1))
+
+
+def test_normals_of_an_elliptic_tube():
+    """Straight tube with an elliptic cross-section (semi-axes 0.06, 0.04): normals against the exact
+    ellipse normal. The kernel differentiates the spoke lengths around the ring by central
+    differences, second order in the spoke spacing: measured 0.018 at S = 32."""
+    err32, spoke_dir_err = elliptic_normal_error(32)
+    err64, _ = elliptic_normal_error(64)
+    assert err32 < 0.03
+    assert err64 < err32 / 3  # second order: 4x per halving
+    assert spoke_dir_err > 0.1  # the plain spoke direction is 10x worse: the correction matters
+
+
+# -- topology ----------------------------------------------------------------------------------
+
+
+def test_topology_counts_orientation_and_seam():
+    starts, S = np.array([0, 5, 12]), 8
+    open_t = build_topology(starts, S)
+    assert open_t.face_count == ((5 - 1) + (7 - 1)) * S * 2  # tubes of 5 and 7 hubs
+    assert open_t.vertex_count == 12 * S
+    capped = build_topology(starts, S, caps=True)
+    K = 2  # ceil(8 / 4)
+    assert capped.vertex_count == 12 * S + 2 * 2 * ((K - 1) * S + 1)
+    assert capped.face_count == open_t.face_count + 2 * 2 * ((K - 1) * 2 * S + S)
+    # every edge of a closed (capped) surface is shared by exactly two faces, once each way
+    f = capped.faces
+    edges = np.concatenate([f[:, [0, 1]], f[:, [1, 2]], f[:, [2, 0]]])
+    fwd = {tuple(e) for e in edges.tolist()}
+    assert len(fwd) == len(edges)
+    assert all((b, a) in fwd for a, b in fwd)
+    # face-varying st: within a face u spans one spoke step (no backwards wrap at the seam)
+    st = capped.st.reshape(-1, 3, 2)
+    assert np.all(np.ptp(st[:, :, 0], axis=1) <= 1.0 / S + 1e-6)
+    assert st[:, :, 0].min() == 0.0 and st[:, :, 0].max() == 1.0
+
+
+def test_two_tubes_after_another_prims_nodes_and_batch_worlds():
+    """A prim with two curves whose nodes start at column 4 of node_q, in 3 worlds with per-world
+    spoke lengths: each world and each tube equals that tube built alone."""
+    rng = np.random.default_rng(5)
+    counts, S, W, offset = (7, 9), 6, 3, 4
+    starts = offset + np.concatenate([[0], np.cumsum(counts)])
+    rest = np.concatenate([arc(counts[0], 1.0, 0.5), straight(counts[1], 0.4) + [0, 1, 0]])
+    lengths = rng.uniform(0.02, 0.05, size=(W, 16, S))
+    node_q = np.zeros((W, offset + 16, 3))
+    node_q[:, offset:] = rest[None] + rng.normal(scale=0.01, size=(W, 16, 3))
+    b = SurfaceBuilder(starts, rest, S, lengths, caps=True, world_count=W, device=DEVICE)
+    b.compute(wp.array(node_q.astype(np.float32), dtype=wp.vec3, device=DEVICE))
+    P = b.points.numpy()
+    local = np.concatenate([[0], np.cumsum(counts)])
+    for tube in range(2):
+        a, e = local[tube], local[tube + 1]
+        idx = b.tube_vertex_indices(tube)
+        assert np.all(idx[: (e - a) * S] == np.arange(a * S, e * S))  # rings first, hub-major
+        for w in range(W):
+            alone = SurfaceBuilder([0, e - a], rest[a:e], S, lengths[w, a:e], caps=True, device=DEVICE)
+            alone.compute(wp.array(node_q[w : w + 1, offset + a : offset + e].astype(np.float32), dtype=wp.vec3, device=DEVICE))
+            np.testing.assert_array_equal(P[w, idx], alone.points_numpy())
+
+
+# -- volume ------------------------------------------------------------------------------------
+
+
+@pytest.mark.parametrize("caps", [False, True])
+def test_volume_of_bends(caps):
+    """Half-circle bends with radius x curvature up to 0.9, hubs r/4 apart: the closed surface's
+    volume within 1% of the straight tube with the same hubs (Pappus: a bend keeps A * length).
+    The straight open tube itself is the polygonal prism: pi r^2 l (S / 2 pi) sin(2 pi / S)."""
+    r, S = 0.1, 16
+    poly = S / (2 * np.pi) * np.sin(2 * np.pi / S)
+    for rk in (0.3, 0.6, 0.9):
+        rho = r / rk
+        n = int(np.ceil(np.pi * rho / (r / 4))) + 1
+        x = arc(n, rho, np.pi)
+        chord_length = np.linalg.norm(np.diff(x, axis=0), axis=1).sum()
+        xs = straight(n, chord_length)
+        vb = volume(*closed_mesh(build(x, S, np.full(n, r), caps=caps), x))
+        vs = volume(*closed_mesh(build(xs, S, np.full(n, r), caps=caps), xs))
+        if not caps:
+            # float32 points: 1e-6 relative
+            assert abs(vs / (np.pi * r * r * chord_length * poly) - 1.0) < 1e-5
+        print(f"volume, caps={caps}, radius x curvature {rk}: bent / straight - 1 = {vb / vs - 1:+.4%}")
+        assert abs(vb / vs - 1.0) < 0.01
+
+
+# -- inner-bend guard ---------------------------------------------------------------------------
+
+
+def _orient(a, b, c, d):
+    return np.einsum("ij,ij->i", b - a, np.cross(c - a, d - a))
+
+
+def _segment_crosses(p, q, a, b, c, eps):
+    """Segment pq passes strictly through the interior of triangle abc (signed volumes)."""
+    d1, d2 = _orient(a, b, c, p), _orient(a, b, c, q)
+    s1, s2, s3 = _orient(p, q, a, b), _orient(p, q, b, c), _orient(p, q, c, a)
+    inside = ((s1 > eps) & (s2 > eps) & (s3 > eps)) | ((s1 < -eps) & (s2 < -eps) & (s3 < -eps))
+    return (d1 * d2 < -eps * eps) & inside
+
+
+def intersecting_pairs(points, faces, max_apart, arc_of_vertex, eps=1e-10):
+    """Pairs of triangles (i < j) that cross each other, among all pairs whose mean arc positions
+    are less than max_apart apart: an edge of one through the other's interior. Touching at shared
+    vertices or edges does not count (strict signed-volume tests, eps ~ 1e-10 m^3 for r = 1 m, far
+    below the 1e-3 m^3 of the thinnest triangles here and far above float64 round-off)."""
+    T = points[faces]
+    s = arc_of_vertex[faces].mean(axis=1)
+    i, j = np.triu_indices(len(faces), 1)
+    keep = np.abs(s[i] - s[j]) < max_apart
+    i, j = i[keep], j[keep]
+    A, B = T[i], T[j]
+    hit = np.zeros(len(i), bool)
+    for k in range(3):
+        hit |= _segment_crosses(A[:, k], A[:, (k + 1) % 3], B[:, 0], B[:, 1], B[:, 2], eps)
+        hit |= _segment_crosses(B[:, k], B[:, (k + 1) % 3], A[:, 0], A[:, 1], A[:, 2], eps)
+    return i[hit], j[hit]
+
+
+@pytest.mark.parametrize("n, angle, caps", [(16, 1.5 * np.pi, False), (24, 1.8 * np.pi, False), (16, np.pi, True)])
+def test_no_local_self_intersection_at_radius_times_curvature_2(n, angle, caps):
+    """Arc of curvature 2/r (bend radius r/2): every pair of triangles whose rings are less than
+    pi r apart along the centerline (here: the whole tube) is checked. Without the guard the inner
+    spokes pass the centre of curvature and the rings cross, which the same check finds."""
+    r, S = 1.0, 12
+    x = arc(n, r / 2, angle)
+    arc_len = np.concatenate([[0.0], np.cumsum(np.linalg.norm(np.diff(x, axis=0), axis=1))])
+    for guard in (0.95, 0.0):
+        b = build(x, S, np.full(n, r), caps=caps, guard=guard)
+        hub_of_vertex = np.empty(b.vertex_count, dtype=int)
+        topo = b.topology
+        for ring in range(len(topo.ring_hub)):
+            count = 1 if topo.ring_kind[ring] == RING_POLE else S
+            hub_of_vertex[topo.ring_vertex[ring] : topo.ring_vertex[ring] + count] = topo.ring_hub[ring]
+        i, _ = intersecting_pairs(b.points_numpy().astype(np.float64), topo.faces, np.pi * r, arc_len[hub_of_vertex])
+        if guard > 0:
+            assert len(i) == 0, f"{len(i)} crossing triangle pairs with the guard on"
+        else:
+            assert len(i) > 0  # the check does detect the unguarded fold
+
+
+def test_guard_is_inactive_below_its_reach():
+    """radius x curvature 0.85 < 0.9: the guard changes nothing, every spoke keeps its length."""
+    n, S, r = 20, 12, 0.085
+    x = arc(n, 0.1, 2.0)
+    on = build(x, S, np.full(n, r)).points_numpy()
+    off = build(x, S, np.full(n, r), guard=0.0).points_numpy()
+    np.testing.assert_array_equal(on, off)
+
+
+def test_guard_cuts_inner_side_at_its_reach():
+    """Interior rings of an arc at radius x curvature 2: inner spoke ends stop at g rho from the hub
+    towards the centre (the flat chord), outer spokes keep the radius."""
+    n, S, r, g = 12, 16, 1.0, 0.95
+    rho = r / 2
+    x = arc(n, rho, np.pi)
+    b = build(x, S, np.full(n, r), guard=g)
+    P = b.points_numpy().astype(np.float64).reshape(n, S, 3)
+    centre = np.array([0.0, rho, 0.0])
+    for i in range(1, n - 1):
+        toward = (centre - x[i]) / rho
+        reach = (P[i] - x[i]) @ toward
+        assert reach.max() <= g * rho * (1 + 1e-5)  # float32 round-off
+        spoke = np.linalg.norm(P[i] - x[i], axis=1)
+        outer = reach < 0
+        np.testing.assert_allclose(spoke[outer], r, rtol=1e-5)
