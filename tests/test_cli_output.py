@@ -1,0 +1,82 @@
+"""warp-tube run end to end: the output contract, every example scene, failures and interrupts."""
+
+import numpy as np
+import pytest
+from pxr import Usd, UsdGeom
+
+from warp_tube.cli import main
+
+from .conftest import SCENES, check_output_problems, needs_shared
+
+SCENE_FILES = sorted(SCENES.glob("*.usda"))
+
+
+def centerline_samples(path, prim):
+    st = Usd.Stage.Open(str(path))
+    return UsdGeom.BasisCurves(st.GetPrimAtPath(prim + "/Centerline")).GetPointsAttr().GetTimeSamples(), st
+
+
+@needs_shared
+@pytest.mark.parametrize("scene", SCENE_FILES, ids=lambda p: p.stem)
+def test_every_scene_runs_and_meets_the_output_contract(scene, tmp_cwd):
+    out = tmp_cwd / f"{scene.stem}.usdc"
+    assert main(["run", str(scene), "-o", str(out), "--frames", "3", "--quiet"]) == 0
+    assert check_output_problems(out, scene=scene) == []
+
+
+@needs_shared
+def test_default_run_without_arguments_writes_tube_usdc(tmp_cwd):
+    assert main(["run", "--frames", "4", "--quiet"]) == 0
+    out = tmp_cwd / "tube.usdc"
+    assert check_output_problems(out) == []
+    samples, st = centerline_samples(out, "/World/Tube")
+    assert len(samples) == 4 and st.GetEndTimeCode() == 3.0
+    assert UsdGeom.GetStageMetersPerUnit(st) == 0.01 and st.GetTimeCodesPerSecond() == 24
+
+
+def test_every_k_writes_every_kth_frame_and_ends_at_the_last(tmp_cwd):
+    out = tmp_cwd / "e.usda"
+    assert main(["run", str(SCENES / "default.usda"), "-o", str(out), "--frames", "7", "--every", "3", "--quiet", "--no-surface"]) == 0
+    samples, st = centerline_samples(out, "/World/Tube")
+    assert list(samples) == [0.0, 3.0, 6.0] and st.GetEndTimeCode() == 6.0
+
+
+def test_runs_on_the_cpu_are_deterministic(tmp_cwd):
+    for name in ("a.usdc", "b.usdc"):
+        assert main(["run", str(SCENES / "default.usda"), "-o", name, "--frames", "5", "--quiet"]) == 0
+    assert (tmp_cwd / "a.usdc").read_bytes() == (tmp_cwd / "b.usdc").read_bytes()
+
+
+def test_existing_output_is_replaced_only_by_a_complete_one(tmp_cwd):
+    out = tmp_cwd / "keep.usdc"
+    out.write_bytes(b"previous result")
+    bad = tmp_cwd / "bad.usda"
+    bad.write_text((SCENES / "default.usda").read_text().replace("warptube:density = 1050", "warptube:density = 0"))
+    assert main(["run", str(bad), "-o", str(out)]) == 2
+    assert out.read_bytes() == b"previous result"
+    assert main(["run", str(SCENES / "default.usda"), "-o", str(out), "--frames", "2", "--quiet"]) == 0
+    assert out.read_bytes() != b"previous result" and not list(tmp_cwd.glob(".keep*"))
+
+
+@needs_shared
+def test_blow_up_exits_3_and_keeps_the_finished_frames(tmp_cwd, capsys):
+    # A forced semi-implicit step 40x beyond its stability bound blows up within a few frames.
+    text = (SCENES / "default.usda").read_text().replace(
+        'token warptube:integrator = "auto"',
+        'token warptube:integrator = "semiImplicitEuler"\n        double warptube:timeStep = 0.02',
+    )
+    (tmp_cwd / "stiff.usda").write_text(text)
+    out = tmp_cwd / "stiff.usdc"
+    assert main(["run", "stiff.usda", "-o", str(out)]) == 3
+    err = capsys.readouterr().err
+    assert "numerical failure at frame" in err and "/World/Tube" in err and "stability bound" in err
+    samples, st = centerline_samples(out, "/World/Tube")
+    assert 1 <= len(samples) < 97 and st.GetEndTimeCode() == samples[-1]
+    assert check_output_problems(out) == []
+    assert np.isfinite(np.array(UsdGeom.BasisCurves(st.GetPrimAtPath("/World/Tube/Centerline")).GetPointsAttr().Get(samples[-1]))).all()
+
+
+def test_check_validates_without_writing(tmp_cwd, capsys):
+    assert main(["check", str(SCENES / "intestine.usda")]) == 0
+    assert "valid" in capsys.readouterr().out
+    assert not list(tmp_cwd.iterdir())

@@ -1,0 +1,107 @@
+"""Bad input: a clear message naming file, prim and attribute; exit status 2; no output file."""
+
+import subprocess
+import sys
+
+import numpy as np
+import pytest
+
+from warp_tube.cli import main
+from warp_tube.scene import SceneError
+from warp_tube.usd_scene import load_scene
+
+from .conftest import SCENES
+
+BASE = (SCENES / "default.usda").read_text()
+
+
+def mutate(old, new):
+    assert old in BASE, old
+    return BASE.replace(old, new)
+
+
+BAD = {
+    "nan point": (mutate("(3, 0, 0), (4, 0, 0)", "(3, nan, 0), (4, 0, 0)"), ["/World/Tube", "points", "finite"]),
+    "coincident points": (mutate("(3, 0, 0), (4, 0, 0)", "(3, 0, 0), (3, 0, 0)"), ["/World/Tube", "points[3]", "distinct"]),
+    "missing density": (mutate("        double warptube:density = 1050\n", ""), ["/World/Tube", "warptube:density", "missing"]),
+    "density as string": (mutate("double warptube:density = 1050", 'string warptube:density = "1050"'), ["warptube:density", "type string", "float or double"]),
+    "negative density": (mutate("warptube:density = 1050", "warptube:density = -3"), ["warptube:density", "-3", "> 0"]),
+    "absurd density": (mutate("warptube:density = 1050", "warptube:density = 1e12"), ["/World/Tube", "density"]),
+    "no stiffness": (mutate("        double warptube:youngsModulus = 100000\n", ""), ["warptube:youngsModulus", "missing", "bendStiffness"]),
+    "pinned out of range": (mutate("warptube:pinnedPoints = [0, 1]", "warptube:pinnedPoints = [0, 21]"), ["warptube:pinnedPoints", "21", "0..20"]),
+    "pinned as floats": (mutate("int[] warptube:pinnedPoints = [0, 1]", "float[] warptube:pinnedPoints = [0, 1]"), ["warptube:pinnedPoints", "float[]", "int[]"]),
+    "force point out of range": (mutate("int warptube:point = 15", "int warptube:point = 99"), ["/World/Push", "warptube:point", "99"]),
+    "force target missing": (mutate("rel warptube:target = </World/Tube>", "rel warptube:target = </World/Nothing>"), ["/World/Push", "warptube:target", "/World/Nothing"]),
+    "bad integrator": (mutate('token warptube:integrator = "auto"', 'token warptube:integrator = "rk4"'), ["warptube:integrator", "'rk4'", "implicitEuler"]),
+    "cubic curves": (mutate('uniform token type = "linear"', 'uniform token type = "cubic"'), ["/World/Tube", "type", "linear"]),
+    "zero width": (mutate("float[] widths = [2]", "float[] widths = [0]"), ["widths", "positive"]),
+    "wrong width count": (mutate("float[] widths = [2] (interpolation = \"constant\")", "float[] widths = [2, 2, 2]"), ["widths", "3 values"]),
+    "spokes too few": (mutate("int warptube:spokes = 16", "int warptube:spokes = 2"), ["warptube:spokes", "2"]),
+    "spoke lengths count": (mutate("int warptube:spokes = 16", "int warptube:spokes = 16\n        float[] warptube:spokeLengths = [1, 2]"), ["warptube:spokeLengths", "2 values", "21 x 16"]),
+    "two settings prims": (mutate('def Scope "Push"', 'def Scope "More"\n    {\n        double warptube:timeStep = 0.001\n    }\n\n    def Scope "Push"'), ["2 simulation settings prims", "/World/Simulation", "/World/More"]),
+    "negative time step": (mutate('token warptube:integrator = "auto"', 'token warptube:integrator = "auto"\n        double warptube:timeStep = -1'), ["warptube:timeStep", "-1"]),
+    "huge force": (mutate("24: (0, 0.02, 0)", "24: (0, 1e12, 0)"), ["warptube:force", "1e+12"]),
+    "syntax error": (BASE.replace("def Xform", "def Xform {{"), ["not a readable USD stage"]),
+}
+
+
+@pytest.mark.parametrize("case", sorted(BAD))
+def test_bad_scene_is_named_and_exits_2(case, tmp_cwd, capsys):
+    text, words = BAD[case]
+    path = tmp_cwd / "bad.usda"
+    path.write_text(text)
+    with pytest.raises(SceneError) as err:
+        load_scene(str(path))
+    msg = str(err.value)
+    assert "bad.usda" in msg
+    for w in words:
+        assert w in msg, f"{w!r} not in {msg!r}"
+    out = tmp_cwd / "out.usdc"
+    assert main(["run", str(path), "-o", str(out)]) == 2
+    assert not out.exists() and not list(tmp_cwd.glob(".out*"))
+    assert "warp-tube: " in capsys.readouterr().err
+
+
+def test_missing_file_and_unwritable_output_exit_2(tmp_cwd):
+    assert main(["check", str(tmp_cwd / "nope.usda")]) == 2
+    assert main(["run", str(SCENES / "default.usda"), "-o", str(tmp_cwd / "no" / "dir" / "x.usdc")]) == 2
+    assert main(["run", str(SCENES / "default.usda"), "-o", str(tmp_cwd / "x.png")]) == 2
+    assert main(["run", str(SCENES / "default.usda"), "--frames", "0"]) == 2
+    assert main(["run", str(SCENES / "default.usda"), "--device", "cuda:7"]) == 2
+    assert not list(tmp_cwd.iterdir())
+
+
+def test_bad_input_from_the_console_script_has_no_traceback(tmp_cwd):
+    (tmp_cwd / "bad.usda").write_text(BAD["nan point"][0])
+    r = subprocess.run([sys.executable, "-m", "warp_tube", "run", "bad.usda"], capture_output=True, text=True)
+    assert r.returncode == 2
+    assert "Traceback" not in r.stderr and "/World/Tube" in r.stderr
+
+
+def test_force_on_pinned_point_warns(tmp_cwd, caplog):
+    (tmp_cwd / "s.usda").write_text(mutate("int warptube:point = 15", "int warptube:point = 1"))
+    scene = load_scene(str(tmp_cwd / "s.usda"))
+    assert scene.forces[0].point == 1
+    assert any("pinned" in r.message for r in caplog.records)
+
+
+def test_units_and_transforms_are_honoured(tmp_cwd):
+    # The same tube authored in cm under a parent transform (translate 5 m, scale 2) reads as
+    # metres in world space: a point at x = 10 cm becomes 5 + 2 * 0.10 = 5.2 m.
+    text = BASE.replace('def Xform "World"\n{', 'def Xform "World" (\n)\n{\n    double3 xformOp:translate = (500, 0, 0)\n    float3 xformOp:scale = (2, 2, 2)\n    uniform token[] xformOpOrder = ["xformOp:translate", "xformOp:scale"]\n')
+    (tmp_cwd / "t.usda").write_text(text)
+    s = load_scene(str(tmp_cwd / "t.usda"))
+    t = s.tubes[0]
+    assert s.stage.meters_per_unit == 0.01
+    np.testing.assert_allclose(t.points[10], [5.2, 0.0, 0.0], atol=1e-9)
+    np.testing.assert_allclose(t.radius, 0.02, rtol=1e-6)  # width 2 cm, scaled by 2: radius 2 cm
+
+
+def test_unauthored_metadata_takes_usd_fallbacks(tmp_cwd):
+    text = BASE
+    for line in ("    metersPerUnit = 0.01\n", '    upAxis = "Y"\n', "    timeCodesPerSecond = 24\n"):
+        text = text.replace(line, "")
+    (tmp_cwd / "u.usda").write_text(text)
+    s = load_scene(str(tmp_cwd / "u.usda"))
+    assert (s.stage.meters_per_unit, s.stage.up_axis, s.stage.time_codes_per_second) == (0.01, "Y", 24.0)
+    assert "metersPerUnit" not in s.stage.authored
