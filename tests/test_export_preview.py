@@ -1,0 +1,111 @@
+"""OBJ/GLB export and PNG preview of an output-like stage (built here with pxr)."""
+
+import numpy as np
+import pytest
+import trimesh
+import warp as wp
+from PIL import Image
+from pxr import Gf, Sdf, Usd, UsdGeom, Vt
+
+from warp_tube.export import export
+from warp_tube.preview import preview
+from warp_tube.scene import SceneError
+from warp_tube.surface import SurfaceBuilder
+
+N, S, RADIUS = 8, 10, 1.0  # stage units (cm)
+FRAMES = (0, 1, 2)
+
+
+def tube_points(frame):
+    """A straight tube along +x, 20 units long, moved by 5 units along +y per frame."""
+    x = np.zeros((N, 3))
+    x[:, 0] = np.linspace(0.0, 20.0, N)
+    x[:, 1] = 5.0 * frame
+    b = SurfaceBuilder([0, N], x, S, np.full(N, RADIUS), caps=True, device="cpu")
+    b.compute(wp.array(x[None].astype(np.float32), dtype=wp.vec3, device="cpu"))
+    return b
+
+
+@pytest.fixture()
+def stage_path(tmp_path):
+    path = tmp_path / "out.usda"
+    stage = Usd.Stage.CreateNew(str(path))
+    UsdGeom.SetStageUpAxis(stage, UsdGeom.Tokens.z)
+    UsdGeom.SetStageMetersPerUnit(stage, 0.01)
+    stage.SetStartTimeCode(FRAMES[0])
+    stage.SetEndTimeCode(FRAMES[-1])
+    world = UsdGeom.Xform.Define(stage, "/World")
+    stage.SetDefaultPrim(world.GetPrim())
+    UsdGeom.Xform.Define(stage, "/World/Tube")
+    mesh = UsdGeom.Mesh.Define(stage, "/World/Tube/Surface")
+    b = tube_points(0)
+    mesh.CreateSubdivisionSchemeAttr().Set(UsdGeom.Tokens.none)
+    mesh.CreateFaceVertexCountsAttr().Set(Vt.IntArray(b.face_vertex_counts.tolist()))
+    mesh.CreateFaceVertexIndicesAttr().Set(Vt.IntArray(b.face_vertex_indices.tolist()))
+    st = UsdGeom.PrimvarsAPI(mesh).CreatePrimvar("st", Sdf.ValueTypeNames.TexCoord2fArray, UsdGeom.Tokens.faceVarying)
+    st.Set(Vt.Vec2fArray.FromNumpy(b.st))
+    mesh.SetNormalsInterpolation(UsdGeom.Tokens.vertex)
+    for f in FRAMES:
+        b = tube_points(f)
+        mesh.GetPointsAttr().Set(Vt.Vec3fArray.FromNumpy(b.points_numpy()), f)
+        mesh.GetNormalsAttr().Set(Vt.Vec3fArray.FromNumpy(b.normals_numpy()), f)
+    stage.GetRootLayer().Save()
+    return path
+
+
+def test_export_obj_every_frame(stage_path, tmp_path):
+    paths = export(stage_path, "obj", out=tmp_path / "obj")
+    assert [p.name for p in paths] == [f"out.{f:04d}.obj" for f in FRAMES]
+    for f, p in zip(FRAMES, paths):
+        m = trimesh.load(p, process=False)
+        expected = tube_points(f).points_numpy()
+        # OBJ keeps stage units and axes; text round-trip at 1e-6 relative
+        np.testing.assert_allclose(m.vertices, expected, atol=1e-5)
+        assert len(m.faces) == len(tube_points(f).topology.faces)
+        assert m.is_watertight  # capped tube
+
+
+def test_export_glb_one_frame_in_metres_y_up(stage_path, tmp_path):
+    [p] = export(stage_path, "glb", out=tmp_path / "f1.glb", frame=1)
+    assert p == tmp_path / "f1.glb"
+    scene = trimesh.load(p, process=False)
+    verts = np.concatenate([g.vertices for g in scene.dump()])
+    stage_units = tube_points(1).points_numpy().astype(np.float64)
+    # glTF: metres (x 0.01) and Y-up: stage (x, y, z) Z-up -> (x, z, -y); float32 storage
+    expected = 0.01 * np.stack([stage_units[:, 0], stage_units[:, 2], -stage_units[:, 1]], 1)
+    np.testing.assert_allclose(np.sort(verts, axis=0), np.sort(expected, axis=0), atol=1e-6)
+
+
+def test_export_errors(stage_path, tmp_path):
+    with pytest.raises(SceneError, match="no such file"):
+        export(tmp_path / "missing.usdc", "obj")
+    empty = tmp_path / "empty.usda"
+    stage = Usd.Stage.CreateNew(str(empty))
+    UsdGeom.Xform.Define(stage, "/World/Tube")
+    stage.GetRootLayer().Save()
+    with pytest.raises(SceneError, match=r"empty\.usda: no Surface mesh"):
+        export(empty, "obj")
+    with pytest.raises(SceneError, match="no Surface sample at frame 7"):
+        export(stage_path, "obj", frame=7)
+    with pytest.raises(SceneError, match="unknown export format"):
+        export(stage_path, "fbx")
+    with pytest.raises(SceneError, match="no Surface mesh"):
+        preview(empty, tmp_path / "x.png")
+
+
+def test_preview_contact_sheet(stage_path, tmp_path):
+    size = 64
+    png = preview(stage_path, tmp_path / "sheet.png", frames=3, size=size, device="cpu")
+    img = np.asarray(Image.open(png).convert("RGB")).astype(int)
+    assert img.shape == (size, 3 * size, 3)
+    background = np.all(img == [245, 245, 242], axis=2)
+    tiles = [~background[:, k * size : (k + 1) * size] for k in range(3)]
+    for tile in tiles:
+        assert 0.02 < tile.mean() < 0.6  # the tube covers part of each tile, not all of it
+        assert not tile[0, 0] and not tile[-1, -1]  # corners are background (fitted camera)
+    # the tube moves by 5 units per frame: the tiles differ, and the covered area's centre moves
+    assert np.any(tiles[0] != tiles[2])
+    cols = [np.nonzero(t)[1].mean() for t in tiles]
+    rows = [np.nonzero(t)[0].mean() for t in tiles]
+    moved = np.hypot(np.diff(cols), np.diff(rows))
+    assert np.all(moved > 2.0)  # pixels; the fitted scale is ~64 px per 27 units, so ~10 px per frame

@@ -1,0 +1,106 @@
+"""Headless contact sheet of an output stage's Surface meshes (Warp ray casting, Pillow).
+
+Each tile is one frame, rendered by an orthographic camera fitted to the bounding sphere of all
+shown frames (so motion between tiles is visible at one scale), looking down a fixed oblique
+direction with the stage's up axis up, with two-sided Lambert shading lit from the camera
+(:func:`~warp_tube.kernels.surface.shade_orthographic_kernel` against a ``wp.Mesh``).
+"""
+
+from __future__ import annotations
+
+from pathlib import Path
+
+import numpy as np
+import warp as wp
+
+from .export import open_output_stage, surface_at, surface_frames, surface_meshes
+from .kernels.surface import shade_orthographic_kernel
+from .scene import SceneError
+
+__all__ = ["preview"]
+
+BACKGROUND = np.array([245, 245, 242], dtype=np.float64)
+TISSUE = np.array([214, 120, 112], dtype=np.float64)
+
+
+def _pick_frames(times: list[float], count: int) -> list[float]:
+    if len(times) <= count:
+        return list(times)
+    picks = np.round(np.linspace(0, len(times) - 1, count)).astype(int)
+    return [times[i] for i in picks]
+
+
+def preview(usd_path, png_path, frames: int = 4, size: int = 320, device=None) -> Path:
+    """Render ``frames`` evenly spaced frames of the Surface meshes side by side into a PNG.
+
+    Args:
+        usd_path: output stage written by ``warp-tube run``.
+        png_path: the PNG to write (its folder is created if needed).
+        frames: tiles (frames shown), >= 1; fewer if the stage has fewer samples.
+        size: tile width and height [pixels].
+        device: Warp device for the ray caster (default: Warp's default).
+
+    Returns:
+        The PNG path.
+
+    Raises:
+        SceneError: missing or unreadable stage, no Surface mesh, or frames < 1.
+    """
+    from PIL import Image
+    from pxr import UsdGeom
+
+    if frames < 1:
+        raise SceneError(f"preview needs at least one frame, got {frames}")
+    usd_path = Path(usd_path)
+    stage = open_output_stage(usd_path)
+    meshes = surface_meshes(stage, usd_path)
+    times = surface_frames(meshes) or [stage.GetStartTimeCode()]
+    shown = _pick_frames(times, frames)
+
+    geometry = []
+    for time in shown:
+        parts = [surface_at(m, time) for m in meshes]
+        offsets = np.cumsum([0] + [len(v) for v, _, _ in parts])
+        verts = np.concatenate([v for v, _, _ in parts])
+        faces = np.concatenate([f + o for (_, f, _), o in zip(parts, offsets)])
+        geometry.append((verts, faces))
+    all_points = np.concatenate([v for v, _ in geometry])
+    if not np.all(np.isfinite(all_points)):
+        raise SceneError(f"{usd_path}: Surface points are not finite")
+    lo, hi = all_points.min(axis=0), all_points.max(axis=0)
+    centre = 0.5 * (lo + hi)
+    radius = max(0.5 * float(np.linalg.norm(hi - lo)), 1e-9)
+
+    if UsdGeom.GetStageUpAxis(stage) == UsdGeom.Tokens.z:
+        world_up, toward_camera = np.array([0.0, 0.0, 1.0]), np.array([0.55, -1.0, 0.45])
+    else:
+        world_up, toward_camera = np.array([0.0, 1.0, 0.0]), np.array([0.55, 0.45, 1.0])
+    view_dir = -toward_camera / np.linalg.norm(toward_camera)
+    right = np.cross(view_dir, world_up)
+    right /= np.linalg.norm(right)
+    up = np.cross(right, view_dir)
+    origin = centre - 2.0 * radius * view_dir
+    pixel = 2.1 * radius / size
+
+    device = wp.get_device(device)
+    sheet = np.empty((size, size * len(shown), 3), dtype=np.uint8)
+    image = wp.zeros((size, size), dtype=float, device=device)
+    for k, (verts, faces) in enumerate(geometry):
+        mesh = wp.Mesh(
+            points=wp.array(verts.astype(np.float32), dtype=wp.vec3, device=device),
+            indices=wp.array(faces.reshape(-1).astype(np.int32), dtype=wp.int32, device=device),
+        )
+        wp.launch(
+            shade_orthographic_kernel,
+            dim=(size, size),
+            inputs=[mesh.id, wp.vec3(*origin), wp.vec3(*right), wp.vec3(*up), wp.vec3(*view_dir), pixel, 4.0 * radius],
+            outputs=[image],
+            device=device,
+        )
+        shade = image.numpy()[..., None].astype(np.float64)
+        tile = np.where(shade < 0.0, BACKGROUND, TISSUE * np.clip(shade, 0.0, 1.0))
+        sheet[:, k * size : (k + 1) * size] = np.clip(np.round(tile), 0, 255).astype(np.uint8)
+    png_path = Path(png_path)
+    png_path.parent.mkdir(parents=True, exist_ok=True)
+    Image.fromarray(sheet).save(png_path)
+    return png_path
