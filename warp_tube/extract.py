@@ -49,6 +49,7 @@ log = logging.getLogger(__name__)
 _END_LOOP_FRACTION = 0.3  # a boundary loop is an open end if its radius >= this x median tube radius
 _RECENTRE_RAYS = 32
 _RECENTRE_ITERATIONS = 3
+_OUTLIER_RATIO = 2.5  # a ray hit longer than this x its ring's median is not the tube's wall
 # Default hub count: from one hub per mean radius, 1.5 times more until the rest surface rebuilt
 # from hubs and spokes lies within these fractions of the mean radius of the mesh (mean, 95th
 # percentile of vertex distances), or _MAX_AUTO_HUBS is reached.
@@ -422,13 +423,18 @@ def _ring_hits(q: _Queries, points: np.ndarray, dirs: np.ndarray, diag: float):
 
     A hit is valid when the ray stays inside the tube up to it: the same ray against the closed
     mesh (open ends and holes capped) hits nothing nearer, and it lies within 6 times the hub's
-    distance from the wall (a ray that leaves through an open end may hit far parts).
+    distance from the wall (a ray that leaves through an open end may hit far parts) and within
+    2.5 times the median of the ring's valid hits (elliptic sections of aspect up to ~3 pass).
     """
     origins = np.repeat(points[:, None, :], dirs.shape[1], axis=1)
     t = q.rays(q.wall, origins, dirs, diag)
     tc = q.rays(q.closed, origins, dirs, diag)
     dfb = q.distance(points, diag)
     valid = (t > 0.0) & (tc >= t - 1e-5 * diag) & (t < 6.0 * np.maximum(dfb, 1e-12)[:, None])
+    # A ray much longer than the others of its ring ran into a side branch (or out of a bulge):
+    # it does not belong to this tube's cross-section.
+    med = np.array([np.median(ti[vi]) if vi.any() else np.inf for ti, vi in zip(t, valid)])
+    valid &= t <= _OUTLIER_RATIO * med[:, None]
     return t, valid, dfb
 
 
@@ -461,10 +467,13 @@ def _recentre(q: _Queries, points: np.ndarray, diag: float) -> np.ndarray:
 
 
 def _extend_to_cap(q: _Queries, p: np.ndarray, diag: float) -> np.ndarray:
-    """Move the first point onto the line of the next ones, 10 % of the local radius inside the cap."""
+    """Move the first point to the cap, 10 % of the local radius inside it, along the line's
+    tangent at the second point (from a quadratic through points 1-3, so bends extrapolate)."""
     if len(p) < 4:
         return p
-    out = p[1] - p[3]
+    s = arclength(p[1:4])
+    coef = np.polyfit(s, p[1:4], 2)  # (3, 3): rows t^2, t, 1
+    out = -coef[1]
     out = out / max(np.linalg.norm(out), 1e-300)
     r1 = q.distance(p[1:2], diag)[0]
     t = q.rays(q.closed, p[1:2], out[None], diag)[0]
