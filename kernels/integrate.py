@@ -28,7 +28,71 @@ from typing import NamedTuple
 
 import warp as wp
 
-from .springs import bend_force_on, curvature_targets, node_delta, spring_force
+from .springs import bend_force_on, bend_stencil, curvature_targets, node_delta, spring_force
+
+
+@wp.struct
+class ModelArrays:
+    """The TubeModel arrays the per-tube kernel reads (units and shapes as in TubeModel)."""
+
+    tube_node_start: wp.array[int]
+    node_rest_q: wp.array2d[wp.vec3]
+    node_mass: wp.array2d[float]
+    node_inv_mass: wp.array2d[float]
+    node_damping: wp.array2d[float]
+    seg_rest_length: wp.array2d[float]
+    seg_ke: wp.array2d[float]
+    seg_kd: wp.array2d[float]
+    node_bend_k: wp.array2d[float]
+    node_kappa_rest: wp.array2d[wp.vec3]
+    node_anchor_k: wp.array2d[float]
+    node_anchor_kd: wp.array2d[float]
+    gravity: wp.vec3
+    tube_force_start: wp.array[int]
+    force_node: wp.array[int]
+    al_start: wp.array[int]
+
+
+@wp.struct
+class StateArrays:
+    """A TubeState's arrays."""
+
+    node_q: wp.array2d[wp.vec3]
+    node_q_lo: wp.array2d[wp.vec3]
+    node_qd: wp.array2d[wp.vec3]
+    al_q: wp.array2d[wp.vec3]
+    al_qd: wp.array2d[wp.vec3]
+
+
+@wp.struct
+class ControlArrays:
+    """A TubeControl's arrays."""
+
+    node_f_ext: wp.array2d[wp.vec3]
+    pin_q_start: wp.array2d[wp.vec3]
+    pin_q_end: wp.array2d[wp.vec3]
+    al_active: wp.array2d[int]
+    al_link_length: wp.array2d[float]
+    al_chord_length: wp.array2d[float]
+    al_fwd_length: wp.array2d[float]
+    al_bwd_length: wp.array2d[float]
+
+
+@wp.struct
+class ScratchArrays:
+    """Per-substep scratch of the per-tube kernel: forces [N] and curvature targets."""
+
+    node_f: wp.array2d[wp.vec3]
+    al_f: wp.array2d[wp.vec3]
+    node_kappa_target: wp.array2d[wp.vec3]
+
+
+def pack(struct_type, source):
+    """Fill a new ``struct_type`` from the same-named attributes of ``source``."""
+    out = struct_type()
+    for name in struct_type.vars:
+        setattr(out, name, getattr(source, name))
+    return out
 
 
 class Features(NamedTuple):
@@ -56,6 +120,46 @@ def make_kernels(features: Features):
     SPRING_DAMPING = features.spring_damping
     EXTERNAL = features.external
     AL = features.assistant_line
+
+    @wp.func
+    def chain_force(
+        w: int,
+        pw: int,
+        i: int,
+        start: int,
+        end: int,
+        seg_rest_length: wp.array2d[float],
+        seg_ke: wp.array2d[float],
+        seg_kd: wp.array2d[float],
+        node_bend_k: wp.array2d[float],
+        node_q: wp.array2d[wp.vec3],
+        node_q_lo: wp.array2d[wp.vec3],
+        node_qd: wp.array2d[wp.vec3],
+        node_kappa_target: wp.array2d[wp.vec3],
+    ) -> wp.vec3:
+        """Structural and bending spring forces gathered onto node ``i`` [N]."""
+        v = node_qd[w, i]
+        f = wp.vec3(0.0)
+        # Structural springs: segment i-1 (node i is its end b) and segment i (its end a).
+        if i > start:
+            kd = float(0.0)
+            if wp.static(SPRING_DAMPING):
+                kd = seg_kd[pw, i - 1]
+            f += spring_force(node_delta(node_q, node_q_lo, w, i, i - 1), node_qd[w, i - 1] - v, seg_rest_length[pw, i - 1], seg_ke[pw, i - 1], kd)
+        if i < end - 1:
+            kd = float(0.0)
+            if wp.static(SPRING_DAMPING):
+                kd = seg_kd[pw, i]
+            f += spring_force(node_delta(node_q, node_q_lo, w, i, i + 1), node_qd[w, i + 1] - v, seg_rest_length[pw, i], seg_ke[pw, i], kd)
+        if wp.static(BENDING):
+            # Stencils centred on i-1, i and i+1 (interior nodes only).
+            if i - 1 > start:
+                f += bend_force_on(i - 1, 1, pw, w, node_q, node_q_lo, node_bend_k, node_kappa_target)
+            if i > start and i < end - 1:
+                f += bend_force_on(i, 0, pw, w, node_q, node_q_lo, node_bend_k, node_kappa_target)
+            if i + 1 < end - 1:
+                f += bend_force_on(i + 1, -1, pw, w, node_q, node_q_lo, node_bend_k, node_kappa_target)
+        return f
 
     @wp.func
     def node_force(
@@ -91,30 +195,15 @@ def make_kernels(features: Features):
         al_link_length: wp.array2d[float],
         al_fwd_length: wp.array2d[float],
         al_bwd_length: wp.array2d[float],
+        local_only: bool,
     ) -> wp.vec3:
-        """Total force on node ``i`` of world ``w`` [N]."""
+        """Force on node ``i`` of world ``w`` [N]; with ``local_only`` without the structural and
+        bending springs (the per-tube kernel adds those stencil by stencil)."""
         x = node_q[w, i]
         v = node_qd[w, i]
         f = wp.vec3(0.0)
-        # Structural springs: segment i-1 (node i is its end b) and segment i (its end a).
-        if i > start:
-            kd = float(0.0)
-            if wp.static(SPRING_DAMPING):
-                kd = seg_kd[pw, i - 1]
-            f += spring_force(node_delta(node_q, node_q_lo, w, i, i - 1), node_qd[w, i - 1] - v, seg_rest_length[pw, i - 1], seg_ke[pw, i - 1], kd)
-        if i < end - 1:
-            kd = float(0.0)
-            if wp.static(SPRING_DAMPING):
-                kd = seg_kd[pw, i]
-            f += spring_force(node_delta(node_q, node_q_lo, w, i, i + 1), node_qd[w, i + 1] - v, seg_rest_length[pw, i], seg_ke[pw, i], kd)
-        if wp.static(BENDING):
-            # Stencils centred on i-1, i and i+1 (interior nodes only).
-            if i - 1 > start:
-                f += bend_force_on(i - 1, 1, pw, w, node_q, node_q_lo, node_bend_k, node_kappa_target)
-            if i > start and i < end - 1:
-                f += bend_force_on(i, 0, pw, w, node_q, node_q_lo, node_bend_k, node_kappa_target)
-            if i + 1 < end - 1:
-                f += bend_force_on(i + 1, -1, pw, w, node_q, node_q_lo, node_bend_k, node_kappa_target)
+        if not local_only:
+            f = chain_force(w, pw, i, start, end, seg_rest_length, seg_ke, seg_kd, node_bend_k, node_q, node_q_lo, node_qd, node_kappa_target)
         if wp.static(ANCHORS):
             ka = node_anchor_k[pw, i]
             if ka > 0.0:
@@ -214,50 +303,54 @@ def make_kernels(features: Features):
     def substeps(
         substep_count: int,
         dt: float,
-        # model:
-        tube_node_start: wp.array[int],
-        node_rest_q: wp.array2d[wp.vec3],
-        node_mass: wp.array2d[float],
-        node_inv_mass: wp.array2d[float],
-        node_damping: wp.array2d[float],
-        seg_rest_length: wp.array2d[float],
-        seg_ke: wp.array2d[float],
-        seg_kd: wp.array2d[float],
-        node_bend_k: wp.array2d[float],
-        node_kappa_rest: wp.array2d[wp.vec3],
-        node_anchor_k: wp.array2d[float],
-        node_anchor_kd: wp.array2d[float],
-        gravity: wp.vec3,
-        tube_force_start: wp.array[int],
-        force_node: wp.array[int],
-        al_start: wp.array[int],
-        # state in:
-        node_q_in: wp.array2d[wp.vec3],
-        node_q_lo_in: wp.array2d[wp.vec3],
-        node_qd_in: wp.array2d[wp.vec3],
-        al_q_in: wp.array2d[wp.vec3],
-        al_qd_in: wp.array2d[wp.vec3],
-        # control:
-        node_f_ext: wp.array2d[wp.vec3],
-        pin_q_start: wp.array2d[wp.vec3],
-        pin_q_end: wp.array2d[wp.vec3],
-        al_active: wp.array2d[int],
-        al_link_length: wp.array2d[float],
-        al_chord_length: wp.array2d[float],
-        al_fwd_length: wp.array2d[float],
-        al_bwd_length: wp.array2d[float],
-        # scratch:
-        node_f: wp.array2d[wp.vec3],
-        al_f: wp.array2d[wp.vec3],
-        node_kappa_target: wp.array2d[wp.vec3],
-        # out:
-        node_q_out: wp.array2d[wp.vec3],
-        node_q_lo_out: wp.array2d[wp.vec3],
-        node_qd_out: wp.array2d[wp.vec3],
-        al_q_out: wp.array2d[wp.vec3],
-        al_qd_out: wp.array2d[wp.vec3],
+        model: ModelArrays,
+        state_in: StateArrays,
+        control: ControlArrays,
+        scratch: ScratchArrays,
+        state_out: StateArrays,
     ):
-        """Advance one tube of one world by ``substep_count`` substeps of ``dt`` [s]."""
+        """Advance one tube of one world by ``substep_count`` substeps of ``dt`` [s].
+
+        Arguments are grouped in structs (fields as in :class:`ModelArrays` etc.) so that a
+        recorded launch sets a handful of values instead of ~40.
+        """
+        tube_node_start = model.tube_node_start
+        node_rest_q = model.node_rest_q
+        node_mass = model.node_mass
+        node_inv_mass = model.node_inv_mass
+        node_damping = model.node_damping
+        seg_rest_length = model.seg_rest_length
+        seg_ke = model.seg_ke
+        seg_kd = model.seg_kd
+        node_bend_k = model.node_bend_k
+        node_kappa_rest = model.node_kappa_rest
+        node_anchor_k = model.node_anchor_k
+        node_anchor_kd = model.node_anchor_kd
+        gravity = model.gravity
+        tube_force_start = model.tube_force_start
+        force_node = model.force_node
+        al_start = model.al_start
+        node_q_in = state_in.node_q
+        node_q_lo_in = state_in.node_q_lo
+        node_qd_in = state_in.node_qd
+        al_q_in = state_in.al_q
+        al_qd_in = state_in.al_qd
+        node_f_ext = control.node_f_ext
+        pin_q_start = control.pin_q_start
+        pin_q_end = control.pin_q_end
+        al_active = control.al_active
+        al_link_length = control.al_link_length
+        al_chord_length = control.al_chord_length
+        al_fwd_length = control.al_fwd_length
+        al_bwd_length = control.al_bwd_length
+        node_f = scratch.node_f
+        al_f = scratch.al_f
+        node_kappa_target = scratch.node_kappa_target
+        node_q_out = state_out.node_q
+        node_q_lo_out = state_out.node_q_lo
+        node_qd_out = state_out.node_qd
+        al_q_out = state_out.al_q
+        al_qd_out = state_out.al_qd
         w, t = wp.tid()
         pw = w % node_mass.shape[0]
         start = tube_node_start[t]
@@ -281,8 +374,25 @@ def make_kernels(features: Features):
                     node_rest_q, node_mass, seg_rest_length, seg_ke, seg_kd, node_bend_k,
                     node_anchor_k, node_anchor_kd, gravity, tube_force_start, force_node, al_start,
                     node_q_out, node_q_lo_out, node_qd_out, node_kappa_target, al_q_out, al_qd_out,
-                    node_f_ext, al_active, al_link_length, al_fwd_length, al_bwd_length,
+                    node_f_ext, al_active, al_link_length, al_fwd_length, al_bwd_length, True,
                 )  # fmt: skip
+            # Each spring and bending stencil once, added to all its nodes (one thread owns the tube).
+            for i in range(start, end - 1):
+                kd = float(0.0)
+                if wp.static(SPRING_DAMPING):
+                    kd = seg_kd[pw, i]
+                fs = spring_force(
+                    node_delta(node_q_out, node_q_lo_out, w, i, i + 1), node_qd_out[w, i + 1] - node_qd_out[w, i],
+                    seg_rest_length[pw, i], seg_ke[pw, i], kd,
+                )  # fmt: skip
+                node_f[w, i] = node_f[w, i] + fs
+                node_f[w, i + 1] = node_f[w, i + 1] - fs
+            if wp.static(BENDING):
+                for j in range(start + 1, end - 1):
+                    ga, gb = bend_stencil(j, pw, w, node_q_out, node_q_lo_out, node_bend_k, node_kappa_target)
+                    node_f[w, j - 1] = node_f[w, j - 1] + ga
+                    node_f[w, j] = node_f[w, j] + gb - ga
+                    node_f[w, j + 1] = node_f[w, j + 1] - gb
             if wp.static(AL):
                 for a in range(tube_force_start[t], tube_force_start[t + 1]):
                     if al_active[w, a] != 0:
@@ -387,7 +497,7 @@ def make_kernels(features: Features):
             node_rest_q, node_mass, seg_rest_length, seg_ke, seg_kd, node_bend_k,
             node_anchor_k, node_anchor_kd, gravity, tube_force_start, force_node, al_start,
             node_q_in, node_q_lo_in, node_qd_in, node_kappa_target, al_q_in, al_qd_in,
-            node_f_ext, al_active, al_link_length, al_fwd_length, al_bwd_length,
+            node_f_ext, al_active, al_link_length, al_fwd_length, al_bwd_length, False,
         )  # fmt: skip
         x_new, lo_new, v_new = advance(node_q_in[w, i], node_q_lo_in[w, i], node_qd_in[w, i], f, im, node_damping[pw, i], dt)
         node_q_out[w, i] = x_new

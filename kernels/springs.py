@@ -54,21 +54,47 @@ def curvature_binormal(a: wp.vec3, b: wp.vec3) -> wp.vec3:
 
 
 @wp.func
-def bend_gradients(a: wp.vec3, b: wp.vec3, g: wp.vec3):
-    """Transposed Jacobians of the curvature binormal applied to ``g``.
+def bend_gradients(a: wp.vec3, b: wp.vec3, kb_target: wp.vec3, k: float):
+    """Bending forces of edges ``a``, ``b`` for energy ``k/2 |kb - kb_target|^2``.
 
-    For ``kb = 2 a x b / D`` with ``D = |a||b| + a.b`` returns ``(dkb/da)^T g`` and
-    ``(dkb/db)^T g``; the bending force on the stencil nodes (prev, mid, next) is then
-    ``(+ga, gb - ga, -gb)`` for ``g = dE/dkb``.
+    With ``kb = 2 a x b / D``, ``D = |a||b| + a.b`` and ``g = k (kb - kb_target)`` returns
+    ``ga = (dkb/da)^T g`` and ``gb = (dkb/db)^T g``; the stencil nodes (prev, mid, next) get
+    ``(+ga, gb - ga, -gb)``.
     """
     la = wp.length(a)
     lb = wp.length(b)
     den = wp.max(la * lb + wp.dot(a, b), 1.0e-6 * la * lb + EPS)
-    kb = wp.cross(a, b) * (2.0 / den)
+    inv = 1.0 / den
+    kb = wp.cross(a, b) * (2.0 * inv)
+    g = (kb - kb_target) * k
     kg = wp.dot(kb, g)
-    ga = (2.0 * wp.cross(b, g) - kg * (a * (lb / wp.max(la, EPS)) + b)) / den
-    gb = (-2.0 * wp.cross(a, g) - kg * (b * (la / wp.max(lb, EPS)) + a)) / den
+    ga = (2.0 * wp.cross(b, g) - kg * (a * (lb / wp.max(la, EPS)) + b)) * inv
+    gb = (-2.0 * wp.cross(a, g) - kg * (b * (la / wp.max(lb, EPS)) + a)) * inv
     return ga, gb
+
+
+@wp.func
+def bend_stencil(
+    j: int,
+    pw: int,
+    w: int,
+    node_q: wp.array2d[wp.vec3],
+    node_q_lo: wp.array2d[wp.vec3],
+    node_bend_k: wp.array2d[float],
+    node_kappa_target: wp.array2d[wp.vec3],
+):
+    """Forces [N] of the bending stencil centred on node ``j``: returns ``(ga, gb)``; the nodes
+    ``j - 1``, ``j``, ``j + 1`` get ``ga``, ``gb - ga`` and ``-gb``.
+
+    The stencil's energy is ``E = k/2 |kb - kb_target|^2`` with ``k = node_bend_k = EI / l_voronoi``
+    [N m] (zero: no stencil).
+    """
+    k = node_bend_k[pw, j]
+    if k == 0.0:
+        return wp.vec3(0.0), wp.vec3(0.0)
+    a = node_delta(node_q, node_q_lo, w, j - 1, j)
+    b = node_delta(node_q, node_q_lo, w, j, j + 1)
+    return bend_gradients(a, b, node_kappa_target[w % node_kappa_target.shape[0], j], k)
 
 
 @wp.func
@@ -82,18 +108,9 @@ def bend_force_on(
     node_bend_k: wp.array2d[float],
     node_kappa_target: wp.array2d[wp.vec3],
 ):
-    """Force [N] that the bending stencil centred on node ``j`` puts on its node ``j + role``.
-
-    ``role`` is -1 (previous), 0 (centre) or +1 (next). The stencil's energy is
-    ``E = k/2 |kb - kb_target|^2`` with ``k = node_bend_k = EI / l_voronoi`` [N m].
-    """
-    k = node_bend_k[pw, j]
-    if k == 0.0:
-        return wp.vec3(0.0)
-    a = node_delta(node_q, node_q_lo, w, j - 1, j)
-    b = node_delta(node_q, node_q_lo, w, j, j + 1)
-    g = (curvature_binormal(a, b) - node_kappa_target[w % node_kappa_target.shape[0], j]) * k
-    ga, gb = bend_gradients(a, b, g)
+    """Force [N] that the bending stencil centred on node ``j`` puts on its node ``j + role``
+    (``role`` -1, 0 or +1); see :func:`bend_stencil`."""
+    ga, gb = bend_stencil(j, pw, w, node_q, node_q_lo, node_bend_k, node_kappa_target)
     if role < 0:
         return ga
     if role > 0:

@@ -11,9 +11,9 @@ discretisation error, so an inextensible reference would hide the convergence or
 
 import numpy as np
 import pytest
-from scipy.integrate import solve_bvp
 
 from warp_tube.model import build_model
+from warp_tube.references import elastica_tip
 from warp_tube.scene import ForceSpec, Scene, TubeParams, TubeSpec
 from warp_tube.solver import SemiImplicitEulerSolver
 from warp_tube.stability import critical_time_step
@@ -21,20 +21,6 @@ from warp_tube.stability import critical_time_step
 from .conftest import settle, straight_points
 
 E, RHO, L = 1.0e6, 1000.0, 1.0
-
-
-def elastica_tip(load, eps_per_sin=0.0):
-    """Tip (x, y) / L of the clamped elastica for load parameter PL^2/EI (load along -y)."""
-    s = np.linspace(0.0, 1.0, 2001)
-    stretch = lambda th: 1.0 - eps_per_sin * np.sin(th)  # noqa: E731
-
-    def rhs(_, y):
-        return np.vstack([y[1], load * stretch(y[0]) * np.cos(y[0])])
-
-    sol = solve_bvp(rhs, lambda a, b: np.array([a[0], b[1]]), s, np.zeros((2, s.size)), tol=1e-10, max_nodes=200000)
-    assert sol.success
-    th = sol.sol(s)[0]
-    return np.array([np.trapezoid(stretch(th) * np.cos(th), s), np.trapezoid(stretch(th) * np.sin(th), s)])
 
 
 def cantilever_scene(segments, load, r_over_l, damping=None, assistant_line=False):
