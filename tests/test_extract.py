@@ -124,7 +124,10 @@ def test_helix_centerline_and_spokes(caps):
     # open tubes have no wall in their ring plane (filled from neighbours): radius varies there.
     inner = slice(1, -1)
     rel = np.abs(tube.spoke_lengths[inner] - local[inner, None]) / local[inner, None]
-    assert rel.max() < 0.03, rel.max()
+    # Hubs are within 5 % of r (smoothing near the ends shifts them most), the 48-gon is within
+    # 1 - cos(pi / 48) = 0.2 % of r: spokes within 6 % of r.
+    assert rel.max() < 0.06, rel.max()
+    assert np.median(rel) < 0.01, np.median(rel)
     assert np.all(np.abs(tube.radius - local) / local < 0.06)
     # Ends: at the true ends of the curve (open: loop centroid; capped: 10 % of r inside the cap).
     total = arclength(curve_pts)[-1]
