@@ -6,8 +6,10 @@ same force functions:
 - ``substeps``: one thread per (world, tube) runs a whole frame's substeps in a loop, with no
   round trip to Python between them (the CPU path: a launch costs ~15 us there, a substep of a
   20-point tube well under that).
-- ``step_nodes`` (+ ``step_al``, ``targets``): one thread per (world, node) advances one substep
-  from ``*_in`` to ``*_out`` (the GPU path; the host captures a frame's substeps in a graph).
+- ``stencils`` + ``step_nodes`` (+ ``step_al``, ``targets``): one thread per (world, node); the
+  first evaluates each spring and bending stencil once, the second sums them per node and
+  advances one substep from ``*_in`` to ``*_out`` (the GPU path; the host captures a frame's
+  substeps in a graph).
 
 Features a scene does not use are compiled out with ``wp.static``: a straight tube with no anchors,
 gravity, damping or assistant line evaluates only its structural and bending springs.
@@ -28,7 +30,7 @@ from typing import NamedTuple
 
 import warp as wp
 
-from .springs import bend_force_on, bend_stencil, curvature_targets, node_delta, spring_force
+from .springs import bend_stencil, curvature_targets, node_delta, spring_force
 
 
 @wp.struct
@@ -95,6 +97,10 @@ def pack(struct_type, source):
     return out
 
 
+#: Options of the per-node (CUDA path) kernels' modules: fast approximate division and square root.
+CUDA_OPTIONS = {"fast_math": True}
+
+
 class Features(NamedTuple):
     """Which terms a scene uses; each False term is compiled out."""
 
@@ -120,46 +126,6 @@ def make_kernels(features: Features):
     SPRING_DAMPING = features.spring_damping
     EXTERNAL = features.external
     AL = features.assistant_line
-
-    @wp.func
-    def chain_force(
-        w: int,
-        pw: int,
-        i: int,
-        start: int,
-        end: int,
-        seg_rest_length: wp.array2d[float],
-        seg_ke: wp.array2d[float],
-        seg_kd: wp.array2d[float],
-        node_bend_k: wp.array2d[float],
-        node_q: wp.array2d[wp.vec3],
-        node_q_lo: wp.array2d[wp.vec3],
-        node_qd: wp.array2d[wp.vec3],
-        node_kappa_target: wp.array2d[wp.vec3],
-    ) -> wp.vec3:
-        """Structural and bending spring forces gathered onto node ``i`` [N]."""
-        v = node_qd[w, i]
-        f = wp.vec3(0.0)
-        # Structural springs: segment i-1 (node i is its end b) and segment i (its end a).
-        if i > start:
-            kd = float(0.0)
-            if wp.static(SPRING_DAMPING):
-                kd = seg_kd[pw, i - 1]
-            f += spring_force(node_delta(node_q, node_q_lo, w, i, i - 1), node_qd[w, i - 1] - v, seg_rest_length[pw, i - 1], seg_ke[pw, i - 1], kd)
-        if i < end - 1:
-            kd = float(0.0)
-            if wp.static(SPRING_DAMPING):
-                kd = seg_kd[pw, i]
-            f += spring_force(node_delta(node_q, node_q_lo, w, i, i + 1), node_qd[w, i + 1] - v, seg_rest_length[pw, i], seg_ke[pw, i], kd)
-        if wp.static(BENDING):
-            # Stencils centred on i-1, i and i+1 (interior nodes only).
-            if i - 1 > start:
-                f += bend_force_on(i - 1, 1, pw, w, node_q, node_q_lo, node_bend_k, node_kappa_target)
-            if i > start and i < end - 1:
-                f += bend_force_on(i, 0, pw, w, node_q, node_q_lo, node_bend_k, node_kappa_target)
-            if i + 1 < end - 1:
-                f += bend_force_on(i + 1, -1, pw, w, node_q, node_q_lo, node_bend_k, node_kappa_target)
-        return f
 
     @wp.func
     def node_force(
@@ -195,15 +161,12 @@ def make_kernels(features: Features):
         al_link_length: wp.array2d[float],
         al_fwd_length: wp.array2d[float],
         al_bwd_length: wp.array2d[float],
-        local_only: bool,
     ) -> wp.vec3:
-        """Force on node ``i`` of world ``w`` [N]; with ``local_only`` without the structural and
-        bending springs (the per-tube kernel adds those stencil by stencil)."""
+        """Force on node ``i`` of world ``w`` [N] from everything but the structural and bending
+        springs (both kernels add those stencil by stencil, each evaluated once)."""
         x = node_q[w, i]
         v = node_qd[w, i]
         f = wp.vec3(0.0)
-        if not local_only:
-            f = chain_force(w, pw, i, start, end, seg_rest_length, seg_ke, seg_kd, node_bend_k, node_q, node_q_lo, node_qd, node_kappa_target)
         if wp.static(ANCHORS):
             ka = node_anchor_k[pw, i]
             if ka > 0.0:
@@ -360,10 +323,13 @@ def make_kernels(features: Features):
             node_q_lo_out[w, i] = node_q_lo_in[w, i]
             node_qd_out[w, i] = node_qd_in[w, i]
         if wp.static(AL):
+            # Only built lines have slots in use (a force without one has none; an inactive line
+            # is rebuilt from the centerline when it starts).
             for a in range(tube_force_start[t], tube_force_start[t + 1]):
-                for p in range(al_start[a], al_start[a] + end - start):
-                    al_q_out[w, p] = al_q_in[w, p]
-                    al_qd_out[w, p] = al_qd_in[w, p]
+                if al_active[w, a] != 0:
+                    for p in range(al_start[a], al_start[a] + end - start):
+                        al_q_out[w, p] = al_q_in[w, p]
+                        al_qd_out[w, p] = al_qd_in[w, p]
         for step in range(substep_count):
             frac = float(step + 1) / float(substep_count)
             if wp.static(CURVED):
@@ -374,7 +340,7 @@ def make_kernels(features: Features):
                     node_rest_q, node_mass, seg_rest_length, seg_ke, seg_kd, node_bend_k,
                     node_anchor_k, node_anchor_kd, gravity, tube_force_start, force_node, al_start,
                     node_q_out, node_q_lo_out, node_qd_out, node_kappa_target, al_q_out, al_qd_out,
-                    node_f_ext, al_active, al_link_length, al_fwd_length, al_bwd_length, True,
+                    node_f_ext, al_active, al_link_length, al_fwd_length, al_bwd_length,
                 )  # fmt: skip
             # Each spring and bending stencil once, added to all its nodes (one thread owns the tube).
             for i in range(start, end - 1):
@@ -440,7 +406,50 @@ def make_kernels(features: Features):
         pw = w % node_rest_q.shape[0]
         curvature_targets(w, pw, tube_node_start[t], tube_node_start[t + 1], node_q, node_rest_q, node_kappa_rest, node_kappa_target)
 
-    @wp.kernel(enable_backward=False, module="unique")
+    @wp.kernel(enable_backward=False, module="unique", module_options=CUDA_OPTIONS)
+    def stencils(
+        # model:
+        node_tube: wp.array[int],
+        tube_node_start: wp.array[int],
+        seg_rest_length: wp.array2d[float],
+        seg_ke: wp.array2d[float],
+        seg_kd: wp.array2d[float],
+        node_bend_k: wp.array2d[float],
+        # state in:
+        node_q_in: wp.array2d[wp.vec3],
+        node_q_lo_in: wp.array2d[wp.vec3],
+        node_qd_in: wp.array2d[wp.vec3],
+        node_kappa_target: wp.array2d[wp.vec3],
+        # out:
+        seg_f_out: wp.array2d[wp.vec3],
+        bend_ga_out: wp.array2d[wp.vec3],
+        bend_gb_out: wp.array2d[wp.vec3],
+    ):
+        """Per node j: the force of segment j on node j [N] (node j+1 gets its negative) and the
+        bending stencil centred on j (``ga``, ``gb``; see ``bend_stencil``); zero where none."""
+        w, j = wp.tid()
+        pw = w % seg_ke.shape[0]
+        t = node_tube[j]
+        end = tube_node_start[t + 1]
+        fs = wp.vec3(0.0)
+        if j < end - 1:
+            kd = float(0.0)
+            if wp.static(SPRING_DAMPING):
+                kd = seg_kd[pw, j]
+            fs = spring_force(
+                node_delta(node_q_in, node_q_lo_in, w, j, j + 1), node_qd_in[w, j + 1] - node_qd_in[w, j],
+                seg_rest_length[pw, j], seg_ke[pw, j], kd,
+            )  # fmt: skip
+        seg_f_out[w, j] = fs
+        if wp.static(BENDING):
+            ga = wp.vec3(0.0)
+            gb = wp.vec3(0.0)
+            if j > tube_node_start[t] and j < end - 1:
+                ga, gb = bend_stencil(j, pw, w, node_q_in, node_q_lo_in, node_bend_k, node_kappa_target)
+            bend_ga_out[w, j] = ga
+            bend_gb_out[w, j] = gb
+
+    @wp.kernel(enable_backward=False, module="unique", module_options=CUDA_OPTIONS)
     def step_nodes(
         frac: float,
         dt: float,
@@ -468,6 +477,9 @@ def make_kernels(features: Features):
         node_kappa_target: wp.array2d[wp.vec3],
         al_q_in: wp.array2d[wp.vec3],
         al_qd_in: wp.array2d[wp.vec3],
+        seg_f: wp.array2d[wp.vec3],
+        bend_ga: wp.array2d[wp.vec3],
+        bend_gb: wp.array2d[wp.vec3],
         # control:
         node_f_ext: wp.array2d[wp.vec3],
         pin_q_start: wp.array2d[wp.vec3],
@@ -481,7 +493,8 @@ def make_kernels(features: Features):
         node_q_lo_out: wp.array2d[wp.vec3],
         node_qd_out: wp.array2d[wp.vec3],
     ):
-        """One substep of ``dt`` [s] for one node; ``frac`` is the pin targets' progress."""
+        """One substep of ``dt`` [s] for one node; ``frac`` is the pin targets' progress. The
+        spring and bending terms come from ``stencils`` (launched just before)."""
         w, i = wp.tid()
         pw = w % node_mass.shape[0]
         im = node_inv_mass[pw, i]
@@ -492,19 +505,32 @@ def make_kernels(features: Features):
             node_q_lo_out[w, i] = wp.vec3(0.0)
             return
         t = node_tube[i]
-        f = node_force(
-            w, pw, i, tube_node_start[t], tube_node_start[t + 1], t,
+        start = tube_node_start[t]
+        end = tube_node_start[t + 1]
+        f = wp.vec3(0.0)
+        if i < end - 1:
+            f += seg_f[w, i]
+        if i > start:
+            f -= seg_f[w, i - 1]
+        if wp.static(BENDING):
+            if i + 1 < end:
+                f += bend_ga[w, i + 1]
+            f += bend_gb[w, i] - bend_ga[w, i]
+            if i > start:
+                f -= bend_gb[w, i - 1]
+        f += node_force(
+            w, pw, i, start, end, t,
             node_rest_q, node_mass, seg_rest_length, seg_ke, seg_kd, node_bend_k,
             node_anchor_k, node_anchor_kd, gravity, tube_force_start, force_node, al_start,
             node_q_in, node_q_lo_in, node_qd_in, node_kappa_target, al_q_in, al_qd_in,
-            node_f_ext, al_active, al_link_length, al_fwd_length, al_bwd_length, False,
+            node_f_ext, al_active, al_link_length, al_fwd_length, al_bwd_length,
         )  # fmt: skip
         x_new, lo_new, v_new = advance(node_q_in[w, i], node_q_lo_in[w, i], node_qd_in[w, i], f, im, node_damping[pw, i], dt)
         node_q_out[w, i] = x_new
         node_q_lo_out[w, i] = lo_new
         node_qd_out[w, i] = v_new
 
-    @wp.kernel(enable_backward=False, module="unique")
+    @wp.kernel(enable_backward=False, module="unique", module_options=CUDA_OPTIONS)
     def step_al(
         dt: float,
         # model:
@@ -551,4 +577,4 @@ def make_kernels(features: Features):
         al_q_out[w, p] = x_new
         al_qd_out[w, p] = v_new
 
-    return substeps, targets, step_nodes, step_al
+    return substeps, targets, stencils, step_nodes, step_al

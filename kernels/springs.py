@@ -98,27 +98,6 @@ def bend_stencil(
 
 
 @wp.func
-def bend_force_on(
-    j: int,
-    role: int,
-    pw: int,
-    w: int,
-    node_q: wp.array2d[wp.vec3],
-    node_q_lo: wp.array2d[wp.vec3],
-    node_bend_k: wp.array2d[float],
-    node_kappa_target: wp.array2d[wp.vec3],
-):
-    """Force [N] that the bending stencil centred on node ``j`` puts on its node ``j + role``
-    (``role`` -1, 0 or +1); see :func:`bend_stencil`."""
-    ga, gb = bend_stencil(j, pw, w, node_q, node_q_lo, node_bend_k, node_kappa_target)
-    if role < 0:
-        return ga
-    if role > 0:
-        return -gb
-    return gb - ga
-
-
-@wp.func
 def rotate_minimal(x: wp.vec3, a: wp.vec3, b: wp.vec3) -> wp.vec3:
     """Rotate ``x`` by the least rotation taking unit vector ``a`` to unit vector ``b``.
 

@@ -31,7 +31,7 @@ class SemiImplicitEulerSolver:
         self.model = model
         self.device = wp.get_device(model.device)
         self.per_node = self.device.is_cuda if per_node is None else per_node
-        self.substeps_kernel, self.targets_kernel, self.step_kernel, self.al_kernel = make_kernels(model.features)
+        self.substeps_kernel, self.targets_kernel, self.stencil_kernel, self.step_kernel, self.al_kernel = make_kernels(model.features)
         W, N = model.world_count, model.node_count
         slots = max(model.al_slots, 1)
         self._node_f = wp.zeros((W, N), dtype=wp.vec3, device=self.device)
@@ -39,6 +39,8 @@ class SemiImplicitEulerSolver:
         rows = W if model.features.curved else 1
         self._kappa_target = wp.zeros((rows, N), dtype=wp.vec3, device=self.device)
         self._tmp = model.state() if self.per_node else None
+        if self.per_node:
+            self._seg_f, self._bend_ga, self._bend_gb = (wp.zeros((W, N), dtype=wp.vec3, device=self.device) for _ in range(3))
         self._graphs = {}
         self._model_arrays = pack(ModelArrays, model)
         self._scratch = ScratchArrays()
@@ -53,12 +55,18 @@ class SemiImplicitEulerSolver:
                       inputs=[m.tube_node_start, m.node_rest_q, m.node_kappa_rest, s_in.node_q],
                       outputs=[self._kappa_target])  # fmt: skip
         wp.launch(
+            self.stencil_kernel, (m.world_count, m.node_count), device=self.device,
+            inputs=[m.node_tube, m.tube_node_start, m.seg_rest_length, m.seg_ke, m.seg_kd, m.node_bend_k,
+                    s_in.node_q, s_in.node_q_lo, s_in.node_qd, self._kappa_target],
+            outputs=[self._seg_f, self._bend_ga, self._bend_gb],
+        )  # fmt: skip
+        wp.launch(
             self.step_kernel, (m.world_count, m.node_count), device=self.device,
             inputs=[frac, dt, m.node_tube, m.tube_node_start, m.node_rest_q, m.node_mass, m.node_inv_mass,
                     m.node_damping, m.seg_rest_length, m.seg_ke, m.seg_kd, m.node_bend_k, m.node_anchor_k,
                     m.node_anchor_kd, m.gravity, m.tube_force_start, m.force_node, m.al_start,
                     s_in.node_q, s_in.node_q_lo, s_in.node_qd, self._kappa_target, s_in.al_q, s_in.al_qd,
-                    c.node_f_ext, c.pin_q_start, c.pin_q_end, c.al_active, c.al_link_length,
+                    self._seg_f, self._bend_ga, self._bend_gb, c.node_f_ext, c.pin_q_start, c.pin_q_end, c.al_active, c.al_link_length,
                     c.al_fwd_length, c.al_bwd_length],
             outputs=[s_out.node_q, s_out.node_q_lo, s_out.node_qd],
         )  # fmt: skip
@@ -75,7 +83,8 @@ class SemiImplicitEulerSolver:
     def _launch_substeps(self, s_in: TubeState, s_out: TubeState, c: TubeControl, dt: float, substeps: int):
         # A recorded launch replays without re-packing its ~40 arguments (~15 us on the CPU).
         key = (id(s_in), id(s_out), id(c))
-        cmd = self._commands.get(key)
+        cached = self._commands.get(key)
+        cmd = cached[-1] if cached is not None else None
         if cmd is not None:
             cmd.set_param_at_index(0, int(substeps))
             cmd.set_param_at_index(1, float(dt))
@@ -91,7 +100,9 @@ class SemiImplicitEulerSolver:
         cmd.launch()
         if len(self._commands) > 16:
             self._commands.clear()
-        self._commands[key] = cmd
+        # Hold the states and control too: a recorded launch points at their arrays, and while
+        # they are held no new object can reuse their ids.
+        self._commands[key] = (s_in, s_out, c, cmd)
 
     def step(self, state_in: TubeState, state_out: TubeState, control: TubeControl, dt: float):
         """Advance one substep of ``dt`` [s]; pins reach ``control.pin_q_end``."""
@@ -107,9 +118,9 @@ class SemiImplicitEulerSolver:
             self._launch_substeps(state_in, state_out, control, float(dt), int(substeps))
             return
         key = (id(state_in), id(state_out), id(control), float(dt), int(substeps))
-        graph = self._graphs.get(key)
-        if graph is not None:
-            wp.capture_launch(graph)
+        cached = self._graphs.get(key)
+        if cached is not None:
+            wp.capture_launch(cached[-1])
             return
         use_graph = self.device.is_cuda and wp.is_mempool_enabled(self.device) is not None
         if use_graph:
@@ -117,7 +128,7 @@ class SemiImplicitEulerSolver:
                 self._chain(state_in, state_out, control, dt, substeps)
             if len(self._graphs) > 16:
                 self._graphs.clear()
-            self._graphs[key] = cap.graph
+            self._graphs[key] = (state_in, state_out, control, cap.graph)  # held: see _launch_substeps
             wp.capture_launch(cap.graph)
         else:
             self._chain(state_in, state_out, control, dt, substeps)
