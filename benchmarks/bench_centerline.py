@@ -9,8 +9,9 @@ Cases (each timed after a warm-up; medians of ``--reps`` repetitions, all in one
 - ``substep_20pt_all_features``: the same tube curved at rest, with anchors, gravity, both
   dampings and a point force with its assistant line: what each feature costs.
 - ``frame_60fps_20pt``: ``Simulation.step`` for that minimal tube at 60 fps (substeps + host work).
-- ``batch``: ``--worlds`` copies of a 32-point tube (on CUDA: 65,536), per-node kernel with the
-  frame's substeps captured in a CUDA graph, and the per-tube kernel; hub-steps per second.
+- ``batch``: ``--worlds`` copies of a 32-point tube (on CUDA: 65,536), per-node kernels with the
+  frame's substeps captured in a CUDA graph (one gather kernel per substep, or ``stencils`` +
+  step), the same with every feature on, and the per-tube kernel; hub-steps per second.
 - ``error``: the cantilever at 20 free segments with the same kernels: static tip error against
   the elastica (PL^2/EI = 2) and first-frequency error against Euler-Bernoulli.
 """
@@ -68,10 +69,10 @@ def timed(fn, reps, sync):
     return float(np.median(out)), out
 
 
-def substep_case(device, n_points, extras, reps, per_node=None, worlds=1, substeps=None):
+def substep_case(device, n_points, extras, reps, per_node=None, worlds=1, substeps=None, gather=True):
     sim = Simulation(scene(n_points, extras), device=device, world_count=worlds, surface=False)
     sim.step()  # builds the assistant line, compiles
-    solver = SemiImplicitEulerSolver(sim.model, per_node=per_node)
+    solver = SemiImplicitEulerSolver(sim.model, per_node=per_node, gather=gather)
     n = substeps or sim.substeps
     s0, s1 = sim.state, sim.next_state
     sync = (lambda: wp.synchronize_device(device))
@@ -83,7 +84,7 @@ def substep_case(device, n_points, extras, reps, per_node=None, worlds=1, subste
     med, all_t = timed(run, reps, sync)
     return {
         "worlds": worlds, "points": n_points, "substeps_per_launch": n, "dt_s": sim.dt,
-        "per_node_kernel": solver.per_node,
+        "per_node_kernel": solver.per_node, "gather": solver.gather if solver.per_node else None,
         "time_per_substep_us": med / n * 1e6,
         "hub_steps_per_s": worlds * sim.model.node_count * n / med,
         "reps_s": all_t,
@@ -147,6 +148,8 @@ def main():
     res["feature_cost_ratio"] = res["substep_20pt_all_features"]["time_per_substep_us"] / res["substep_20pt_minimal"]["time_per_substep_us"]
     res["frame_60fps_20pt"] = frame_case(device, a.reps)
     res["batch_per_node"] = substep_case(device, 32, False, a.reps, per_node=True, worlds=worlds)
+    res["batch_per_node_stencils"] = substep_case(device, 32, False, a.reps, per_node=True, worlds=worlds, gather=False)
+    res["batch_per_node_all_features"] = substep_case(device, 32, True, a.reps, per_node=True, worlds=worlds)
     res["batch_per_tube"] = substep_case(device, 32, False, a.reps, per_node=False, worlds=worlds)
     res["error"] = error_case(device)
     for v in res.values():

@@ -531,6 +531,100 @@ def make_kernels(features: Features):
         node_qd_out[w, i] = v_new
 
     @wp.kernel(enable_backward=False, module="unique", module_options=CUDA_OPTIONS)
+    def step_nodes_gather(
+        frac: float,
+        dt: float,
+        # model:
+        node_tube: wp.array[int],
+        tube_node_start: wp.array[int],
+        node_rest_q: wp.array2d[wp.vec3],
+        node_mass: wp.array2d[float],
+        node_inv_mass: wp.array2d[float],
+        node_damping: wp.array2d[float],
+        seg_rest_length: wp.array2d[float],
+        seg_ke: wp.array2d[float],
+        seg_kd: wp.array2d[float],
+        node_bend_k: wp.array2d[float],
+        node_anchor_k: wp.array2d[float],
+        node_anchor_kd: wp.array2d[float],
+        gravity: wp.vec3,
+        tube_force_start: wp.array[int],
+        force_node: wp.array[int],
+        al_start: wp.array[int],
+        # state in:
+        node_q_in: wp.array2d[wp.vec3],
+        node_q_lo_in: wp.array2d[wp.vec3],
+        node_qd_in: wp.array2d[wp.vec3],
+        node_kappa_target: wp.array2d[wp.vec3],
+        al_q_in: wp.array2d[wp.vec3],
+        al_qd_in: wp.array2d[wp.vec3],
+        seg_f: wp.array2d[wp.vec3],
+        bend_ga: wp.array2d[wp.vec3],
+        bend_gb: wp.array2d[wp.vec3],
+        # control:
+        node_f_ext: wp.array2d[wp.vec3],
+        pin_q_start: wp.array2d[wp.vec3],
+        pin_q_end: wp.array2d[wp.vec3],
+        al_active: wp.array2d[int],
+        al_link_length: wp.array2d[float],
+        al_fwd_length: wp.array2d[float],
+        al_bwd_length: wp.array2d[float],
+        # out:
+        node_q_out: wp.array2d[wp.vec3],
+        node_q_lo_out: wp.array2d[wp.vec3],
+        node_qd_out: wp.array2d[wp.vec3],
+    ):
+        """As ``step_nodes``, evaluating the spring and bending terms in place (no ``stencils``
+        launch; ``seg_f``, ``bend_ga``, ``bend_gb`` are not read)."""
+        w, i = wp.tid()
+        pw = w % node_mass.shape[0]
+        im = node_inv_mass[pw, i]
+        if im == 0.0:
+            x_new = wp.lerp(pin_q_start[w, i], pin_q_end[w, i], frac)
+            node_qd_out[w, i] = (x_new - node_q_in[w, i]) / dt
+            node_q_out[w, i] = x_new
+            node_q_lo_out[w, i] = wp.vec3(0.0)
+            return
+        t = node_tube[i]
+        start = tube_node_start[t]
+        end = tube_node_start[t + 1]
+        # Each node evaluates its two springs and three bending stencils itself: more arithmetic,
+        # less memory traffic than `stencils` + `step_nodes`.
+        v = node_qd_in[w, i]
+        f = wp.vec3(0.0)
+        if i < end - 1:
+            kd = float(0.0)
+            if wp.static(SPRING_DAMPING):
+                kd = seg_kd[pw, i]
+            f += spring_force(node_delta(node_q_in, node_q_lo_in, w, i, i + 1), node_qd_in[w, i + 1] - v, seg_rest_length[pw, i], seg_ke[pw, i], kd)
+        if i > start:
+            kd = float(0.0)
+            if wp.static(SPRING_DAMPING):
+                kd = seg_kd[pw, i - 1]
+            f += spring_force(node_delta(node_q_in, node_q_lo_in, w, i, i - 1), node_qd_in[w, i - 1] - v, seg_rest_length[pw, i - 1], seg_ke[pw, i - 1], kd)
+        if wp.static(BENDING):
+            if i + 1 < end - 1:
+                ga, gb = bend_stencil(i + 1, pw, w, node_q_in, node_q_lo_in, node_bend_k, node_kappa_target)
+                f += ga
+            if i > start and i < end - 1:
+                ga, gb = bend_stencil(i, pw, w, node_q_in, node_q_lo_in, node_bend_k, node_kappa_target)
+                f += gb - ga
+            if i - 1 > start:
+                ga, gb = bend_stencil(i - 1, pw, w, node_q_in, node_q_lo_in, node_bend_k, node_kappa_target)
+                f -= gb
+        f += node_force(
+            w, pw, i, start, end, t,
+            node_rest_q, node_mass, seg_rest_length, seg_ke, seg_kd, node_bend_k,
+            node_anchor_k, node_anchor_kd, gravity, tube_force_start, force_node, al_start,
+            node_q_in, node_q_lo_in, node_qd_in, node_kappa_target, al_q_in, al_qd_in,
+            node_f_ext, al_active, al_link_length, al_fwd_length, al_bwd_length,
+        )  # fmt: skip
+        x_new, lo_new, v_new = advance(node_q_in[w, i], node_q_lo_in[w, i], node_qd_in[w, i], f, im, node_damping[pw, i], dt)
+        node_q_out[w, i] = x_new
+        node_q_lo_out[w, i] = lo_new
+        node_qd_out[w, i] = v_new
+
+    @wp.kernel(enable_backward=False, module="unique", module_options=CUDA_OPTIONS)
     def step_al(
         dt: float,
         # model:
@@ -577,4 +671,4 @@ def make_kernels(features: Features):
         al_q_out[w, p] = x_new
         al_qd_out[w, p] = v_new
 
-    return substeps, targets, stencils, step_nodes, step_al
+    return substeps, targets, stencils, step_nodes, step_nodes_gather, step_al

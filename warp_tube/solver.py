@@ -22,16 +22,21 @@ class SemiImplicitEulerSolver:
 
     Args:
         model: the discretised scene.
-        per_node: use the per-node kernel (default: on CUDA devices); else the per-tube loop.
+        per_node: use the per-node kernels (default: on CUDA devices); else the per-tube loop.
+        gather: on the per-node path, one kernel per substep in which each node evaluates its own
+            springs and stencils (default); else a ``stencils`` kernel evaluating each once, then
+            the step kernel summing them.
     """
 
     name = "semiImplicitEuler"
 
-    def __init__(self, model: TubeModel, per_node: bool | None = None):
+    def __init__(self, model: TubeModel, per_node: bool | None = None, gather: bool = True):
         self.model = model
         self.device = wp.get_device(model.device)
         self.per_node = self.device.is_cuda if per_node is None else per_node
-        self.substeps_kernel, self.targets_kernel, self.stencil_kernel, self.step_kernel, self.al_kernel = make_kernels(model.features)
+        (self.substeps_kernel, self.targets_kernel, self.stencil_kernel, self.step_kernel, self.gather_kernel,
+         self.al_kernel) = make_kernels(model.features)  # fmt: skip
+        self.gather = gather
         W, N = model.world_count, model.node_count
         slots = max(model.al_slots, 1)
         self._node_f = wp.zeros((W, N), dtype=wp.vec3, device=self.device)
@@ -39,8 +44,8 @@ class SemiImplicitEulerSolver:
         rows = W if model.features.curved else 1
         self._kappa_target = wp.zeros((rows, N), dtype=wp.vec3, device=self.device)
         self._tmp = model.state() if self.per_node else None
-        if self.per_node:
-            self._seg_f, self._bend_ga, self._bend_gb = (wp.zeros((W, N), dtype=wp.vec3, device=self.device) for _ in range(3))
+        shape = (W, N) if self.per_node and not gather else (1, 1)
+        self._seg_f, self._bend_ga, self._bend_gb = (wp.zeros(shape, dtype=wp.vec3, device=self.device) for _ in range(3))
         self._graphs = {}
         self._model_arrays = pack(ModelArrays, model)
         self._scratch = ScratchArrays()
@@ -54,14 +59,15 @@ class SemiImplicitEulerSolver:
             wp.launch(self.targets_kernel, (m.world_count, m.tube_count), device=self.device,
                       inputs=[m.tube_node_start, m.node_rest_q, m.node_kappa_rest, s_in.node_q],
                       outputs=[self._kappa_target])  # fmt: skip
+        if not self.gather:
+            wp.launch(
+                self.stencil_kernel, (m.world_count, m.node_count), device=self.device,
+                inputs=[m.node_tube, m.tube_node_start, m.seg_rest_length, m.seg_ke, m.seg_kd, m.node_bend_k,
+                        s_in.node_q, s_in.node_q_lo, s_in.node_qd, self._kappa_target],
+                outputs=[self._seg_f, self._bend_ga, self._bend_gb],
+            )  # fmt: skip
         wp.launch(
-            self.stencil_kernel, (m.world_count, m.node_count), device=self.device,
-            inputs=[m.node_tube, m.tube_node_start, m.seg_rest_length, m.seg_ke, m.seg_kd, m.node_bend_k,
-                    s_in.node_q, s_in.node_q_lo, s_in.node_qd, self._kappa_target],
-            outputs=[self._seg_f, self._bend_ga, self._bend_gb],
-        )  # fmt: skip
-        wp.launch(
-            self.step_kernel, (m.world_count, m.node_count), device=self.device,
+            self.gather_kernel if self.gather else self.step_kernel, (m.world_count, m.node_count), device=self.device,
             inputs=[frac, dt, m.node_tube, m.tube_node_start, m.node_rest_q, m.node_mass, m.node_inv_mass,
                     m.node_damping, m.seg_rest_length, m.seg_ke, m.seg_kd, m.node_bend_k, m.node_anchor_k,
                     m.node_anchor_kd, m.gravity, m.tube_force_start, m.force_node, m.al_start,
