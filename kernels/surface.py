@@ -1,4 +1,4 @@
-"""Boundary points and normals of the hubs-and-spokes surface (Warp), one thread per spoke.
+"""Boundary points and normals of the hubs-and-spokes surface (Warp): per-hub data, then one thread per spoke.
 
 A ring is a set of ``S`` spokes leaving one hub at the same angle ``theta`` to the hub tangent
 (see :mod:`warp_tube.topology` for the ring table): body rings at 90 degrees, cap rings at smaller
@@ -49,7 +49,17 @@ distance ``g rho`` from the hub (``rho`` the bend radius; about ``2/3 g rho`` at
 to the bend axis: the cross-section loses the circular segment beyond that chord and the inner wall
 becomes a thin surface of revolution of radius ``(1 - g) rho`` around the bend axis. On a circular
 tube it acts only where ``radius x curvature > g`` for the innermost spoke; below that the surface is
-exact. It costs five plane tests per spoke (three spokes are evaluated per thread, for normals).
+exact.
+
+Work split. :func:`hub_guard_kernel` (one thread per (world, hub)) does everything that depends on
+the hub only: the curvature vector, the chord lengths, the three guard planes (neighbours' or
+virtual rings', and the centre of curvature's, each relative to the hub) and two *free lengths*:
+bounds below which no plane can shorten a spoke of the hub's body ring or of any ring.
+:func:`spoke_points_kernel` (one thread per (world, ring, spoke), spokes fastest, so consecutive
+threads write consecutive vertices) then reads them; a spoke whose own and neighbours' given lengths
+are within the free length skips the plane tests, which would leave those lengths unchanged
+(exactly: the guard only takes minima with larger values). Otherwise the thread evaluates the guard
+for its spoke and both neighbours (for the normal), five plane tests each.
 """
 
 import warp as wp
@@ -64,17 +74,61 @@ MIN_STRETCH = wp.constant(1.0e-2)
 VIRTUAL_BLEND = wp.constant(0.9)
 """Reach (fraction of the distance to the centre of curvature) where an end ring starts to feel the
 virtual ring beyond the tube's end."""
+FREE_MARGIN = wp.constant(1.0e-5)
+"""Relative margin of a hub's free lengths (:func:`hub_guard_kernel`) against float32 round-off of
+the plane distances they bound (each within a few 1e-7)."""
+DIRECTION_SLACK = wp.constant(1.0e-6)
+"""Slack, relative to a plane normal's length, added to the bound of ``|d . n|`` for a body spoke:
+covers ``d`` (built from float32 ``r``, ``s``) being orthogonal to ``t`` only to a few 1e-7."""
+PLANE_PREV = wp.constant(0)
+PLANE_NEXT = wp.constant(1)
+PLANE_CENTRE = wp.constant(2)
+
+#: Options of the surface kernels' modules: fast approximate division and square root on CUDA
+#: (Warp's CPU compiler ignores the option, so CPU results are unchanged by it).
+CUDA_OPTIONS = {"fast_math": True}
 
 
 @wp.func
-def plane_distance(d: wp.vec3, x: wp.vec3, x_k: wp.vec3, t_k: wp.vec3) -> float:
-    """Distance [length unit] along unit ``d`` from ``x`` to the plane through ``x_k`` normal to
-    ``t_k``, where the ray from ``x`` heads into that plane; -1 where it does not."""
-    num = wp.dot(x_k - x, t_k)
-    den = wp.dot(d, t_k)
+def plane_reach(d: wp.vec3, plane: wp.vec4) -> float:
+    """Distance [length unit] along unit ``d`` from a hub to a plane given relative to that hub,
+    where the ray heads into it; -1 where it does not.
+
+    ``plane``: normal ``n`` (not necessarily unit) in ``xyz`` and ``n . (p - x)`` in ``w``, for any
+    point ``p`` of the plane and the hub ``x``; all zero for no plane (never reached).
+    """
+    num = plane[3]
+    den = wp.dot(d, wp.vec3(plane[0], plane[1], plane[2]))
     if num * den > 0.0:
         return num / den
     return -1.0
+
+
+@wp.func
+def hub_plane(x: wp.vec3, p: wp.vec3, n: wp.vec3) -> wp.vec4:
+    """The plane through ``p`` normal to ``n`` relative to hub ``x``, as :func:`plane_reach` reads it."""
+    return wp.vec4(n[0], n[1], n[2], wp.dot(p - x, n))
+
+
+@wp.func
+def plane_free_length(plane: wp.vec4, t: wp.vec3, reach: float, body: int) -> float:
+    """Spoke length [length unit] below which ``plane`` cannot limit a spoke of the hub (frame
+    tangent ``t``) under the guard ``reach``; a large value for no plane.
+
+    A spoke ``d`` reaches the plane at ``|n . (p - x)| / |d . n|`` or never. ``|d . n| <= |n|`` for
+    any ring; on a body ring (``d`` normal to ``t``) ``|d . n| <= |n - (n . t) t|``, usually far
+    less. Scaled by ``reach (1 - FREE_MARGIN)`` so a spoke no longer than this keeps its length
+    exactly through :func:`guarded_length`.
+    """
+    n = wp.vec3(plane[0], plane[1], plane[2])
+    n_len = wp.length(n)
+    bound = n_len
+    if body != 0:
+        bound = wp.length(n - wp.dot(n, t) * t) + DIRECTION_SLACK * n_len
+    num = wp.abs(plane[3])
+    if num * bound > 0.0:
+        return reach * (1.0 - FREE_MARGIN) * num / bound
+    return 1.0e30
 
 
 @wp.func
@@ -96,42 +150,141 @@ def neighbour_limit(length: float, kind: int, l_k: float, l_c: float, guard_reac
 
 
 @wp.func
-def spoke_length_at(
+def guarded_length(
     length: float,
     d: wp.vec3,
-    x: wp.vec3,
     prev_kind: int,
-    x_prev: wp.vec3,
-    t_prev: wp.vec3,
+    plane_prev: wp.vec4,
     next_kind: int,
-    x_next: wp.vec3,
-    t_next: wp.vec3,
-    has_centre: int,
-    centre: wp.vec3,
-    k_perp: wp.vec3,
+    plane_next: wp.vec4,
+    plane_centre: wp.vec4,
     guard_reach: float,
 ) -> float:
     """Spoke length [length unit] after the inner-bend guard.
 
     Limited against the previous and next rings' planes (kind 0: none, 1: real, 2: virtual, see
-    :func:`neighbour_limit`) and against the plane through the local centre of curvature
-    ``centre`` normal to ``k_perp`` (the curvature direction in the ring's plane).
+    :func:`neighbour_limit`) and against the plane through the local centre of curvature normal to
+    the curvature's part in the ring's plane (all zero where the hub has no centre), each given
+    relative to the hub (:func:`plane_reach`).
     """
     out = length
-    if guard_reach > 0.0:
-        l_c = float(-1.0)
-        if has_centre != 0:
-            l_c = plane_distance(d, x, centre, k_perp)
-        if prev_kind != 0:
-            out = wp.min(out, neighbour_limit(length, prev_kind, plane_distance(d, x, x_prev, t_prev), l_c, guard_reach))
-        if next_kind != 0:
-            out = wp.min(out, neighbour_limit(length, next_kind, plane_distance(d, x, x_next, t_next), l_c, guard_reach))
-        if l_c > 0.0:
-            out = wp.min(out, guard_reach * l_c)
+    l_c = plane_reach(d, plane_centre)
+    if prev_kind != 0:
+        out = wp.min(out, neighbour_limit(length, prev_kind, plane_reach(d, plane_prev), l_c, guard_reach))
+    if next_kind != 0:
+        out = wp.min(out, neighbour_limit(length, next_kind, plane_reach(d, plane_next), l_c, guard_reach))
+    if l_c > 0.0:
+        out = wp.min(out, guard_reach * l_c)
     return out
 
 
-@wp.kernel(enable_backward=False)
+@wp.kernel(enable_backward=False, module="unique", module_options=CUDA_OPTIONS)
+def hub_guard_kernel(
+    # model:
+    node_offset: int,
+    guard_reach: float,
+    tube_node_start: wp.array[wp.int32],
+    node_tube: wp.array[wp.int32],
+    # state in:
+    node_q: wp.array2d[wp.vec3],
+    hub_t: wp.array2d[wp.vec3],
+    # out:
+    hub_kappa_out: wp.array2d[wp.vec3],
+    hub_chord_out: wp.array2d[float],
+    hub_plane_out: wp.array3d[wp.vec4],
+    hub_free_out: wp.array2d[wp.vec2],
+):
+    """Per-hub data of the spokes: curvature, chords, guard planes; one thread per (world, hub).
+
+    Args:
+        node_offset: column of ``node_q`` holding hub 0.
+        guard_reach: inner-bend guard fraction in (0, 1); 0 turns the guard off.
+        tube_node_start: first hub of each tube, (tube_count + 1,).
+        node_tube: tube of each hub, (node_count,).
+        node_q: hub positions [length unit], shape (world_count, >= node_offset + node_count).
+        hub_t: hub unit tangents [1], shape (world_count, node_count).
+        hub_kappa_out: curvature vector [1/length unit] (an end hub's is its interior neighbour's;
+            zero for a tube of 2 hubs), shape (world_count, node_count).
+        hub_chord_out: sum of the lengths of the hub's edges [length unit] (one at a tube's end),
+            shape (world_count, node_count).
+        hub_plane_out: guard planes relative to the hub (see :func:`plane_reach`), shape
+            (world_count, node_count, 3): :data:`PLANE_PREV`, :data:`PLANE_NEXT` (the neighbour
+            rings', or at a tube's end of 3+ hubs the virtual ring's, read by body rings only) and
+            :data:`PLANE_CENTRE`; zero where none.
+        hub_free_out: free lengths [length unit] (see :func:`plane_free_length`): of a body ring's
+            spokes (all three planes) and of any ring's (real neighbours and the centre), shape
+            (world_count, node_count).
+    """
+    w, h = wp.tid()
+    tube = node_tube[h]
+    first = tube_node_start[tube]
+    last = tube_node_start[tube + 1] - 1
+    x = node_q[w, node_offset + h]
+    t = hub_t[w, h]
+    x_prev = x
+    t_prev = t
+    x_next = x
+    t_next = t
+    if h > first:
+        x_prev = node_q[w, node_offset + h - 1]
+        t_prev = hub_t[w, h - 1]
+    if h < last:
+        x_next = node_q[w, node_offset + h + 1]
+        t_next = hub_t[w, h + 1]
+    hub_chord_out[w, h] = wp.length(x - x_prev) + wp.length(x_next - x)
+
+    # Curvature vector at the hub (an end hub borrows its interior neighbour's) and the local
+    # centre of curvature.
+    hc = wp.clamp(h, first + 1, last - 1)
+    kappa = wp.vec3(0.0)
+    plane_centre = wp.vec4(0.0)
+    if last - first >= 2:
+        xc = node_q[w, node_offset + hc]
+        xa = node_q[w, node_offset + hc - 1]
+        xb = node_q[w, node_offset + hc + 1]
+        lv = 0.5 * (wp.length(xc - xa) + wp.length(xb - xc))
+        if lv > 0.0:
+            kappa = (safe_normalize(xb - xc) - safe_normalize(xc - xa)) / lv
+        k2 = wp.dot(kappa, kappa)
+        if k2 > 0.0:
+            plane_centre = hub_plane(x, xc + kappa / k2, kappa - wp.dot(kappa, t) * t)
+    hub_kappa_out[w, h] = kappa
+
+    # Guard planes: the neighbouring rings', and at a tube's end (3+ hubs) a virtual ring one hub
+    # beyond it, continuing the last segment's bend (for body rings: the end ring is normal to its
+    # edge, not to the bend, and would otherwise reach behind its hub near the centre of
+    # curvature). Cap rings, which lie beyond the end ring, are not limited by the virtual ring.
+    plane_prev = wp.vec4(0.0)
+    plane_next = wp.vec4(0.0)
+    if h > first:
+        plane_prev = hub_plane(x, x_prev, t_prev)
+    elif last - first >= 2:
+        e = safe_normalize(x_next - x)
+        t_star = 2.0 * wp.dot(t_next, e) * e - t_next
+        plane_prev = hub_plane(x, x - rotate_minimal(t_next, t_star, x_next - x), rotate_minimal(t_next, t_star, t_star))
+    if h < last:
+        plane_next = hub_plane(x, x_next, t_next)
+    elif last - first >= 2:
+        e = safe_normalize(x - x_prev)
+        t_star = 2.0 * wp.dot(t_prev, e) * e - t_prev
+        plane_next = hub_plane(x, x + rotate_minimal(t_prev, t_star, x - x_prev), rotate_minimal(t_prev, t_star, t_star))
+    hub_plane_out[w, h, PLANE_PREV] = plane_prev
+    hub_plane_out[w, h, PLANE_NEXT] = plane_next
+    hub_plane_out[w, h, PLANE_CENTRE] = plane_centre
+
+    free_body = wp.min(
+        plane_free_length(plane_centre, t, guard_reach, 1),
+        wp.min(plane_free_length(plane_prev, t, guard_reach, 1), plane_free_length(plane_next, t, guard_reach, 1)),
+    )
+    free_any = plane_free_length(plane_centre, t, guard_reach, 0)
+    if h > first:
+        free_any = wp.min(free_any, plane_free_length(plane_prev, t, guard_reach, 0))
+    if h < last:
+        free_any = wp.min(free_any, plane_free_length(plane_next, t, guard_reach, 0))
+    hub_free_out[w, h] = wp.vec2(free_body, free_any)
+
+
+@wp.kernel(enable_backward=False, module="unique", module_options=CUDA_OPTIONS)
 def spoke_points_kernel(
     # model:
     node_offset: int,
@@ -144,11 +297,17 @@ def spoke_points_kernel(
     ring_cos: wp.array[float],
     ring_sin: wp.array[float],
     ring_vertex: wp.array[wp.int32],
+    spoke_cos: wp.array[float],
+    spoke_sin: wp.array[float],
     spoke_length: wp.array3d[float],
     # state in:
     node_q: wp.array2d[wp.vec3],
     hub_t: wp.array2d[wp.vec3],
     hub_r: wp.array2d[wp.vec3],
+    hub_kappa: wp.array2d[wp.vec3],
+    hub_chord: wp.array2d[float],
+    hub_plane: wp.array3d[wp.vec4],
+    hub_free: wp.array2d[wp.vec2],
     # out:
     surface_q_out: wp.array2d[wp.vec3],
     surface_n_out: wp.array2d[wp.vec3],
@@ -162,9 +321,11 @@ def spoke_points_kernel(
         tube_node_start: first hub of each tube, (tube_count + 1,).
         node_tube: tube of each hub, (node_count,).
         ring_hub, ring_kind, ring_cos, ring_sin, ring_vertex: the ring table, (ring_count,) each.
+        spoke_cos, spoke_sin: ``cos phi_j``, ``sin phi_j`` of each spoke, (S,).
         spoke_length: spoke lengths [length unit], shape (1 or world_count, node_count, S).
         node_q: hub positions [length unit], shape (world_count, >= node_offset + node_count).
         hub_t, hub_r: hub unit tangents and normals [1], shape (world_count, node_count).
+        hub_kappa, hub_chord, hub_plane, hub_free: per-hub data from :func:`hub_guard_kernel`.
         surface_q_out: boundary points [length unit], shape (world_count, vertex_count).
         surface_n_out: unit outward normals [1], shape (world_count, vertex_count).
     """
@@ -175,120 +336,80 @@ def spoke_points_kernel(
     h = ring_hub[ring]
     pw = w % spoke_length.shape[0]
     tube = node_tube[h]
-    has_prev = int(h > tube_node_start[tube])
-    has_next = int(h < tube_node_start[tube + 1] - 1)
+    first = tube_node_start[tube]
+    last = tube_node_start[tube + 1] - 1
+    has_prev = int(h > first)
+    has_next = int(h < last)
+    # Guard plane kinds (see guarded_length): virtual rings beyond a tube's end for body rings only.
+    prev_kind = has_prev
+    next_kind = has_next
+    if kind == RING_BODY and last - first >= 2:
+        if has_prev == 0:
+            prev_kind = 2
+        if has_next == 0:
+            next_kind = 2
 
     x = node_q[w, node_offset + h]
     t = hub_t[w, h]
-    r = hub_r[w, h]
-    s = wp.cross(t, r)
-    x_prev = x
-    t_prev = t
-    x_next = x
-    t_next = t
-    if has_prev != 0:
-        x_prev = node_q[w, node_offset + h - 1]
-        t_prev = hub_t[w, h - 1]
-    if has_next != 0:
-        x_next = node_q[w, node_offset + h + 1]
-        t_next = hub_t[w, h + 1]
     c = ring_cos[ring]
     sn = ring_sin[ring]
-
-    # Curvature vector at the hub (an end hub borrows its interior neighbour's) and the local
-    # centre of curvature, for the guard and the normals.
-    first = tube_node_start[tube]
-    last = tube_node_start[tube + 1] - 1
-    hc = wp.clamp(h, first + 1, last - 1)
-    kappa = wp.vec3(0.0)
-    has_centre = int(0)
-    centre = x
-    k_perp = wp.vec3(0.0)
-    if last - first >= 2:
-        xc = node_q[w, node_offset + hc]
-        xa = node_q[w, node_offset + hc - 1]
-        xb = node_q[w, node_offset + hc + 1]
-        lv = 0.5 * (wp.length(xc - xa) + wp.length(xb - xc))
-        if lv > 0.0:
-            kappa = (safe_normalize(xb - xc) - safe_normalize(xc - xa)) / lv
-        k2 = wp.dot(kappa, kappa)
-        if k2 > 0.0:
-            centre = xc + kappa / k2
-            k_perp = kappa - wp.dot(kappa, t) * t
-            has_centre = 1
-
-    # Guard planes: the neighbouring rings', and for a body ring at a tube's end (3+ hubs) a
-    # virtual ring one hub beyond it, continuing the last segment's bend (the end ring is normal to
-    # its edge, not to the bend, and would otherwise reach behind its hub near the centre of
-    # curvature). Cap rings, which lie beyond the end ring, are not limited by the virtual ring.
-    g_prev = has_prev
-    xg_prev = x_prev
-    tg_prev = t_prev
-    g_next = has_next
-    xg_next = x_next
-    tg_next = t_next
-    if last - first >= 2 and kind == RING_BODY:
-        if has_prev == 0:
-            e = safe_normalize(x_next - x)
-            t_star = 2.0 * wp.dot(t_next, e) * e - t_next
-            xg_prev = x - rotate_minimal(t_next, t_star, x_next - x)
-            tg_prev = rotate_minimal(t_next, t_star, t_star)
-            g_prev = 2
-        if has_next == 0:
-            e = safe_normalize(x - x_prev)
-            t_star = 2.0 * wp.dot(t_prev, e) * e - t_prev
-            xg_next = x + rotate_minimal(t_prev, t_star, x - x_prev)
-            tg_next = rotate_minimal(t_prev, t_star, t_star)
-            g_next = 2
+    free = hub_free[w, h]
 
     if kind == RING_POLE:
         mean = float(0.0)
         for k in range(spoke_count):
             mean += spoke_length[pw, h, k]
+        mean = mean / float(spoke_count)
         d = c * t
-        length = spoke_length_at(
-            mean / float(spoke_count), d, x, g_prev, xg_prev, tg_prev, g_next, xg_next, tg_next, has_centre, centre, k_perp, guard_reach
-        )
+        length = mean
+        if guard_reach > 0.0 and mean > free[1]:
+            length = guarded_length(
+                mean, d, prev_kind, hub_plane[w, h, PLANE_PREV], next_kind, hub_plane[w, h, PLANE_NEXT],
+                hub_plane[w, h, PLANE_CENTRE], guard_reach,
+            )  # fmt: skip
         v = ring_vertex[ring]
         surface_q_out[w, v] = x + length * d
         surface_n_out[w, v] = d
         return
 
-    dphi = 2.0 * wp.pi / float(spoke_count)
-    phi = float(j) * dphi
-    u = wp.cos(phi) * r + wp.sin(phi) * s
+    r = hub_r[w, h]
+    s = wp.cross(t, r)
+    u = spoke_cos[j] * r + spoke_sin[j] * s
     u_perp = wp.cross(t, u)
     d = c * t + sn * u
-    length = spoke_length_at(
-        spoke_length[pw, h, j], d, x, g_prev, xg_prev, tg_prev, g_next, xg_next, tg_next, has_centre, centre, k_perp, guard_reach
-    )
-
-    # Around the ring: central difference of the neighbouring spokes' (guarded) lengths.
     jm = (j + spoke_count - 1) % spoke_count
     jp = (j + 1) % spoke_count
-    d_m = c * t + sn * (wp.cos(phi - dphi) * r + wp.sin(phi - dphi) * s)
-    d_p = c * t + sn * (wp.cos(phi + dphi) * r + wp.sin(phi + dphi) * s)
-    length_m = spoke_length_at(
-        spoke_length[pw, h, jm], d_m, x, g_prev, xg_prev, tg_prev, g_next, xg_next, tg_next, has_centre, centre, k_perp, guard_reach
-    )
-    length_p = spoke_length_at(
-        spoke_length[pw, h, jp], d_p, x, g_prev, xg_prev, tg_prev, g_next, xg_next, tg_next, has_centre, centre, k_perp, guard_reach
-    )
+    length = spoke_length[pw, h, j]
+    length_m = spoke_length[pw, h, jm]
+    length_p = spoke_length[pw, h, jp]
+    limit = free[1]
+    if kind == RING_BODY:
+        limit = free[0]
+    if guard_reach > 0.0 and wp.max(length, wp.max(length_m, length_p)) > limit:
+        plane_prev = hub_plane[w, h, PLANE_PREV]
+        plane_next = hub_plane[w, h, PLANE_NEXT]
+        plane_centre = hub_plane[w, h, PLANE_CENTRE]
+        d_m = c * t + sn * (spoke_cos[jm] * r + spoke_sin[jm] * s)
+        d_p = c * t + sn * (spoke_cos[jp] * r + spoke_sin[jp] * s)
+        length = guarded_length(length, d, prev_kind, plane_prev, next_kind, plane_next, plane_centre, guard_reach)
+        length_m = guarded_length(length_m, d_m, prev_kind, plane_prev, next_kind, plane_next, plane_centre, guard_reach)
+        length_p = guarded_length(length_p, d_p, prev_kind, plane_prev, next_kind, plane_next, plane_centre, guard_reach)
+
+    # Around the ring: central difference of the neighbouring spokes' (guarded) lengths.
+    dphi = 2.0 * wp.pi / float(spoke_count)
     n = d - ((length_p - length_m) / (2.0 * dphi * length * sn)) * u_perp
 
     if kind == RING_BODY:
         # Along the tube: the given lengths of the neighbouring hubs over their chords.
-        l_prev = wp.length(x - x_prev)
-        l_next = wp.length(x_next - x)
         dl = float(0.0)
-        ds = l_prev + l_next
         if has_prev != 0 and has_next != 0:
             dl = spoke_length[pw, h + 1, j] - spoke_length[pw, h - 1, j]
         elif has_next != 0:
             dl = spoke_length[pw, h + 1, j] - spoke_length[pw, h, j]
         elif has_prev != 0:
             dl = spoke_length[pw, h, j] - spoke_length[pw, h - 1, j]
-        stretch = wp.max(1.0 - length * wp.dot(kappa, u), MIN_STRETCH)
+        stretch = wp.max(1.0 - length * wp.dot(hub_kappa[w, h], u), MIN_STRETCH)
+        ds = hub_chord[w, h]
         if ds > 0.0:
             n = n - (dl / (ds * stretch)) * t
 

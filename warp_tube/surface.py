@@ -2,12 +2,14 @@
 
 :class:`SurfaceBuilder` serves one tube prim (one spoke count S; all its curves). It is built once
 from the rest centerline and the spoke lengths, allocates everything then, and at every output
-frame rebuilds the boundary from the deformed centerline with two launches:
+frame rebuilds the boundary from the deformed centerline with three launches:
 
 1. frames: :func:`~warp_tube.kernels.frames.rotation_minimizing_frames_kernel` (one thread per
    (world, tube)) or :func:`~warp_tube.kernels.frames.local_frames_kernel` (one per (world, hub));
-2. spokes: :func:`~warp_tube.kernels.surface.spoke_points_kernel`, one thread per
-   (world, ring, spoke), writing points and normals.
+2. hubs: :func:`~warp_tube.kernels.surface.hub_guard_kernel`, one thread per (world, hub), writing
+   each hub's curvature, chords, guard planes and free lengths once;
+3. spokes: :func:`~warp_tube.kernels.surface.spoke_points_kernel`, one thread per
+   (world, ring, spoke) with the spoke index fastest, writing points and normals.
 
 Rest frames (tangent and spoke-0 normal of every hub at rest) follow :mod:`warp_tube.frames`
 in float64: the first hub's normal is the tube's reference normal (or the convention's default),
@@ -21,7 +23,7 @@ import warp as wp
 
 from . import frames as ref_frames
 from .kernels.frames import local_frames_kernel, rotation_minimizing_frames_kernel
-from .kernels.surface import spoke_points_kernel
+from .kernels.surface import hub_guard_kernel, spoke_points_kernel
 from .topology import SurfaceTopology, build_topology
 
 __all__ = ["SurfaceBuilder", "FRAME_MODES", "DEFAULT_GUARD_REACH"]
@@ -156,8 +158,15 @@ class SurfaceBuilder:
             self._ring_cos = wp.array(topo.ring_cos, dtype=float)
             self._ring_sin = wp.array(topo.ring_sin, dtype=float)
             self._ring_vertex = wp.array(topo.ring_vertex, dtype=wp.int32)
+            phi = 2.0 * np.pi * np.arange(S) / S
+            self._spoke_cos = wp.array(np.cos(phi).astype(np.float32), dtype=float)
+            self._spoke_sin = wp.array(np.sin(phi).astype(np.float32), dtype=float)
             self.hub_t = wp.zeros((self.world_count, n_hubs), dtype=wp.vec3)
             self.hub_r = wp.zeros((self.world_count, n_hubs), dtype=wp.vec3)
+            self._hub_kappa = wp.zeros((self.world_count, n_hubs), dtype=wp.vec3)
+            self._hub_chord = wp.zeros((self.world_count, n_hubs), dtype=float)
+            self._hub_plane = wp.zeros((self.world_count, n_hubs, 3), dtype=wp.vec4)
+            self._hub_free = wp.zeros((self.world_count, n_hubs), dtype=wp.vec2)
             self.points = wp.zeros((self.world_count, topo.vertex_count), dtype=wp.vec3)
             self.normals = wp.zeros((self.world_count, topo.vertex_count), dtype=wp.vec3)
         self._launches: dict = {}
@@ -218,6 +227,14 @@ class SurfaceBuilder:
                 device=self.device,
                 record_cmd=True,
             )
+        hubs = wp.launch(
+            hub_guard_kernel,
+            dim=(self.world_count, self.hub_count),
+            inputs=[self.node_offset, self.guard_reach, self._tube_node_start, self._node_tube, node_q, self.hub_t],
+            outputs=[self._hub_kappa, self._hub_chord, self._hub_plane, self._hub_free],
+            device=self.device,
+            record_cmd=True,
+        )
         topo = self.topology
         spokes = wp.launch(
             spoke_points_kernel,
@@ -233,16 +250,22 @@ class SurfaceBuilder:
                 self._ring_cos,
                 self._ring_sin,
                 self._ring_vertex,
+                self._spoke_cos,
+                self._spoke_sin,
                 self._spoke_length,
                 node_q,
                 self.hub_t,
                 self.hub_r,
+                self._hub_kappa,
+                self._hub_chord,
+                self._hub_plane,
+                self._hub_free,
             ],
             outputs=[self.points, self.normals],
             device=self.device,
             record_cmd=True,
         )
-        return frames, spokes
+        return frames, hubs, spokes
 
     def compute(self, node_q: wp.array) -> tuple[wp.array, wp.array]:
         """Rebuild the surface from hub positions; no allocation after the first call per array.
