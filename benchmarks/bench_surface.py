@@ -1,17 +1,20 @@
-"""Surface rebuild speed: frames + per-spoke kernel (SurfaceBuilder.compute). Prints JSON.
+"""Surface rebuild speed: frames + hub + spoke kernels (SurfaceBuilder.compute). Prints JSON.
 
-- CPU: one tube of 20 hubs x 9 spokes; median wall time of one rebuild over many calls after a
+- CPU, one tube: 20 hubs x 9 spokes; median wall time of one rebuild over many calls after a
   warm-up, each call replaying recorded launches (``wp.launch(record_cmd=True)``, no argument
-  packing per call).
-- CUDA (when a device exists): 65,536 tubes (worlds) x 32 hubs x 32 spokes, rebuild captured in a
-  CUDA graph and timed with CUDA events over many replays. Reported: surface vertices per second,
-  and the memory-bandwidth bound for the 24 bytes the spoke kernel must write per vertex (points +
-  normals, float32 vec3 each): ``bandwidth / 24 B``, with the bandwidth from ``--bandwidth-gbs``
-  (default by device name: 3350 GB/s for H100 SXM, 4800 for H200; the vendors' datasheet peak
-  HBM3/HBM3e figures, not measured here). Reads (hub positions, frames, lengths) are per hub and
-  shared by the S spokes of a ring, so writes dominate the traffic.
+  packing per call). Mostly launch overhead at this size.
+- CPU, batch: 256 tubes (worlds) x 32 hubs x 32 spokes (262,144 vertices), median of a few
+  rebuilds, with each launch timed alone as well, so that the per-vertex cost shows.
+- CUDA (when a device exists): 65,536 tubes (worlds) x 32 hubs x 32 spokes, the rebuild and each of
+  its kernels captured in CUDA graphs and timed with CUDA events over many replays. Reported:
+  surface vertices per second, and the memory-bandwidth bound for the 24 bytes the spoke kernel
+  must write per vertex (points + normals, float32 vec3 each): ``bandwidth / 24 B``. The bandwidth
+  is ``--bandwidth-gbs`` (default 2988 GB/s, an H100's measured by ``benchmarks/bandwidth.py``) or
+  the ``bandwidth_gbs`` of that script's JSON output given by ``--bandwidth-json``. Reads (hub
+  positions, frames, per-hub guard data) are per hub and shared by the S spokes of a ring; the
+  spoke lengths (4 B per vertex) are shared by all worlds here, so writes dominate the traffic.
 
-Usage: python benchmarks/bench_surface.py [--bandwidth-gbs GBS] [--repeats N]
+Usage: python benchmarks/bench_surface.py [--bandwidth-gbs GBS | --bandwidth-json PATH] [--repeats N]
 """
 
 from __future__ import annotations
@@ -33,11 +36,28 @@ def helix(n: int, world_count: int = 1) -> np.ndarray:
     return np.broadcast_to(x, (world_count, n, 3))
 
 
-def bench_cpu(repeats: int) -> dict:
-    n, S = 20, 9
+H100_MEASURED_GBS = 2988.0
+"""Device-to-device copy bandwidth of an H100 measured with benchmarks/bandwidth.py (2026-11-22)."""
+
+
+def straight_rest(n: int) -> np.ndarray:
     rest = np.zeros((n, 3))
     rest[:, 2] = np.linspace(0.0, 0.3 * 2 * np.pi * 0.05, n)
-    b = SurfaceBuilder([0, n], rest, S, np.full(n, 0.01), device="cpu")
+    return rest
+
+
+def _median_s(fn, calls: int) -> float:
+    samples = []
+    for _ in range(calls):
+        t0 = time.perf_counter()
+        fn()
+        samples.append(time.perf_counter() - t0)
+    return statistics.median(samples)
+
+
+def bench_cpu(repeats: int) -> dict:
+    n, S = 20, 9
+    b = SurfaceBuilder([0, n], straight_rest(n), S, np.full(n, 0.01), device="cpu")
     q = wp.array(helix(n).astype(np.float32), dtype=wp.vec3, device="cpu")
     for _ in range(50):
         b.compute(q)
@@ -56,7 +76,37 @@ def bench_cpu(repeats: int) -> dict:
         "rebuild_p10_us": 1e6 * float(np.percentile(samples, 10)),
         "rebuild_p90_us": 1e6 * float(np.percentile(samples, 90)),
         "calls": repeats,
-        "method": "median of per-call perf_counter times of SurfaceBuilder.compute (2 recorded launches)",
+        "method": "median of per-call perf_counter times of SurfaceBuilder.compute (3 recorded launches)",
+    }
+
+
+def bench_cpu_batch(repeats: int) -> dict:
+    W, n, S = 256, 32, 32
+    b = SurfaceBuilder([0, n], straight_rest(n), S, np.full(n, 0.01), world_count=W, device="cpu")
+    q = wp.array(np.ascontiguousarray(helix(n, W)).astype(np.float32), dtype=wp.vec3, device="cpu")
+    for _ in range(2):
+        b.compute(q)
+    frames_launch, hubs_launch, spokes_launch = b._launches[(q.ptr, q.shape, q.strides)]
+    t_all = _median_s(lambda: b.compute(q), repeats)
+    t_spokes = _median_s(spokes_launch.launch, repeats)
+    t_hubs = _median_s(hubs_launch.launch, repeats)
+    t_frames = _median_s(frames_launch.launch, repeats)
+    vertices = W * n * S
+    return {
+        "device": "cpu",
+        "tubes": W,
+        "hubs": n,
+        "spokes": S,
+        "vertices": vertices,
+        "rebuild_median_ms": 1e3 * t_all,
+        "spoke_kernel_median_ms": 1e3 * t_spokes,
+        "hub_kernel_median_ms": 1e3 * t_hubs,
+        "frames_kernel_median_ms": 1e3 * t_frames,
+        "vertices_per_s_rebuild": vertices / t_all,
+        "ns_per_vertex_rebuild": 1e9 * t_all / vertices,
+        "ns_per_vertex_spoke_kernel": 1e9 * t_spokes / vertices,
+        "calls": repeats,
+        "method": "median of per-call perf_counter times; Warp's CPU backend runs one thread",
     }
 
 
@@ -73,25 +123,27 @@ def _time_graph(graph, device, replays: int) -> float:
     return wp.get_event_elapsed_time(start, end) / 1e3 / replays  # seconds per replay
 
 
-def bench_cuda(bandwidth_gbs: float | None, replays: int) -> dict:
+def bench_cuda(bandwidth_gbs: float, bandwidth_source: str, replays: int) -> dict:
     device = wp.get_device("cuda:0")
     W, n, S = 65536, 32, 32
-    rest = np.zeros((n, 3))
-    rest[:, 2] = np.linspace(0.0, 0.3 * 2 * np.pi * 0.05, n)
-    b = SurfaceBuilder([0, n], rest, S, np.full(n, 0.01), world_count=W, device=device)
+    b = SurfaceBuilder([0, n], straight_rest(n), S, np.full(n, 0.01), world_count=W, device=device)
     q = wp.array(np.ascontiguousarray(helix(n, W)).astype(np.float32), dtype=wp.vec3, device=device)
     b.compute(q)  # compile, record
-    frames_launch, spokes_launch = b._launches[(q.ptr, q.shape, q.strides)]
+    frames_launch, hubs_launch, spokes_launch = b._launches[(q.ptr, q.shape, q.strides)]
     with wp.ScopedCapture(device) as cap_all:
         b.compute(q)
     with wp.ScopedCapture(device) as cap_spokes:
         spokes_launch.launch()
+    with wp.ScopedCapture(device) as cap_hubs:
+        hubs_launch.launch()
+    with wp.ScopedCapture(device) as cap_frames:
+        frames_launch.launch()
     t_all = _time_graph(cap_all.graph, device, replays)
     t_spokes = _time_graph(cap_spokes.graph, device, replays)
+    t_hubs = _time_graph(cap_hubs.graph, device, replays)
+    t_frames = _time_graph(cap_frames.graph, device, replays)
     vertices = W * n * S
     name = device.name
-    if bandwidth_gbs is None:
-        bandwidth_gbs = 4800.0 if "H200" in name else 3350.0
     bound = bandwidth_gbs * 1e9 / 24.0
     return {
         "device": name,
@@ -101,13 +153,16 @@ def bench_cuda(bandwidth_gbs: float | None, replays: int) -> dict:
         "vertices": vertices,
         "rebuild_s": t_all,
         "spoke_kernel_s": t_spokes,
-        "frames_kernel_s": t_all - t_spokes,
+        "hub_kernel_s": t_hubs,
+        "frames_kernel_s": t_frames,
         "vertices_per_s_rebuild": vertices / t_all,
         "vertices_per_s_spoke_kernel": vertices / t_spokes,
         "bytes_written_per_vertex": 24,
-        "bandwidth_gbs_assumed": bandwidth_gbs,
+        "bandwidth_gbs": bandwidth_gbs,
+        "bandwidth_source": bandwidth_source,
         "bandwidth_bound_vertices_per_s": bound,
         "spoke_kernel_fraction_of_bound": (vertices / t_spokes) / bound,
+        "rebuild_fraction_of_bound": (vertices / t_all) / bound,
         "achieved_write_gbs_spoke_kernel": vertices * 24 / t_spokes / 1e9,
         "replays": replays,
         "method": "CUDA graph replays timed with CUDA events, mean per replay",
@@ -116,15 +171,32 @@ def bench_cuda(bandwidth_gbs: float | None, replays: int) -> dict:
 
 def main() -> None:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
-    parser.add_argument("--bandwidth-gbs", type=float, default=None, help="device memory bandwidth [GB/s]")
-    parser.add_argument("--repeats", type=int, default=2000, help="CPU calls timed")
+    bandwidth = parser.add_mutually_exclusive_group()
+    bandwidth.add_argument(
+        "--bandwidth-gbs", type=float, default=H100_MEASURED_GBS,
+        help=f"device memory bandwidth [GB/s] (default {H100_MEASURED_GBS:g}, an H100's, measured)",
+    )  # fmt: skip
+    bandwidth.add_argument("--bandwidth-json", help="JSON output of benchmarks/bandwidth.py for this device")
+    parser.add_argument("--repeats", type=int, default=2000, help="CPU calls timed (one tube)")
+    parser.add_argument("--batch-repeats", type=int, default=10, help="CPU calls timed (batch)")
     parser.add_argument("--replays", type=int, default=50, help="CUDA graph replays timed")
     args = parser.parse_args()
+    if args.bandwidth_json:
+        with open(args.bandwidth_json) as f:
+            bandwidth_gbs = float(json.load(f)["bandwidth_gbs"])
+        bandwidth_source = args.bandwidth_json
+    else:
+        bandwidth_gbs = args.bandwidth_gbs
+        bandwidth_source = "--bandwidth-gbs"
     wp.config.quiet = True
     wp.init()
-    results = {"warp": wp.__version__, "cpu": bench_cpu(args.repeats)}
+    results = {
+        "warp": wp.__version__,
+        "cpu": bench_cpu(args.repeats),
+        "cpu_batch": bench_cpu_batch(args.batch_repeats),
+    }
     if wp.get_cuda_device_count() > 0:
-        results["cuda"] = bench_cuda(args.bandwidth_gbs, args.replays)
+        results["cuda"] = bench_cuda(bandwidth_gbs, bandwidth_source, args.replays)
     else:
         results["cuda"] = "skipped: no CUDA device"
     print(json.dumps(results, indent=2))
