@@ -289,3 +289,93 @@ def test_guard_cuts_inner_side_at_its_reach():
         spoke = np.linalg.norm(P[i] - x[i], axis=1)
         outer = reach < 0
         np.testing.assert_allclose(spoke[outer], r, rtol=1e-5)
+
+
+def guarded_lengths_reference(x, t, r, lengths, topo, g):
+    """Spoke lengths after the inner-bend guard, per ring vertex, evaluated directly in float64 from
+    the module docstring of kernels.surface (neighbour planes, virtual end rings blended in from
+    0.9 to 1 of the reach to the centre of curvature's plane, that plane itself), for one tube."""
+    n = len(x)
+    S = topo.spokes
+    out = np.empty(topo.vertex_count)
+
+    def reach(d, p, normal, xh):
+        num, den = np.dot(p - xh, normal), np.dot(d, normal)
+        return num / den if num * den > 0 else -1.0
+
+    def unit(v):
+        return v / np.linalg.norm(v)
+
+    for ring in range(len(topo.ring_hub)):
+        h, kind, c, sn, v0 = (topo.ring_hub[ring], topo.ring_kind[ring], topo.ring_cos[ring], topo.ring_sin[ring], topo.ring_vertex[ring])
+        planes = []  # (kind, point, normal)
+        if h > 0:
+            planes.append((1, x[h - 1], t[h - 1]))
+        elif kind == RING_BODY:  # virtual ring before the start, continuing the first segment's bend
+            e = unit(x[1] - x[0])
+            t_star = 2 * np.dot(t[1], e) * e - t[1]  # the neighbour's tangent mirrored in the edge
+            R = ref.minimal_rotation(t[1], t_star)
+            planes.append((2, x[0] - R @ (x[1] - x[0]), R @ t_star))
+        if h < n - 1:
+            planes.append((1, x[h + 1], t[h + 1]))
+        elif kind == RING_BODY:
+            e = unit(x[-1] - x[-2])
+            t_star = 2 * np.dot(t[-2], e) * e - t[-2]
+            R = ref.minimal_rotation(t[-2], t_star)
+            planes.append((2, x[-1] + R @ (x[-1] - x[-2]), R @ t_star))
+        hc = min(max(h, 1), n - 2)
+        lv = 0.5 * (np.linalg.norm(x[hc] - x[hc - 1]) + np.linalg.norm(x[hc + 1] - x[hc]))
+        kappa = (unit(x[hc + 1] - x[hc]) - unit(x[hc] - x[hc - 1])) / lv
+        centre = x[hc] + kappa / np.dot(kappa, kappa)
+        k_perp = kappa - np.dot(kappa, t[h]) * t[h]
+        s = np.cross(t[h], r[h])
+        count = 1 if kind == RING_POLE else S
+        for j in range(count):
+            phi = 2 * np.pi * j / S
+            d = c * t[h] + sn * (np.cos(phi) * r[h] + np.sin(phi) * s)
+            length = lengths[h].mean() if count == 1 else lengths[h, j]
+            l_c = reach(d, centre, k_perp, x[h])
+            limited = length
+            for pk, p, normal in planes:
+                l_k = reach(d, p, normal, x[h])
+                if l_k <= 0:
+                    continue
+                if pk == 1:
+                    limited = min(limited, g * l_k)
+                elif l_c > 0:
+                    blend = np.clip((length / l_c - 0.9) / 0.1, 0.0, 1.0)
+                    limited = min(limited, length + blend * (min(length, g * l_k) - length))
+            if l_c > 0:
+                limited = min(limited, g * l_c)
+            out[v0 + j] = limited
+    return out
+
+
+@pytest.mark.parametrize("rk", [0.8, 0.95, 1.1, 1.5])
+def test_guarded_lengths_match_a_direct_evaluation_near_the_guards_onset(rk):
+    """Perturbed arcs with caps and uneven spokes around the guard's onset (radius x curvature
+    0.8 .. 1.5; hubs about 0.6 radii apart, so neighbour planes and virtual end rings act too): every
+    spoke end lies at the guarded length from a float64 evaluation of the guard. Checks that the
+    kernels' shortcut for spokes no plane can reach (per-hub free lengths) never skips a limit."""
+    rng = np.random.default_rng(int(rk * 100))
+    n, S, r, g = 14, 16, 0.1, 0.95
+    rho = r / rk
+    x = arc(n, rho, 0.6 * r * (n - 1) / rho) + rng.normal(scale=0.05 * r, size=(n, 3))
+    lengths = r * rng.uniform(0.85, 1.15, size=(n, S))
+    b = SurfaceBuilder([0, n], x, S, lengths, caps=True, device=DEVICE, guard_reach=g)
+    xq = x.astype(np.float32)
+    b.compute(wp.array(xq[None], dtype=wp.vec3, device=DEVICE))
+    t, rr, _ = b.frames_numpy()
+    xq = xq.astype(np.float64)
+    expected = guarded_lengths_reference(xq, t, rr, lengths, b.topology, g)
+    topo = b.topology
+    hub_of_vertex = np.empty(b.vertex_count, dtype=int)
+    for ring in range(len(topo.ring_hub)):
+        count = 1 if topo.ring_kind[ring] == RING_POLE else S
+        hub_of_vertex[topo.ring_vertex[ring] : topo.ring_vertex[ring] + count] = topo.ring_hub[ring]
+    got = np.linalg.norm(b.points_numpy().astype(np.float64) - xq[hub_of_vertex], axis=1)
+    # float32 frames and points (~1e-7 relative), amplified where a spoke meets a plane obliquely.
+    np.testing.assert_allclose(got, expected, rtol=2e-5)
+    if rk > 1.0:
+        given = np.concatenate([lengths.reshape(-1), np.full(b.vertex_count - n * S, np.nan)])
+        assert np.sum(expected[: n * S] < 0.99 * given[: n * S]) > S  # the guard does act here
