@@ -5,7 +5,8 @@ Time: output frame ``k`` is at time code ``startTimeCode + k`` (time ``k / timeC
 Point forces are evaluated at the middle of each frame and held over it. Time-sampled pins move
 linearly between frames. The assistant line of a force is built (from the current shape) when the
 force starts or turns by more than :data:`AL_REBUILD_ANGLE` from the direction it was built with,
-and removed when the force becomes zero.
+and removed when the force becomes zero. It is offset along the force's part across the tube at
+its point, and not built while the force is within :data:`AL_MIN_ANGLE` of the tube's axis.
 """
 
 from __future__ import annotations
@@ -21,6 +22,7 @@ import warp as wp
 from .model import build_model
 from .scene import Scene, SceneError
 from .solver import SemiImplicitEulerSolver
+from .proximity import ContactMonitor
 from .stability import critical_time_step
 
 log = logging.getLogger(__name__)
@@ -31,6 +33,10 @@ __all__ = ["Simulation", "NumericalError", "RunSummary", "resolve_device"]
 SAFETY = 0.5
 #: the assistant line is rebuilt when its force turns by more than this [rad].
 AL_REBUILD_ANGLE = math.radians(45.0)
+#: the largest substep multiplier ``auto`` tries for a frame that blew up.
+MAX_RETRY_FACTOR = 16
+#: no assistant line is built for a force within this angle of the tube's axis [rad].
+AL_MIN_ANGLE = math.radians(15.0)
 #: a free point farther than this many tube lengths from its rest position is a blow-up.
 RUNAWAY_LENGTHS = 1.0e3
 
@@ -134,6 +140,15 @@ class Simulation:
         self._prim_count = [len(t.points) for t in scene.tubes]
         self.surfaces = self._build_surfaces() if surface else None
         self._pinned_nodes = [self._prim_start[k] + t.pinned for k, t in enumerate(scene.tubes)]
+        self._contacts = ContactMonitor(m.host)
+        self._contact_reported = False
+        self._retry = self.scene.settings.integrator == "auto"
+        self._work = np.zeros(world_count)
+        # Round-off can leave ~1e-7 of the extent in every spring; its energy is the floor.
+        self._energy_floor = float(np.sum(m.host["seg_ke"])) * (1e-6 * max(self._extent, 1e-9)) ** 2 + 1e-30
+        self._moving_pins = any(t.pin_track is not None for t in scene.tubes)
+        self.retried_frames = 0
+        self.max_retry_factor = 1
 
     # -- set-up ----------------------------------------------------------------------------------
     def _choose_integrator(self):
@@ -184,6 +199,7 @@ class Simulation:
         if p.shape != (len(self.scene.tubes[k].pinned), 3):
             raise ValueError(f"pin targets of {self.scene.tubes[k].path}: shape {p.shape}, expected ({len(self.scene.tubes[k].pinned)}, 3)")
         self._pin_override[k] = p
+        self._moving_pins = True
 
     def _force_index(self, force) -> int:
         if isinstance(force, str):
@@ -255,9 +271,21 @@ class Simulation:
                 lens = {n: getattr(c, n).numpy() for n in ("al_link_length", "al_chord_length", "al_fwd_length", "al_bwd_length")}
             t = h["force_tube"][a]
             s, e = h["tube_node_start"][t], h["tube_node_start"][t + 1]
+            # Offset towards the push: the force's part across the tube at its point (world 0).
+            k = h["force_node"][a]
+            tangent = state_q[0, min(k + 1, e - 1)] - state_q[0, max(k - 1, s)]
+            tangent = tangent / max(np.linalg.norm(tangent), 1e-30)
+            across = d - np.dot(d, tangent) * tangent
+            self._al_dir[a] = d
+            if np.linalg.norm(across) < math.sin(AL_MIN_ANGLE):
+                if active[:, a].any():
+                    active[:, a] = 0
+                    changed = True
+                continue
+            offset_dir = across / np.linalg.norm(across)
             p0 = h["al_start"][a]
             sl = slice(p0, p0 + e - s)
-            off = h["node_radius"][s:e, None] * d[None]
+            off = h["node_radius"][s:e, None] * offset_dir[None]
             x = state_q[:, s:e]
             xp = x + off[None]
             al_q[:, sl] = xp
@@ -268,7 +296,6 @@ class Simulation:
             lens["al_fwd_length"][:, p0 : p0 + e - s - 1] = np.linalg.norm(x[:, 1:] - xp[:, :-1], axis=-1)
             lens["al_bwd_length"][:, p0 + 1 : p0 + e - s] = np.linalg.norm(x[:, :-1] - xp[:, 1:], axis=-1)
             active[:, a] = 1
-            self._al_dir[a] = d
             changed = True
         if state_q is not None:
             self.state.al_q.assign(al_q)
@@ -281,33 +308,106 @@ class Simulation:
     def step(self) -> None:
         """Advance one output frame (``substeps`` substeps).
 
+        The frame is checked for a non-finite state, a point running away, and a kinetic energy
+        above what the forces and gravity can have put in (a blow-up). With ``auto`` a failed frame
+        is redone from its start with 2x, 4x, ... up to :data:`MAX_RETRY_FACTOR` x the substeps.
+
         Raises:
-            NumericalError: a non-finite or runaway state; :attr:`state` keeps the last good frame.
+            NumericalError: the frame still fails; :attr:`state` keeps the last good frame.
         """
         self._update_control()
-        self.solver.integrate(self.state, self.next_state, self.control, self.dt, self.substeps)
-        self._check(self.next_state)
+        factor = 1
+        while True:
+            n = self.substeps * factor
+            self.solver.integrate(self.state, self.next_state, self.control, self.frame_dt / n, n)
+            frame_work = self._frame_work(self.state, self.next_state)
+            problem = self._check(self.next_state, factor, self._work + frame_work)
+            if problem is None:
+                break
+            if not self._retry or factor >= MAX_RETRY_FACTOR:
+                raise NumericalError(problem)
+            factor *= 2
+        if factor > 1:
+            msg = f"frame {self.frame + 1}: redone with {factor}x the substeps to stay stable"
+            log.info(msg)
+            self.retried_frames += 1
+            self.max_retry_factor = max(self.max_retry_factor, factor)
+        self._work += frame_work
         self.state, self.next_state = self.next_state, self.state
         self.frame += 1
+        if not self._contact_reported:
+            self._report_contact()
 
-    def _check(self, state):
+    def _frame_work(self, before, after) -> np.ndarray:
+        """Work [J] of the point forces and gravity from ``before`` to ``after``, per world
+        (forces are held over a frame, so ``f . dx`` is exact for them)."""
+        h = self.model.host
+        dq = after.node_q.numpy().astype(np.float64) - before.node_q.numpy()
+        f = self.control.node_f_ext.numpy().astype(np.float64)
+        w = np.einsum("wnk,wnk->w", f, dq)
+        if self.model.features.gravity:
+            g = np.array(self.scene.settings.gravity, dtype=np.float64)
+            w += np.einsum("n,wnk,k->w", h["node_mass"] * (h["node_inv_mass"] > 0), dq, g)
+        return w
+
+    def _report_contact(self):
+        """Warn once when distant parts of tubes (world 0) come closer than two radii."""
+        hit = self._contacts.closest(self.state.node_q.numpy()[0])
+        if hit is None:
+            return
+        i, j, gap = hit
+        name = lambda n: self._node_name(n)  # noqa: E731
+        msg = (f"frame {self.frame}: {name(i)} and {name(j)} are {-gap:.3g} m closer than the sum of their "
+               "radii (distant parts touch; contact is not modelled, so they pass through each other)")  # fmt: skip
+        log.warning(msg)
+        self.warnings.append(msg)
+        self._contact_reported = True
+
+    def _node_name(self, node: int) -> str:
+        k = int(np.searchsorted(self._prim_start, node, side="right") - 1)
+        return f"{self.scene.tubes[k].path} point {int(node - self._prim_start[k])}"
+
+    def _check(self, state, factor: int = 1, work=None) -> str | None:
+        """What is wrong with a frame's end state, or None; ``work``: per-world work done up to it."""
         q = state.node_q.numpy()
-        rest = self.model.host["node_rest_q"]
+        h = self.model.host
+        rest = h["node_rest_q"]
         bad = ~np.isfinite(q).all(axis=-1)
         far = np.zeros_like(bad)
+        hot = None
         if not bad.any():
             far = np.linalg.norm(q - rest[None], axis=-1) > RUNAWAY_LENGTHS * max(self._extent, 1e-9)
-        if bad.any() or far.any():
+            if not far.any():
+                # Kinetic energy cannot exceed the work put in (the springs' energy is >= 0 and
+                # damping only takes energy); 10x and a floor leave room for measurement error.
+                qd = state.node_qd.numpy().astype(np.float64)
+                ke = 0.5 * np.einsum("n,wnk,wnk->w", h["node_mass"] * (h["node_inv_mass"] > 0), qd, qd)
+                work = self._work if work is None else work
+                budget = 10.0 * np.maximum(work, 0.0) + self._energy_floor + self._pin_energy_allowance()
+                if (ke > budget).any():
+                    hot = int(np.argmax(ke - budget))
+        if not (bad.any() or far.any() or hot is not None):
+            return None
+        if hot is not None:
+            w = hot
+            node = int(np.argmax(np.einsum("nk,nk->n", state.node_qd.numpy()[w], state.node_qd.numpy()[w]) * h["node_mass"]))
+            what = "kinetic energy beyond the work the forces did (a blow-up)"
+        else:
             w, node = np.argwhere(bad | far)[0]
-            k = int(np.searchsorted(self._prim_start, node, side="right") - 1)
             what = "non-finite positions" if bad.any() else f"a point more than {RUNAWAY_LENGTHS:g} tube lengths from rest"
-            hint = ""
-            if self.dt > self.critical_dt:
-                hint = f" (substep {self.dt:.3g} s exceeds the stability bound {self.critical_dt:.3g} s)"
-            raise NumericalError(
-                f"numerical failure at frame {self.frame + 1}: {what} in tube {self.scene.tubes[k].path} "
-                f"point {int(node - self._prim_start[k])}{hint}"
-            )
+        dt = self.frame_dt / (self.substeps * factor)
+        hint = ""
+        if dt > self.critical_dt:
+            hint = f" (substep {dt:.3g} s exceeds the stability bound {self.critical_dt:.3g} s)"
+        elif factor > 1:
+            hint = f" (after {factor}x the substeps)"
+        return f"numerical failure at frame {self.frame + 1}: {what} in {self._node_name(int(node))}{hint}"
+
+    def _pin_energy_allowance(self) -> float:
+        """Energy that moving pins can put in [J]: not tracked as work, so allowed for generously."""
+        if not self._moving_pins:
+            return 0.0
+        return float(np.inf)
 
     # -- read-back -------------------------------------------------------------------------------
     def centerline_points(self, world: int = 0) -> list[np.ndarray]:
@@ -396,5 +496,10 @@ class Simulation:
             if writer:
                 writer.close()
             summary.warnings = list(self.warnings)
+            if self.retried_frames:
+                summary.warnings.append(
+                    f"{self.retried_frames} frame(s) blew up at {self.substeps} substeps and were redone with up to "
+                    f"{self.max_retry_factor}x as many"
+                )
             self.last_summary = summary
         return summary

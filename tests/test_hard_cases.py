@@ -1,0 +1,216 @@
+"""Hard cases for the semi-implicit integrator. Every case: the state stays finite, the energy
+stays bounded by the work the forces did, and one criterion of its own."""
+
+import numpy as np
+import pytest
+
+from warp_tube.energy import total_energy
+from warp_tube.model import build_model
+from warp_tube.references import elastica_tip
+from warp_tube.scene import ForceSpec, Scene, SceneError, SimulationSettings, StageInfo, TubeParams, TubeSpec
+from warp_tube.simulation import Simulation
+from warp_tube.solver import SemiImplicitEulerSolver
+from warp_tube.stability import critical_time_step
+
+from .conftest import settle
+
+FPS = 24.0
+
+
+def stage(frames):
+    return StageInfo(meters_per_unit=1.0, time_codes_per_second=FPS, frames_per_second=FPS, end_time_code=float(frames))
+
+
+def line(n, length):
+    x = np.linspace(0.0, length, n)
+    return np.stack([x, 0 * x, 0 * x], axis=1)
+
+
+def run_with_energy_bound(scene, frames, gravity=None):
+    """Run ``frames`` frames; check finiteness and E(t) <= E(0) + W(t) every frame.
+
+    W is the work of the point forces: each force is held over a frame, so its work over the
+    frame is exactly f . (x_end - x_start) of its point. The energy is measured with the stored
+    (half-step) velocities, whose O(h w) error, and the assistant line's springs (not counted in
+    E, they only take energy), are covered by a slack of 2% of the largest energy seen, plus the
+    energy that float32 round-off of the positions can store in the springs (sum of ke times
+    (1e-6 x extent)^2: an undamped float32 rest state jiggles by ~1e-7 of its size).
+    """
+    sim = Simulation(scene, device="cpu", surface=False)
+    h = sim.model.host
+    nodes = h["force_node"]
+    e0 = total_energy(h, sim.state.node_q.numpy()[0], sim.state.node_qd.numpy()[0], gravity)
+    work, e_max = 0.0, abs(e0)
+    extent = float(np.ptp(h["node_rest_q"], axis=0).max())
+    floor = float(np.sum(h["seg_ke"])) * (1e-6 * extent) ** 2
+    for k in range(frames):
+        f = sim._forces_at((sim.frame + 0.5) * sim.frame_dt)
+        x0 = sim.state.node_q.numpy()[0, nodes].astype(np.float64)
+        sim.step()
+        q = sim.state.node_q.numpy()[0]
+        assert np.isfinite(q).all()
+        work += float(np.sum(f * (q[nodes] - x0)))
+        e = total_energy(h, q, sim.state.node_qd.numpy()[0], gravity)
+        e_max = max(e_max, abs(e))
+        assert e <= e0 + work + 0.02 * e_max + floor, f"frame {k}: energy {e:.4g} J > start {e0:.4g} J + work {work:.4g} J"
+    return sim
+
+
+def test_force_along_the_axis_stretches_by_fl_over_ea():
+    # The assistant line's offset direction is along the tube (degenerate); the pull must still
+    # give the linear axial stretch F L / EA of the free part (L = 0.95 m behind the clamp).
+    n, L, r, E = 21, 1.0, 0.01, 1e6
+    F = 1.0
+    params = TubeParams(density=1000.0, youngs_modulus=E, damping=60.0)
+    tube = TubeSpec("/T", line(n, L), [n], np.full(n, r), params, pinned=[0, 1])
+    pull = ForceSpec("/F", 0, n - 1, [0.0], [[F, 0.0, 0.0]], assistant_line=True)
+    sim = run_with_energy_bound(Scene((tube,), (pull,), stage=stage(48)), 48)
+    stretch = sim.centerline_points()[0][-1, 0] - L
+    expected = F * 0.95 * L / (E * np.pi * r**2)
+    # 1%: the settled stretch against the linear spring chain (exact for springs in series).
+    assert abs(stretch / expected - 1) < 0.01
+    assert np.abs(sim.centerline_points()[0][:, 1:]).max() < 1e-6 * L  # no sideways motion
+
+
+def test_force_on_the_end_point_bends_towards_the_force():
+    n = 21
+    params = TubeParams(density=1000.0, youngs_modulus=1e6, damping=5.0)
+    tube = TubeSpec("/T", line(n, 1.0), [n], np.full(n, 0.02), params, pinned=[0, 1])
+    push = ForceSpec("/F", 0, n - 1, [0.0], [[0.0, 0.0, 0.05]], assistant_line=True)
+    sim = run_with_energy_bound(Scene((tube,), (push,), stage=stage(24)), 24)
+    q = sim.centerline_points()[0]
+    assert q[-1, 2] > 0.01 and abs(q[-1, 1]) < 1e-6  # bends in +z only
+
+
+def test_force_on_a_pinned_point_does_nothing():
+    n = 11
+    params = TubeParams(density=1000.0, youngs_modulus=1e6)
+    tube = TubeSpec("/T", line(n, 1.0), [n], np.full(n, 0.02), params, pinned=[0, 1])
+    push = ForceSpec("/F", 0, 1, [0.0], [[0.0, 100.0, 0.0]])
+    sim = run_with_energy_bound(Scene((tube,), (push,), stage=stage(12)), 12)
+    # Nothing moves but float32 round-off of the rest state (100 N on the pin would move the
+    # free part by metres if it reached it).
+    assert sim.max_displacement() < 1e-6
+
+
+def test_force_reversing_every_frame_stays_bounded():
+    n = 21
+    params = TubeParams(density=1000.0, youngs_modulus=1e6, damping=1.0)
+    tube = TubeSpec("/T", line(n, 1.0), [n], np.full(n, 0.02), params, pinned=[0, 1])
+    times = np.arange(48) / FPS
+    values = np.zeros((48, 3))
+    values[:, 1] = 0.2 * np.where(np.arange(48) % 2 == 0, 1.0, -1.0)
+    f = ForceSpec("/F", 0, 10, times + 0.5 / FPS, values, assistant_line=True)  # samples at frame middles
+    sim = run_with_energy_bound(Scene((tube,), (f,), stage=stage(48)), 48)
+    # The same force held would deflect the point by ~F a^3 / 3EI ~ 6 cm; reversing it every
+    # frame (far above the first mode, 0.18 Hz) leaves a tiny jitter.
+    assert sim.max_displacement() < 0.01
+
+
+def test_impulsive_huge_force_then_release_returns_to_rest():
+    # A stiff hose (E = 1 GPa, 4 cm across) held by returning springs of 1e6 N/m at every point.
+    n, r = 21, 0.02
+    params = TubeParams(density=1000.0, youngs_modulus=1e9, damping=10.0, anchor_stiffness=1e6)
+    tube = TubeSpec("/T", line(n, 1.0), [n], np.full(n, r), params, anchors=np.arange(n))
+    hit = ForceSpec("/F", 0, 10, [0.0, 1.0 / FPS, 1.0 / FPS + 1e-9], [[0, 1e6, 0], [0, 1e6, 0], [0, 0, 0]], assistant_line=False)
+    sim = run_with_energy_bound(Scene((tube,), (hit,), stage=stage(6 * FPS)), 1)
+    peak = sim.max_displacement()
+    for _ in range(int(6 * FPS) - 1):
+        sim.step()
+        assert np.isfinite(sim.state.node_q.numpy()).all()
+    back = sim.max_displacement()
+    print(f"1e6 N for one frame: peak displacement {peak:.3f} m, after 6 s {back:.2e} m")
+    assert peak > 10 * r  # a real blow
+    assert back < 0.01 * r  # returned to rest within 1% of the radius
+
+
+@pytest.mark.parametrize("load", [1, 5])
+def test_non_uniform_segments_keep_the_elastica_within_1_percent(load):
+    rng = np.random.default_rng(7)
+    L, r, E, rho = 1.0, 0.02, 1e6, 1000.0
+    seg = rng.uniform(0.5, 1.5, 20)
+    seg *= L / seg.sum()
+    x = np.concatenate([[-seg[0], 0.0], np.cumsum(seg)])
+    EI = E * np.pi * r**4 / 4
+    w1 = 1.8751**2 * np.sqrt(EI / (rho * np.pi * r**2 * L**4))
+    P = load * EI / L**2
+    tube = TubeSpec("/T", np.stack([x, 0 * x, 0 * x], 1), [22], np.full(22, r), TubeParams(density=rho, youngs_modulus=E, damping=1.5 * w1), pinned=[0, 1])
+    scene = Scene((tube,), (ForceSpec("/F", 0, 21, [0.0], [[0, -P, 0]], assistant_line=False),))
+    model = build_model(scene, device="cpu")
+    solver = SemiImplicitEulerSolver(model)
+    dt = 0.5 * critical_time_step(model.host)
+    control = model.control()
+    fe = np.zeros((1, 22, 3))
+    fe[0, -1] = [0, -P, 0]
+    control.node_f_ext.assign(fe)
+    q = settle(solver, model, model.state(), control, dt, int(2 * np.pi / w1 / dt / 10) + 1, tol=3e-6 * L)
+    err = np.linalg.norm(q[0, -1, :2] - elastica_tip(load, P / (E * np.pi * r**2)) * L) / L
+    print(f"segments 0.5x-1.5x, PL^2/EI={load}: tip error {err:.2e} L")
+    assert err < 0.01  # requirement: within 1% at 20 segments
+
+
+def test_ten_thousand_points_in_one_tube_fall_rigidly():
+    # Free fall of a long straight tube: every point feels the same gravity and no spring is
+    # strained, so semi-implicit Euler gives exactly y_n = -g h^2 n (n + 1) / 2 for every point.
+    n = 10_000
+    params = TubeParams(density=1000.0, youngs_modulus=1e6)
+    tube = TubeSpec("/T", line(n, 100.0), [n], np.full(n, 0.02), params)
+    g = 9.81
+    scene = Scene((tube,), settings=SimulationSettings(gravity=(0.0, -g, 0.0)), stage=stage(6))
+    sim = Simulation(scene, device="cpu", surface=False)
+    for _ in range(6):
+        sim.step()
+    steps = 6 * sim.substeps
+    y = sim.centerline_points()[0][:, 1]
+    expected = -g * sim.dt**2 * steps * (steps + 1) / 2
+    # float32 velocity sums over ~700 substeps: relative round-off ~ steps x 6e-8 = 4e-5.
+    np.testing.assert_allclose(y, expected, rtol=1e-4)
+
+
+def test_long_curved_tube_stays_still():
+    # 10,000 points on a helix: the rest-curvature frames are carried over 10,000 edges every
+    # substep; round-off in that scan must not make the tube move.
+    n = 10_000
+    t = np.linspace(0.0, 40 * np.pi, n)
+    pts = np.stack([np.cos(t), np.sin(t), 0.1 * t], axis=1)
+    params = TubeParams(density=1000.0, youngs_modulus=1e5, damping=2.0)
+    tube = TubeSpec("/T", pts, [n], np.full(n, 0.005), params, pinned=[0, 1])
+    sim = Simulation(Scene((tube,), stage=stage(4)), device="cpu", surface=False)
+    for _ in range(4):
+        sim.step()
+    drift = np.abs(sim.centerline_points()[0] - pts).max()
+    length = np.linalg.norm(np.diff(pts, axis=0), axis=1).sum()
+    print(f"10,000-point helix, largest drift after 4 frames: {drift:.2e} m ({drift / length:.1e} of its length)")
+    assert drift < 1e-6 * length
+
+
+def test_near_zero_length_segments_are_rejected():
+    pts = line(5, 1.0)
+    pts[3] = pts[2] + [1e-9, 0.0, 0.0]
+    with pytest.raises(SceneError, match=r"points\[2\] and points\[3\]"):
+        TubeSpec("/T", pts, [5], np.full(5, 0.01), TubeParams(density=1000.0, youngs_modulus=1e6))
+
+
+def test_hairpin_fold_warns_that_distant_parts_touch():
+    # Both ends clamped side by side 1.2 radii apart: the tube folds into a hairpin whose bend has
+    # radius x curvature > 1 and whose legs come closer than two radii.
+    r, n, L, frames = 0.01, 41, 0.07, 60
+    pts = line(n, L)
+    c = np.array([L / 2, 0.6 * r, 0.0])
+    track = []
+    for k in range(frames + 1):
+        th = np.pi * min(1.0, k / 48)
+        rot = np.array([[np.cos(th), -np.sin(th), 0], [np.sin(th), np.cos(th), 0], [0, 0, 1]])
+        track.append(np.concatenate([pts[[0, 1]], (pts[[n - 2, n - 1]] - c) @ rot.T + c]))
+    params = TubeParams(density=1050.0, youngs_modulus=2e4, damping=5.0)
+    tube = TubeSpec("/T", pts, [n], np.full(n, r), params, pinned=[0, 1, n - 2, n - 1], pin_track=np.array(track))
+    sim = Simulation(Scene((tube,), stage=stage(frames)), device="cpu", surface=False)
+    for _ in range(frames):
+        sim.step()
+    q = sim.centerline_points()[0]
+    a, b = q[1:-1] - q[:-2], q[2:] - q[1:-1]
+    phi = np.arccos(np.clip(np.sum(a * b, 1) / np.linalg.norm(a, axis=1) / np.linalg.norm(b, axis=1), -1, 1))
+    kappa = 2 * np.tan(phi / 2) / (0.5 * (np.linalg.norm(a, axis=1) + np.linalg.norm(b, axis=1)))
+    print(f"hairpin: largest radius x curvature {r * kappa.max():.2f}; warnings: {sim.warnings}")
+    assert r * kappa.max() > 1.0
+    assert any("closer than the sum of their radii" in w for w in sim.warnings)
