@@ -1,0 +1,204 @@
+"""Implicit (backward) Euler: statics at steps far beyond the explicit bound, stiff stability and
+energy, first natural frequency and numerical damping, batches.
+
+Oracles: the elastica (scipy BVP, :func:`warp_tube.references.elastica_tip`), the Euler-Bernoulli
+cantilever frequency, the NumPy energy of :mod:`warp_tube.energy`, and backward Euler's own
+amplification factor ``1 / sqrt(1 + (h w)^2)`` per step for a linear oscillator.
+"""
+
+import numpy as np
+import pytest
+
+from warp_tube.energy import total_energy
+from warp_tube.implicit_solver import AssistantLineNotSupported, ImplicitEulerSolver
+from warp_tube.model import build_model
+from warp_tube.references import cantilever_frequency, elastica_tip
+from warp_tube.scene import Scene, SimulationSettings, TubeParams, TubeSpec
+from warp_tube.stability import critical_time_step
+
+from .conftest import settle, straight_points
+from .test_dynamics import mode1
+from .test_elastica import E, RHO, L, cantilever_scene
+
+
+def bent_cantilever(youngs_modulus, amplitude, segments=20, r=0.02, world_count=1, gravity=None):
+    """Undamped clamped rod bent into the first mode's shape (segments keep their rest length)."""
+    pts = straight_points(segments + 2, L)
+    tube = TubeSpec("/World/Rod", pts, [len(pts)], np.full(len(pts), r), TubeParams(density=RHO, youngs_modulus=youngs_modulus), pinned=[0, 1])
+    scene = Scene((tube,), (), settings=SimulationSettings(gravity=gravity))
+    model = build_model(scene, world_count=world_count, device="cpu")
+    state = model.state()
+    q = state.node_q.numpy()
+    x = q[0, 1:, 0]
+    mid = 0.5 * (x[1:] + x[:-1]) / L
+    ds = 1e-6
+    theta = np.arctan(amplitude * (mode1(mid + ds) - mode1(mid - ds)) / (2 * ds))
+    q[:, 2:, 0] = x[0] + np.cumsum(np.diff(x) * np.cos(theta))
+    q[:, 2:, 1] = np.cumsum(np.diff(x) * np.sin(theta))
+    state.node_q.assign(q)
+    return model, state
+
+
+def energy(model, state, world=0):
+    q = state.node_q.numpy()[world].astype(np.float64) + state.node_q_lo.numpy()[world]
+    return total_energy(model.host, q, state.node_qd.numpy()[world])
+
+
+@pytest.mark.parametrize("load", [1, 5])
+@pytest.mark.parametrize("factor", [100, 1000])
+def test_cantilever_statics_at_steps_far_beyond_the_explicit_bound(load, factor):
+    scene, P, w1 = cantilever_scene(20, load, 0.02)
+    model = build_model(scene, device="cpu")
+    dt = factor * critical_time_step(model.host)  # 0.14 s and 1.4 s (h w1 = 0.16 and 1.6)
+    solver = ImplicitEulerSolver(model)
+    state, control = model.state(), model.control()
+    f = np.zeros((1, model.node_count, 3))
+    f[0, -1] = [0.0, -P, 0.0]
+    control.node_f_ext.assign(f)
+    # Backward Euler's fixed point is the exact equilibrium of the discrete model (dv = 0 when
+    # f = 0); settle to 1e-7 L per 4 steps, well below the 0.2% tolerance and the discretisation
+    # error (2.6e-4 L at load 1, 5.9e-4 L at load 5, the same as semi-implicit's).
+    q = settle(solver, model, state, control, dt, 4, tol=1e-7 * L, average=1)
+    r = 0.02 * L
+    ref = elastica_tip(load, P / (E * np.pi * r**2)) * L
+    err = np.linalg.norm(q[0, -1, :2] - ref) / L
+    assert err <= 2e-3, f"tip {q[0, -1, :2]} vs elastica {ref}: {err:.2e} L"
+
+
+@pytest.mark.parametrize("youngs_modulus", [1e3, 1e5, 1e7, 1e9])
+def test_stiff_large_motion_at_60hz_is_finite_and_never_gains_energy(youngs_modulus):
+    # The first mode at amplitude 1.5 L of slope (a strongly bent rod); at 1e9 Pa the 1/60 s
+    # step is 365 x the explicit bound. No gravity, no damping: nothing does work on the rod.
+    model, state = bent_cantilever(youngs_modulus, 1.5)
+    solver = ImplicitEulerSolver(model)
+    control, other = model.control(), model.state()
+    e0 = energy(model, state)
+    e_prev = e0
+    for _ in range(120):
+        solver.integrate(state, other, control, 1.0 / 60.0, 1)
+        state, other = other, state
+        e = energy(model, state)
+        assert np.isfinite(e)
+        # Backward Euler dissipates; the Newton iterate with line search keeps that to within
+        # 1e-5 of the initial energy per step (measured max: 3e-6 of e0 at 80 segments, 1e6 Pa;
+        # 0 here). Relative to e0 because the energy decays by up to 12 orders, to float32 noise.
+        assert e - e_prev <= 1e-5 * e0, f"energy rose by {(e - e_prev) / e0:.2e} of e0"
+        e_prev = e
+    assert e_prev < e0
+
+
+def test_stiff_rod_under_gravity_stays_finite_and_pins_hold():
+    model, state = bent_cantilever(1e9, 0.0, gravity=(0.0, -9.81, 0.0))
+    solver = ImplicitEulerSolver(model)
+    control, other = model.control(), model.state()
+    for _ in range(60):
+        solver.integrate(state, other, control, 1.0 / 60.0, 1)
+        state, other = other, state
+    q = state.node_q.numpy()[0]
+    assert np.isfinite(q).all() and np.isfinite(state.node_qd.numpy()).all()
+    assert np.array_equal(q[:2], model.host["node_rest_q"][:2].astype(np.float32))  # pins exact
+    # Static sag of a clamped beam under its weight: w L^4 / (8 EI); at 1e9 Pa, r = 0.02 m,
+    # that is 9.8e-3 m. After 1 s of backward Euler (h w1 = 0.6 per step) it has settled to
+    # within a few % of it (the large-step numerical damping).
+    sag = RHO * np.pi * 0.02**2 * 9.81 * L**4 / (8 * 1e9 * np.pi * 0.02**4 / 4)
+    assert abs(-q[-1, 1] / sag - 1) < 0.05
+
+
+def tip_history(dt, steps, chunk=1):
+    model, state = bent_cantilever(E, 1e-3)
+    solver = ImplicitEulerSolver(model)
+    control, other = model.control(), model.state()
+    ys = np.empty(steps // chunk)
+    for k in range(len(ys)):
+        solver.integrate(state, other, control, dt, chunk)
+        state, other = other, state
+        ys[k] = state.node_q.numpy()[0, -1, 1]
+    return np.arange(1, len(ys) + 1) * dt * chunk, ys
+
+
+def test_first_natural_frequency_at_small_steps():
+    r = 0.02
+    f_ref = cantilever_frequency(E * np.pi * r**4 / 4, RHO * np.pi * r**2, L)  # 0.177 Hz
+    dt = 2e-3  # h w1 = 2.2e-3: backward Euler's period error (h w)^2 / 3 ~ 2e-6
+    t, ys = tip_history(dt, int(6.5 / f_ref / dt), chunk=25)
+    i = np.nonzero((ys[:-1] < 0) & (ys[1:] >= 0))[0]
+    tc = t[i] + (t[i + 1] - t[i]) * (-ys[i]) / (ys[i + 1] - ys[i])
+    f = (len(tc) - 1) / (tc[-1] - tc[0])
+    print(f"implicit f = {f:.5f} Hz, Euler-Bernoulli {f_ref:.5f} Hz, error {f / f_ref - 1:+.3%}")
+    # Same 0.5% as the semi-implicit test at 20 segments (the discretisation error dominates).
+    assert abs(f / f_ref - 1) <= 5e-3
+
+
+def test_numerical_damping_at_60hz_matches_backward_euler():
+    # At 1/60 s, h w1 = 0.0185: backward Euler multiplies the mode's amplitude by
+    # (1 + (h w1)^2)^(-1/2) per step, i.e. exp(-w1^2 h / 2) per second: 1.02% per second, 5.8%
+    # per period of 5.65 s. Measured from the tip's peaks over 4 periods.
+    r = 0.02
+    w1 = 2 * np.pi * cantilever_frequency(E * np.pi * r**4 / 4, RHO * np.pi * r**2, L)
+    dt = 1.0 / 60.0
+    t, ys = tip_history(dt, int(4.2 * 2 * np.pi / w1 / dt))
+    peaks = [k for k in range(1, len(ys) - 1) if ys[k] < ys[k - 1] and ys[k] <= ys[k + 1]]
+    rate = -np.log(ys[peaks[-1]] / ys[peaks[0]]) / (t[peaks[-1]] - t[peaks[0]])
+    expected = np.log(1 + (dt * w1) ** 2) / (2 * dt)
+    print(f"numerical damping at 1/60 s: {rate:.4e} 1/s (backward Euler, linear: {expected:.4e} 1/s)")
+    # The discrete w1 is 0.5% off Euler-Bernoulli's and the peaks fall on whole steps: 5%.
+    assert abs(rate / expected - 1) < 0.05
+
+
+def test_worlds_of_a_batch_equal_the_same_run_alone():
+    model, state = bent_cantilever(1e7, 0.5, world_count=3)
+    q = state.node_q.numpy()
+    q[1] = model.host["node_rest_q"]  # world 1 starts at rest, worlds 0 and 2 bent
+    state.node_q.assign(q)
+    solver = ImplicitEulerSolver(model)
+    control, other = model.control(), model.state()
+    for _ in range(5):
+        solver.integrate(state, other, control, 1.0 / 60.0, 4)
+        state, other = other, state
+    alone, s1 = bent_cantilever(1e7, 0.5)
+    solo, o1, c1 = ImplicitEulerSolver(alone), alone.state(), alone.control()
+    for _ in range(5):
+        solo.integrate(s1, o1, c1, 1.0 / 60.0, 4)
+        s1, o1 = o1, s1
+    out = state.node_q.numpy()
+    # Same arithmetic per thread on the CPU: bitwise equal, not just close.
+    assert np.array_equal(out[0], s1.node_q.numpy()[0])
+    assert np.array_equal(out[2], out[0])
+    assert np.allclose(out[1], model.host["node_rest_q"], atol=0.0)
+
+
+def test_two_tubes_in_one_world_equal_each_alone():
+    a = straight_points(12, L)
+    b = straight_points(8, 0.5 * L)
+    params = TubeParams(density=RHO, youngs_modulus=1e6, damping=0.5)
+    tube = TubeSpec("/World/Rods", np.concatenate([a, b + [0, 0.3, 0]]), [12, 8], np.full(20, 0.02), params, pinned=[0, 1, 12, 13])
+    both = build_model(Scene((tube,), (), settings=SimulationSettings(gravity=(0, -9.81, 0))), device="cpu")
+    solver = ImplicitEulerSolver(both)
+    s, o, c = both.state(), both.state(), both.control()
+    solver.integrate(s, o, c, 1.0 / 60.0, 10)
+    one = TubeSpec("/World/Rod", b + [0, 0.3, 0], [8], np.full(8, 0.02), params, pinned=[0, 1])
+    alone = build_model(Scene((one,), (), settings=SimulationSettings(gravity=(0, -9.81, 0))), device="cpu")
+    s1, o1, c1 = alone.state(), alone.state(), alone.control()
+    ImplicitEulerSolver(alone).integrate(s1, o1, c1, 1.0 / 60.0, 10)
+    assert np.array_equal(o.node_q.numpy()[0, 12:], o1.node_q.numpy()[0])
+
+
+def test_moving_pins_reach_their_targets_and_drag_the_rod():
+    model, state = bent_cantilever(1e6, 0.0)
+    solver = ImplicitEulerSolver(model)
+    control, other = model.control(), model.state()
+    target = control.pin_q_end.numpy()
+    target[0, :2, 1] += 0.1  # lift the clamp by 0.1 m over 4 substeps of 1/240 s
+    control.pin_q_end.assign(target)
+    solver.integrate(state, other, control, 1.0 / 240.0, 4)
+    q = other.node_q.numpy()[0]
+    assert np.allclose(q[:2], target[0, :2], atol=1e-7)
+    assert np.allclose(other.node_qd.numpy()[0, :2, 1], 0.1 * 60.0, rtol=1e-5)  # 0.1 m in 1/60 s
+    assert q[2, 1] > 0.05  # the first free node follows
+
+
+def test_assistant_line_is_left_to_the_semi_implicit_solver():
+    scene, _, _ = cantilever_scene(10, 1.0, 0.02, assistant_line=True)
+    with pytest.raises(AssistantLineNotSupported, match="semi-implicit"):
+        ImplicitEulerSolver(build_model(scene, device="cpu"))
+    assert issubclass(AssistantLineNotSupported, NotImplementedError)
