@@ -1,5 +1,7 @@
 """Surface rebuild speed: frames + hub + spoke kernels (SurfaceBuilder.compute). Prints JSON.
 
+Kernels per rebuild: frames, hub, guard (the guarded spoke lengths; skipped with the guard off), spoke.
+
 - CPU, one tube: 20 hubs x 9 spokes; median wall time of one rebuild over many calls after a
   warm-up, each call replaying recorded launches (``wp.launch(record_cmd=True)``, no argument
   packing per call). Mostly launch overhead at this size.
@@ -46,6 +48,13 @@ def straight_rest(n: int) -> np.ndarray:
     return rest
 
 
+def recorded_launches(b: SurfaceBuilder, q: wp.array) -> dict:
+    """The builder's recorded launches for ``q`` by kernel: frames, hub, guard (when on), spoke."""
+    launches = b._launches[(q.ptr, q.shape, q.strides)]
+    names = ("frames", "hub", "guard", "spoke") if len(launches) == 4 else ("frames", "hub", "spoke")
+    return dict(zip(names, launches))
+
+
 def _median_s(fn, calls: int) -> float:
     samples = []
     for _ in range(calls):
@@ -76,7 +85,7 @@ def bench_cpu(repeats: int) -> dict:
         "rebuild_p10_us": 1e6 * float(np.percentile(samples, 10)),
         "rebuild_p90_us": 1e6 * float(np.percentile(samples, 90)),
         "calls": repeats,
-        "method": "median of per-call perf_counter times of SurfaceBuilder.compute (3 recorded launches)",
+        "method": "median of per-call perf_counter times of SurfaceBuilder.compute (4 recorded launches)",
     }
 
 
@@ -86,11 +95,8 @@ def bench_cpu_batch(repeats: int) -> dict:
     q = wp.array(np.ascontiguousarray(helix(n, W)).astype(np.float32), dtype=wp.vec3, device="cpu")
     for _ in range(2):
         b.compute(q)
-    frames_launch, hubs_launch, spokes_launch = b._launches[(q.ptr, q.shape, q.strides)]
     t_all = _median_s(lambda: b.compute(q), repeats)
-    t_spokes = _median_s(spokes_launch.launch, repeats)
-    t_hubs = _median_s(hubs_launch.launch, repeats)
-    t_frames = _median_s(frames_launch.launch, repeats)
+    t_kernel = {name: _median_s(launch.launch, repeats) for name, launch in recorded_launches(b, q).items()}
     vertices = W * n * S
     return {
         "device": "cpu",
@@ -99,12 +105,10 @@ def bench_cpu_batch(repeats: int) -> dict:
         "spokes": S,
         "vertices": vertices,
         "rebuild_median_ms": 1e3 * t_all,
-        "spoke_kernel_median_ms": 1e3 * t_spokes,
-        "hub_kernel_median_ms": 1e3 * t_hubs,
-        "frames_kernel_median_ms": 1e3 * t_frames,
+        **{f"{name}_kernel_median_ms": 1e3 * t for name, t in t_kernel.items()},
         "vertices_per_s_rebuild": vertices / t_all,
         "ns_per_vertex_rebuild": 1e9 * t_all / vertices,
-        "ns_per_vertex_spoke_kernel": 1e9 * t_spokes / vertices,
+        "ns_per_vertex_spoke_kernel": 1e9 * t_kernel["spoke"] / vertices,
         "calls": repeats,
         "method": "median of per-call perf_counter times; Warp's CPU backend runs one thread",
     }
@@ -129,19 +133,15 @@ def bench_cuda(bandwidth_gbs: float, bandwidth_source: str, replays: int) -> dic
     b = SurfaceBuilder([0, n], straight_rest(n), S, np.full(n, 0.01), world_count=W, device=device)
     q = wp.array(np.ascontiguousarray(helix(n, W)).astype(np.float32), dtype=wp.vec3, device=device)
     b.compute(q)  # compile, record
-    frames_launch, hubs_launch, spokes_launch = b._launches[(q.ptr, q.shape, q.strides)]
     with wp.ScopedCapture(device) as cap_all:
         b.compute(q)
-    with wp.ScopedCapture(device) as cap_spokes:
-        spokes_launch.launch()
-    with wp.ScopedCapture(device) as cap_hubs:
-        hubs_launch.launch()
-    with wp.ScopedCapture(device) as cap_frames:
-        frames_launch.launch()
     t_all = _time_graph(cap_all.graph, device, replays)
-    t_spokes = _time_graph(cap_spokes.graph, device, replays)
-    t_hubs = _time_graph(cap_hubs.graph, device, replays)
-    t_frames = _time_graph(cap_frames.graph, device, replays)
+    t_kernel = {}
+    for name, launch in recorded_launches(b, q).items():
+        with wp.ScopedCapture(device) as cap:
+            launch.launch()
+        t_kernel[name] = _time_graph(cap.graph, device, replays)
+    t_spokes = t_kernel["spoke"]
     vertices = W * n * S
     name = device.name
     bound = bandwidth_gbs * 1e9 / 24.0
@@ -152,9 +152,7 @@ def bench_cuda(bandwidth_gbs: float, bandwidth_source: str, replays: int) -> dic
         "spokes": S,
         "vertices": vertices,
         "rebuild_s": t_all,
-        "spoke_kernel_s": t_spokes,
-        "hub_kernel_s": t_hubs,
-        "frames_kernel_s": t_frames,
+        **{f"{name}_kernel_s": t for name, t in t_kernel.items()},
         "vertices_per_s_rebuild": vertices / t_all,
         "vertices_per_s_spoke_kernel": vertices / t_spokes,
         "bytes_written_per_vertex": 24,

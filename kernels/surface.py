@@ -55,11 +55,14 @@ Work split. :func:`hub_guard_kernel` (one thread per (world, hub)) does everythi
 the hub only: the curvature vector, the chord lengths, the three guard planes (neighbours' or
 virtual rings', and the centre of curvature's, each relative to the hub) and two *free lengths*:
 bounds below which no plane can shorten a spoke of the hub's body ring or of any ring.
-:func:`spoke_points_kernel` (one thread per (world, ring, spoke), spokes fastest, so consecutive
-threads write consecutive vertices) then reads them; a spoke whose own and neighbours' given lengths
-are within the free length skips the plane tests, which would leave those lengths unchanged
-(exactly: the guard only takes minima with larger values). Otherwise the thread evaluates the guard
-for its spoke and both neighbours (for the normal), five plane tests each.
+A spoke no longer than its ring's free length keeps its given length (exactly: the guard only
+takes minima with larger values), so only the others are guarded: :func:`spoke_guard_kernel` (one
+thread per (world, ring, spoke)) writes their guarded lengths, five plane tests each, and leaves
+the rest unwritten. :func:`spoke_points_kernel` (one thread per (world, ring, spoke), spokes
+fastest, so consecutive threads write consecutive vertices) takes each of its spoke's and its two
+neighbours' lengths (for the normal) from there or, by the same test, as given. The points kernel
+holds no guard code, which keeps its register count (and so the GPU's occupancy) at that of the
+plain spoke geometry.
 """
 
 import warp as wp
@@ -284,6 +287,96 @@ def hub_guard_kernel(
     hub_free_out[w, h] = wp.vec2(free_body, free_any)
 
 
+@wp.func
+def ring_guard_kinds(h: int, kind: int, first: int, last: int) -> wp.vec2i:
+    """Kinds of a ring's previous and next guard planes (see :func:`guarded_length`): real
+    neighbours, else for a body ring at the end of a tube of 3+ hubs the virtual ring."""
+    prev_kind = int(h > first)
+    next_kind = int(h < last)
+    if kind == RING_BODY and last - first >= 2:
+        if prev_kind == 0:
+            prev_kind = 2
+        if next_kind == 0:
+            next_kind = 2
+    return wp.vec2i(prev_kind, next_kind)
+
+
+@wp.func
+def pole_length(spoke_length: wp.array3d[float], pw: int, h: int) -> float:
+    """Length of a cap's pole spoke [length unit]: the mean of its hub's spoke lengths."""
+    spoke_count = spoke_length.shape[2]
+    mean = float(0.0)
+    for k in range(spoke_count):
+        mean += spoke_length[pw, h, k]
+    return mean / float(spoke_count)
+
+
+@wp.kernel(enable_backward=False, module="unique", module_options=CUDA_OPTIONS)
+def spoke_guard_kernel(
+    # model:
+    guard_reach: float,
+    tube_node_start: wp.array[wp.int32],
+    node_tube: wp.array[wp.int32],
+    ring_hub: wp.array[wp.int32],
+    ring_kind: wp.array[wp.int32],
+    ring_cos: wp.array[float],
+    ring_sin: wp.array[float],
+    ring_vertex: wp.array[wp.int32],
+    spoke_cos: wp.array[float],
+    spoke_sin: wp.array[float],
+    spoke_length: wp.array3d[float],
+    # state in:
+    hub_t: wp.array2d[wp.vec3],
+    hub_r: wp.array2d[wp.vec3],
+    hub_plane: wp.array3d[wp.vec4],
+    hub_free: wp.array2d[wp.vec2],
+    # out:
+    surface_length_out: wp.array2d[float],
+):
+    """Guarded length of each spoke longer than its ring's free length; one thread per
+    (world, ring, spoke). Other entries are left as they are (and not read).
+
+    Args:
+        guard_reach: inner-bend guard fraction in (0, 1).
+        tube_node_start, node_tube, ring_*, spoke_cos, spoke_sin, spoke_length: as
+            :func:`spoke_points_kernel`.
+        hub_t, hub_r: hub unit tangents and normals [1], shape (world_count, node_count).
+        hub_plane, hub_free: per-hub data from :func:`hub_guard_kernel`.
+        surface_length_out: guarded spoke lengths [length unit], shape (world_count, vertex_count).
+    """
+    w, ring, j = wp.tid()
+    kind = ring_kind[ring]
+    if kind == RING_POLE and j > 0:
+        return
+    h = ring_hub[ring]
+    pw = w % spoke_length.shape[0]
+    free = hub_free[w, h]
+    t = hub_t[w, h]
+    c = ring_cos[ring]
+    sn = ring_sin[ring]
+    length = float(0.0)
+    d = c * t
+    if kind == RING_POLE:
+        length = pole_length(spoke_length, pw, h)
+        if length <= free[1]:
+            return
+    else:
+        length = spoke_length[pw, h, j]
+        limit = free[1]
+        if kind == RING_BODY:
+            limit = free[0]
+        if length <= limit:
+            return
+        r = hub_r[w, h]
+        d = c * t + sn * (spoke_cos[j] * r + spoke_sin[j] * wp.cross(t, r))
+    tube = node_tube[h]
+    kinds = ring_guard_kinds(h, kind, tube_node_start[tube], tube_node_start[tube + 1] - 1)
+    surface_length_out[w, ring_vertex[ring] + j] = guarded_length(
+        length, d, kinds[0], hub_plane[w, h, PLANE_PREV], kinds[1], hub_plane[w, h, PLANE_NEXT],
+        hub_plane[w, h, PLANE_CENTRE], guard_reach,
+    )  # fmt: skip
+
+
 @wp.kernel(enable_backward=False, module="unique", module_options=CUDA_OPTIONS)
 def spoke_points_kernel(
     # model:
@@ -306,8 +399,8 @@ def spoke_points_kernel(
     hub_r: wp.array2d[wp.vec3],
     hub_kappa: wp.array2d[wp.vec3],
     hub_chord: wp.array2d[float],
-    hub_plane: wp.array3d[wp.vec4],
     hub_free: wp.array2d[wp.vec2],
+    surface_length: wp.array2d[float],
     # out:
     surface_q_out: wp.array2d[wp.vec3],
     surface_n_out: wp.array2d[wp.vec3],
@@ -325,7 +418,9 @@ def spoke_points_kernel(
         spoke_length: spoke lengths [length unit], shape (1 or world_count, node_count, S).
         node_q: hub positions [length unit], shape (world_count, >= node_offset + node_count).
         hub_t, hub_r: hub unit tangents and normals [1], shape (world_count, node_count).
-        hub_kappa, hub_chord, hub_plane, hub_free: per-hub data from :func:`hub_guard_kernel`.
+        hub_kappa, hub_chord, hub_free: per-hub data from :func:`hub_guard_kernel`.
+        surface_length: guarded spoke lengths from :func:`spoke_guard_kernel`, read (only) for
+            spokes longer than their ring's free length when the guard is on.
         surface_q_out: boundary points [length unit], shape (world_count, vertex_count).
         surface_n_out: unit outward normals [1], shape (world_count, vertex_count).
     """
@@ -340,34 +435,21 @@ def spoke_points_kernel(
     last = tube_node_start[tube + 1] - 1
     has_prev = int(h > first)
     has_next = int(h < last)
-    # Guard plane kinds (see guarded_length): virtual rings beyond a tube's end for body rings only.
-    prev_kind = has_prev
-    next_kind = has_next
-    if kind == RING_BODY and last - first >= 2:
-        if has_prev == 0:
-            prev_kind = 2
-        if has_next == 0:
-            next_kind = 2
 
     x = node_q[w, node_offset + h]
     t = hub_t[w, h]
     c = ring_cos[ring]
     sn = ring_sin[ring]
     free = hub_free[w, h]
+    guard = guard_reach > 0.0
+    v0 = ring_vertex[ring]
 
     if kind == RING_POLE:
-        mean = float(0.0)
-        for k in range(spoke_count):
-            mean += spoke_length[pw, h, k]
-        mean = mean / float(spoke_count)
         d = c * t
-        length = mean
-        if guard_reach > 0.0 and mean > free[1]:
-            length = guarded_length(
-                mean, d, prev_kind, hub_plane[w, h, PLANE_PREV], next_kind, hub_plane[w, h, PLANE_NEXT],
-                hub_plane[w, h, PLANE_CENTRE], guard_reach,
-            )  # fmt: skip
-        v = ring_vertex[ring]
+        length = pole_length(spoke_length, pw, h)
+        if guard and length > free[1]:
+            length = surface_length[w, v0]
+        v = v0
         surface_q_out[w, v] = x + length * d
         surface_n_out[w, v] = d
         return
@@ -382,18 +464,17 @@ def spoke_points_kernel(
     length = spoke_length[pw, h, j]
     length_m = spoke_length[pw, h, jm]
     length_p = spoke_length[pw, h, jp]
-    limit = free[1]
-    if kind == RING_BODY:
-        limit = free[0]
-    if guard_reach > 0.0 and wp.max(length, wp.max(length_m, length_p)) > limit:
-        plane_prev = hub_plane[w, h, PLANE_PREV]
-        plane_next = hub_plane[w, h, PLANE_NEXT]
-        plane_centre = hub_plane[w, h, PLANE_CENTRE]
-        d_m = c * t + sn * (spoke_cos[jm] * r + spoke_sin[jm] * s)
-        d_p = c * t + sn * (spoke_cos[jp] * r + spoke_sin[jp] * s)
-        length = guarded_length(length, d, prev_kind, plane_prev, next_kind, plane_next, plane_centre, guard_reach)
-        length_m = guarded_length(length_m, d_m, prev_kind, plane_prev, next_kind, plane_next, plane_centre, guard_reach)
-        length_p = guarded_length(length_p, d_p, prev_kind, plane_prev, next_kind, plane_next, plane_centre, guard_reach)
+    if guard:
+        # Lengths beyond the ring's free length are the guard's (same test as spoke_guard_kernel).
+        limit = free[1]
+        if kind == RING_BODY:
+            limit = free[0]
+        if length > limit:
+            length = surface_length[w, v0 + j]
+        if length_m > limit:
+            length_m = surface_length[w, v0 + jm]
+        if length_p > limit:
+            length_p = surface_length[w, v0 + jp]
 
     # Around the ring: central difference of the neighbouring spokes' (guarded) lengths.
     dphi = 2.0 * wp.pi / float(spoke_count)
@@ -413,7 +494,7 @@ def spoke_points_kernel(
         if ds > 0.0:
             n = n - (dl / (ds * stretch)) * t
 
-    v = ring_vertex[ring] + j
+    v = v0 + j
     surface_q_out[w, v] = x + length * d
     surface_n_out[w, v] = wp.normalize(n)
 

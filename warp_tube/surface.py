@@ -2,13 +2,16 @@
 
 :class:`SurfaceBuilder` serves one tube prim (one spoke count S; all its curves). It is built once
 from the rest centerline and the spoke lengths, allocates everything then, and at every output
-frame rebuilds the boundary from the deformed centerline with three launches:
+frame rebuilds the boundary from the deformed centerline with four launches (three with the guard
+off):
 
 1. frames: :func:`~warp_tube.kernels.frames.rotation_minimizing_frames_kernel` (one thread per
    (world, tube)) or :func:`~warp_tube.kernels.frames.local_frames_kernel` (one per (world, hub));
 2. hubs: :func:`~warp_tube.kernels.surface.hub_guard_kernel`, one thread per (world, hub), writing
    each hub's curvature, chords, guard planes and free lengths once;
-3. spokes: :func:`~warp_tube.kernels.surface.spoke_points_kernel`, one thread per
+3. guard: :func:`~warp_tube.kernels.surface.spoke_guard_kernel`, one thread per (world, ring, spoke),
+   writing the guarded length of the spokes that a guard plane may shorten (none on gentle bends);
+4. spokes: :func:`~warp_tube.kernels.surface.spoke_points_kernel`, one thread per
    (world, ring, spoke) with the spoke index fastest, writing points and normals.
 
 Rest frames (tangent and spoke-0 normal of every hub at rest) follow :mod:`warp_tube.frames`
@@ -23,7 +26,7 @@ import warp as wp
 
 from . import frames as ref_frames
 from .kernels.frames import local_frames_kernel, rotation_minimizing_frames_kernel
-from .kernels.surface import hub_guard_kernel, spoke_points_kernel
+from .kernels.surface import hub_guard_kernel, spoke_guard_kernel, spoke_points_kernel
 from .topology import SurfaceTopology, build_topology
 
 __all__ = ["SurfaceBuilder", "FRAME_MODES", "DEFAULT_GUARD_REACH"]
@@ -167,6 +170,7 @@ class SurfaceBuilder:
             self._hub_chord = wp.zeros((self.world_count, n_hubs), dtype=float)
             self._hub_plane = wp.zeros((self.world_count, n_hubs, 3), dtype=wp.vec4)
             self._hub_free = wp.zeros((self.world_count, n_hubs), dtype=wp.vec2)
+            self._surface_length = wp.zeros((self.world_count, topo.vertex_count), dtype=float)
             self.points = wp.zeros((self.world_count, topo.vertex_count), dtype=wp.vec3)
             self.normals = wp.zeros((self.world_count, topo.vertex_count), dtype=wp.vec3)
         self._launches: dict = {}
@@ -236,9 +240,37 @@ class SurfaceBuilder:
             record_cmd=True,
         )
         topo = self.topology
+        dims_spokes = (self.world_count, len(topo.ring_hub), self.spokes)
+        launches = [frames, hubs]
+        if self.guard_reach > 0.0:
+            guard = wp.launch(
+                spoke_guard_kernel,
+                dim=dims_spokes,
+                inputs=[
+                    self.guard_reach,
+                    self._tube_node_start,
+                    self._node_tube,
+                    self._ring_hub,
+                    self._ring_kind,
+                    self._ring_cos,
+                    self._ring_sin,
+                    self._ring_vertex,
+                    self._spoke_cos,
+                    self._spoke_sin,
+                    self._spoke_length,
+                    self.hub_t,
+                    self.hub_r,
+                    self._hub_plane,
+                    self._hub_free,
+                ],
+                outputs=[self._surface_length],
+                device=self.device,
+                record_cmd=True,
+            )
+            launches.append(guard)
         spokes = wp.launch(
             spoke_points_kernel,
-            dim=(self.world_count, len(topo.ring_hub), self.spokes),
+            dim=dims_spokes,
             inputs=[
                 self.node_offset,
                 self.spokes,
@@ -258,14 +290,15 @@ class SurfaceBuilder:
                 self.hub_r,
                 self._hub_kappa,
                 self._hub_chord,
-                self._hub_plane,
                 self._hub_free,
+                self._surface_length,
             ],
             outputs=[self.points, self.normals],
             device=self.device,
             record_cmd=True,
         )
-        return frames, hubs, spokes
+        launches.append(spokes)
+        return tuple(launches)
 
     def compute(self, node_q: wp.array) -> tuple[wp.array, wp.array]:
         """Rebuild the surface from hub positions; no allocation after the first call per array.
