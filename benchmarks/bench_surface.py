@@ -137,22 +137,21 @@ def bench_cuda(bandwidth_gbs: float, bandwidth_source: str, replays: int) -> dic
         b.compute(q)
     t_all = _time_graph(cap_all.graph, device, replays)
     t_kernel = {}
-    for name, launch in recorded_launches(b, q).items():
+    for kernel, launch in recorded_launches(b, q).items():
         with wp.ScopedCapture(device) as cap:
             launch.launch()
-        t_kernel[name] = _time_graph(cap.graph, device, replays)
+        t_kernel[kernel] = _time_graph(cap.graph, device, replays)
     t_spokes = t_kernel["spoke"]
     vertices = W * n * S
-    name = device.name
     bound = bandwidth_gbs * 1e9 / 24.0
     return {
-        "device": name,
+        "device": device.name,
         "tubes": W,
         "hubs": n,
         "spokes": S,
         "vertices": vertices,
         "rebuild_s": t_all,
-        **{f"{name}_kernel_s": t for name, t in t_kernel.items()},
+        **{f"{kernel}_kernel_s": t for kernel, t in t_kernel.items()},
         "vertices_per_s_rebuild": vertices / t_all,
         "vertices_per_s_spoke_kernel": vertices / t_spokes,
         "bytes_written_per_vertex": 24,
