@@ -30,6 +30,11 @@ class ImplicitEulerSolver:
 
     Args:
         model: the discretised scene (without an assistant line).
+        iterations: Newton iterations per substep at most; 1 is the linearised backward Euler
+            step (with a line search). The default 2 keeps a stiff rod in large motion from
+            gaining energy (measured: 1 iteration gains up to 2% a step at 1e9 Pa, 1/60 s).
+        tolerance: stop iterating once an iteration moves no node by more than this fraction of
+            the shortest segment.
 
     Raises:
         AssistantLineNotSupported: the model has an assistant line (a point force with
@@ -38,7 +43,7 @@ class ImplicitEulerSolver:
 
     name = "implicitEuler"
 
-    def __init__(self, model: TubeModel, iterations: int = 1, tolerance: float = 1e-6):
+    def __init__(self, model: TubeModel, iterations: int = 2, tolerance: float = 1e-6):
         if model.features.assistant_line:
             raise AssistantLineNotSupported(
                 "the implicit Euler solver does not integrate the assistant line (a point force with "
