@@ -30,7 +30,7 @@ from typing import NamedTuple
 
 import warp as wp
 
-from .springs import bend_stencil, curvature_targets, node_delta, spring_force
+from .springs import al_delta, bend_stencil, curvature_targets, frame_forces, node_delta, spring_force
 
 
 @wp.struct
@@ -63,6 +63,7 @@ class StateArrays:
     node_q_lo: wp.array2d[wp.vec3]
     node_qd: wp.array2d[wp.vec3]
     al_q: wp.array2d[wp.vec3]
+    al_q_lo: wp.array2d[wp.vec3]
     al_qd: wp.array2d[wp.vec3]
 
 
@@ -154,6 +155,7 @@ def make_kernels(features: Features):
         node_qd: wp.array2d[wp.vec3],
         node_kappa_target: wp.array2d[wp.vec3],
         al_q: wp.array2d[wp.vec3],
+        al_q_lo: wp.array2d[wp.vec3],
         al_qd: wp.array2d[wp.vec3],
         # control:
         node_f_ext: wp.array2d[wp.vec3],
@@ -185,11 +187,11 @@ def make_kernels(features: Features):
                     kd = float(0.0)
                     if wp.static(SPRING_DAMPING):
                         kd = seg_kd[pw, s]
-                    f += spring_force(al_q[w, p] - x, al_qd[w, p] - v, al_link_length[w, p], seg_ke[pw, s], kd)
+                    f += spring_force(al_delta(al_q, al_q_lo, w, p, node_q, node_q_lo, i), al_qd[w, p] - v, al_link_length[w, p], seg_ke[pw, s], kd)
                     if i > k:
-                        f += spring_force(al_q[w, p - 1] - x, al_qd[w, p - 1] - v, al_fwd_length[w, p - 1], seg_ke[pw, i - 1], kd)
+                        f += spring_force(al_delta(al_q, al_q_lo, w, p - 1, node_q, node_q_lo, i), al_qd[w, p - 1] - v, al_fwd_length[w, p - 1], seg_ke[pw, i - 1], kd)
                     if i < k:
-                        f += spring_force(al_q[w, p + 1] - x, al_qd[w, p + 1] - v, al_bwd_length[w, p + 1], seg_ke[pw, i], kd)
+                        f += spring_force(al_delta(al_q, al_q_lo, w, p + 1, node_q, node_q_lo, i), al_qd[w, p + 1] - v, al_bwd_length[w, p + 1], seg_ke[pw, i], kd)
         return f
 
     @wp.func
@@ -207,8 +209,10 @@ def make_kernels(features: Features):
         force_node: wp.array[int],
         # state in:
         node_q: wp.array2d[wp.vec3],
+        node_q_lo: wp.array2d[wp.vec3],
         node_qd: wp.array2d[wp.vec3],
         al_q: wp.array2d[wp.vec3],
+        al_q_lo: wp.array2d[wp.vec3],
         al_qd: wp.array2d[wp.vec3],
         # control:
         al_link_length: wp.array2d[float],
@@ -230,21 +234,21 @@ def make_kernels(features: Features):
         kd_link = float(0.0)
         if wp.static(SPRING_DAMPING):
             kd_link = seg_kd[pw, s]
-        f = spring_force(node_q[w, i] - x, node_qd[w, i] - v, al_link_length[w, p], seg_ke[pw, s], kd_link)
+        f = spring_force(-al_delta(al_q, al_q_lo, w, p, node_q, node_q_lo, i), node_qd[w, i] - v, al_link_length[w, p], seg_ke[pw, s], kd_link)
         if i > start:
             kd = float(0.0)
             if wp.static(SPRING_DAMPING):
                 kd = seg_kd[pw, i - 1]
-            f += spring_force(al_q[w, p - 1] - x, al_qd[w, p - 1] - v, al_chord_length[w, p - 1], seg_ke[pw, i - 1], kd)
+            f += spring_force((al_q[w, p - 1] - x) + (al_q_lo[w, p - 1] - al_q_lo[w, p]), al_qd[w, p - 1] - v, al_chord_length[w, p - 1], seg_ke[pw, i - 1], kd)
             if i <= k:
-                f += spring_force(node_q[w, i - 1] - x, node_qd[w, i - 1] - v, al_bwd_length[w, p], seg_ke[pw, i - 1], kd)
+                f += spring_force(-al_delta(al_q, al_q_lo, w, p, node_q, node_q_lo, i - 1), node_qd[w, i - 1] - v, al_bwd_length[w, p], seg_ke[pw, i - 1], kd)
         if i < end - 1:
             kd = float(0.0)
             if wp.static(SPRING_DAMPING):
                 kd = seg_kd[pw, i]
-            f += spring_force(al_q[w, p + 1] - x, al_qd[w, p + 1] - v, al_chord_length[w, p], seg_ke[pw, i], kd)
+            f += spring_force((al_q[w, p + 1] - x) + (al_q_lo[w, p + 1] - al_q_lo[w, p]), al_qd[w, p + 1] - v, al_chord_length[w, p], seg_ke[pw, i], kd)
             if i >= k:
-                f += spring_force(node_q[w, i + 1] - x, node_qd[w, i + 1] - v, al_fwd_length[w, p], seg_ke[pw, i], kd)
+                f += spring_force(-al_delta(al_q, al_q_lo, w, p, node_q, node_q_lo, i + 1), node_qd[w, i + 1] - v, al_fwd_length[w, p], seg_ke[pw, i], kd)
         return f
 
     @wp.func
@@ -297,6 +301,7 @@ def make_kernels(features: Features):
         node_q_lo_in = state_in.node_q_lo
         node_qd_in = state_in.node_qd
         al_q_in = state_in.al_q
+        al_q_lo_in = state_in.al_q_lo
         al_qd_in = state_in.al_qd
         node_f_ext = control.node_f_ext
         pin_q_start = control.pin_q_start
@@ -313,6 +318,7 @@ def make_kernels(features: Features):
         node_q_lo_out = state_out.node_q_lo
         node_qd_out = state_out.node_qd
         al_q_out = state_out.al_q
+        al_q_lo_out = state_out.al_q_lo
         al_qd_out = state_out.al_qd
         w, t = wp.tid()
         pw = w % node_mass.shape[0]
@@ -329,6 +335,7 @@ def make_kernels(features: Features):
                 if al_active[w, a] != 0:
                     for p in range(al_start[a], al_start[a] + end - start):
                         al_q_out[w, p] = al_q_in[w, p]
+                        al_q_lo_out[w, p] = al_q_lo_in[w, p]
                         al_qd_out[w, p] = al_qd_in[w, p]
         for step in range(substep_count):
             frac = float(step + 1) / float(substep_count)
@@ -339,7 +346,7 @@ def make_kernels(features: Features):
                     w, pw, i, start, end, t,
                     node_rest_q, node_mass, seg_rest_length, seg_ke, seg_kd, node_bend_k,
                     node_anchor_k, node_anchor_kd, gravity, tube_force_start, force_node, al_start,
-                    node_q_out, node_q_lo_out, node_qd_out, node_kappa_target, al_q_out, al_qd_out,
+                    node_q_out, node_q_lo_out, node_qd_out, node_kappa_target, al_q_out, al_q_lo_out, al_qd_out,
                     node_f_ext, al_active, al_link_length, al_fwd_length, al_bwd_length,
                 )  # fmt: skip
             # Each spring and bending stencil once, added to all its nodes (one thread owns the tube).
@@ -359,6 +366,8 @@ def make_kernels(features: Features):
                     node_f[w, j - 1] = node_f[w, j - 1] + ga
                     node_f[w, j] = node_f[w, j] + gb - ga
                     node_f[w, j + 1] = node_f[w, j + 1] - gb
+            if wp.static(CURVED):
+                frame_forces(w, pw, start, end, node_q_out, node_q_lo_out, node_rest_q, node_bend_k, node_kappa_target, node_f)
             if wp.static(AL):
                 for a in range(tube_force_start[t], tube_force_start[t + 1]):
                     if al_active[w, a] != 0:
@@ -366,7 +375,7 @@ def make_kernels(features: Features):
                             p = al_start[a] + (i - start)
                             al_f[w, p] = al_force(
                                 w, pw, a, p, i, start, end, seg_ke, seg_kd, force_node,
-                                node_q_out, node_qd_out, al_q_out, al_qd_out,
+                                node_q_out, node_q_lo_out, node_qd_out, al_q_out, al_q_lo_out, al_qd_out,
                                 al_link_length, al_chord_length, al_fwd_length, al_bwd_length,
                             )  # fmt: skip
             for i in range(start, end):
@@ -386,8 +395,9 @@ def make_kernels(features: Features):
                     if al_active[w, a] != 0:
                         for i in range(start, end):
                             p = al_start[a] + (i - start)
-                            x_new, lo_new, v_new = advance(al_q_out[w, p], wp.vec3(0.0), al_qd_out[w, p], al_f[w, p], 1.0 / node_mass[pw, i], node_damping[pw, i], dt)
+                            x_new, lo_new, v_new = advance(al_q_out[w, p], al_q_lo_out[w, p], al_qd_out[w, p], al_f[w, p], 1.0 / node_mass[pw, i], node_damping[pw, i], dt)
                             al_q_out[w, p] = x_new
+                            al_q_lo_out[w, p] = lo_new
                             al_qd_out[w, p] = v_new
 
     @wp.kernel(enable_backward=False, module="unique")
@@ -396,15 +406,24 @@ def make_kernels(features: Features):
         tube_node_start: wp.array[int],
         node_rest_q: wp.array2d[wp.vec3],
         node_kappa_rest: wp.array2d[wp.vec3],
+        node_bend_k: wp.array2d[float],
         # state in:
         node_q: wp.array2d[wp.vec3],
+        node_q_lo: wp.array2d[wp.vec3],
         # out:
         node_kappa_target: wp.array2d[wp.vec3],
+        node_f_frame: wp.array2d[wp.vec3],
     ):
-        """Curvature targets of curved rest shapes, one thread per (world, tube)."""
+        """Curvature targets of curved rest shapes and the forces of their dependence on the
+        shape [N], one thread per (world, tube)."""
         w, t = wp.tid()
         pw = w % node_rest_q.shape[0]
-        curvature_targets(w, pw, tube_node_start[t], tube_node_start[t + 1], node_q, node_rest_q, node_kappa_rest, node_kappa_target)
+        start = tube_node_start[t]
+        end = tube_node_start[t + 1]
+        curvature_targets(w, pw, start, end, node_q, node_rest_q, node_kappa_rest, node_kappa_target)
+        for i in range(start, end):
+            node_f_frame[w, i] = wp.vec3(0.0)
+        frame_forces(w, pw, start, end, node_q, node_q_lo, node_rest_q, node_bend_k, node_kappa_target, node_f_frame)
 
     @wp.kernel(enable_backward=False, module="unique", module_options=CUDA_OPTIONS)
     def stencils(
@@ -476,10 +495,12 @@ def make_kernels(features: Features):
         node_qd_in: wp.array2d[wp.vec3],
         node_kappa_target: wp.array2d[wp.vec3],
         al_q_in: wp.array2d[wp.vec3],
+        al_q_lo_in: wp.array2d[wp.vec3],
         al_qd_in: wp.array2d[wp.vec3],
         seg_f: wp.array2d[wp.vec3],
         bend_ga: wp.array2d[wp.vec3],
         bend_gb: wp.array2d[wp.vec3],
+        node_f_frame: wp.array2d[wp.vec3],
         # control:
         node_f_ext: wp.array2d[wp.vec3],
         pin_q_start: wp.array2d[wp.vec3],
@@ -518,11 +539,13 @@ def make_kernels(features: Features):
             f += bend_gb[w, i] - bend_ga[w, i]
             if i > start:
                 f -= bend_gb[w, i - 1]
+        if wp.static(CURVED):
+            f += node_f_frame[w, i]
         f += node_force(
             w, pw, i, start, end, t,
             node_rest_q, node_mass, seg_rest_length, seg_ke, seg_kd, node_bend_k,
             node_anchor_k, node_anchor_kd, gravity, tube_force_start, force_node, al_start,
-            node_q_in, node_q_lo_in, node_qd_in, node_kappa_target, al_q_in, al_qd_in,
+            node_q_in, node_q_lo_in, node_qd_in, node_kappa_target, al_q_in, al_q_lo_in, al_qd_in,
             node_f_ext, al_active, al_link_length, al_fwd_length, al_bwd_length,
         )  # fmt: skip
         x_new, lo_new, v_new = advance(node_q_in[w, i], node_q_lo_in[w, i], node_qd_in[w, i], f, im, node_damping[pw, i], dt)
@@ -557,10 +580,12 @@ def make_kernels(features: Features):
         node_qd_in: wp.array2d[wp.vec3],
         node_kappa_target: wp.array2d[wp.vec3],
         al_q_in: wp.array2d[wp.vec3],
+        al_q_lo_in: wp.array2d[wp.vec3],
         al_qd_in: wp.array2d[wp.vec3],
         seg_f: wp.array2d[wp.vec3],
         bend_ga: wp.array2d[wp.vec3],
         bend_gb: wp.array2d[wp.vec3],
+        node_f_frame: wp.array2d[wp.vec3],
         # control:
         node_f_ext: wp.array2d[wp.vec3],
         pin_q_start: wp.array2d[wp.vec3],
@@ -612,11 +637,13 @@ def make_kernels(features: Features):
             if i - 1 > start:
                 ga, gb = bend_stencil(i - 1, pw, w, node_q_in, node_q_lo_in, node_bend_k, node_kappa_target)
                 f -= gb
+        if wp.static(CURVED):
+            f += node_f_frame[w, i]
         f += node_force(
             w, pw, i, start, end, t,
             node_rest_q, node_mass, seg_rest_length, seg_ke, seg_kd, node_bend_k,
             node_anchor_k, node_anchor_kd, gravity, tube_force_start, force_node, al_start,
-            node_q_in, node_q_lo_in, node_qd_in, node_kappa_target, al_q_in, al_qd_in,
+            node_q_in, node_q_lo_in, node_qd_in, node_kappa_target, al_q_in, al_q_lo_in, al_qd_in,
             node_f_ext, al_active, al_link_length, al_fwd_length, al_bwd_length,
         )  # fmt: skip
         x_new, lo_new, v_new = advance(node_q_in[w, i], node_q_lo_in[w, i], node_qd_in[w, i], f, im, node_damping[pw, i], dt)
@@ -639,8 +666,10 @@ def make_kernels(features: Features):
         al_force_index: wp.array[int],
         # state in:
         node_q_in: wp.array2d[wp.vec3],
+        node_q_lo_in: wp.array2d[wp.vec3],
         node_qd_in: wp.array2d[wp.vec3],
         al_q_in: wp.array2d[wp.vec3],
+        al_q_lo_in: wp.array2d[wp.vec3],
         al_qd_in: wp.array2d[wp.vec3],
         # control:
         al_active: wp.array2d[int],
@@ -650,6 +679,7 @@ def make_kernels(features: Features):
         al_bwd_length: wp.array2d[float],
         # out:
         al_q_out: wp.array2d[wp.vec3],
+        al_q_lo_out: wp.array2d[wp.vec3],
         al_qd_out: wp.array2d[wp.vec3],
     ):
         """One substep for one assistant-line point (thread per (world, AL slot))."""
@@ -664,11 +694,12 @@ def make_kernels(features: Features):
         i = start + (p - al_start[a])
         f = al_force(
             w, pw, a, p, i, start, end, seg_ke, seg_kd, force_node,
-            node_q_in, node_qd_in, al_q_in, al_qd_in,
+            node_q_in, node_q_lo_in, node_qd_in, al_q_in, al_q_lo_in, al_qd_in,
             al_link_length, al_chord_length, al_fwd_length, al_bwd_length,
         )  # fmt: skip
-        x_new, lo_new, v_new = advance(al_q_in[w, p], wp.vec3(0.0), al_qd_in[w, p], f, 1.0 / node_mass[pw, i], node_damping[pw, i], dt)
+        x_new, lo_new, v_new = advance(al_q_in[w, p], al_q_lo_in[w, p], al_qd_in[w, p], f, 1.0 / node_mass[pw, i], node_damping[pw, i], dt)
         al_q_out[w, p] = x_new
+        al_q_lo_out[w, p] = lo_new
         al_qd_out[w, p] = v_new
 
     return substeps, targets, stencils, step_nodes, step_nodes_gather, step_al

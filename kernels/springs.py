@@ -42,6 +42,21 @@ def node_delta(node_q: wp.array2d[wp.vec3], node_q_lo: wp.array2d[wp.vec3], w: i
 
 
 @wp.func
+def al_delta(
+    al_q: wp.array2d[wp.vec3],
+    al_q_lo: wp.array2d[wp.vec3],
+    w: int,
+    p: int,
+    node_q: wp.array2d[wp.vec3],
+    node_q_lo: wp.array2d[wp.vec3],
+    i: int,
+) -> wp.vec3:
+    """Assistant-line point ``p`` minus centerline node ``i`` [m], from compensated positions
+    (see :func:`node_delta`)."""
+    return (al_q[w, p] - node_q[w, i]) + (al_q_lo[w, p] - node_q_lo[w, i])
+
+
+@wp.func
 def curvature_binormal(a: wp.vec3, b: wp.vec3) -> wp.vec3:
     """Discrete curvature binormal ``2 a x b / (|a||b| + a.b)`` of edges ``a``, ``b`` [1].
 
@@ -128,7 +143,8 @@ def curvature_targets(
     edge ``j - 1`` as ``node_kappa_rest`` = (along tangent, along u, along v). The current Bishop
     frame is carried from the first edge (least rotation of its rest direction onto its current
     one) edge to edge by least rotations, and the target is rebuilt in it. A straight rest tube has
-    zero targets and never calls this.
+    zero targets and never calls this. The targets depend on the shape: :func:`frame_forces` adds
+    the forces of that dependence.
     """
     t_rest = wp.normalize(node_rest_q[pw, start + 1] - node_rest_q[pw, start])
     t = wp.normalize(node_q[w, start + 1] - node_q[w, start])
@@ -149,3 +165,60 @@ def curvature_targets(
         u = rotate_minimal(u, t, t_next)
         u = wp.normalize(u - t_next * wp.dot(u, t_next))
         t = t_next
+
+
+@wp.func
+def frame_forces(
+    w: int,
+    pw: int,
+    start: int,
+    end: int,
+    node_q: wp.array2d[wp.vec3],
+    node_q_lo: wp.array2d[wp.vec3],
+    node_rest_q: wp.array2d[wp.vec3],
+    node_bend_k: wp.array2d[float],
+    node_kappa_target: wp.array2d[wp.vec3],
+    node_f_out: wp.array2d[wp.vec3],
+):
+    """Add to ``node_f_out`` [N] the forces from the targets' dependence on the shape.
+
+    The target ``T_j`` of the stencil at ``j`` lives in the Bishop frame of edge ``j - 1``, which
+    moves with the shape: by the angular velocity ``t x dt + dpsi t``. With ``g_j = k_j (kb_j - T_j)``
+    and ``h_j = T_j x g_j`` the energy changes by ``(t x h_j) . de_{j-1} / |e_{j-1}|`` (the frame
+    following its edge) and by ``mu_j dpsi_{j-1}``, ``mu_j = -t_{j-1} . h_j`` (its twist). The
+    twist of a Bishop frame accumulates along the tube: each transport at node ``k`` adds
+    ``-kb_k / 2 . (de_{k-1} / |e_{k-1}| + de_k / |e_k|)`` (discrete parallel-transport holonomy), and
+    the first frame ``-kb_0 / 2 . de_0 / |e_0|`` with ``kb_0`` the binormal from its rest to its
+    current direction. So each transport is weighted by the suffix sum ``M_k = sum_{j > k} mu_j``,
+    one backward pass. With these terms the bending force is the exact gradient of the energy.
+    """
+    m_sum = float(0.0)
+    for jj in range(end - start - 2):
+        j = end - 2 - jj
+        a = node_delta(node_q, node_q_lo, w, j - 1, j)
+        b = node_delta(node_q, node_q_lo, w, j, j + 1)
+        la = wp.length(a)
+        lb = wp.length(b)
+        ta = a / la
+        kb = curvature_binormal(a, b)
+        tgt = node_kappa_target[w, j]
+        h = wp.cross(tgt, (kb - tgt) * node_bend_k[pw, j])
+        # The frame of edge j-1 follows its edge: dE/de_{j-1} = (t x h) / |e_{j-1}|.
+        grad = wp.cross(ta, h) / la
+        # The transport at node j (edges j-1 -> j) twists every later frame: weight M_j.
+        tw = kb * (-0.5 * m_sum)
+        grad_a = grad + tw / la
+        grad_b = tw / lb
+        # Edge e_i = x_{i+1} - x_i: dE/dx_{i+1} = G, dE/dx_i = -G; force = -gradient.
+        node_f_out[w, j] = node_f_out[w, j] - grad_a + grad_b
+        node_f_out[w, j - 1] = node_f_out[w, j - 1] + grad_a
+        node_f_out[w, j + 1] = node_f_out[w, j + 1] - grad_b
+        m_sum += -wp.dot(ta, h)
+    # The first frame: least rotation from the first edge's rest direction.
+    e0 = node_delta(node_q, node_q_lo, w, start, start + 1)
+    l0 = wp.length(e0)
+    t_rest = wp.normalize(node_rest_q[pw, start + 1] - node_rest_q[pw, start])
+    kb0 = curvature_binormal(t_rest, e0)
+    g0 = kb0 * (-0.5 * m_sum / l0)
+    node_f_out[w, start + 1] = node_f_out[w, start + 1] - g0
+    node_f_out[w, start] = node_f_out[w, start] + g0

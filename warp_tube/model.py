@@ -90,6 +90,7 @@ class TubeState:
             ``node_q + node_q_lo``, of which ``node_q`` is the float32 rounding), same shape.
         node_qd: node velocities [m/s], shape (world_count, node_count), vec3.
         al_q: assistant-line point positions [m], shape (world_count, al_slots), vec3.
+        al_q_lo: low-order part of the assistant-line positions [m], same shape.
         al_qd: assistant-line point velocities [m/s], shape (world_count, al_slots), vec3.
     """
 
@@ -97,11 +98,12 @@ class TubeState:
     node_q_lo: wp.array
     node_qd: wp.array
     al_q: wp.array
+    al_q_lo: wp.array
     al_qd: wp.array
 
     def assign(self, other: "TubeState"):
         """Copy ``other`` into this state (same shapes)."""
-        for name in ("node_q", "node_q_lo", "node_qd", "al_q", "al_qd"):
+        for name in ("node_q", "node_q_lo", "node_qd", "al_q", "al_q_lo", "al_qd"):
             wp.copy(getattr(self, name), getattr(other, name))
 
 
@@ -167,12 +169,16 @@ class TubeModel:
     def state(self) -> TubeState:
         """A new state at rest."""
         q = np.repeat(self.host["node_rest_q"][None], self.world_count, axis=0)
+        hi = q.astype(np.float32)
         shape_al = (self.world_count, max(self.al_slots, 1))
+        # The low-order part starts at the rounding of the rest positions, so the compensated
+        # positions are the rest shape and every spring starts unstrained.
         return TubeState(
-            node_q=wp.array(q, dtype=wp.vec3, device=self.device),
-            node_q_lo=wp.zeros((self.world_count, self.node_count), dtype=wp.vec3, device=self.device),
+            node_q=wp.array(hi, dtype=wp.vec3, device=self.device),
+            node_q_lo=wp.array((q - hi).astype(np.float32), dtype=wp.vec3, device=self.device),
             node_qd=wp.zeros((self.world_count, self.node_count), dtype=wp.vec3, device=self.device),
             al_q=wp.zeros(shape_al, dtype=wp.vec3, device=self.device),
+            al_q_lo=wp.zeros(shape_al, dtype=wp.vec3, device=self.device),
             al_qd=wp.zeros(shape_al, dtype=wp.vec3, device=self.device),
         )
 

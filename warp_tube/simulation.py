@@ -144,8 +144,10 @@ class Simulation:
         self._contact_reported = False
         self._retry = self.scene.settings.integrator == "auto"
         self._work = np.zeros(world_count)
-        # Round-off can leave ~1e-7 of the extent in every spring; its energy is the floor.
-        self._energy_floor = float(np.sum(m.host["seg_ke"])) * (1e-6 * max(self._extent, 1e-9)) ** 2 + 1e-30
+        # float32 round-off moves points by ~1e-7 of their coordinates; springs strained that much
+        # (with a 10x margin) hold the energy below which nothing counts as a blow-up.
+        scale = max(self._extent, float(np.abs(m.host["node_rest_q"]).max()), 1e-9)
+        self._energy_floor = float(np.sum(m.host["seg_ke"])) * (1e-6 * scale) ** 2 + 1e-30
         self._moving_pins = any(t.pin_track is not None for t in scene.tubes)
         self.retried_frames = 0
         self.max_retry_factor = 1
@@ -266,8 +268,9 @@ class Simulation:
             if active[0, a] and float(np.dot(d, self._al_dir[a])) >= math.cos(AL_REBUILD_ANGLE):
                 continue
             if state_q is None:
-                state_q, state_qd = self.state.node_q.numpy(), self.state.node_qd.numpy()
-                al_q, al_qd = self.state.al_q.numpy(), self.state.al_qd.numpy()
+                state_q = self.state.node_q.numpy().astype(np.float64) + self.state.node_q_lo.numpy()
+                state_qd = self.state.node_qd.numpy()
+                al_q, al_qd = self.state.al_q.numpy().astype(np.float64), self.state.al_qd.numpy()
                 lens = {n: getattr(c, n).numpy() for n in ("al_link_length", "al_chord_length", "al_fwd_length", "al_bwd_length")}
             t = h["force_tube"][a]
             s, e = h["tube_node_start"][t], h["tube_node_start"][t + 1]
@@ -286,11 +289,13 @@ class Simulation:
             p0 = h["al_start"][a]
             sl = slice(p0, p0 + e - s)
             off = h["node_radius"][s:e, None] * offset_dir[None]
+            # Positions in float64 (compensated: float32 + low-order part), so the line is built
+            # unstrained in the kernels' arithmetic.
             x = state_q[:, s:e]
             xp = x + off[None]
             al_q[:, sl] = xp
             al_qd[:, sl] = state_qd[:, s:e]
-            lens["al_link_length"][:, sl] = h["node_radius"][s:e][None]
+            lens["al_link_length"][:, sl] = np.linalg.norm(xp - x, axis=-1)
             chord = np.linalg.norm(xp[:, 1:] - xp[:, :-1], axis=-1)
             lens["al_chord_length"][:, p0 : p0 + e - s - 1] = chord
             lens["al_fwd_length"][:, p0 : p0 + e - s - 1] = np.linalg.norm(x[:, 1:] - xp[:, :-1], axis=-1)
@@ -298,7 +303,9 @@ class Simulation:
             active[:, a] = 1
             changed = True
         if state_q is not None:
-            self.state.al_q.assign(al_q)
+            hi = al_q.astype(np.float32)
+            self.state.al_q.assign(hi)
+            self.state.al_q_lo.assign((al_q - hi).astype(np.float32))
             self.state.al_qd.assign(al_qd)
             for n, v in lens.items():
                 getattr(c, n).assign(v)

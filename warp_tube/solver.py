@@ -43,6 +43,7 @@ class SemiImplicitEulerSolver:
         self._al_f = wp.zeros((W, slots), dtype=wp.vec3, device=self.device)
         rows = W if model.features.curved else 1
         self._kappa_target = wp.zeros((rows, N), dtype=wp.vec3, device=self.device)
+        self._f_frame = wp.zeros((rows, N), dtype=wp.vec3, device=self.device)
         self._tmp = model.state() if self.per_node else None
         shape = (W, N) if self.per_node and not gather else (1, 1)
         self._seg_f, self._bend_ga, self._bend_gb = (wp.zeros(shape, dtype=wp.vec3, device=self.device) for _ in range(3))
@@ -57,8 +58,8 @@ class SemiImplicitEulerSolver:
         m = self.model
         if m.features.curved:
             wp.launch(self.targets_kernel, (m.world_count, m.tube_count), device=self.device,
-                      inputs=[m.tube_node_start, m.node_rest_q, m.node_kappa_rest, s_in.node_q],
-                      outputs=[self._kappa_target])  # fmt: skip
+                      inputs=[m.tube_node_start, m.node_rest_q, m.node_kappa_rest, m.node_bend_k, s_in.node_q, s_in.node_q_lo],
+                      outputs=[self._kappa_target, self._f_frame])  # fmt: skip
         if not self.gather:
             wp.launch(
                 self.stencil_kernel, (m.world_count, m.node_count), device=self.device,
@@ -71,8 +72,8 @@ class SemiImplicitEulerSolver:
             inputs=[frac, dt, m.node_tube, m.tube_node_start, m.node_rest_q, m.node_mass, m.node_inv_mass,
                     m.node_damping, m.seg_rest_length, m.seg_ke, m.seg_kd, m.node_bend_k, m.node_anchor_k,
                     m.node_anchor_kd, m.gravity, m.tube_force_start, m.force_node, m.al_start,
-                    s_in.node_q, s_in.node_q_lo, s_in.node_qd, self._kappa_target, s_in.al_q, s_in.al_qd,
-                    self._seg_f, self._bend_ga, self._bend_gb, c.node_f_ext, c.pin_q_start, c.pin_q_end, c.al_active, c.al_link_length,
+                    s_in.node_q, s_in.node_q_lo, s_in.node_qd, self._kappa_target, s_in.al_q, s_in.al_q_lo, s_in.al_qd,
+                    self._seg_f, self._bend_ga, self._bend_gb, self._f_frame, c.node_f_ext, c.pin_q_start, c.pin_q_end, c.al_active, c.al_link_length,
                     c.al_fwd_length, c.al_bwd_length],
             outputs=[s_out.node_q, s_out.node_q_lo, s_out.node_qd],
         )  # fmt: skip
@@ -80,10 +81,10 @@ class SemiImplicitEulerSolver:
             wp.launch(
                 self.al_kernel, (m.world_count, m.al_slots), device=self.device,
                 inputs=[dt, m.force_tube, m.tube_node_start, m.node_mass, m.node_damping, m.seg_ke, m.seg_kd,
-                        m.force_node, m.al_start, m.al_force_index, s_in.node_q, s_in.node_qd, s_in.al_q,
-                        s_in.al_qd, c.al_active, c.al_link_length, c.al_chord_length, c.al_fwd_length,
+                        m.force_node, m.al_start, m.al_force_index, s_in.node_q, s_in.node_q_lo, s_in.node_qd, s_in.al_q,
+                        s_in.al_q_lo, s_in.al_qd, c.al_active, c.al_link_length, c.al_chord_length, c.al_fwd_length,
                         c.al_bwd_length],
-                outputs=[s_out.al_q, s_out.al_qd],
+                outputs=[s_out.al_q, s_out.al_q_lo, s_out.al_qd],
             )  # fmt: skip
 
     def _launch_substeps(self, s_in: TubeState, s_out: TubeState, c: TubeControl, dt: float, substeps: int):
