@@ -133,6 +133,8 @@ def main():
     ap.add_argument("--device", default=None)
     ap.add_argument("--reps", type=int, default=7)
     ap.add_argument("--worlds", type=int, default=None, help="batch size (default 65536 on CUDA, 256 on CPU)")
+    ap.add_argument("--points", type=int, default=32, help="points per tube in the batch cases")
+    ap.add_argument("--batch-only", action="store_true", help="only the batch cases")
     a = ap.parse_args()
     wp.config.log_level = wp.LOG_WARNING
     wp.init()
@@ -143,14 +145,16 @@ def main():
         "benchmark": "centerline", "date": datetime.date.today().isoformat(), "device": device,
         "device_name": dev.name, "warp": wp.config.version, "cpu": platform.processor() or platform.machine(),
     }  # fmt: skip
-    res["substep_20pt_minimal"] = substep_case(device, 20, False, a.reps)
-    res["substep_20pt_all_features"] = substep_case(device, 20, True, a.reps)
-    res["feature_cost_ratio"] = res["substep_20pt_all_features"]["time_per_substep_us"] / res["substep_20pt_minimal"]["time_per_substep_us"]
-    res["frame_60fps_20pt"] = frame_case(device, a.reps)
-    res["batch_per_node"] = substep_case(device, 32, False, a.reps, per_node=True, worlds=worlds)
-    res["batch_per_node_stencils"] = substep_case(device, 32, False, a.reps, per_node=True, worlds=worlds, gather=False)
-    res["batch_per_node_all_features"] = substep_case(device, 32, True, a.reps, per_node=True, worlds=worlds)
-    res["batch_per_tube"] = substep_case(device, 32, False, a.reps, per_node=False, worlds=worlds)
+    if not a.batch_only:
+        res["substep_20pt_minimal"] = substep_case(device, 20, False, a.reps)
+        res["substep_20pt_all_features"] = substep_case(device, 20, True, a.reps)
+        res["feature_cost_ratio"] = res["substep_20pt_all_features"]["time_per_substep_us"] / res["substep_20pt_minimal"]["time_per_substep_us"]
+        res["frame_60fps_20pt"] = frame_case(device, a.reps)
+    P = a.points
+    res["batch_per_node"] = substep_case(device, P, False, a.reps, per_node=True, worlds=worlds)
+    res["batch_per_node_stencils"] = substep_case(device, P, False, a.reps, per_node=True, worlds=worlds, gather=False)
+    res["batch_per_node_all_features"] = substep_case(device, P, True, a.reps, per_node=True, worlds=worlds)
+    res["batch_per_tube"] = substep_case(device, P, False, a.reps, per_node=False, worlds=worlds)
     res["error"] = error_case(device)
     for v in res.values():
         if isinstance(v, dict):

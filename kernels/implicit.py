@@ -33,7 +33,7 @@ import functools
 import warp as wp
 
 from .integrate import ControlArrays, Features, ModelArrays, StateArrays
-from .springs import curvature_targets
+from .springs import curvature_targets, frame_forces
 
 EPS64 = wp.constant(wp.float64(1.0e-12))
 
@@ -44,6 +44,7 @@ class ImplicitScratch:
 
     Attributes:
         node_kappa_target: curvature targets of curved rest shapes [1], vec3.
+        node_f_frame: force of the targets' dependence on the shape [N], vec3.
         node_x0, node_v0: positions [m] and velocities [m/s] at the substep's start, vec3d.
         node_w: the Newton iterate's end-of-step velocity ``w`` [m/s], vec3d.
         node_r: ``h f - M (w - v0)`` [N s], then the solution ``dv`` [m/s], vec3d.
@@ -54,6 +55,7 @@ class ImplicitScratch:
     """
 
     node_kappa_target: wp.array2d[wp.vec3]
+    node_f_frame: wp.array2d[wp.vec3]
     node_x0: wp.array2d[wp.vec3d]
     node_v0: wp.array2d[wp.vec3d]
     node_w: wp.array2d[wp.vec3d]
@@ -374,6 +376,14 @@ def make_implicit_kernel(features: Features):
                     scratch.mat_l1[w, j] = scratch.mat_l1[w, j] + wp.transpose(j2) * j1 * hk
                 if f0 and f2:
                     scratch.mat_l2[w, j - 1] = scratch.mat_l2[w, j - 1] + wp.transpose(j2) * j0 * hk
+        if wp.static(CURVED):
+            # The targets move with the shape: their exact force (see springs.frame_forces).
+            for i in range(start, end):
+                scratch.node_f_frame[w, i] = wp.vec3(0.0)
+            frame_forces(w, pw, start, end, q, q_lo, model.node_rest_q, model.node_bend_k, scratch.node_kappa_target, scratch.node_f_frame)
+            for i in range(start, end):
+                if model.node_inv_mass[pw, i] > 0.0:
+                    scratch.node_r[w, i] = scratch.node_r[w, i] + wp.vec3d(scratch.node_f_frame[w, i])
         for i in range(start, end):
             scratch.node_r[w, i] = scratch.node_r[w, i] * h
         factor_solve(w, start, end, scratch)

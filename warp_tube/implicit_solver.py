@@ -59,6 +59,7 @@ class ImplicitEulerSolver:
         W, N = model.world_count, model.node_count
         s = ImplicitScratch()
         s.node_kappa_target = wp.zeros((W, N), dtype=wp.vec3, device=self.device)
+        s.node_f_frame = wp.zeros((W, N), dtype=wp.vec3, device=self.device)
         for name in ("node_x0", "node_v0", "node_w", "node_r"):
             setattr(s, name, wp.zeros((W, N), dtype=wp.vec3d, device=self.device))
         for name in ("mat_d", "mat_dinv", "mat_l1", "mat_l2"):

@@ -33,6 +33,14 @@ __all__ = ["Simulation", "NumericalError", "RunSummary", "resolve_device"]
 SAFETY = 0.5
 #: the assistant line is rebuilt when its force turns by more than this [rad].
 AL_REBUILD_ANGLE = math.radians(45.0)
+#: implicit Euler's default substep [s] (its numerical damping: 1.5% amplitude per period of a
+#: 1 Hz mode at this step).
+IMPLICIT_DT = 1.0 / 240.0
+#: cost of an implicit substep over a semi-implicit one, per node (measured on the CPU: ~0.8 us
+#: against ~0.05 us; benchmarks/bench_integrators.py).
+IMPLICIT_COST_RATIO = 16.0
+#: whether ``auto`` may choose implicit Euler (off while its long-tube substep bug is open).
+AUTO_IMPLICIT = False
 #: the largest substep multiplier ``auto`` tries for a frame that blew up.
 MAX_RETRY_FACTOR = 16
 #: no assistant line is built for a force within this angle of the tube's axis [rad].
@@ -127,7 +135,12 @@ class Simulation:
         self.integrator, self.reason, dt = self._choose_integrator()
         self.substeps = max(1, math.ceil(self.frame_dt / dt - 1e-9))
         self.dt = self.frame_dt / self.substeps
-        self.solver = SemiImplicitEulerSolver(m)
+        if self.integrator == "implicitEuler":
+            from .implicit_solver import ImplicitEulerSolver
+
+            self.solver = ImplicitEulerSolver(m)
+        else:
+            self.solver = SemiImplicitEulerSolver(m)
         self.state, self.next_state = m.state(), m.state()
         self.control = m.control()
         self.frame = 0
@@ -154,23 +167,46 @@ class Simulation:
 
     # -- set-up ----------------------------------------------------------------------------------
     def _choose_integrator(self):
+        """(integrator, reason, substep [s]) for the scene's settings; see the README."""
         s = self.scene.settings
         hc = self.critical_dt
+        semi_dt = SAFETY * hc
+        has_al = self.model.features.assistant_line
         if s.integrator == "implicitEuler":
-            raise SceneError(f"{self.scene.source}: integrator 'implicitEuler' is not available in this build; use 'auto' or 'semiImplicitEuler'")
-        if s.time_step is not None:
-            dt = min(s.time_step, self.frame_dt)
-            if dt > hc:
-                msg = f"timeStep {dt:.3g} s exceeds the semi-implicit Euler stability bound {hc:.3g} s"
-                if s.integrator == "auto":
-                    reason = f"{msg}; auto substeps at {SAFETY:g} x the bound"
-                    return "semiImplicitEuler", reason, SAFETY * hc
-                log.warning("%s: expect a blow-up", msg)
-                return "semiImplicitEuler", f"forced; {msg}", dt
-            return "semiImplicitEuler", f"timeStep {dt:.3g} s from the scene (bound {hc:.3g} s)", dt
+            if has_al:
+                raise SceneError(
+                    f"{self.scene.source}: integrator 'implicitEuler' does not integrate the assistant line of "
+                    "a force with warptube:assistantLine = true: set assistantLine = false on the force, or use "
+                    "'auto' or 'semiImplicitEuler'"
+                )
+            dt = min(s.time_step or IMPLICIT_DT, self.frame_dt)
+            return "implicitEuler", f"from the scene, substep {dt:.3g} s", dt
+        if s.integrator == "semiImplicitEuler":
+            if s.time_step is not None:
+                dt = min(s.time_step, self.frame_dt)
+                if dt > hc:
+                    log.warning("timeStep %.3g s exceeds the semi-implicit Euler stability bound %.3g s: expect a blow-up", dt, hc)
+                    return "semiImplicitEuler", f"forced; timeStep {dt:.3g} s exceeds the stability bound {hc:.3g} s", dt
+                return "semiImplicitEuler", f"from the scene, timeStep {dt:.3g} s (bound {hc:.3g} s)", dt
+            if not math.isfinite(hc):
+                return "semiImplicitEuler", "from the scene; nothing stiff: one substep per frame", self.frame_dt
+            return "semiImplicitEuler", f"from the scene, substep {SAFETY:g} x the stability bound {hc:.3g} s", semi_dt
+        # auto: the cheaper of the two, by the cost per substep and node measured for each.
         if not math.isfinite(hc):
-            return "semiImplicitEuler", "nothing stiff to bound the step: one substep per frame", self.frame_dt
-        return "semiImplicitEuler", f"substep {SAFETY:g} x the stability bound {hc:.3g} s", SAFETY * hc
+            return "semiImplicitEuler", "auto: nothing stiff to bound the step, one substep per frame", self.frame_dt
+        impl_dt = min(s.time_step or IMPLICIT_DT, self.frame_dt)
+        semi_steps = math.ceil(self.frame_dt / semi_dt - 1e-9)
+        impl_steps = math.ceil(self.frame_dt / impl_dt - 1e-9)
+        if s.time_step is not None and s.time_step <= hc:
+            return "semiImplicitEuler", f"auto: timeStep {s.time_step:.3g} s is within the stability bound {hc:.3g} s", s.time_step
+        cheaper = AUTO_IMPLICIT and impl_steps * IMPLICIT_COST_RATIO < semi_steps
+        if cheaper and not has_al:
+            return "implicitEuler", (
+                f"auto: stiff ({semi_steps} stable semi-implicit substeps a frame against {impl_steps} implicit "
+                f"ones at ~{IMPLICIT_COST_RATIO:g}x the cost each)"
+            ), impl_dt
+        why = "the assistant line needs it" if cheaper else f"cheaper than implicit ({impl_steps} substeps at ~{IMPLICIT_COST_RATIO:g}x the cost)"
+        return "semiImplicitEuler", f"auto: {semi_steps} substeps a frame at {SAFETY:g} x the stability bound {hc:.3g} s; {why}", semi_dt
 
     def _build_surfaces(self):
         from .surface import SurfaceBuilder
