@@ -30,7 +30,7 @@ from typing import NamedTuple
 
 import warp as wp
 
-from .springs import al_delta, bend_stencil, curvature_targets, frame_forces, node_delta, spring_force
+from .springs import al_delta, bend_gradients, bend_stencil, curvature_targets, frame_forces, node_delta, spring_force
 
 
 @wp.struct
@@ -613,30 +613,47 @@ def make_kernels(features: Features):
         t = node_tube[i]
         start = tube_node_start[t]
         end = tube_node_start[t + 1]
-        # Each node evaluates its two springs and three bending stencils itself: more arithmetic,
-        # less memory traffic than `stencils` + `step_nodes`.
+        # Each node evaluates its two springs and three bending stencils itself (more arithmetic,
+        # less memory traffic than `stencils` + `step_nodes`), from the four edges around it,
+        # each formed once from the compensated positions.
         v = node_qd_in[w, i]
         f = wp.vec3(0.0)
-        if i < end - 1:
-            kd = float(0.0)
-            if wp.static(SPRING_DAMPING):
-                kd = seg_kd[pw, i]
-            f += spring_force(node_delta(node_q_in, node_q_lo_in, w, i, i + 1), node_qd_in[w, i + 1] - v, seg_rest_length[pw, i], seg_ke[pw, i], kd)
-        if i > start:
+        zero = wp.vec3(0.0)
+        em2 = zero
+        em1 = zero
+        e0 = zero
+        ep1 = zero
+        if i - 1 >= start:
+            em1 = node_delta(node_q_in, node_q_lo_in, w, i - 1, i)
             kd = float(0.0)
             if wp.static(SPRING_DAMPING):
                 kd = seg_kd[pw, i - 1]
-            f += spring_force(node_delta(node_q_in, node_q_lo_in, w, i, i - 1), node_qd_in[w, i - 1] - v, seg_rest_length[pw, i - 1], seg_ke[pw, i - 1], kd)
+            f += spring_force(-em1, node_qd_in[w, i - 1] - v, seg_rest_length[pw, i - 1], seg_ke[pw, i - 1], kd)
+        if i + 1 < end:
+            e0 = node_delta(node_q_in, node_q_lo_in, w, i, i + 1)
+            kd = float(0.0)
+            if wp.static(SPRING_DAMPING):
+                kd = seg_kd[pw, i]
+            f += spring_force(e0, node_qd_in[w, i + 1] - v, seg_rest_length[pw, i], seg_ke[pw, i], kd)
         if wp.static(BENDING):
+            kt = w % node_kappa_target.shape[0]
             if i + 1 < end - 1:
-                ga, gb = bend_stencil(i + 1, pw, w, node_q_in, node_q_lo_in, node_bend_k, node_kappa_target)
-                f += ga
+                ep1 = node_delta(node_q_in, node_q_lo_in, w, i + 1, i + 2)
+                k = node_bend_k[pw, i + 1]
+                if k != 0.0:
+                    ga, gb = bend_gradients(e0, ep1, node_kappa_target[kt, i + 1], k)
+                    f += ga
             if i > start and i < end - 1:
-                ga, gb = bend_stencil(i, pw, w, node_q_in, node_q_lo_in, node_bend_k, node_kappa_target)
-                f += gb - ga
+                k = node_bend_k[pw, i]
+                if k != 0.0:
+                    ga, gb = bend_gradients(em1, e0, node_kappa_target[kt, i], k)
+                    f += gb - ga
             if i - 1 > start:
-                ga, gb = bend_stencil(i - 1, pw, w, node_q_in, node_q_lo_in, node_bend_k, node_kappa_target)
-                f -= gb
+                em2 = node_delta(node_q_in, node_q_lo_in, w, i - 2, i - 1)
+                k = node_bend_k[pw, i - 1]
+                if k != 0.0:
+                    ga, gb = bend_gradients(em2, em1, node_kappa_target[kt, i - 1], k)
+                    f -= gb
         if wp.static(CURVED):
             f += node_f_frame[w, i]
         f += node_force(
