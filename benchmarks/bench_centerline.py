@@ -69,10 +69,10 @@ def timed(fn, reps, sync):
     return float(np.median(out)), out
 
 
-def substep_case(device, n_points, extras, reps, per_node=None, worlds=1, substeps=None, gather=True):
+def substep_case(device, n_points, extras, reps, per_node=None, worlds=1, substeps=None, gather=True, block_dim=256):
     sim = Simulation(scene(n_points, extras), device=device, world_count=worlds, surface=False)
     sim.step()  # builds the assistant line, compiles
-    solver = SemiImplicitEulerSolver(sim.model, per_node=per_node, gather=gather)
+    solver = SemiImplicitEulerSolver(sim.model, per_node=per_node, gather=gather, block_dim=block_dim)
     n = substeps or sim.substeps
     s0, s1 = sim.state, sim.next_state
     sync = (lambda: wp.synchronize_device(device))
@@ -85,6 +85,7 @@ def substep_case(device, n_points, extras, reps, per_node=None, worlds=1, subste
     return {
         "worlds": worlds, "points": n_points, "substeps_per_launch": n, "dt_s": sim.dt,
         "per_node_kernel": solver.per_node, "gather": solver.gather if solver.per_node else None,
+        "block_dim": solver.block_dim if solver.per_node else None,
         "time_per_substep_us": med / n * 1e6,
         "hub_steps_per_s": worlds * sim.model.node_count * n / med,
         "reps_s": all_t,
@@ -152,6 +153,9 @@ def main():
         res["frame_60fps_20pt"] = frame_case(device, a.reps)
     P = a.points
     res["batch_per_node"] = substep_case(device, P, False, a.reps, per_node=True, worlds=worlds)
+    if wp.get_device(device).is_cuda:
+        for bd in (64, 128, 512):
+            res[f"batch_per_node_block{bd}"] = substep_case(device, P, False, a.reps, per_node=True, worlds=worlds, block_dim=bd)
     res["batch_per_node_stencils"] = substep_case(device, P, False, a.reps, per_node=True, worlds=worlds, gather=False)
     res["batch_per_node_all_features"] = substep_case(device, P, True, a.reps, per_node=True, worlds=worlds)
     res["batch_per_tube"] = substep_case(device, P, False, a.reps, per_node=False, worlds=worlds)

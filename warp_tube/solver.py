@@ -23,6 +23,7 @@ class SemiImplicitEulerSolver:
     Args:
         model: the discretised scene.
         per_node: use the per-node kernels (default: on CUDA devices); else the per-tube loop.
+        block_dim: CUDA threads per block of the per-node kernels.
         gather: on the per-node path, one kernel per substep in which each node evaluates its own
             springs and stencils (default); else a ``stencils`` kernel evaluating each once, then
             the step kernel summing them.
@@ -30,13 +31,14 @@ class SemiImplicitEulerSolver:
 
     name = "semiImplicitEuler"
 
-    def __init__(self, model: TubeModel, per_node: bool | None = None, gather: bool = True):
+    def __init__(self, model: TubeModel, per_node: bool | None = None, gather: bool = True, block_dim: int = 256):
         self.model = model
         self.device = wp.get_device(model.device)
         self.per_node = self.device.is_cuda if per_node is None else per_node
         (self.substeps_kernel, self.targets_kernel, self.stencil_kernel, self.step_kernel, self.gather_kernel,
          self.al_kernel) = make_kernels(model.features)  # fmt: skip
         self.gather = gather
+        self.block_dim = int(block_dim)
         W, N = model.world_count, model.node_count
         slots = max(model.al_slots, 1)
         self._node_f = wp.zeros((W, N), dtype=wp.vec3, device=self.device)
@@ -69,6 +71,7 @@ class SemiImplicitEulerSolver:
             )  # fmt: skip
         wp.launch(
             self.gather_kernel if self.gather else self.step_kernel, (m.world_count, m.node_count), device=self.device,
+            block_dim=self.block_dim,
             inputs=[frac, dt, m.node_tube, m.tube_node_start, m.node_rest_q, m.node_mass, m.node_inv_mass,
                     m.node_damping, m.seg_rest_length, m.seg_ke, m.seg_kd, m.node_bend_k, m.node_anchor_k,
                     m.node_anchor_kd, m.gravity, m.tube_force_start, m.force_node, m.al_start,
