@@ -202,3 +202,65 @@ def test_assistant_line_is_left_to_the_semi_implicit_solver():
     with pytest.raises(AssistantLineNotSupported, match="semi-implicit"):
         ImplicitEulerSolver(build_model(scene, device="cpu"))
     assert issubclass(AssistantLineNotSupported, NotImplementedError)
+
+
+def line_tube(n, direction, pinned=(), gravity=(0.0, -9.81, 0.0)):
+    """Unstrained straight tube of ``n`` nodes 0.01 m apart along ``direction``, E = 1e6 Pa."""
+    u = np.asarray(direction, dtype=np.float64) / np.linalg.norm(direction)
+    pts = np.arange(n)[:, None] * 0.01 * u
+    tube = TubeSpec("/World/Rod", pts, [n], np.full(n, 0.02), TubeParams(density=RHO, youngs_modulus=1e6), pinned=list(pinned))
+    return build_model(Scene((tube,), (), settings=SimulationSettings(gravity=gravity)), device="cpu"), u
+
+
+@pytest.mark.parametrize("n", [200, 2000])
+@pytest.mark.parametrize("direction", [(1.0, 0.0, 0.0), (1.0, 2.0, -2.0)])
+@pytest.mark.parametrize("iterations", [1, 2])
+def test_free_fall_of_a_long_tube_is_exact(n, direction, iterations):
+    # A rigid translation is in the null space of every spring and bending Hessian, so backward
+    # Euler under constant gravity is exact: v_k = v0 + k h g at every node. Regression: the
+    # banded LDL^T let the skew round-off of its D blocks grow ~1.5x a node, so past ~150 nodes
+    # the solve was wrong (the tail of a 200-node rod fell at a tenth of g from the 2nd substep
+    # on; an oblique tube went wrong in the 1st).
+    model, axis = line_tube(n, direction)
+    h, steps, g = 1.0 / 240.0, 6, np.array([0.0, -9.81, 0.0])
+    state, other, control = model.state(), model.state(), model.control()
+    v0 = np.array([0.3, 0.2, -0.4])  # Galilean: an initial uniform velocity changes nothing
+    state.node_qd.assign(np.tile(v0, (1, n, 1)).astype(np.float32))
+    solver = ImplicitEulerSolver(model, iterations=iterations, tolerance=0.0)
+    for k in range(1, steps + 1):
+        solver.integrate(state, other, control, h, 1)
+        state, other = other, state
+        err = state.node_qd.numpy()[0].astype(np.float64) - (v0 + k * h * g)
+        along = err @ axis
+        across = err - np.outer(along, axis)
+        # Across the tube only round-off remains: v is stored in float32 (|v| <= 0.5 m/s, half
+        # an ulp 3e-8 a component), g is float32 (4e-8 relative) and the float64 solve adds
+        # ~1e-14. 2e-7 m/s is a few ulp (measured <= 4.0e-8).
+        assert np.abs(across).max() <= 2e-7, f"substep {k}: transverse error {np.abs(across).max():.2e} m/s"
+        # Along it, the float32 rest lengths (off by up to 2^-24 of 0.01 m) act as a prestrain
+        # of up to 6e-10 m a segment, which the stiff springs (h^2 ke / m = 170) take up within
+        # the step: ~6e-10 m / h = 1.4e-7 m/s a segment, summed over a few neighbours (measured
+        # <= 7.3e-7 m/s at 200 and 2000 nodes). The bug gave errors of 0.01-0.25 m/s.
+        assert np.abs(along).max() <= 5e-6, f"substep {k}: axial error {np.abs(along).max():.2e} m/s"
+
+
+def test_a_long_tube_dragged_by_moving_pins_translates_rigidly():
+    # No gravity; the clamp (nodes 0, 1) moves at u and every node starts at u: the exact backward
+    # Euler motion is the rigid translation, v = u everywhere, through 2000 nodes of solve.
+    n, h, steps = 2000, 1.0 / 240.0, 4
+    model, _ = line_tube(n, (2.0, -1.0, 2.0), pinned=(0, 1), gravity=None)
+    u = np.array([0.5, 1.0, -0.25])
+    state, other, control = model.state(), model.state(), model.control()
+    state.node_qd.assign(np.tile(u, (1, n, 1)).astype(np.float32))
+    target = control.pin_q_end.numpy()
+    target[0, :2] += u * h * steps
+    control.pin_q_end.assign(target)
+    # The first Newton iterate holds the free nodes still while the pins jump by u h (half a
+    # segment), so 2 iterations leave a 5e-4 m/s linearisation error near the clamp; 4 converge.
+    ImplicitEulerSolver(model, iterations=4, tolerance=0.0).integrate(state, other, control, h, steps)
+    # Round-off: v is float32 (|u| = 1.15 m/s, ulp 1.2e-7), the pins' velocities come from
+    # float32 positions within 0.03 m of the origin (ulp 2e-9 m, over h: 1e-6 m/s at worst) and
+    # the float32 rest lengths add the axial ~1e-6 m/s of the free-fall test. Measured 4.8e-7
+    # m/s; the bug gave O(1) errors.
+    err = np.abs(other.node_qd.numpy()[0] - u).max()
+    assert err <= 5e-6, f"velocity error {err:.2e} m/s"
