@@ -124,6 +124,47 @@ def test_impulsive_huge_force_then_release_returns_to_rest():
     assert back < 0.01 * r  # returned to rest within 1% of the radius
 
 
+def test_impulsive_huge_force_on_a_soft_tube_switches_auto_to_implicit():
+    # 1e6 N for one frame on a soft tube (E = 1 MPa, where semi-implicit is the cheaper choice):
+    # its segments collapse and the bending forces (~1/l) become singular, which no semi-implicit
+    # substep survives; auto redoes the frame with implicit Euler and keeps it.
+    n, r = 21, 0.02
+    params = TubeParams(density=1000.0, youngs_modulus=1e6, damping=10.0, anchor_stiffness=1e4)
+    tube = TubeSpec("/T", line(n, 1.0), [n], np.full(n, r), params, anchors=np.arange(n))
+    hit = ForceSpec("/F", 0, 10, [0.0, 1.0 / FPS, 1.0 / FPS + 1e-9], [[0, 1e6, 0], [0, 1e6, 0], [0, 0, 0]], assistant_line=False)
+    sim = Simulation(Scene((tube,), (hit,), stage=stage(6 * FPS)), device="cpu", surface=False)
+    assert sim.integrator == "semiImplicitEuler"
+    peak = 0.0
+    for _ in range(int(6 * FPS)):
+        sim.step()
+        assert np.isfinite(sim.state.node_q.numpy()).all()
+        peak = max(peak, sim.max_displacement())
+    print(f"soft tube, 1e6 N for one frame: peak {peak:.2f} m, after 6 s {sim.max_displacement():.1e} m; {sim.warnings}")
+    assert sim.integrator == "implicitEuler" and any("switched to implicit" in w for w in sim.warnings)
+    assert peak > 10 * r and sim.max_displacement() < 0.01 * r
+
+
+def test_auto_picks_the_cheaper_stable_integrator():
+    # E from 1e3 to 1e9 Pa at 24 frames a second: soft tubes take a few semi-implicit substeps,
+    # stiff ones would need thousands, where implicit Euler is cheaper. With an assistant line only
+    # semi-implicit applies.
+    chosen = {}
+    for E in (1e3, 1e5, 1e7, 1e9):
+        params = TubeParams(density=1000.0, youngs_modulus=E, damping=1.0)
+        tube = TubeSpec("/T", line(41, 1.0), [41], np.full(41, 0.02), params, pinned=[0, 1])
+        sim = Simulation(Scene((tube,), stage=stage(2)), device="cpu", surface=False)
+        chosen[E] = sim.integrator
+        sim.step()
+        sim.step()
+        assert np.isfinite(sim.state.node_q.numpy()).all()
+        assert sim.reason.startswith("auto")
+    print(chosen)
+    assert chosen[1e3] == "semiImplicitEuler" and chosen[1e9] == "implicitEuler"
+    push = ForceSpec("/F", 0, 20, [0.0], [[0, 1.0, 0]], assistant_line=True)
+    sim = Simulation(Scene((tube,), (push,), stage=stage(2)), device="cpu", surface=False)
+    assert sim.integrator == "semiImplicitEuler" and "assistant line" in sim.reason
+
+
 @pytest.mark.parametrize("load", [1, 5])
 def test_non_uniform_segments_keep_the_elastica_within_1_percent(load):
     rng = np.random.default_rng(7)

@@ -39,8 +39,6 @@ IMPLICIT_DT = 1.0 / 240.0
 #: cost of an implicit substep over a semi-implicit one, per node (measured on the CPU: ~0.8 us
 #: against ~0.05 us; benchmarks/bench_integrators.py).
 IMPLICIT_COST_RATIO = 16.0
-#: whether ``auto`` may choose implicit Euler (off while its long-tube substep bug is open).
-AUTO_IMPLICIT = False
 #: the largest substep multiplier ``auto`` tries for a frame that blew up.
 MAX_RETRY_FACTOR = 16
 #: no assistant line is built for a force within this angle of the tube's axis [rad].
@@ -199,7 +197,7 @@ class Simulation:
         impl_steps = math.ceil(self.frame_dt / impl_dt - 1e-9)
         if s.time_step is not None and s.time_step <= hc:
             return "semiImplicitEuler", f"auto: timeStep {s.time_step:.3g} s is within the stability bound {hc:.3g} s", s.time_step
-        cheaper = AUTO_IMPLICIT and impl_steps * IMPLICIT_COST_RATIO < semi_steps
+        cheaper = impl_steps * IMPLICIT_COST_RATIO < semi_steps
         if cheaper and not has_al:
             return "implicitEuler", (
                 f"auto: stiff ({semi_steps} stable semi-implicit substeps a frame against {impl_steps} implicit "
@@ -367,9 +365,14 @@ class Simulation:
             problem = self._check(self.next_state, factor, self._work + frame_work)
             if problem is None:
                 break
-            if not self._retry or factor >= MAX_RETRY_FACTOR:
+            if not self._retry:
                 raise NumericalError(problem)
-            factor *= 2
+            if factor < MAX_RETRY_FACTOR:
+                factor *= 2
+                continue
+            if not self._switch_to_implicit(problem):
+                raise NumericalError(problem)
+            factor = 1
         if factor > 1:
             msg = f"frame {self.frame + 1}: redone with {factor}x the substeps to stay stable"
             log.info(msg)
@@ -380,6 +383,24 @@ class Simulation:
         self.frame += 1
         if not self._contact_reported:
             self._report_contact()
+
+    def _switch_to_implicit(self, problem: str) -> bool:
+        """``auto``'s last resort for a frame semi-implicit Euler cannot take: implicit Euler
+        from now on (not with an assistant line, which only the semi-implicit solver has)."""
+        if self.integrator != "semiImplicitEuler" or self.model.features.assistant_line:
+            return False
+        from .implicit_solver import ImplicitEulerSolver
+
+        msg = (f"frame {self.frame + 1}: semi-implicit Euler failed even at {MAX_RETRY_FACTOR}x the substeps "
+               f"({problem.split(': ', 1)[-1]}); switched to implicit Euler")  # fmt: skip
+        log.warning(msg)
+        self.warnings.append(msg)
+        self.solver = ImplicitEulerSolver(self.model)
+        self.integrator = "implicitEuler"
+        self.reason += "; switched to implicitEuler after a blow-up"
+        self.substeps = max(1, math.ceil(self.frame_dt / min(IMPLICIT_DT, self.frame_dt) - 1e-9))
+        self.dt = self.frame_dt / self.substeps
+        return True
 
     def _frame_work(self, before, after) -> np.ndarray:
         """Work [J] of the point forces and gravity from ``before`` to ``after``, per world
