@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import os
 import pathlib
 
 import numpy as np
@@ -11,7 +12,8 @@ import warp as wp
 wp.config.log_level = wp.LOG_WARNING
 
 ROOT = pathlib.Path(__file__).resolve().parents[1]
-SHARED = ROOT.parent / "shared"
+# ../shared beside the checkout (meshes, output checker); WARP_TUBE_SHARED points elsewhere.
+SHARED = pathlib.Path(os.environ.get("WARP_TUBE_SHARED", ROOT.parent / "shared"))
 SCENES = ROOT / "scenes"
 CHECK_OUTPUT = SHARED / "checks" / "check_output.py"
 

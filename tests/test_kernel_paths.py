@@ -52,3 +52,21 @@ def test_cuda_matches_cpu():
     a, _ = run("cpu", per_node=False)
     b, _ = run("cuda:0", per_node=None)
     np.testing.assert_allclose(a, b, atol=1e-5)  # as above: order of summation and FMA only
+
+
+@pytest.mark.skipif(not wp.get_cuda_device_count(), reason="no CUDA device")
+def test_implicit_cuda_matches_cpu():
+    import dataclasses
+
+    from warp_tube.implicit_solver import ImplicitEulerSolver
+
+    scene = all_features_scene()
+    scene = dataclasses.replace(scene, forces=tuple(dataclasses.replace(f, assistant_line=False) for f in scene.forces))
+    out = []
+    for device in ("cpu", "cuda:0"):
+        sim = Simulation(scene, device=device, world_count=2, surface=False)
+        sim.solver = ImplicitEulerSolver(sim.model)
+        for _ in range(12):
+            sim.step()
+        out.append(np.stack([sim.centerline_points(w)[0] for w in range(2)]))
+    np.testing.assert_allclose(out[0], out[1], atol=1e-5)  # float64 solves; float32 state round-off
