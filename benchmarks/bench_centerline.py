@@ -10,8 +10,8 @@ Cases (each timed after a warm-up; medians of ``--reps`` repetitions, all in one
   dampings and a point force with its assistant line: what each feature costs.
 - ``frame_60fps_20pt``: ``Simulation.step`` for that minimal tube at 60 fps (substeps + host work).
 - ``batch``: ``--worlds`` copies of a 32-point tube (on CUDA: 65,536), per-node kernels with the
-  frame's substeps captured in a CUDA graph (one gather kernel per substep, or ``stencils`` +
-  step), the same with every feature on, and the per-tube kernel; hub-steps per second.
+  frame's substeps captured in a CUDA graph (block sizes compared), the same with every feature on,
+  and the per-tube kernel; hub-steps per second.
 - ``error``: the cantilever at 20 free segments with the same kernels: static tip error against
   the elastica (PL^2/EI = 2) and first-frequency error against Euler-Bernoulli.
 """
@@ -69,10 +69,10 @@ def timed(fn, reps, sync):
     return float(np.median(out)), out
 
 
-def substep_case(device, n_points, extras, reps, per_node=None, worlds=1, substeps=None, gather=True, block_dim=256):
+def substep_case(device, n_points, extras, reps, per_node=None, worlds=1, substeps=None, block_dim=256):
     sim = Simulation(scene(n_points, extras), device=device, world_count=worlds, surface=False)
     sim.step()  # builds the assistant line, compiles
-    solver = SemiImplicitEulerSolver(sim.model, per_node=per_node, gather=gather, block_dim=block_dim)
+    solver = SemiImplicitEulerSolver(sim.model, per_node=per_node, block_dim=block_dim)
     n = substeps or sim.substeps
     s0, s1 = sim.state, sim.next_state
     sync = (lambda: wp.synchronize_device(device))
@@ -84,7 +84,7 @@ def substep_case(device, n_points, extras, reps, per_node=None, worlds=1, subste
     med, all_t = timed(run, reps, sync)
     return {
         "worlds": worlds, "points": n_points, "substeps_per_launch": n, "dt_s": sim.dt,
-        "per_node_kernel": solver.per_node, "gather": solver.gather if solver.per_node else None,
+        "per_node_kernel": solver.per_node,
         "block_dim": solver.block_dim if solver.per_node else None,
         "time_per_substep_us": med / n * 1e6,
         "hub_steps_per_s": worlds * sim.model.node_count * n / med,
@@ -156,7 +156,6 @@ def main():
     if wp.get_device(device).is_cuda:
         for bd in (64, 128, 512):
             res[f"batch_per_node_block{bd}"] = substep_case(device, P, False, a.reps, per_node=True, worlds=worlds, block_dim=bd)
-    res["batch_per_node_stencils"] = substep_case(device, P, False, a.reps, per_node=True, worlds=worlds, gather=False)
     res["batch_per_node_all_features"] = substep_case(device, P, True, a.reps, per_node=True, worlds=worlds)
     res["batch_per_tube"] = substep_case(device, P, False, a.reps, per_node=False, worlds=worlds)
     res["error"] = error_case(device)

@@ -24,20 +24,15 @@ class SemiImplicitEulerSolver:
         model: the discretised scene.
         per_node: use the per-node kernels (default: on CUDA devices); else the per-tube loop.
         block_dim: CUDA threads per block of the per-node kernels.
-        gather: on the per-node path, one kernel per substep in which each node evaluates its own
-            springs and stencils (default); else a ``stencils`` kernel evaluating each once, then
-            the step kernel summing them.
     """
 
     name = "semiImplicitEuler"
 
-    def __init__(self, model: TubeModel, per_node: bool | None = None, gather: bool = True, block_dim: int = 256):
+    def __init__(self, model: TubeModel, per_node: bool | None = None, block_dim: int = 256):
         self.model = model
         self.device = wp.get_device(model.device)
         self.per_node = self.device.is_cuda if per_node is None else per_node
-        (self.substeps_kernel, self.targets_kernel, self.stencil_kernel, self.step_kernel, self.gather_kernel,
-         self.al_kernel) = make_kernels(model.features)  # fmt: skip
-        self.gather = gather
+        self.substeps_kernel, self.targets_kernel, self.step_kernel, self.al_kernel = make_kernels(model.features)
         self.block_dim = int(block_dim)
         W, N = model.world_count, model.node_count
         slots = max(model.al_slots, 1)
@@ -47,8 +42,6 @@ class SemiImplicitEulerSolver:
         self._kappa_target = wp.zeros((rows, N), dtype=wp.vec3, device=self.device)
         self._f_frame = wp.zeros((rows, N), dtype=wp.vec3, device=self.device)
         self._tmp = model.state() if self.per_node else None
-        shape = (W, N) if self.per_node and not gather else (1, 1)
-        self._seg_f, self._bend_ga, self._bend_gb = (wp.zeros(shape, dtype=wp.vec3, device=self.device) for _ in range(3))
         self._graphs = {}
         self._model_arrays = pack(ModelArrays, model)
         self._scratch = ScratchArrays()
@@ -62,21 +55,14 @@ class SemiImplicitEulerSolver:
             wp.launch(self.targets_kernel, (m.world_count, m.tube_count), device=self.device,
                       inputs=[m.tube_node_start, m.node_rest_q, m.node_kappa_rest, m.node_bend_k, s_in.node_q, s_in.node_q_lo],
                       outputs=[self._kappa_target, self._f_frame])  # fmt: skip
-        if not self.gather:
-            wp.launch(
-                self.stencil_kernel, (m.world_count, m.node_count), device=self.device,
-                inputs=[m.node_tube, m.tube_node_start, m.seg_rest_length, m.seg_ke, m.seg_kd, m.node_bend_k,
-                        s_in.node_q, s_in.node_q_lo, s_in.node_qd, self._kappa_target],
-                outputs=[self._seg_f, self._bend_ga, self._bend_gb],
-            )  # fmt: skip
         wp.launch(
-            self.gather_kernel if self.gather else self.step_kernel, (m.world_count, m.node_count), device=self.device,
+            self.step_kernel, (m.world_count, m.node_count), device=self.device,
             block_dim=self.block_dim,
             inputs=[frac, dt, m.node_tube, m.tube_node_start, m.node_rest_q, m.node_mass, m.node_inv_mass,
                     m.node_damping, m.seg_rest_length, m.seg_ke, m.seg_kd, m.node_bend_k, m.node_anchor_k,
                     m.node_anchor_kd, m.gravity, m.tube_force_start, m.force_node, m.al_start,
                     s_in.node_q, s_in.node_q_lo, s_in.node_qd, self._kappa_target, s_in.al_q, s_in.al_q_lo, s_in.al_qd,
-                    self._seg_f, self._bend_ga, self._bend_gb, self._f_frame, c.node_f_ext, c.pin_q_start, c.pin_q_end, c.al_active, c.al_link_length,
+                    self._f_frame, c.node_f_ext, c.pin_q_start, c.pin_q_end, c.al_active, c.al_link_length,
                     c.al_fwd_length, c.al_bwd_length],
             outputs=[s_out.node_q, s_out.node_q_lo, s_out.node_qd],
         )  # fmt: skip
