@@ -160,6 +160,8 @@ class Simulation:
         scale = max(self._extent, float(np.abs(m.host["node_rest_q"]).max()), 1e-9)
         self._energy_floor = float(np.sum(m.host["seg_ke"])) * (1e-6 * scale) ** 2 + 1e-30
         self._moving_pins = any(t.pin_track is not None for t in scene.tubes)
+        self._free_mass = m.host["node_mass"] * (m.host["node_inv_mass"] > 0)
+        self._rest32 = m.host["node_rest_q"].astype(np.float32)[None]
         self.retried_frames = 0
         self.max_retry_factor = 1
 
@@ -406,12 +408,17 @@ class Simulation:
         """Work [J] of the point forces and gravity from ``before`` to ``after``, per world
         (forces are held over a frame, so ``f . dx`` is exact for them)."""
         h = self.model.host
-        dq = after.node_q.numpy().astype(np.float64) - before.node_q.numpy()
-        f = self.control.node_f_ext.numpy().astype(np.float64)
-        w = np.einsum("wnk,wnk->w", f, dq)
+        w = np.zeros(self.model.world_count)
+        if self.model.force_count:
+            nodes = h["force_node"]
+            dq = after.node_q.numpy()[:, nodes].astype(np.float64) - before.node_q.numpy()[:, nodes]
+            f = self.control.node_f_ext.numpy()[:, nodes].astype(np.float64)
+            w += np.einsum("wnk,wnk->w", f, dq)
         if self.model.features.gravity:
+            # Gravity's work is g . (sum m x_after - sum m x_before): two weighted sums.
+            m = self._free_mass
             g = np.array(self.scene.settings.gravity, dtype=np.float64)
-            w += np.einsum("n,wnk,k->w", h["node_mass"] * (h["node_inv_mass"] > 0), dq, g)
+            w += (np.einsum("n,wnk->wk", m, after.node_q.numpy()) - np.einsum("n,wnk->wk", m, before.node_q.numpy())) @ g
         return w
 
     def _report_contact(self):
@@ -435,30 +442,30 @@ class Simulation:
         """What is wrong with a frame's end state, or None; ``work``: per-world work done up to it."""
         q = state.node_q.numpy()
         h = self.model.host
-        rest = h["node_rest_q"]
-        bad = ~np.isfinite(q).all(axis=-1)
-        far = np.zeros_like(bad)
-        hot = None
-        if not bad.any():
-            far = np.linalg.norm(q - rest[None], axis=-1) > RUNAWAY_LENGTHS * max(self._extent, 1e-9)
-            if not far.any():
-                # Kinetic energy cannot exceed the work put in (the springs' energy is >= 0 and
-                # damping only takes energy); 10x and a floor leave room for measurement error.
-                qd = state.node_qd.numpy().astype(np.float64)
-                ke = 0.5 * np.einsum("n,wnk,wnk->w", h["node_mass"] * (h["node_inv_mass"] > 0), qd, qd)
-                work = self._work if work is None else work
-                budget = 10.0 * np.maximum(work, 0.0) + self._energy_floor + self._pin_energy_allowance()
-                if (ke > budget).any():
-                    hot = int(np.argmax(ke - budget))
-        if not (bad.any() or far.any() or hot is not None):
+        limit = RUNAWAY_LENGTHS * max(self._extent, 1e-9)
+        # One pass for the common case: finite and nowhere near the runaway distance (NaN fails
+        # the comparison, so it falls through to the detailed check).
+        if not (np.abs(q - self._rest32).max() < limit):
+            bad = ~np.isfinite(q).all(axis=-1)
+            far = ~bad & (np.linalg.norm(q - h["node_rest_q"][None], axis=-1) > limit)
+            if bad.any() or far.any():
+                w, node = np.argwhere(bad | far)[0]
+                what = "non-finite positions" if bad.any() else f"a point more than {RUNAWAY_LENGTHS:g} tube lengths from rest"
+                return self._failure(what, int(node), factor)
+        # Kinetic energy cannot exceed the work put in (the springs' energy is >= 0 and damping
+        # only takes energy); 10x and a floor leave room for measurement error.
+        qd = state.node_qd.numpy()
+        ke = 0.5 * np.einsum("n,wnk,wnk->w", self._free_mass, qd, qd, dtype=np.float64)
+        work = self._work if work is None else work
+        budget = 10.0 * np.maximum(work, 0.0) + self._energy_floor + self._pin_energy_allowance()
+        if not (ke > budget).any():
             return None
-        if hot is not None:
-            w = hot
-            node = int(np.argmax(np.einsum("nk,nk->n", state.node_qd.numpy()[w], state.node_qd.numpy()[w]) * h["node_mass"]))
-            what = "kinetic energy beyond the work the forces did (a blow-up)"
-        else:
-            w, node = np.argwhere(bad | far)[0]
-            what = "non-finite positions" if bad.any() else f"a point more than {RUNAWAY_LENGTHS:g} tube lengths from rest"
+        hot = int(np.argmax(ke - budget))
+        node = int(np.argmax(np.einsum("nk,nk->n", qd[hot], qd[hot]) * h["node_mass"]))
+        return self._failure("kinetic energy beyond the work the forces did (a blow-up)", node, factor)
+
+    def _failure(self, what: str, node: int, factor: int) -> str:
+        """The message of a failed frame."""
         dt = self.frame_dt / (self.substeps * factor)
         hint = ""
         if dt > self.critical_dt:
