@@ -14,6 +14,9 @@ from scipy.spatial import cKDTree
 
 __all__ = ["ContactMonitor"]
 
+#: models up to this many points check all their distant pairs directly each frame
+SMALL = 128
+
 
 class ContactMonitor:
     """Finds contacts between distant parts of a model's tubes, for one world's positions.
@@ -31,6 +34,15 @@ class ContactMonitor:
         arc = np.concatenate([[0.0], np.cumsum(seg)])
         self.arc = arc - arc[start[:-1]][self.tube]  # arclength from each tube's start
         self.max_radius = float(self.radius.max())
+        n = len(rest)
+        # Small models: every pair that could ever count, fixed once (distant along the tube);
+        # per frame only their distances. Large ones: a k-d tree per frame.
+        self.pairs = None
+        if n <= SMALL:
+            i, j = np.triu_indices(n, 1)
+            rsum = self.radius[i] + self.radius[j]
+            keep = (self.tube[i] != self.tube[j]) | (np.abs(self.arc[i] - self.arc[j]) > 0.5 * np.pi * rsum)
+            self.pairs = (i[keep], j[keep], rsum[keep])
 
     def closest(self, q: np.ndarray):
         """The contact with the deepest overlap, or None.
@@ -41,6 +53,11 @@ class ContactMonitor:
         Returns:
             ``(i, j, gap)``: node indices and ``distance - (r_i + r_j)`` [m] (negative), or None.
         """
+        if self.pairs is not None:
+            i, j, rsum = self.pairs
+            gap = np.linalg.norm(q[i] - q[j], axis=1) - rsum
+            k = int(np.argmin(gap)) if len(gap) else -1
+            return (int(i[k]), int(j[k]), float(gap[k])) if k >= 0 and gap[k] < 0.0 else None
         pairs = cKDTree(q).query_pairs(2.0 * self.max_radius, output_type="ndarray")
         if len(pairs) == 0:
             return None
