@@ -12,6 +12,8 @@ Cases (each timed after a warm-up; medians of ``--reps`` repetitions, all in one
 - ``batch``: ``--worlds`` copies of a 32-point tube (on CUDA: 65,536), per-node kernels with the
   frame's substeps captured in a CUDA graph (block sizes compared), the same with every feature on,
   and the per-tube kernel; hub-steps per second.
+- ``batch_onchip`` (+ ``_block64/128/512`` on CUDA): the same batch with the on-chip kernel (one
+  launch per frame, each block keeps whole tubes in registers and shared memory).
 - ``error``: the cantilever at 20 free segments with the same kernels: static tip error against
   the elastica (PL^2/EI = 2) and first-frequency error against Euler-Bernoulli.
 """
@@ -69,10 +71,13 @@ def timed(fn, reps, sync):
     return float(np.median(out)), out
 
 
-def substep_case(device, n_points, extras, reps, per_node=None, worlds=1, substeps=None, block_dim=256):
+def substep_case(device, n_points, extras, reps, per_node=None, worlds=1, substeps=None, block_dim=256, onchip=False):
     sim = Simulation(scene(n_points, extras), device=device, world_count=worlds, surface=False)
     sim.step()  # builds the assistant line, compiles
-    solver = SemiImplicitEulerSolver(sim.model, per_node=per_node, block_dim=block_dim)
+    try:
+        solver = SemiImplicitEulerSolver(sim.model, per_node=per_node, block_dim=block_dim, onchip=onchip)
+    except ValueError as e:  # a feature the on-chip kernel lacks
+        return {"skipped": str(e)}
     n = substeps or sim.substeps
     s0, s1 = sim.state, sim.next_state
     sync = (lambda: wp.synchronize_device(device))
@@ -84,8 +89,9 @@ def substep_case(device, n_points, extras, reps, per_node=None, worlds=1, subste
     med, all_t = timed(run, reps, sync)
     return {
         "worlds": worlds, "points": n_points, "substeps_per_launch": n, "dt_s": sim.dt,
-        "per_node_kernel": solver.per_node,
-        "block_dim": solver.block_dim if solver.per_node else None,
+        "per_node_kernel": solver.per_node and not solver.onchip,
+        "onchip_kernel": solver.onchip,
+        "block_dim": solver.onchip_block_dim if solver.onchip else solver.block_dim if solver.per_node else None,
         "time_per_substep_us": med / n * 1e6,
         "hub_steps_per_s": worlds * sim.model.node_count * n / med,
         "reps_s": all_t,
@@ -158,6 +164,12 @@ def main():
             res[f"batch_per_node_block{bd}"] = substep_case(device, P, False, a.reps, per_node=True, worlds=worlds, block_dim=bd)
     res["batch_per_node_all_features"] = substep_case(device, P, True, a.reps, per_node=True, worlds=worlds)
     res["batch_per_tube"] = substep_case(device, P, False, a.reps, per_node=False, worlds=worlds)
+    # On-chip: a frame's substeps in one launch, a block per group of tubes (on the CPU it runs
+    # on cooperative fibers: a correctness path, slow).
+    res["batch_onchip"] = substep_case(device, P, False, a.reps, worlds=worlds, onchip=True)
+    if wp.get_device(device).is_cuda:
+        for bd in (64, 128, 512):
+            res[f"batch_onchip_block{bd}"] = substep_case(device, P, False, a.reps, worlds=worlds, block_dim=bd, onchip=True)
     res["error"] = error_case(device)
     for v in res.values():
         if isinstance(v, dict):

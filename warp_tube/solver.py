@@ -3,18 +3,26 @@
 ``solver.step(state_in, state_out, control, dt)`` advances one substep;
 ``solver.integrate(state_in, state_out, control, dt, substeps)`` advances a whole frame. On the
 CPU a frame is a single launch of the per-tube substep kernel; on CUDA it is ``substeps``
-per-node launches, captured once into a graph and replayed.
+per-node launches, captured once into a graph and replayed. With ``onchip=True`` a frame is one
+launch of the on-chip kernel (:mod:`warp_tube.kernels.onchip`): a block per group of whole tubes
+keeps their state in registers and shared memory over all the substeps.
 """
 
 from __future__ import annotations
 
+import logging
+
+import numpy as np
 import warp as wp
 
 from warp_tube.kernels.integrate import ControlArrays, ModelArrays, ScratchArrays, StateArrays, make_kernels, pack
+from warp_tube.kernels.onchip import MAX_BLOCK_DIM, UNSUPPORTED, make_onchip_kernel
 
 from .model import TubeControl, TubeModel, TubeState
 
 __all__ = ["SemiImplicitEulerSolver"]
+
+logger = logging.getLogger(__name__)
 
 
 class SemiImplicitEulerSolver:
@@ -23,12 +31,17 @@ class SemiImplicitEulerSolver:
     Args:
         model: the discretised scene.
         per_node: use the per-node kernels (default: on CUDA devices); else the per-tube loop.
-        block_dim: CUDA threads per block of the per-node kernels.
+        block_dim: CUDA threads per block of the per-node kernels and of the on-chip kernel.
+        onchip: run each frame as one launch of the on-chip kernel (a block per group of whole
+            tubes, substeps in registers and shared memory). Not for curved rest shapes, spring
+            damping or assistant lines (ValueError). Its block grows to the longest tube (rounded
+            up to 32); a tube longer than 1,024 points falls back to the default path, logged.
+            On the CPU it runs on Warp's cooperative CPU blocks (slow: for testing).
     """
 
     name = "semiImplicitEuler"
 
-    def __init__(self, model: TubeModel, per_node: bool | None = None, block_dim: int = 256):
+    def __init__(self, model: TubeModel, per_node: bool | None = None, block_dim: int = 256, onchip: bool = False):
         self.model = model
         self.device = wp.get_device(model.device)
         self.per_node = self.device.is_cuda if per_node is None else per_node
@@ -47,6 +60,55 @@ class SemiImplicitEulerSolver:
         self._scratch = ScratchArrays()
         self._scratch.node_f, self._scratch.al_f, self._scratch.node_kappa_target = self._node_f, self._al_f, self._kappa_target
         self._commands = {}
+        self.onchip_block_dim = None  # threads per block of the on-chip kernel, when it is used
+        self.onchip = bool(onchip) and self._setup_onchip()
+
+    # -- the on-chip path ---------------------------------------------------------------------
+    def _setup_onchip(self) -> bool:
+        """Check the model, pack tubes into blocks and build the kernel; False: fall back."""
+        m = self.model
+        bad = [name for name in UNSUPPORTED if m.features._asdict()[name]]
+        if bad:
+            raise ValueError(f"onchip=True does not support this model's {', '.join(bad)}; use onchip=False")
+        starts = np.asarray(m.host["tube_node_start"], dtype=np.int64)
+        longest = int(np.diff(starts).max())
+        if longest > MAX_BLOCK_DIM:
+            logger.warning("onchip: a tube of %d points exceeds the %d-thread block; using the default path", longest, MAX_BLOCK_DIM)
+            return False
+        block = min(self.block_dim, MAX_BLOCK_DIM)
+        if longest > block:
+            block = -(-longest // 32) * 32
+        # Whole tubes, in order, packed into groups of at most `block` nodes; a block holds as many
+        # copies of a group (consecutive worlds) as fit.
+        group = [0]
+        for t in range(m.tube_count):
+            if starts[t + 1] - group[-1] > block:
+                group.append(int(starts[t]))
+        group.append(int(starts[-1]))
+        group = np.asarray(group)
+        self._onchip_slot = int(np.diff(group).max())
+        self._onchip_worlds_per_block = block // self._onchip_slot
+        self.onchip_block_dim = block
+        self._onchip_dim = (-(-m.world_count // self._onchip_worlds_per_block), len(group) - 1)
+        self._onchip_group = wp.array(group.astype(np.int32), dtype=int, device=self.device)
+        self.onchip_kernel = make_onchip_kernel(m.features, block)
+        return True
+
+    def _launch_onchip(self, s_in: TubeState, s_out: TubeState, c: TubeControl, dt: float, substeps: int):
+        m = self.model
+        cpu_blocks = wp.config.enable_cpu_blocks
+        wp.config.enable_cpu_blocks = True  # on the CPU a block's threads are fibers (opt-in)
+        try:
+            wp.launch_tiled(
+                self.onchip_kernel, dim=self._onchip_dim, block_dim=self.onchip_block_dim, device=self.device,
+                inputs=[int(substeps), float(dt), self._onchip_slot, self._onchip_worlds_per_block, self._onchip_group,
+                        m.node_tube, m.tube_node_start, m.node_rest_q, m.node_mass, m.node_inv_mass, m.node_damping,
+                        m.seg_rest_length, m.seg_ke, m.node_bend_k, m.node_anchor_k, m.node_anchor_kd, m.gravity,
+                        s_in.node_q, s_in.node_q_lo, s_in.node_qd, c.node_f_ext, c.pin_q_start, c.pin_q_end],
+                outputs=[s_out.node_q, s_out.node_q_lo, s_out.node_qd],
+            )  # fmt: skip
+        finally:
+            wp.config.enable_cpu_blocks = cpu_blocks
 
     # -- one substep on the per-node path ------------------------------------------------------
     def _launch_step(self, s_in: TubeState, s_out: TubeState, c: TubeControl, dt: float, frac: float):
@@ -110,6 +172,9 @@ class SemiImplicitEulerSolver:
         ``state_in`` is left unchanged; pins move linearly from ``control.pin_q_start`` to
         ``control.pin_q_end`` over the interval.
         """
+        if self.onchip:
+            self._launch_onchip(state_in, state_out, control, float(dt), int(substeps))
+            return
         if not self.per_node:
             self._launch_substeps(state_in, state_out, control, float(dt), int(substeps))
             return

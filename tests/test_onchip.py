@@ -1,0 +1,146 @@
+"""The on-chip kernel (a block per group of tubes, substeps in shared memory) against the per-tube
+and per-node kernels, on the CPU: Warp runs a tiled kernel's block there as cooperative fibers, so
+the shared-memory exchange and its barriers are exercised as on a GPU."""
+
+import numpy as np
+import pytest
+import warp as wp
+
+from warp_tube.model import build_model
+from warp_tube.scene import ForceSpec, Scene, SimulationSettings, TubeParams, TubeSpec
+from warp_tube.solver import SemiImplicitEulerSolver
+from warp_tube.stability import critical_time_step
+
+WORLDS = 5
+LENGTHS = (16, 11, 3, 40)  # curves of one prim: a 3-point tube, and one longer than a 32-thread block
+
+
+def batch_model(world_count=WORLDS, lengths=LENGTHS, curved=False, spring_damping=0.0, assistant_line=False, device="cpu"):
+    """Straight tubes of different lengths in one prim, with pins at both ends of the first, an
+    anchor, gravity, mass damping and a point force; segment stiffness and damping vary by world."""
+    pts = []
+    for k, n in enumerate(lengths):
+        s = np.linspace(0.0, 0.02 * (n - 1), n)
+        bend = 0.05 * np.sin(8 * s) if curved and k == 0 else 0 * s
+        pts.append(np.stack([s, 0.1 * k + bend, 0 * s], axis=1))
+    starts = np.cumsum((0,) + lengths)
+    params = TubeParams(density=1050.0, youngs_modulus=5e4, damping=2.0, spring_damping=spring_damping, anchor_stiffness=40.0)
+    anchors = [int(starts[k] + lengths[k] // 3) for k in range(min(1, len(lengths) - 1), len(lengths))]
+    tube = TubeSpec(
+        "/World/T", np.concatenate(pts), list(lengths), np.full(starts[-1], 0.01), params,
+        pinned=[0, 1, starts[1] - 1], anchors=anchors,
+    )  # fmt: skip
+    force = ForceSpec("/World/F", 0, int(starts[-2] + lengths[-1] // 2), [0.0], [[0.0, 0.0, 0.01]], assistant_line=assistant_line)
+    scene = Scene((tube,), (force,), settings=SimulationSettings(gravity=(0.0, -9.81, 0.0)))
+    model = build_model(scene, world_count=world_count, device=device)
+    # Parameters per world (rows read at w % rows): both kernels must pick the world's row.
+    rng = np.random.default_rng(7)
+    scale = rng.uniform(0.5, 1.5, (world_count, 1))
+    model.seg_ke = wp.array(model.host["seg_ke"][None] * scale, dtype=float, device=device)
+    model.node_damping = wp.array(model.host["node_damping"][None] * scale, dtype=float, device=device)
+    return model
+
+
+def batch_inputs(model, seed=3):
+    """A state with random velocities and a control with per-world forces and moving pins."""
+    rng = np.random.default_rng(seed)
+    W, N = model.world_count, model.node_count
+    state = model.state()
+    state.node_qd.assign(rng.normal(0.0, 0.05, (W, N, 3)).astype(np.float32))
+    control = model.control()
+    control.node_f_ext.assign(rng.normal(0.0, 2e-3, (W, N, 3)).astype(np.float32))
+    q = model.host["node_rest_q"][None].repeat(W, axis=0)
+    control.pin_q_start.assign(q.astype(np.float32))
+    control.pin_q_end.assign((q + rng.normal(0.0, 5e-3, (W, 1, 3))).astype(np.float32))
+    return state, control
+
+
+def run(model, substeps=150, frames=2, **solver_args):
+    """Positions (compensated, float64) and velocities after ``frames`` frames of ``substeps``."""
+    solver = SemiImplicitEulerSolver(model, **solver_args)
+    s0, control = batch_inputs(model)
+    s1 = model.state()
+    dt = 0.5 * critical_time_step(model.host)
+    for _ in range(frames):
+        solver.integrate(s0, s1, control, dt, substeps)
+        s0, s1 = s1, s0
+    q = s0.node_q.numpy().astype(np.float64) + s0.node_q_lo.numpy()
+    return q, s0.node_qd.numpy(), solver
+
+
+@pytest.fixture(scope="module")
+def reference():
+    model = batch_model()
+    q, qd, _ = run(model, per_node=False)
+    return model, q, qd
+
+
+@pytest.mark.parametrize("block_dim", [32, 256])
+def test_onchip_matches_per_tube_and_per_node(reference, block_dim):
+    model, q_ref, qd_ref = reference
+    assert model.features == model.features._replace(
+        bending=True, curved=False, anchors=True, gravity=True, mass_damping=True, spring_damping=False, external=True, assistant_line=False
+    )
+    q, qd, solver = run(model, onchip=True, block_dim=block_dim)
+    assert solver.onchip
+    if block_dim == 32:
+        # The 40-point tube widens the block to 64; the tubes split into two groups.
+        assert (solver.onchip_block_dim, solver._onchip_dim[1], solver._onchip_worlds_per_block) == (64, 2, 1)
+    else:
+        # One group of all 70 nodes, three worlds per block, the second block partly idle.
+        assert (solver.onchip_block_dim, solver._onchip_dim, solver._onchip_worlds_per_block) == (256, (2, 1), 3)
+    moved = np.abs(q_ref - model.host["node_rest_q"][None]).max()
+    assert moved > 5e-3  # it really moved
+    # Per-tube: the same forces, each spring and stencil summed onto its nodes in another order
+    # (scatter against gather), so the runs differ by float32 round-off (a few 1e-8 m per substep
+    # at positions of ~0.1 m) carried through 300 damped substeps: 1e-6 m is ~30 ulp, 1e-4 of the
+    # motion; velocities (~0.05 m/s) to the same relative size.
+    np.testing.assert_allclose(q, q_ref, rtol=0, atol=1e-6)
+    np.testing.assert_allclose(qd, qd_ref, rtol=0, atol=1e-5 * np.abs(qd_ref).max())
+    # Per-node: the same expressions in the same order as the on-chip kernel (gather, compensated
+    # edges, forces summed alike), so only compiler contraction could part them: a few ulp.
+    q_pn, qd_pn, _ = run(model, per_node=True)
+    np.testing.assert_allclose(q, q_pn, rtol=0, atol=1e-7)
+    np.testing.assert_allclose(qd, qd_pn, rtol=0, atol=1e-6 * np.abs(qd_pn).max())
+
+
+@pytest.mark.skipif(not wp.get_cuda_device_count(), reason="no CUDA device")
+def test_onchip_cuda_matches_cpu(reference):
+    _, q_ref, _ = reference
+    q, _, solver = run(batch_model(device="cuda:0"), onchip=True)
+    assert solver.onchip
+    # Fast math (approximate division and square root) and FMA on the GPU against the CPU's
+    # per-tube kernel: a few float32 ulp per substep, as the per-node path's CUDA test allows.
+    np.testing.assert_allclose(q, q_ref, rtol=0, atol=1e-5)
+
+
+def test_onchip_pins_reach_their_targets_and_input_is_kept():
+    model = batch_model(world_count=2, lengths=(9, 5))
+    solver = SemiImplicitEulerSolver(model, onchip=True, block_dim=32)
+    s0, control = batch_inputs(model)
+    before = s0.node_q.numpy().copy()
+    s1 = model.state()
+    solver.integrate(s0, s1, control, 1e-4, 7)
+    np.testing.assert_array_equal(s0.node_q.numpy(), before)
+    pinned = model.host["node_inv_mass"] == 0.0
+    # lerp(a, b, 1) = a + (b - a): within an ulp of b (positions ~0.2 m, ulp ~1.5e-8 m).
+    np.testing.assert_allclose(s1.node_q.numpy()[:, pinned], control.pin_q_end.numpy()[:, pinned], rtol=0, atol=1e-7)
+    np.testing.assert_array_equal(s1.node_q_lo.numpy()[:, pinned], 0.0)
+
+
+@pytest.mark.parametrize(
+    "kind, args",
+    [("curved", dict(curved=True)), ("spring_damping", dict(spring_damping=1e-4)), ("assistant_line", dict(assistant_line=True))],
+)
+def test_onchip_refuses_unsupported_features(kind, args):
+    model = batch_model(world_count=1, lengths=(9, 5), **args)
+    assert getattr(model.features, kind)
+    with pytest.raises(ValueError, match=kind):
+        SemiImplicitEulerSolver(model, onchip=True)
+    SemiImplicitEulerSolver(model)  # the default paths still take it
+
+
+def test_onchip_falls_back_for_tubes_longer_than_a_block():
+    model = batch_model(world_count=1, lengths=(1100,))
+    solver = SemiImplicitEulerSolver(model, onchip=True)
+    assert not solver.onchip
