@@ -71,7 +71,7 @@ def timed(fn, reps, sync):
     return float(np.median(out)), out
 
 
-def substep_case(device, n_points, extras, reps, per_node=None, worlds=1, substeps=None, block_dim=256, onchip=False):
+def substep_case(device, n_points, extras, reps, per_node=None, worlds=1, substeps=None, block_dim=None, onchip=False):
     sim = Simulation(scene(n_points, extras), device=device, world_count=worlds, surface=False)
     sim.step()  # builds the assistant line, compiles
     try:
@@ -168,7 +168,7 @@ def main():
     # on cooperative fibers: a correctness path, slow).
     res["batch_onchip"] = substep_case(device, P, False, a.reps, worlds=worlds, onchip=True)
     if wp.get_device(device).is_cuda:
-        for bd in (64, 128, 512):
+        for bd in (64, 256, 512):
             res[f"batch_onchip_block{bd}"] = substep_case(device, P, False, a.reps, worlds=worlds, block_dim=bd, onchip=True)
     res["error"] = error_case(device)
     for v in res.values():
