@@ -44,23 +44,52 @@ leaves a gap of more than two hub spacings (the virtual rings) before closing in
 not limited by the virtual rings: a cap's dome of radius ``r`` is real geometry, and on a loop it can
 reach the tube's other end (contact, not modelled).
 
+Cells of folded-back parts. The planes above only separate rings that fan around a common axis
+(neighbours, and rings of one bend). Where the tube folds back on itself within a few radii (a
+hairpin, radius x curvature > 1 at its bend, legs closer than two radii) the facing rings of the
+two legs lie side by side in nearly parallel planes, and nothing above stops their spokes: the legs
+overlap. So each spoke is also limited, at the same fraction ``g``, by the *cell plane* between its
+hub ``x`` and every hub ``x_k`` of the same tube that
+
+- is at least :data:`CELL_MIN_GAP` hubs away (closer hubs are left to the planes above, so tubes
+  with fewer hubs than that per ``pi`` radii keep exactly the guard above),
+- lies less than ``pi r`` away along the centerline (sum of chords; ``r`` the mean spoke length
+  of the prim: the radius of a circular tube), and
+- is close enough for the two rings to meet: ``|x_k - x| < R + R_k`` (``R``, ``R_k`` the hubs'
+  largest spoke lengths).
+
+The cell plane is normal to ``e = x_k - x`` through ``x + e R / (R + R_k)``, splitting the
+distance between the hubs in the ratio of their radii (the bisector plane for equal radii), so
+``L <= g (|e|^2 R / (R + R_k)) / (d . e)`` where ``d . e > 0``. Both hubs of a pair use the same
+plane, so the spoke ends of the two rings stay on opposite sides of it, each at least ``(1 - g)``
+of its way short of it. On a circular arc every cell plane contains the arc's axis, as the ring
+planes do, so it limits no spoke further than the centre of curvature's plane already does.
+
 Cost in shape: where the guard acts the inner side of a ring is cut flat along a straight chord at
 distance ``g rho`` from the hub (``rho`` the bend radius; about ``2/3 g rho`` at an end ring), parallel
 to the bend axis: the cross-section loses the circular segment beyond that chord and the inner wall
 becomes a thin surface of revolution of radius ``(1 - g) rho`` around the bend axis. On a circular
 tube it acts only where ``radius x curvature > g`` for the innermost spoke; below that the surface is
-exact.
+exact. Where two legs of a fold lie side by side ``D`` apart (``D < 2 r``, circular tube), each
+leg's facing side is cut flat at ``g D / 2`` from its hub, parallel to the other leg: the legs keep a
+gap of ``(1 - g) D`` between them instead of passing through each other.
 
 Work split. :func:`hub_guard_kernel` (one thread per (world, hub)) does everything that depends on
 the hub only: the curvature vector, the chord lengths, the three guard planes (neighbours' or
-virtual rings', and the centre of curvature's, each relative to the hub) and two *free lengths*:
-bounds below which no plane can shorten a spoke of the hub's body ring or of any ring.
+virtual rings', and the centre of curvature's, each relative to the hub), the range of hubs whose
+cell planes may shorten one of its spokes (found by walking the centerline ``pi`` radii each way,
+from :data:`CELL_MIN_GAP` hubs on; on a straight or gently bent tube no hub is close enough, the
+range stays empty and the walk is the only cost) and two *free lengths*: bounds below which no
+plane (cell planes included) can shorten a spoke of the hub's body ring or of any ring.
 A spoke no longer than its ring's free length keeps its given length (exactly: the guard only
 takes minima with larger values), so only the others are guarded: :func:`spoke_guard_kernel` (one
-thread per (world, ring, spoke)) writes their guarded lengths, five plane tests each, and leaves
-the rest unwritten. :func:`spoke_points_kernel` (one thread per (world, ring, spoke), spokes
-fastest, so consecutive threads write consecutive vertices) takes each of its spoke's and its two
-neighbours' lengths (for the normal) from there or, by the same test, as given. The points kernel
+thread per (world, ring, spoke)) writes their guarded lengths, five plane tests each plus one per
+hub of the cell range whose ring can reach (the hub kernel's range, re-tested with
+``|x_k - x| < R + R_k``; hubs in it that the hub kernel passed over cannot limit a spoke of the
+hub, so the result is the same as with those it picked), and leaves the rest unwritten.
+:func:`spoke_points_kernel` (one thread per (world, ring, spoke), spokes fastest, so consecutive
+threads write consecutive vertices) takes each of its spoke's and its two neighbours' lengths (for
+the normal) from there or, by the same test, as given. The points kernel
 holds no guard code, which keeps its register count (and so the GPU's occupancy) at that of the
 plain spoke geometry.
 """
@@ -83,6 +112,12 @@ the plane distances they bound (each within a few 1e-7)."""
 DIRECTION_SLACK = wp.constant(1.0e-6)
 """Slack, relative to a plane normal's length, added to the bound of ``|d . n|`` for a body spoke:
 covers ``d`` (built from float32 ``r``, ``s``) being orthogonal to ``t`` only to a few 1e-7."""
+CELL_MIN_GAP = wp.constant(6)
+"""Fewest hubs between two hubs whose cell plane limits their spokes: nearer hubs are separated by
+the neighbour-ring and centre-of-curvature planes alone, as before the cell guard."""
+CELL_WINDOW = wp.constant(3.14159265)
+"""Reach of the cell guard along the centerline, in multiples of the tube's radius (mean spoke
+length): ``pi``, that of the no-local-self-intersection requirement."""
 PLANE_PREV = wp.constant(0)
 PLANE_NEXT = wp.constant(1)
 PLANE_CENTRE = wp.constant(2)
@@ -181,13 +216,57 @@ def guarded_length(
     return out
 
 
+@wp.func
+def cell_plane(e: wp.vec3, reach: float, reach_k: float) -> wp.vec4:
+    """The cell plane between a hub and hub ``x + e`` relative to the hub (see :func:`plane_reach`):
+    normal to ``e``, through ``x + e reach / (reach + reach_k)``; ``reach``, ``reach_k`` the hubs'
+    largest spoke lengths [length unit]."""
+    return wp.vec4(e[0], e[1], e[2], wp.dot(e, e) * reach / (reach + reach_k))
+
+
+@wp.func
+def cell_limit(
+    length: float,
+    d: wp.vec3,
+    x: wp.vec3,
+    reach: float,
+    h: int,
+    cell: wp.vec2i,
+    w: int,
+    pw: int,
+    node_offset: int,
+    node_q: wp.array2d[wp.vec3],
+    hub_reach: wp.array2d[float],
+    guard_reach: float,
+) -> float:
+    """Spoke length [length unit] after the cell planes of the hubs in ``cell[0] .. h - CELL_MIN_GAP``
+    and ``h + CELL_MIN_GAP .. cell[1]`` whose rings can reach the hub's (``|x_k - x| < R + R_k``)."""
+    out = length
+    for side in range(2):
+        k0 = cell[0]
+        k1 = h - CELL_MIN_GAP
+        if side == 1:
+            k0 = h + CELL_MIN_GAP
+            k1 = cell[1]
+        for k in range(k0, k1 + 1):
+            e = node_q[w, node_offset + k] - x
+            reach_k = hub_reach[pw, k]
+            if wp.dot(e, e) < (reach + reach_k) * (reach + reach_k):
+                l_k = plane_reach(d, cell_plane(e, reach, reach_k))
+                if l_k > 0.0:
+                    out = wp.min(out, guard_reach * l_k)
+    return out
+
+
 @wp.kernel(enable_backward=False, module="unique", module_options=CUDA_OPTIONS)
 def hub_guard_kernel(
     # model:
     node_offset: int,
     guard_reach: float,
+    cell_radius: float,
     tube_node_start: wp.array[wp.int32],
     node_tube: wp.array[wp.int32],
+    hub_reach: wp.array2d[float],
     # state in:
     node_q: wp.array2d[wp.vec3],
     hub_t: wp.array2d[wp.vec3],
@@ -195,6 +274,7 @@ def hub_guard_kernel(
     hub_kappa_out: wp.array2d[wp.vec3],
     hub_chord_out: wp.array2d[float],
     hub_plane_out: wp.array3d[wp.vec4],
+    hub_cell_out: wp.array2d[wp.vec2i],
     hub_free_out: wp.array2d[wp.vec2],
 ):
     """Per-hub data of the spokes: curvature, chords, guard planes; one thread per (world, hub).
@@ -202,8 +282,12 @@ def hub_guard_kernel(
     Args:
         node_offset: column of ``node_q`` holding hub 0.
         guard_reach: inner-bend guard fraction in (0, 1); 0 turns the guard off.
+        cell_radius: the tube's radius for the cell guard's window [length unit]: hubs less than
+            ``CELL_WINDOW cell_radius`` apart along the centerline (the prim's mean spoke length).
         tube_node_start: first hub of each tube, (tube_count + 1,).
         node_tube: tube of each hub, (node_count,).
+        hub_reach: largest spoke length of each hub [length unit], shape (1 or world_count,
+            node_count).
         node_q: hub positions [length unit], shape (world_count, >= node_offset + node_count).
         hub_t: hub unit tangents [1], shape (world_count, node_count).
         hub_kappa_out: curvature vector [1/length unit] (an end hub's is its interior neighbour's;
@@ -214,9 +298,13 @@ def hub_guard_kernel(
             (world_count, node_count, 3): :data:`PLANE_PREV`, :data:`PLANE_NEXT` (the neighbour
             rings', or at a tube's end of 3+ hubs the virtual ring's, read by body rings only) and
             :data:`PLANE_CENTRE`; zero where none.
+        hub_cell_out: cell range ``(first, last)``: the farthest hubs before and after, at least
+            :data:`CELL_MIN_GAP` hubs away, whose cell planes may shorten a spoke of the hub
+            (``first > h - CELL_MIN_GAP`` and ``last < h + CELL_MIN_GAP`` for none; the hub itself
+            when none), shape (world_count, node_count); written with the guard on only.
         hub_free_out: free lengths [length unit] (see :func:`plane_free_length`): of a body ring's
-            spokes (all three planes) and of any ring's (real neighbours and the centre), shape
-            (world_count, node_count).
+            spokes (all three planes and the cell planes) and of any ring's (real neighbours, the
+            centre and the cell planes), shape (world_count, node_count).
     """
     w, h = wp.tid()
     tube = node_tube[h]
@@ -284,6 +372,38 @@ def hub_guard_kernel(
         free_any = wp.min(free_any, plane_free_length(plane_prev, t, guard_reach, 0))
     if h < last:
         free_any = wp.min(free_any, plane_free_length(plane_next, t, guard_reach, 0))
+
+    # Cell planes: walk the centerline both ways, less than pi radii, and keep the farthest hubs,
+    # CELL_MIN_GAP or more away, whose cell plane can shorten one of this hub's spokes (free length
+    # below the hub's largest spoke). Every hub between them and the hub lies in the window too.
+    if guard_reach > 0.0:
+        pw = w % hub_reach.shape[0]
+        reach = hub_reach[pw, h]
+        window = CELL_WINDOW * cell_radius
+        cell = wp.vec2i(h, h)
+        for side in range(2):
+            step = 2 * side - 1
+            k = h + step
+            arc = float(0.0)
+            x_k = x
+            while k >= first and k <= last and arc < window:
+                x_prev_k = x_k
+                x_k = node_q[w, node_offset + k]
+                arc += wp.length(x_k - x_prev_k)
+                reach_k = hub_reach[pw, k]
+                e = x_k - x
+                near = wp.dot(e, e) < (reach + reach_k) * (reach + reach_k)
+                if (k - h) * step >= CELL_MIN_GAP and arc < window and near:
+                    plane = cell_plane(e, reach, reach_k)
+                    body_free = plane_free_length(plane, t, guard_reach, 1)
+                    any_free = plane_free_length(plane, t, guard_reach, 0)
+                    # Cap rings (any direction) only at a tube's ends.
+                    if body_free < reach or (any_free < reach and (h == first or h == last)):
+                        cell[side] = k
+                        free_body = wp.min(free_body, body_free)
+                        free_any = wp.min(free_any, any_free)
+                k += step
+        hub_cell_out[w, h] = cell
     hub_free_out[w, h] = wp.vec2(free_body, free_any)
 
 
@@ -314,9 +434,11 @@ def pole_length(spoke_length: wp.array3d[float], pw: int, h: int) -> float:
 @wp.kernel(enable_backward=False, module="unique", module_options=CUDA_OPTIONS)
 def spoke_guard_kernel(
     # model:
+    node_offset: int,
     guard_reach: float,
     tube_node_start: wp.array[wp.int32],
     node_tube: wp.array[wp.int32],
+    hub_reach: wp.array2d[float],
     ring_hub: wp.array[wp.int32],
     ring_kind: wp.array[wp.int32],
     ring_cos: wp.array[float],
@@ -326,9 +448,11 @@ def spoke_guard_kernel(
     spoke_sin: wp.array[float],
     spoke_length: wp.array3d[float],
     # state in:
+    node_q: wp.array2d[wp.vec3],
     hub_t: wp.array2d[wp.vec3],
     hub_r: wp.array2d[wp.vec3],
     hub_plane: wp.array3d[wp.vec4],
+    hub_cell: wp.array2d[wp.vec2i],
     hub_free: wp.array2d[wp.vec2],
     # out:
     surface_length_out: wp.array2d[float],
@@ -337,11 +461,15 @@ def spoke_guard_kernel(
     (world, ring, spoke). Other entries are left as they are (and not read).
 
     Args:
+        node_offset: column of ``node_q`` holding hub 0.
         guard_reach: inner-bend guard fraction in (0, 1).
         tube_node_start, node_tube, ring_*, spoke_cos, spoke_sin, spoke_length: as
             :func:`spoke_points_kernel`.
+        hub_reach: largest spoke length of each hub [length unit], shape (1 or world_count,
+            node_count).
+        node_q: hub positions [length unit], shape (world_count, >= node_offset + node_count).
         hub_t, hub_r: hub unit tangents and normals [1], shape (world_count, node_count).
-        hub_plane, hub_free: per-hub data from :func:`hub_guard_kernel`.
+        hub_plane, hub_cell, hub_free: per-hub data from :func:`hub_guard_kernel`.
         surface_length_out: guarded spoke lengths [length unit], shape (world_count, vertex_count).
     """
     w, ring, j = wp.tid()
@@ -371,10 +499,15 @@ def spoke_guard_kernel(
         d = c * t + sn * (spoke_cos[j] * r + spoke_sin[j] * wp.cross(t, r))
     tube = node_tube[h]
     kinds = ring_guard_kinds(h, kind, tube_node_start[tube], tube_node_start[tube + 1] - 1)
-    surface_length_out[w, ring_vertex[ring] + j] = guarded_length(
+    out = guarded_length(
         length, d, kinds[0], hub_plane[w, h, PLANE_PREV], kinds[1], hub_plane[w, h, PLANE_NEXT],
         hub_plane[w, h, PLANE_CENTRE], guard_reach,
     )  # fmt: skip
+    cell = hub_cell[w, h]
+    if cell[0] <= h - CELL_MIN_GAP or cell[1] >= h + CELL_MIN_GAP:
+        x = node_q[w, node_offset + h]
+        out = cell_limit(out, d, x, hub_reach[pw, h], h, cell, w, pw, node_offset, node_q, hub_reach, guard_reach)
+    surface_length_out[w, ring_vertex[ring] + j] = out
 
 
 @wp.kernel(enable_backward=False, module="unique", module_options=CUDA_OPTIONS)

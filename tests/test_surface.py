@@ -379,3 +379,91 @@ def test_guarded_lengths_match_a_direct_evaluation_near_the_guards_onset(rk):
     if rk > 1.0:
         given = np.concatenate([lengths.reshape(-1), np.full(b.vertex_count - n * S, np.nan)])
         assert np.sum(expected[: n * S] < 0.99 * given[: n * S]) > S  # the guard does act here
+
+
+# -- cells of folded-back parts ----------------------------------------------------------------
+
+
+def hairpin(rho, leg, h):
+    """Centerline of a U: a straight leg along +x ending at the origin, a half circle of radius rho
+    around (0, rho, 0), and a straight leg back along -x at y = 2 rho; hubs about h apart, all on the
+    centerline (the legs' facing sides are 2 rho apart, i.e. within reach of each other for
+    2 rho < 2 r)."""
+    n_leg = int(np.ceil(leg / h))
+    n_arc = int(np.ceil(np.pi * rho / h))
+    a = np.linspace(-leg, 0.0, n_leg, endpoint=False)
+    phi = np.pi * np.arange(n_arc) / n_arc
+    first = np.stack([a, 0 * a, 0 * a], 1)
+    bend = np.stack([rho * np.sin(phi), rho * (1.0 - np.cos(phi)), 0 * phi], 1)
+    back = np.stack([-np.linspace(0.0, leg, n_leg + 1), np.full(n_leg + 1, 2 * rho), np.zeros(n_leg + 1)], 1)
+    return np.concatenate([first, bend, back])
+
+
+def crossing_pairs_within(b, x, max_apart):
+    """Crossing triangle pairs of a builder's surface whose rings are less than max_apart apart
+    along the centerline (arc length of the hubs, sum of chords)."""
+    arc_len = np.concatenate([[0.0], np.cumsum(np.linalg.norm(np.diff(x, axis=0), axis=1))])
+    topo = b.topology
+    hub_of_vertex = np.empty(b.vertex_count, dtype=int)
+    for ring in range(len(topo.ring_hub)):
+        count = 1 if topo.ring_kind[ring] == RING_POLE else b.spokes
+        hub_of_vertex[topo.ring_vertex[ring] : topo.ring_vertex[ring] + count] = topo.ring_hub[ring]
+    i, _ = intersecting_pairs(b.points_numpy().astype(np.float64), topo.faces, max_apart, arc_len[hub_of_vertex])
+    return len(i)
+
+
+@pytest.mark.parametrize("rho, caps", [(0.6, True), (0.7, False)])
+def test_no_local_self_intersection_of_a_hairpin(rho, caps):
+    """A U folded back with bend radius rho = 0.6 r or 0.7 r (radius x curvature 1.7 or 1.4) and
+    parallel legs 2 rho = 1.2 r or 1.4 r apart, hubs r/4 apart: the legs' facing sides, within
+    pi r of each other along the tube, overlap by 2 r - 2 rho unless the cell planes between the
+    legs' hubs stop them. Checked as the r x curvature 2 arcs are; without the guard the same
+    check finds the crossings."""
+    r, S, g = 1.0, 16, 0.95
+    x = hairpin(rho * r, 3.0 * r, r / 4)
+    on = build(x, S, np.full(len(x), r), caps=caps, guard=g)
+    off = build(x, S, np.full(len(x), r), caps=caps, guard=0.0)
+    assert crossing_pairs_within(on, x, np.pi * r) == 0
+    assert crossing_pairs_within(off, x, np.pi * r) > 0  # the check does detect the overlap
+
+    # The legs' hubs r/4 before the bend: straight there (no centre plane, parallel neighbour
+    # planes), and their arc distance 0.5 r + pi rho is within pi r. A spoke facing the other leg
+    # stops at g times the way to the mid-plane y = rho between the legs (equal radii: the cell
+    # plane of two facing hubs is their bisector; the other hubs' planes are oblique and farther
+    # along it); a spoke facing away keeps the radius. float32 round-off: 1e-5.
+    P = on.points_numpy().astype(np.float64)[: len(x) * S].reshape(len(x), S, 3)
+    xq = x.astype(np.float32).astype(np.float64)
+    legs = np.abs(xq[:, 0] + 0.25 * r) < 1e-6
+    assert legs.sum() == 2
+    towards = np.where(xq[:, 1] < rho * r, 1.0, -1.0)  # the other leg lies in +y from the first
+    reach = (P[legs] - xq[legs, None, :])[:, :, 1] * towards[legs, None]
+    assert reach.max() <= g * rho * r * (1 + 1e-5)
+    assert reach.max() >= g * rho * r * (1 - 1e-5)  # the facing spoke is cut exactly there
+    spoke = np.linalg.norm(P[legs] - xq[legs, None, :], axis=2)
+    np.testing.assert_allclose(spoke[reach < 0], r, rtol=1e-5)
+
+
+@pytest.mark.parametrize("n, angle, caps", [(16, 1.5 * np.pi, False), (24, 1.8 * np.pi, False), (16, np.pi, True)])
+def test_cell_planes_leave_circular_arcs_as_the_centre_plane_cuts_them(n, angle, caps):
+    """On the radius x curvature 2 arcs of the self-intersection test, hubs 6 or more apart are
+    within pi r along the tube and close enough to be in each other's cell range, but their cell
+    planes contain the arc's axis, as the ring planes do: every spoke keeps the length the
+    neighbour, virtual and centre planes give it (the float64 reference of those alone)."""
+    r, S, g = 1.0, 12, 0.95
+    x = arc(n, r / 2, angle)
+    b = build(x, S, np.full(n, r), caps=caps, guard=g)
+    cell = b._hub_cell.numpy()[0]
+    hubs = np.arange(n)
+    assert np.any((cell[:, 0] <= hubs - 6) | (cell[:, 1] >= hubs + 6))  # the cell guard is consulted
+    xq = x.astype(np.float32).astype(np.float64)
+    t, rr, _ = b.frames_numpy()
+    expected = guarded_lengths_reference(xq, t, rr, np.full((n, S), r), b.topology, g)
+    topo = b.topology
+    hub_of_vertex = np.empty(b.vertex_count, dtype=int)
+    for ring in range(len(topo.ring_hub)):
+        count = 1 if topo.ring_kind[ring] == RING_POLE else S
+        hub_of_vertex[topo.ring_vertex[ring] : topo.ring_vertex[ring] + count] = topo.ring_hub[ring]
+    got = np.linalg.norm(b.points_numpy().astype(np.float64) - xq[hub_of_vertex], axis=1)
+    # float32, as in the direct evaluation test; the axis is where a cell plane and the centre
+    # plane meet, so their limits agree to round-off.
+    np.testing.assert_allclose(got, expected, rtol=2e-5)

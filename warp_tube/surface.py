@@ -8,7 +8,8 @@ off):
 1. frames: :func:`~warp_tube.kernels.frames.rotation_minimizing_frames_kernel` (one thread per
    (world, tube)) or :func:`~warp_tube.kernels.frames.local_frames_kernel` (one per (world, hub));
 2. hubs: :func:`~warp_tube.kernels.surface.hub_guard_kernel`, one thread per (world, hub), writing
-   each hub's curvature, chords, guard planes and free lengths once;
+   each hub's curvature, chords, guard planes, cell range (hubs of a fold back within ``pi``
+   radii whose cell planes may limit its spokes) and free lengths once;
 3. guard: :func:`~warp_tube.kernels.surface.spoke_guard_kernel`, one thread per (world, ring, spoke),
    writing the guarded length of the spokes that a guard plane may shorten (none on gentle bends);
 4. spokes: :func:`~warp_tube.kernels.surface.spoke_points_kernel`, one thread per
@@ -144,6 +145,7 @@ class SurfaceBuilder:
         self.hub_count = n_hubs
         self.tube_count = len(starts) - 1
         self.guard_reach = float(guard_reach)
+        self._cell_radius = float(lengths.mean())  # the window of the cell guard: pi of these
         self._local_starts = local_starts
         self.device = wp.get_device(device)
 
@@ -156,6 +158,7 @@ class SurfaceBuilder:
             self._rest_t = wp.array(rest_t[None].astype(np.float32), dtype=wp.vec3)
             self._rest_r = wp.array(rest_r[None].astype(np.float32), dtype=wp.vec3)
             self._spoke_length = wp.array(lengths.astype(np.float32), dtype=float)
+            self._hub_reach = wp.array(lengths.max(axis=2).astype(np.float32), dtype=float)
             self._ring_hub = wp.array(topo.ring_hub, dtype=wp.int32)
             self._ring_kind = wp.array(topo.ring_kind, dtype=wp.int32)
             self._ring_cos = wp.array(topo.ring_cos, dtype=float)
@@ -169,6 +172,7 @@ class SurfaceBuilder:
             self._hub_kappa = wp.zeros((self.world_count, n_hubs), dtype=wp.vec3)
             self._hub_chord = wp.zeros((self.world_count, n_hubs), dtype=float)
             self._hub_plane = wp.zeros((self.world_count, n_hubs, 3), dtype=wp.vec4)
+            self._hub_cell = wp.zeros((self.world_count, n_hubs), dtype=wp.vec2i)
             self._hub_free = wp.zeros((self.world_count, n_hubs), dtype=wp.vec2)
             self._surface_length = wp.zeros((self.world_count, topo.vertex_count), dtype=float)
             self.points = wp.zeros((self.world_count, topo.vertex_count), dtype=wp.vec3)
@@ -234,8 +238,17 @@ class SurfaceBuilder:
         hubs = wp.launch(
             hub_guard_kernel,
             dim=(self.world_count, self.hub_count),
-            inputs=[self.node_offset, self.guard_reach, self._tube_node_start, self._node_tube, node_q, self.hub_t],
-            outputs=[self._hub_kappa, self._hub_chord, self._hub_plane, self._hub_free],
+            inputs=[
+                self.node_offset,
+                self.guard_reach,
+                self._cell_radius,
+                self._tube_node_start,
+                self._node_tube,
+                self._hub_reach,
+                node_q,
+                self.hub_t,
+            ],
+            outputs=[self._hub_kappa, self._hub_chord, self._hub_plane, self._hub_cell, self._hub_free],
             device=self.device,
             record_cmd=True,
         )
@@ -247,9 +260,11 @@ class SurfaceBuilder:
                 spoke_guard_kernel,
                 dim=dims_spokes,
                 inputs=[
+                    self.node_offset,
                     self.guard_reach,
                     self._tube_node_start,
                     self._node_tube,
+                    self._hub_reach,
                     self._ring_hub,
                     self._ring_kind,
                     self._ring_cos,
@@ -258,9 +273,11 @@ class SurfaceBuilder:
                     self._spoke_cos,
                     self._spoke_sin,
                     self._spoke_length,
+                    node_q,
                     self.hub_t,
                     self.hub_r,
                     self._hub_plane,
+                    self._hub_cell,
                     self._hub_free,
                 ],
                 outputs=[self._surface_length],
