@@ -12,7 +12,10 @@ from warp_tube.simulation import Simulation
 from warp_tube.solver import SemiImplicitEulerSolver
 from warp_tube.stability import critical_time_step
 
+from warp_tube.topology import RING_POLE
+
 from .conftest import settle
+from .test_surface import intersecting_pairs
 
 FPS = 24.0
 
@@ -245,7 +248,7 @@ def test_hairpin_fold_warns_that_distant_parts_touch():
         track.append(np.concatenate([pts[[0, 1]], (pts[[n - 2, n - 1]] - c) @ rot.T + c]))
     params = TubeParams(density=1050.0, youngs_modulus=2e4, damping=5.0)
     tube = TubeSpec("/T", pts, [n], np.full(n, r), params, pinned=[0, 1, n - 2, n - 1], pin_track=np.array(track))
-    sim = Simulation(Scene((tube,), stage=stage(frames)), device="cpu", surface=False)
+    sim = Simulation(Scene((tube,), stage=stage(frames)), device="cpu")
     for _ in range(frames):
         sim.step()
     q = sim.centerline_points()[0]
@@ -255,3 +258,16 @@ def test_hairpin_fold_warns_that_distant_parts_touch():
     print(f"hairpin: largest radius x curvature {r * kappa.max():.2f}; warnings: {sim.warnings}")
     assert r * kappa.max() > 1.0
     assert any("closer than the sum of their radii" in w for w in sim.warnings)
+    # No local self-intersection: no two triangles from rings less than pi r apart along the
+    # centerline cross (exhaustive; the check itself is shown to find crossings in test_surface).
+    points, _ = sim.surface()[0]
+    builder = sim.surfaces[0]
+    topo = builder.topology
+    hub_of_vertex = np.empty(builder.vertex_count, dtype=int)
+    for ring in range(len(topo.ring_hub)):
+        count = 1 if topo.ring_kind[ring] == RING_POLE else tube.params.spokes
+        hub_of_vertex[topo.ring_vertex[ring] : topo.ring_vertex[ring] + count] = topo.ring_hub[ring]
+    arc = np.concatenate([[0.0], np.cumsum(np.linalg.norm(np.diff(pts, axis=0), axis=1))])
+    # eps: test_surface's 1e-10 m^3 at r = 1 m, scaled by r^3.
+    i, _ = intersecting_pairs(points.astype(np.float64), topo.faces, np.pi * r, arc[hub_of_vertex], eps=1e-16)
+    assert len(i) == 0, f"{len(i)} crossing triangle pairs within pi r along the tube"
