@@ -80,3 +80,17 @@ def test_check_validates_without_writing(tmp_cwd, capsys):
     assert main(["check", str(SCENES / "intestine.usda")]) == 0
     assert "valid" in capsys.readouterr().out
     assert not list(tmp_cwd.iterdir())
+
+
+def test_writer_copies_large_and_small_arrays_exactly():
+    """The direct-copy path (>= DIRECT_COPY_MIN vertices) and FromNumpy give the input bit for bit,
+    and the blocked extent equals NumPy's plain min/max, for sizes on both sides of each switch."""
+    from warp_tube.writer import DIRECT_COPY_MIN, points_extent, vec3f_array
+
+    rng = np.random.default_rng(3)
+    for n in (1, 5, DIRECT_COPY_MIN - 1, DIRECT_COPY_MIN, 4095, 4096, 4097, 70_001):
+        p = rng.normal(size=(n, 3)).astype(np.float32)
+        assert np.array_equal(np.asarray(vec3f_array(p)), p), n
+        assert np.array_equal(np.asarray(vec3f_array(p.astype(np.float64))), p), n
+        ext = points_extent(p)
+        assert np.array_equal(ext, np.stack([p.min(axis=0), p.max(axis=0)])), n
