@@ -2,11 +2,17 @@
 
     python benchmarks/bench_frame.py [--reps 3000] [--device cpu]
 
-The tube has the paper's size: 20 hubs x 9 spokes (342 triangles) with caps off. Its material and
-loads are those of ``scenes/intestine.usda`` (Young's modulus 20 kPa, density 1050 kg/m^3, radius
-1.5 cm, mass damping 8 1/s, gravity, two anchors, the first two points pinned, a sideways push with
-its assistant line) on a 0.4 m centerline. ``Simulation`` picks the integrator and substeps as a run
-would (``auto``: semi-implicit Euler at half the stability bound).
+The tube has the paper's size: 20 hubs x 9 spokes (342 triangles) with caps off, the material of
+``scenes/intestine.usda`` (Young's modulus 20 kPa, density 1050 kg/m^3, radius 1.5 cm, mass damping
+8 1/s) on a 0.4 m centerline with its first two points pinned. Two cases:
+
+- ``minimal``: straight at rest, structural and bending springs and damping only (the paper's
+  centerline without its assistant line);
+- ``intestine``: curved at rest, gravity, two anchors, a sideways push with its assistant line
+  (every feature of ``scenes/intestine.usda``).
+
+``Simulation`` picks the integrator and substeps as a run would (``auto``: semi-implicit Euler at
+half the stability bound).
 
 Timed, medians of ``--reps`` calls after a warm-up, side by side in one run:
 
@@ -39,13 +45,17 @@ from warp_tube.simulation import Simulation
 HUBS, SPOKES, RADIUS, LENGTH = 20, 9, 0.015, 0.4
 
 
-def paper_scene(fps: float = 60.0) -> Scene:
+def paper_scene(features: bool, fps: float = 60.0) -> Scene:
     s = np.linspace(0.0, LENGTH, HUBS)
-    pts = np.stack([s, 0.03 * np.sin(2 * np.pi * s / LENGTH), 0 * s], axis=1)
-    params = TubeParams(density=1050.0, youngs_modulus=2.0e4, damping=8.0, anchor_stiffness=60.0, spokes=SPOKES)
-    tube = TubeSpec("/World/Bowel", pts, [HUBS], np.full(HUBS, RADIUS), params, pinned=[0, 1], anchors=[9, 19])
-    push = ForceSpec("/World/Push", 0, 14, [0.0], [[0.0, 0.0, 0.05]], assistant_line=True)
+    pts = np.stack([s, 0.03 * np.sin(2 * np.pi * s / LENGTH) if features else 0 * s, 0 * s], axis=1)
+    params = TubeParams(density=1050.0, youngs_modulus=2.0e4, damping=8.0, anchor_stiffness=60.0 if features else 0.0,
+                        spokes=SPOKES)  # fmt: skip
+    tube = TubeSpec("/World/Bowel", pts, [HUBS], np.full(HUBS, RADIUS), params, pinned=[0, 1],
+                    anchors=[9, 19] if features else [])  # fmt: skip
     stage = StageInfo(meters_per_unit=1.0, time_codes_per_second=fps, frames_per_second=fps, end_time_code=fps)
+    if not features:
+        return Scene((tube,), stage=stage)
+    push = ForceSpec("/World/Push", 0, 14, [0.0], [[0.0, 0.0, 0.05]], assistant_line=True)
     return Scene((tube,), (push,), settings=SimulationSettings(gravity=(0.0, -9.81, 0.0)), stage=stage)
 
 
@@ -58,20 +68,14 @@ def median_us(fn, reps: int) -> float:
     return 1e6 * statistics.median(samples)
 
 
-def main() -> None:
-    ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
-    ap.add_argument("--reps", type=int, default=3000)
-    ap.add_argument("--device", default="cpu")
-    a = ap.parse_args()
-    wp.config.quiet = True
-    wp.init()
-    sim = Simulation(paper_scene(), device=a.device, surface=True)
+def case(features: bool, device: str, reps: int) -> dict:
+    sim = Simulation(paper_scene(features), device=device, surface=True)
     for _ in range(10):  # compile, build the assistant line, settle the caches
         sim.step()
     builder = sim.surfaces[0]
     s0, s1, c = sim.state, sim.next_state, sim.control
     n = sim.substeps
-    sync = (lambda: wp.synchronize_device(a.device))
+    sync = (lambda: wp.synchronize_device(device))
 
     def substeps():
         sim.solver.integrate(s0, s1, c, sim.dt, n)
@@ -94,26 +98,40 @@ def main() -> None:
     for fn in (substeps, surface, frame):
         fn()
     res = {
-        "benchmark": "frame_60fps_paper_tube",
-        "date": datetime.date.today().isoformat(),
-        "device": a.device,
-        "cpu": platform.processor() or platform.machine(),
-        "warp": wp.config.version,
         "hubs": HUBS,
         "spokes": SPOKES,
         "triangles": len(builder.face_vertex_counts),
         "integrator": sim.integrator,
         "substeps_per_frame": n,
         "dt_s": sim.dt,
-        "substeps_us": median_us(substeps, a.reps),
-        "surface_us": median_us(surface, a.reps),
-        "frame_us": median_us(frame, a.reps),
-        "simulation_step_us": median_us(lambda: (sim.step(), sync()), a.reps),
-        "simulation_step_surface_us": median_us(step_surface, a.reps),
-        "target_frame_us": 20.0,
-        "method": "median of per-call perf_counter times after a warm-up, all cases in one run",
+        "substeps_us": median_us(substeps, reps),
+        "surface_us": median_us(surface, reps),
+        "frame_us": median_us(frame, reps),
+        "simulation_step_us": median_us(lambda: (sim.step(), sync()), reps),
+        "simulation_step_surface_us": median_us(step_surface, reps),
     }
     res["substep_us"] = res["substeps_us"] / n
+    return res
+
+
+def main() -> None:
+    ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    ap.add_argument("--reps", type=int, default=3000)
+    ap.add_argument("--device", default="cpu")
+    a = ap.parse_args()
+    wp.config.quiet = True
+    wp.init()
+    res = {
+        "benchmark": "frame_60fps_paper_tube",
+        "date": datetime.date.today().isoformat(),
+        "device": a.device,
+        "cpu": platform.processor() or platform.machine(),
+        "warp": wp.config.version,
+        "target_frame_us": 20.0,
+        "method": "median of per-call perf_counter times after a warm-up, all cases in one run",
+        "minimal": case(False, a.device, a.reps),
+        "intestine": case(True, a.device, a.reps),
+    }
     print(json.dumps(res, indent=2))
 
 

@@ -138,6 +138,41 @@ def hub_tangents_kernel(
     hub_t_out[w, i] = hub_tangent(node_q, w, node_offset + i, first, last)
 
 
+@wp.func
+def tube_rotation_minimizing_frames(
+    w: int,
+    tube: int,
+    node_offset: int,
+    tube_node_start: wp.array[wp.int32],
+    node_rest_t: wp.array2d[wp.vec3],
+    node_rest_r: wp.array2d[wp.vec3],
+    node_q: wp.array2d[wp.vec3],
+    hub_t_out: wp.array2d[wp.vec3],
+    hub_r_out: wp.array2d[wp.vec3],
+):
+    """The frames of tube ``tube`` of world ``w`` (arguments as :func:`rotation_minimizing_frames_kernel`)."""
+    pw = w % node_rest_t.shape[0]
+    start = tube_node_start[tube]
+    end = tube_node_start[tube + 1]
+    first = node_offset + start
+    last = node_offset + end - 1
+
+    t = hub_tangent(node_q, w, first, first, last)
+    r = rotate_minimal(node_rest_t[pw, start], t, node_rest_r[pw, start])
+    r = wp.normalize(r - wp.dot(r, t) * t)
+    hub_t_out[w, start] = t
+    hub_r_out[w, start] = r
+    x = node_q[w, first]
+    for i in range(start + 1, end):
+        x_next = node_q[w, node_offset + i]
+        t_next = hub_tangent(node_q, w, node_offset + i, first, last)
+        r = double_reflection(x, x_next, t, t_next, r)
+        hub_t_out[w, i] = t_next
+        hub_r_out[w, i] = r
+        x = x_next
+        t = t_next
+
+
 @wp.kernel(enable_backward=False)
 def rotation_minimizing_frames_kernel(
     # model:
@@ -163,26 +198,31 @@ def rotation_minimizing_frames_kernel(
         hub_r_out: unit normals (spoke 0) [1], shape (world_count, node_count).
     """
     w, tube = wp.tid()
-    pw = w % node_rest_t.shape[0]
-    start = tube_node_start[tube]
-    end = tube_node_start[tube + 1]
-    first = node_offset + start
-    last = node_offset + end - 1
+    tube_rotation_minimizing_frames(w, tube, node_offset, tube_node_start, node_rest_t, node_rest_r, node_q, hub_t_out, hub_r_out)
 
-    t = hub_tangent(node_q, w, first, first, last)
-    r = rotate_minimal(node_rest_t[pw, start], t, node_rest_r[pw, start])
-    r = wp.normalize(r - wp.dot(r, t) * t)
-    hub_t_out[w, start] = t
-    hub_r_out[w, start] = r
-    x = node_q[w, first]
-    for i in range(start + 1, end):
-        x_next = node_q[w, node_offset + i]
-        t_next = hub_tangent(node_q, w, node_offset + i, first, last)
-        r = double_reflection(x, x_next, t, t_next, r)
-        hub_t_out[w, i] = t_next
-        hub_r_out[w, i] = r
-        x = x_next
-        t = t_next
+
+@wp.func
+def hub_local_frame(
+    w: int,
+    i: int,
+    node_offset: int,
+    tube_node_start: wp.array[wp.int32],
+    node_tube: wp.array[wp.int32],
+    node_rest_t: wp.array2d[wp.vec3],
+    node_rest_r: wp.array2d[wp.vec3],
+    node_q: wp.array2d[wp.vec3],
+    hub_t_out: wp.array2d[wp.vec3],
+    hub_r_out: wp.array2d[wp.vec3],
+):
+    """The local frame of hub ``i`` of world ``w`` (arguments as :func:`local_frames_kernel`)."""
+    pw = w % node_rest_t.shape[0]
+    tube = node_tube[i]
+    first = node_offset + tube_node_start[tube]
+    last = node_offset + tube_node_start[tube + 1] - 1
+    t = hub_tangent(node_q, w, node_offset + i, first, last)
+    r = rotate_minimal(node_rest_t[pw, i], t, node_rest_r[pw, i])
+    hub_t_out[w, i] = t
+    hub_r_out[w, i] = wp.normalize(r - wp.dot(r, t) * t)
 
 
 @wp.kernel(enable_backward=False)
@@ -206,11 +246,4 @@ def local_frames_kernel(
     node's rest normal is read.
     """
     w, i = wp.tid()
-    pw = w % node_rest_t.shape[0]
-    tube = node_tube[i]
-    first = node_offset + tube_node_start[tube]
-    last = node_offset + tube_node_start[tube + 1] - 1
-    t = hub_tangent(node_q, w, node_offset + i, first, last)
-    r = rotate_minimal(node_rest_t[pw, i], t, node_rest_r[pw, i])
-    hub_t_out[w, i] = t
-    hub_r_out[w, i] = wp.normalize(r - wp.dot(r, t) * t)
+    hub_local_frame(w, i, node_offset, tube_node_start, node_tube, node_rest_t, node_rest_r, node_q, hub_t_out, hub_r_out)

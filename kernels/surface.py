@@ -96,7 +96,7 @@ plain spoke geometry.
 
 import warp as wp
 
-from .frames import rotate_minimal, safe_normalize
+from .frames import hub_local_frame, rotate_minimal, safe_normalize, tube_rotation_minimizing_frames
 
 RING_BODY = wp.constant(0)
 RING_CAP = wp.constant(1)
@@ -258,8 +258,10 @@ def cell_limit(
     return out
 
 
-@wp.kernel(enable_backward=False, module="unique", module_options=CUDA_OPTIONS)
-def hub_guard_kernel(
+@wp.func
+def hub_guard(
+    w: int,
+    h: int,
     # model:
     node_offset: int,
     guard_reach: float,
@@ -277,36 +279,7 @@ def hub_guard_kernel(
     hub_cell_out: wp.array2d[wp.vec2i],
     hub_free_out: wp.array2d[wp.vec2],
 ):
-    """Per-hub data of the spokes: curvature, chords, guard planes; one thread per (world, hub).
-
-    Args:
-        node_offset: column of ``node_q`` holding hub 0.
-        guard_reach: inner-bend guard fraction in (0, 1); 0 turns the guard off.
-        cell_radius: the tube's radius for the cell guard's window [length unit]: hubs less than
-            ``CELL_WINDOW cell_radius`` apart along the centerline (the prim's mean spoke length).
-        tube_node_start: first hub of each tube, (tube_count + 1,).
-        node_tube: tube of each hub, (node_count,).
-        hub_reach: largest spoke length of each hub [length unit], shape (1 or world_count,
-            node_count).
-        node_q: hub positions [length unit], shape (world_count, >= node_offset + node_count).
-        hub_t: hub unit tangents [1], shape (world_count, node_count).
-        hub_kappa_out: curvature vector [1/length unit] (an end hub's is its interior neighbour's;
-            zero for a tube of 2 hubs), shape (world_count, node_count).
-        hub_chord_out: sum of the lengths of the hub's edges [length unit] (one at a tube's end),
-            shape (world_count, node_count).
-        hub_plane_out: guard planes relative to the hub (see :func:`plane_reach`), shape
-            (world_count, node_count, 3): :data:`PLANE_PREV`, :data:`PLANE_NEXT` (the neighbour
-            rings', or at a tube's end of 3+ hubs the virtual ring's, read by body rings only) and
-            :data:`PLANE_CENTRE`; zero where none.
-        hub_cell_out: cell range ``(first, last)``: the farthest hubs before and after, at least
-            :data:`CELL_MIN_GAP` hubs away, whose cell planes may shorten a spoke of the hub
-            (``first > h - CELL_MIN_GAP`` and ``last < h + CELL_MIN_GAP`` for none; the hub itself
-            when none), shape (world_count, node_count); written with the guard on only.
-        hub_free_out: free lengths [length unit] (see :func:`plane_free_length`): of a body ring's
-            spokes (all three planes and the cell planes) and of any ring's (real neighbours, the
-            centre and the cell planes), shape (world_count, node_count).
-    """
-    w, h = wp.tid()
+    """The work of one thread of :func:`hub_guard_kernel`."""
     tube = node_tube[h]
     first = tube_node_start[tube]
     last = tube_node_start[tube + 1] - 1
@@ -407,6 +380,58 @@ def hub_guard_kernel(
     hub_free_out[w, h] = wp.vec2(free_body, free_any)
 
 
+@wp.kernel(enable_backward=False, module="unique", module_options=CUDA_OPTIONS)
+def hub_guard_kernel(
+    # model:
+    node_offset: int,
+    guard_reach: float,
+    cell_radius: float,
+    tube_node_start: wp.array[wp.int32],
+    node_tube: wp.array[wp.int32],
+    hub_reach: wp.array2d[float],
+    # state in:
+    node_q: wp.array2d[wp.vec3],
+    hub_t: wp.array2d[wp.vec3],
+    # out:
+    hub_kappa_out: wp.array2d[wp.vec3],
+    hub_chord_out: wp.array2d[float],
+    hub_plane_out: wp.array3d[wp.vec4],
+    hub_cell_out: wp.array2d[wp.vec2i],
+    hub_free_out: wp.array2d[wp.vec2],
+):
+    """Per-hub data of the spokes: curvature, chords, guard planes; one thread per (world, hub).
+
+    Args:
+        node_offset: column of ``node_q`` holding hub 0.
+        guard_reach: inner-bend guard fraction in (0, 1); 0 turns the guard off.
+        cell_radius: the tube's radius for the cell guard's window [length unit]: hubs less than
+            ``CELL_WINDOW cell_radius`` apart along the centerline (the prim's mean spoke length).
+        tube_node_start: first hub of each tube, (tube_count + 1,).
+        node_tube: tube of each hub, (node_count,).
+        hub_reach: largest spoke length of each hub [length unit], shape (1 or world_count,
+            node_count).
+        node_q: hub positions [length unit], shape (world_count, >= node_offset + node_count).
+        hub_t: hub unit tangents [1], shape (world_count, node_count).
+        hub_kappa_out: curvature vector [1/length unit] (an end hub's is its interior neighbour's;
+            zero for a tube of 2 hubs), shape (world_count, node_count).
+        hub_chord_out: sum of the lengths of the hub's edges [length unit] (one at a tube's end),
+            shape (world_count, node_count).
+        hub_plane_out: guard planes relative to the hub (see :func:`plane_reach`), shape
+            (world_count, node_count, 3): :data:`PLANE_PREV`, :data:`PLANE_NEXT` (the neighbour
+            rings', or at a tube's end of 3+ hubs the virtual ring's, read by body rings only) and
+            :data:`PLANE_CENTRE`; zero where none.
+        hub_cell_out: cell range ``(first, last)``: the farthest hubs before and after, at least
+            :data:`CELL_MIN_GAP` hubs away, whose cell planes may shorten a spoke of the hub
+            (``first > h - CELL_MIN_GAP`` and ``last < h + CELL_MIN_GAP`` for none; the hub itself
+            when none), shape (world_count, node_count); written with the guard on only.
+        hub_free_out: free lengths [length unit] (see :func:`plane_free_length`): of a body ring's
+            spokes (all three planes and the cell planes) and of any ring's (real neighbours, the
+            centre and the cell planes), shape (world_count, node_count).
+    """
+    w, h = wp.tid()
+    hub_guard(w, h, node_offset, guard_reach, cell_radius, tube_node_start, node_tube, hub_reach, node_q, hub_t, hub_kappa_out, hub_chord_out, hub_plane_out, hub_cell_out, hub_free_out)
+
+
 @wp.func
 def ring_guard_kinds(h: int, kind: int, first: int, last: int) -> wp.vec2i:
     """Kinds of a ring's previous and next guard planes (see :func:`guarded_length`): real
@@ -429,6 +454,73 @@ def pole_length(spoke_length: wp.array3d[float], pw: int, h: int) -> float:
     for k in range(spoke_count):
         mean += spoke_length[pw, h, k]
     return mean / float(spoke_count)
+
+
+@wp.func
+def spoke_guard(
+    w: int,
+    ring: int,
+    j: int,
+    # model:
+    node_offset: int,
+    guard_reach: float,
+    tube_node_start: wp.array[wp.int32],
+    node_tube: wp.array[wp.int32],
+    hub_reach: wp.array2d[float],
+    ring_hub: wp.array[wp.int32],
+    ring_kind: wp.array[wp.int32],
+    ring_cos: wp.array[float],
+    ring_sin: wp.array[float],
+    ring_vertex: wp.array[wp.int32],
+    spoke_cos: wp.array[float],
+    spoke_sin: wp.array[float],
+    spoke_length: wp.array3d[float],
+    # state in:
+    node_q: wp.array2d[wp.vec3],
+    hub_t: wp.array2d[wp.vec3],
+    hub_r: wp.array2d[wp.vec3],
+    hub_plane: wp.array3d[wp.vec4],
+    hub_cell: wp.array2d[wp.vec2i],
+    hub_free: wp.array2d[wp.vec2],
+    # out:
+    surface_length_out: wp.array2d[float],
+):
+    """The work of one thread of :func:`spoke_guard_kernel`."""
+    kind = ring_kind[ring]
+    if kind == RING_POLE and j > 0:
+        return
+    h = ring_hub[ring]
+    pw = w % spoke_length.shape[0]
+    free = hub_free[w, h]
+    t = hub_t[w, h]
+    c = ring_cos[ring]
+    sn = ring_sin[ring]
+    length = float(0.0)
+    d = c * t
+    if kind == RING_POLE:
+        length = pole_length(spoke_length, pw, h)
+        if length <= free[1]:
+            return
+    else:
+        length = spoke_length[pw, h, j]
+        limit = free[1]
+        if kind == RING_BODY:
+            limit = free[0]
+        if length <= limit:
+            return
+        r = hub_r[w, h]
+        d = c * t + sn * (spoke_cos[j] * r + spoke_sin[j] * wp.cross(t, r))
+    tube = node_tube[h]
+    kinds = ring_guard_kinds(h, kind, tube_node_start[tube], tube_node_start[tube + 1] - 1)
+    out = guarded_length(
+        length, d, kinds[0], hub_plane[w, h, PLANE_PREV], kinds[1], hub_plane[w, h, PLANE_NEXT],
+        hub_plane[w, h, PLANE_CENTRE], guard_reach,
+    )  # fmt: skip
+    cell = hub_cell[w, h]
+    if cell[0] <= h - CELL_MIN_GAP or cell[1] >= h + CELL_MIN_GAP:
+        x = node_q[w, node_offset + h]
+        out = cell_limit(out, d, x, hub_reach[pw, h], h, cell, w, pw, node_offset, node_q, hub_reach, guard_reach)
+    surface_length_out[w, ring_vertex[ring] + j] = out
 
 
 @wp.kernel(enable_backward=False, module="unique", module_options=CUDA_OPTIONS)
@@ -473,41 +565,93 @@ def spoke_guard_kernel(
         surface_length_out: guarded spoke lengths [length unit], shape (world_count, vertex_count).
     """
     w, ring, j = wp.tid()
-    kind = ring_kind[ring]
-    if kind == RING_POLE and j > 0:
-        return
-    h = ring_hub[ring]
-    pw = w % spoke_length.shape[0]
-    free = hub_free[w, h]
-    t = hub_t[w, h]
-    c = ring_cos[ring]
-    sn = ring_sin[ring]
-    length = float(0.0)
-    d = c * t
-    if kind == RING_POLE:
-        length = pole_length(spoke_length, pw, h)
-        if length <= free[1]:
-            return
-    else:
-        length = spoke_length[pw, h, j]
+    spoke_guard(w, ring, j, node_offset, guard_reach, tube_node_start, node_tube, hub_reach, ring_hub, ring_kind, ring_cos, ring_sin, ring_vertex, spoke_cos, spoke_sin, spoke_length, node_q, hub_t, hub_r, hub_plane, hub_cell, hub_free, surface_length_out)
+
+
+@wp.func
+def ring_spoke_lengths(
+    w: int,
+    pw: int,
+    h: int,
+    j: int,
+    kind: int,
+    spoke_count: int,
+    v0: int,
+    guard: bool,
+    free: wp.vec2,
+    spoke_length: wp.array3d[float],
+    surface_length: wp.array2d[float],
+):
+    """Lengths [length unit] of spoke ``j`` of a ring (first vertex ``v0``) and of its two
+    neighbours in the ring: given, or the guard's where longer than the ring's free length (the
+    test of :func:`spoke_guard`)."""
+    jm = (j + spoke_count - 1) % spoke_count
+    jp = (j + 1) % spoke_count
+    length = spoke_length[pw, h, j]
+    length_m = spoke_length[pw, h, jm]
+    length_p = spoke_length[pw, h, jp]
+    if guard:
         limit = free[1]
         if kind == RING_BODY:
             limit = free[0]
-        if length <= limit:
-            return
-        r = hub_r[w, h]
-        d = c * t + sn * (spoke_cos[j] * r + spoke_sin[j] * wp.cross(t, r))
-    tube = node_tube[h]
-    kinds = ring_guard_kinds(h, kind, tube_node_start[tube], tube_node_start[tube + 1] - 1)
-    out = guarded_length(
-        length, d, kinds[0], hub_plane[w, h, PLANE_PREV], kinds[1], hub_plane[w, h, PLANE_NEXT],
-        hub_plane[w, h, PLANE_CENTRE], guard_reach,
-    )  # fmt: skip
-    cell = hub_cell[w, h]
-    if cell[0] <= h - CELL_MIN_GAP or cell[1] >= h + CELL_MIN_GAP:
-        x = node_q[w, node_offset + h]
-        out = cell_limit(out, d, x, hub_reach[pw, h], h, cell, w, pw, node_offset, node_q, hub_reach, guard_reach)
-    surface_length_out[w, ring_vertex[ring] + j] = out
+        if length > limit:
+            length = surface_length[w, v0 + j]
+        if length_m > limit:
+            length_m = surface_length[w, v0 + jm]
+        if length_p > limit:
+            length_p = surface_length[w, v0 + jp]
+    return length, length_m, length_p
+
+
+@wp.func
+def body_length_step(pw: int, h: int, j: int, has_prev: int, has_next: int, spoke_length: wp.array3d[float]) -> float:
+    """Difference [length unit] of spoke ``j``'s given lengths at the neighbouring hubs (one-sided
+    at a tube's end, 0 for a tube of one hub)."""
+    dl = float(0.0)
+    if has_prev != 0 and has_next != 0:
+        dl = spoke_length[pw, h + 1, j] - spoke_length[pw, h - 1, j]
+    elif has_next != 0:
+        dl = spoke_length[pw, h + 1, j] - spoke_length[pw, h, j]
+    elif has_prev != 0:
+        dl = spoke_length[pw, h, j] - spoke_length[pw, h - 1, j]
+    return dl
+
+
+@wp.func
+def spoke_point_normal(
+    x: wp.vec3,
+    t: wp.vec3,
+    r: wp.vec3,
+    s: wp.vec3,
+    c: float,
+    sn: float,
+    kind: int,
+    cos_j: float,
+    sin_j: float,
+    length: float,
+    length_m: float,
+    length_p: float,
+    dphi: float,
+    dl: float,
+    kappa: wp.vec3,
+    ds: float,
+):
+    """End point [length unit] and unit normal of a (non-pole) spoke at angle ``phi_j`` of a ring
+    at ``theta`` (``c``, ``sn``: its cosine and sine) from hub ``x`` with frame ``(t, r, s)``.
+
+    The normal is the module's formula: the central difference ``length_p - length_m`` over
+    ``2 dphi`` around the ring; on body rings ``dl / ds`` along the tube (``ds``: the hub's chord
+    sum) over the stretch ``1 - L kappa . u`` floored at :data:`MIN_STRETCH`.
+    """
+    u = cos_j * r + sin_j * s
+    u_perp = wp.cross(t, u)
+    d = c * t + sn * u
+    n = d - ((length_p - length_m) / (2.0 * dphi * length * sn)) * u_perp
+    if kind == RING_BODY:
+        stretch = wp.max(1.0 - length * wp.dot(kappa, u), MIN_STRETCH)
+        if ds > 0.0:
+            n = n - (dl / (ds * stretch)) * t
+    return x + length * d, wp.normalize(n)
 
 
 @wp.kernel(enable_backward=False, module="unique", module_options=CUDA_OPTIONS)
@@ -589,47 +733,199 @@ def spoke_points_kernel(
 
     r = hub_r[w, h]
     s = wp.cross(t, r)
-    u = spoke_cos[j] * r + spoke_sin[j] * s
-    u_perp = wp.cross(t, u)
-    d = c * t + sn * u
-    jm = (j + spoke_count - 1) % spoke_count
-    jp = (j + 1) % spoke_count
-    length = spoke_length[pw, h, j]
-    length_m = spoke_length[pw, h, jm]
-    length_p = spoke_length[pw, h, jp]
-    if guard:
-        # Lengths beyond the ring's free length are the guard's (same test as spoke_guard_kernel).
-        limit = free[1]
-        if kind == RING_BODY:
-            limit = free[0]
-        if length > limit:
-            length = surface_length[w, v0 + j]
-        if length_m > limit:
-            length_m = surface_length[w, v0 + jm]
-        if length_p > limit:
-            length_p = surface_length[w, v0 + jp]
-
-    # Around the ring: central difference of the neighbouring spokes' (guarded) lengths.
-    dphi = 2.0 * wp.pi / float(spoke_count)
-    n = d - ((length_p - length_m) / (2.0 * dphi * length * sn)) * u_perp
-
-    if kind == RING_BODY:
-        # Along the tube: the given lengths of the neighbouring hubs over their chords.
-        dl = float(0.0)
-        if has_prev != 0 and has_next != 0:
-            dl = spoke_length[pw, h + 1, j] - spoke_length[pw, h - 1, j]
-        elif has_next != 0:
-            dl = spoke_length[pw, h + 1, j] - spoke_length[pw, h, j]
-        elif has_prev != 0:
-            dl = spoke_length[pw, h, j] - spoke_length[pw, h - 1, j]
-        stretch = wp.max(1.0 - length * wp.dot(hub_kappa[w, h], u), MIN_STRETCH)
-        ds = hub_chord[w, h]
-        if ds > 0.0:
-            n = n - (dl / (ds * stretch)) * t
-
+    length, length_m, length_p = ring_spoke_lengths(
+        w, pw, h, j, kind, spoke_count, v0, guard, free, spoke_length, surface_length
+    )  # fmt: skip
+    dl = body_length_step(pw, h, j, has_prev, has_next, spoke_length)
+    p, n = spoke_point_normal(
+        x, t, r, s, c, sn, kind, spoke_cos[j], spoke_sin[j], length, length_m, length_p,
+        2.0 * wp.pi / float(spoke_count), dl, hub_kappa[w, h], hub_chord[w, h],
+    )  # fmt: skip
     v = v0 + j
-    surface_q_out[w, v] = x + length * d
-    surface_n_out[w, v] = wp.normalize(n)
+    surface_q_out[w, v] = p
+    surface_n_out[w, v] = n
+
+
+@wp.struct
+class SurfaceArrays:
+    """Everything :func:`surface_world_kernel` reads and writes but the hub positions, in one
+    struct: a recorded CPU launch sets each argument on every call (~0.3 us each), so two
+    arguments instead of ~30. Fields as the kernel's arguments of the same names."""
+
+    node_offset: int
+    spoke_count: int
+    guard_reach: float
+    cell_radius: float
+    local_frames: int
+    tube_node_start: wp.array[wp.int32]
+    node_tube: wp.array[wp.int32]
+    node_rest_t: wp.array2d[wp.vec3]
+    node_rest_r: wp.array2d[wp.vec3]
+    hub_reach: wp.array2d[float]
+    ring_hub: wp.array[wp.int32]
+    ring_kind: wp.array[wp.int32]
+    ring_cos: wp.array[float]
+    ring_sin: wp.array[float]
+    ring_vertex: wp.array[wp.int32]
+    spoke_cos: wp.array[float]
+    spoke_sin: wp.array[float]
+    spoke_length: wp.array3d[float]
+    # scratch (per-hub data and guarded lengths, as the split kernels write them):
+    hub_t: wp.array2d[wp.vec3]
+    hub_r: wp.array2d[wp.vec3]
+    hub_kappa: wp.array2d[wp.vec3]
+    hub_chord: wp.array2d[float]
+    hub_plane: wp.array3d[wp.vec4]
+    hub_cell: wp.array2d[wp.vec2i]
+    hub_free: wp.array2d[wp.vec2]
+    surface_length: wp.array2d[float]
+    # out:
+    surface_q_out: wp.array2d[wp.vec3]
+    surface_n_out: wp.array2d[wp.vec3]
+    extent_out: wp.array2d[wp.vec3]
+
+
+@wp.kernel(enable_backward=False, module="unique")
+def surface_world_kernel(arrays: SurfaceArrays, node_q: wp.array2d[wp.vec3]):
+    """The whole rebuild of one world's surface in one thread: frames, per-hub data, guarded
+    lengths, points and normals, and their bounds; one thread per world (the CPU's path: one
+    launch instead of four, each ring's frame read once for its spokes).
+
+    Same arithmetic as the split kernels (frames, :func:`hub_guard_kernel`,
+    :func:`spoke_guard_kernel`, :func:`spoke_points_kernel`), so both give the same points and
+    normals. A ring is guarded only where its hub's largest spoke exceeds the ring's free length.
+
+    Args:
+        arrays: the fields below (:class:`SurfaceArrays`).
+        node_q: hub positions [length unit], shape (world_count, >= node_offset + node_count).
+        local_frames: 1 for the paper's local frames, 0 for rotation-minimizing ones.
+        node_rest_t, node_rest_r: rest tangents and spoke-0 normals [1], shape (1 or world_count,
+            node_count) (see :mod:`warp_tube.kernels.frames`).
+        extent_out: ``[min, max]`` corner of the world's points [length unit], shape (world_count, 2).
+        Others: as the split kernels.
+    """
+    node_offset = arrays.node_offset
+    spoke_count = arrays.spoke_count
+    guard_reach = arrays.guard_reach
+    cell_radius = arrays.cell_radius
+    local_frames = arrays.local_frames
+    tube_node_start = arrays.tube_node_start
+    node_tube = arrays.node_tube
+    node_rest_t = arrays.node_rest_t
+    node_rest_r = arrays.node_rest_r
+    hub_reach = arrays.hub_reach
+    ring_hub = arrays.ring_hub
+    ring_kind = arrays.ring_kind
+    ring_cos = arrays.ring_cos
+    ring_sin = arrays.ring_sin
+    ring_vertex = arrays.ring_vertex
+    spoke_cos = arrays.spoke_cos
+    spoke_sin = arrays.spoke_sin
+    spoke_length = arrays.spoke_length
+    hub_t = arrays.hub_t
+    hub_r = arrays.hub_r
+    hub_kappa = arrays.hub_kappa
+    hub_chord = arrays.hub_chord
+    hub_plane = arrays.hub_plane
+    hub_cell = arrays.hub_cell
+    hub_free = arrays.hub_free
+    surface_length = arrays.surface_length
+    surface_q_out = arrays.surface_q_out
+    surface_n_out = arrays.surface_n_out
+    extent_out = arrays.extent_out
+    w = wp.tid()
+    pw = w % spoke_length.shape[0]
+    hub_count = node_tube.shape[0]
+    if local_frames != 0:
+        for h in range(hub_count):
+            hub_local_frame(w, h, node_offset, tube_node_start, node_tube, node_rest_t, node_rest_r, node_q, hub_t, hub_r)
+    else:
+        for tube in range(tube_node_start.shape[0] - 1):
+            tube_rotation_minimizing_frames(w, tube, node_offset, tube_node_start, node_rest_t, node_rest_r, node_q, hub_t, hub_r)
+    for h in range(hub_count):
+        hub_guard(
+            w, h, node_offset, guard_reach, cell_radius, tube_node_start, node_tube, hub_reach, node_q, hub_t,
+            hub_kappa, hub_chord, hub_plane, hub_cell, hub_free,
+        )  # fmt: skip
+    guard = guard_reach > 0.0
+    ring_count = ring_hub.shape[0]
+    if guard:
+        for ring in range(ring_count):
+            h = ring_hub[ring]
+            free = hub_free[w, h]
+            limit = free[1]
+            if ring_kind[ring] == RING_BODY:
+                limit = free[0]
+            if hub_reach[pw, h] > limit:
+                for j in range(spoke_count):
+                    spoke_guard(
+                        w, ring, j, node_offset, guard_reach, tube_node_start, node_tube, hub_reach, ring_hub,
+                        ring_kind, ring_cos, ring_sin, ring_vertex, spoke_cos, spoke_sin, spoke_length, node_q,
+                        hub_t, hub_r, hub_plane, hub_cell, hub_free, surface_length,
+                    )  # fmt: skip
+    lo = wp.vec3(1.0e30)
+    hi = wp.vec3(-1.0e30)
+    dphi = 2.0 * wp.pi / float(spoke_count)
+    for ring in range(ring_count):
+        kind = ring_kind[ring]
+        h = ring_hub[ring]
+        x = node_q[w, node_offset + h]
+        t = hub_t[w, h]
+        c = ring_cos[ring]
+        free = hub_free[w, h]
+        v0 = ring_vertex[ring]
+        if kind == RING_POLE:
+            d = c * t
+            length = pole_length(spoke_length, pw, h)
+            if guard and length > free[1]:
+                length = surface_length[w, v0]
+            p = x + length * d
+            surface_q_out[w, v0] = p
+            surface_n_out[w, v0] = d
+            lo = wp.min(lo, p)
+            hi = wp.max(hi, p)
+        else:
+            tube = node_tube[h]
+            has_prev = int(h > tube_node_start[tube])
+            has_next = int(h < tube_node_start[tube + 1] - 1)
+            sn = ring_sin[ring]
+            r = hub_r[w, h]
+            s = wp.cross(t, r)
+            kappa = hub_kappa[w, h]
+            ds = hub_chord[w, h]
+            for j in range(spoke_count):
+                length, length_m, length_p = ring_spoke_lengths(
+                    w, pw, h, j, kind, spoke_count, v0, guard, free, spoke_length, surface_length
+                )  # fmt: skip
+                dl = body_length_step(pw, h, j, has_prev, has_next, spoke_length)
+                p, n = spoke_point_normal(
+                    x, t, r, s, c, sn, kind, spoke_cos[j], spoke_sin[j], length, length_m, length_p, dphi, dl, kappa, ds
+                )  # fmt: skip
+                surface_q_out[w, v0 + j] = p
+                surface_n_out[w, v0 + j] = n
+                lo = wp.min(lo, p)
+                hi = wp.max(hi, p)
+    extent_out[w, 0] = lo
+    extent_out[w, 1] = hi
+
+
+@wp.kernel(enable_backward=False, module="unique", module_options=CUDA_OPTIONS)
+def surface_extent_kernel(
+    surface_q: wp.array2d[wp.vec3],
+    # out:
+    extent_out: wp.array2d[wp.vec3],
+):
+    """``[min, max]`` corners [length unit] of each world's points, shape (world_count, 2), from
+    ``surface_q`` (world_count, vertex_count); one thread per world (the split path's bounds)."""
+    w = wp.tid()
+    lo = wp.vec3(1.0e30)
+    hi = wp.vec3(-1.0e30)
+    for v in range(surface_q.shape[1]):
+        p = surface_q[w, v]
+        lo = wp.min(lo, p)
+        hi = wp.max(hi, p)
+    extent_out[w, 0] = lo
+    extent_out[w, 1] = hi
 
 
 @wp.kernel(enable_backward=False)

@@ -260,7 +260,7 @@ def test_hairpin_fold_warns_that_distant_parts_touch():
     assert any("closer than the sum of their radii" in w for w in sim.warnings)
     # No local self-intersection: no two triangles from rings less than pi r apart along the
     # centerline cross (exhaustive; the check itself is shown to find crossings in test_surface).
-    points, _ = sim.surface()[0]
+    points = sim.surface()[0][0]
     builder = sim.surfaces[0]
     topo = builder.topology
     hub_of_vertex = np.empty(builder.vertex_count, dtype=int)

@@ -216,7 +216,7 @@ class Simulation:
             lengths = t.spoke_lengths if t.spoke_lengths is not None else np.repeat(t.radius[:, None], t.params.spokes, axis=1)
             out.append(
                 SurfaceBuilder(
-                    tube_node_start=np.concatenate([[0], np.cumsum(t.curve_counts)]),
+                    tube_node_start=self._prim_start[k] + np.concatenate([[0], np.cumsum(t.curve_counts)]),
                     rest_q=t.points, spokes=t.params.spokes, spoke_lengths=lengths,
                     reference_normal=t.params.reference_normal, frames=t.params.frames, caps=t.params.caps,
                     world_count=1, device=self.device,
@@ -488,20 +488,21 @@ class Simulation:
 
     def surface_points(self, world: int = 0) -> list[np.ndarray]:
         """Surface vertices per tube prim [stage units], each shape (V, 3)."""
-        return [p for p, _ in self.surface(world)]
+        return [out[0] for out in self.surface(world)]
 
     def surface(self, world: int = 0):
-        """Surface (points, normals) per tube prim [stage units], each shape (V, 3)."""
+        """Surface ``(points, normals, extent)`` per tube prim: points [stage units] and unit
+        normals, each shape (V, 3), and the points' ``[min, max]`` corners [stage units], (2, 3)."""
         if self.surfaces is None:
             raise RuntimeError("this Simulation was made with surface=False")
         mpu = self.scene.stage.meters_per_unit
         q = self.state.node_q
+        if q.shape[0] > 1:  # the builders serve one world: hand them that world's row
+            q = wp.array(q.numpy()[world : world + 1], dtype=wp.vec3, device=self.device)
         out = []
-        for k, b in enumerate(self.surfaces):
-            s, n = self._prim_start[k], self._prim_count[k]
-            sub = wp.array(q.numpy()[world : world + 1, s : s + n], dtype=wp.vec3, device=self.device)
-            pts, nrm = b.compute(sub)
-            out.append((pts.numpy()[0] / mpu, nrm.numpy()[0]))
+        for b in self.surfaces:
+            pts, nrm = b.compute(q)
+            out.append((pts.numpy()[0] / mpu, nrm.numpy()[0], b.extent().numpy()[0] / mpu))
         return out
 
     def max_displacement(self) -> float:

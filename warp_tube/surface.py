@@ -2,8 +2,10 @@
 
 :class:`SurfaceBuilder` serves one tube prim (one spoke count S; all its curves). It is built once
 from the rest centerline and the spoke lengths, allocates everything then, and at every output
-frame rebuilds the boundary from the deformed centerline with four launches (three with the guard
-off):
+frame rebuilds the boundary from the deformed centerline. On the CPU (by default) one launch of
+:func:`~warp_tube.kernels.surface.surface_world_kernel` does it all, one thread per world, and also
+writes the bounds of the points (the ``extent``). On CUDA, four launches (three with the guard
+off), each with a thread per hub or per spoke:
 
 1. frames: :func:`~warp_tube.kernels.frames.rotation_minimizing_frames_kernel` (one thread per
    (world, tube)) or :func:`~warp_tube.kernels.frames.local_frames_kernel` (one per (world, hub));
@@ -14,6 +16,9 @@ off):
    writing the guarded length of the spokes that a guard plane may shorten (none on gentle bends);
 4. spokes: :func:`~warp_tube.kernels.surface.spoke_points_kernel`, one thread per
    (world, ring, spoke) with the spoke index fastest, writing points and normals.
+
+and :meth:`SurfaceBuilder.extent` adds a fifth,
+:func:`~warp_tube.kernels.surface.surface_extent_kernel`, when the bounds are asked for.
 
 Rest frames (tangent and spoke-0 normal of every hub at rest) follow :mod:`warp_tube.frames`
 in float64: the first hub's normal is the tube's reference normal (or the convention's default),
@@ -27,7 +32,14 @@ import warp as wp
 
 from . import frames as ref_frames
 from .kernels.frames import local_frames_kernel, rotation_minimizing_frames_kernel
-from .kernels.surface import hub_guard_kernel, spoke_guard_kernel, spoke_points_kernel
+from .kernels.surface import (
+    SurfaceArrays,
+    hub_guard_kernel,
+    spoke_guard_kernel,
+    spoke_points_kernel,
+    surface_extent_kernel,
+    surface_world_kernel,
+)
 from .topology import SurfaceTopology, build_topology
 
 __all__ = ["SurfaceBuilder", "FRAME_MODES", "DEFAULT_GUARD_REACH"]
@@ -86,6 +98,9 @@ class SurfaceBuilder:
         device: Warp device (default: Warp's default device).
         guard_reach: inner-bend guard fraction in (0, 1), 0 to turn it off (see
             :mod:`warp_tube.kernels.surface`).
+        fused: one launch per rebuild, a thread per world (:func:`surface_world_kernel`), instead
+            of the four split kernels; default: on the CPU only (on a GPU the split kernels keep
+            thousands of threads busy). Both give the same points and normals.
 
     All lengths share one unit L (the core passes metres); points come out in L.
     """
@@ -103,6 +118,7 @@ class SurfaceBuilder:
         world_count: int = 1,
         device=None,
         guard_reach: float = DEFAULT_GUARD_REACH,
+        fused: bool | None = None,
     ):
         if frames not in FRAME_MODES:
             raise ValueError(f"frames must be one of {FRAME_MODES}, got {frames!r}")
@@ -148,6 +164,7 @@ class SurfaceBuilder:
         self._cell_radius = float(lengths.mean())  # the window of the cell guard: pi of these
         self._local_starts = local_starts
         self.device = wp.get_device(device)
+        self.fused = self.device.is_cpu if fused is None else bool(fused)
 
         rest_t, rest_r = rest_frames(rest, local_starts, reference_normal)
         node_tube = np.repeat(np.arange(self.tube_count), np.diff(local_starts))
@@ -177,7 +194,10 @@ class SurfaceBuilder:
             self._surface_length = wp.zeros((self.world_count, topo.vertex_count), dtype=float)
             self.points = wp.zeros((self.world_count, topo.vertex_count), dtype=wp.vec3)
             self.normals = wp.zeros((self.world_count, topo.vertex_count), dtype=wp.vec3)
+            self._extent = wp.zeros((self.world_count, 2), dtype=wp.vec3)
         self._launches: dict = {}
+        self._extent_launch = None
+        self._extent_fresh = False
 
     # -- topology ------------------------------------------------------------------------------
     @property
@@ -215,7 +235,31 @@ class SurfaceBuilder:
         return np.concatenate(out)
 
     # -- per frame -----------------------------------------------------------------------------
+    def _record_fused(self, node_q: wp.array):
+        arrays = SurfaceArrays()
+        for name, value in (
+            ("node_offset", self.node_offset), ("spoke_count", self.spokes), ("guard_reach", self.guard_reach),
+            ("cell_radius", self._cell_radius), ("local_frames", int(self.frames == "local")),
+            ("tube_node_start", self._tube_node_start), ("node_tube", self._node_tube),
+            ("node_rest_t", self._rest_t), ("node_rest_r", self._rest_r), ("hub_reach", self._hub_reach),
+            ("ring_hub", self._ring_hub), ("ring_kind", self._ring_kind), ("ring_cos", self._ring_cos),
+            ("ring_sin", self._ring_sin), ("ring_vertex", self._ring_vertex), ("spoke_cos", self._spoke_cos),
+            ("spoke_sin", self._spoke_sin), ("spoke_length", self._spoke_length), ("hub_t", self.hub_t),
+            ("hub_r", self.hub_r), ("hub_kappa", self._hub_kappa), ("hub_chord", self._hub_chord),
+            ("hub_plane", self._hub_plane), ("hub_cell", self._hub_cell), ("hub_free", self._hub_free),
+            ("surface_length", self._surface_length), ("surface_q_out", self.points),
+            ("surface_n_out", self.normals), ("extent_out", self._extent),
+        ):  # fmt: skip
+            setattr(arrays, name, value)
+        self._arrays = arrays  # the launch refers to it
+        launch = wp.launch(
+            surface_world_kernel, dim=self.world_count, inputs=[arrays, node_q], device=self.device, record_cmd=True
+        )
+        return (launch,)
+
     def _record(self, node_q: wp.array):
+        if self.fused:
+            return self._record_fused(node_q)
         dims_frames = (self.world_count, self.tube_count)
         if self.frames == "rotationMinimizing":
             frames = wp.launch(
@@ -346,7 +390,22 @@ class SurfaceBuilder:
             self._launches[key] = launches
         for launch in launches:
             launch.launch()
+        self._extent_fresh = self.fused
         return self.points, self.normals
+
+    def extent(self) -> wp.array:
+        """Bounds of the points of the last :meth:`compute`: ``[min, max]`` corners [L] per world,
+        ``wp.array2d`` of ``wp.vec3`` shaped (world_count, 2), this builder's own array. The fused
+        (CPU) rebuild writes them as it goes; otherwise one more launch finds them here."""
+        if not self._extent_fresh:
+            if self._extent_launch is None:
+                self._extent_launch = wp.launch(
+                    surface_extent_kernel, dim=self.world_count, inputs=[self.points], outputs=[self._extent],
+                    device=self.device, record_cmd=True,
+                )  # fmt: skip
+            self._extent_launch.launch()
+            self._extent_fresh = True
+        return self._extent
 
     def points_numpy(self, world: int = 0) -> np.ndarray:
         """Boundary points of one world [L], float32 (V, 3) (a copy)."""

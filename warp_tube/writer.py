@@ -173,7 +173,9 @@ class StageWriter:
         Args:
             time_code: the frame's time code.
             centerlines: per tube prim, points in stage units, shape (P, 3).
-            surfaces: per tube prim, ``(points, normals)`` in stage units, shapes (V, 3), or None.
+            surfaces: per tube prim, ``(points, normals)`` or ``(points, normals, extent)`` in stage
+                units, shapes (V, 3) and (2, 3) (the points' ``[min, max]`` corners; found here when
+                not given), or None.
         """
         from pxr import Sdf, Vt
 
@@ -183,11 +185,12 @@ class StageWriter:
                 layer.SetTimeSample(entry["centerline"], time_code, vec3f_array(centerlines[k]))
                 if entry["surface"] is not None and surfaces is not None and surfaces[k] is not None:
                     p_path, n_path, e_path = entry["surface"]
-                    sp, sn = surfaces[k]
+                    sp, sn, *ext = surfaces[k]
                     sp = np.ascontiguousarray(sp, dtype=np.float32)
+                    ext = points_extent(sp) if not ext else np.asarray(ext[0], dtype=np.float32)
                     layer.SetTimeSample(p_path, time_code, vec3f_array(sp))
                     layer.SetTimeSample(n_path, time_code, vec3f_array(sn))
-                    layer.SetTimeSample(e_path, time_code, Vt.Vec3fArray.FromNumpy(points_extent(sp)))
+                    layer.SetTimeSample(e_path, time_code, Vt.Vec3fArray.FromNumpy(ext))
         self.frames_written += 1
         self.last_time = time_code
 
