@@ -1,12 +1,15 @@
 """Surface rebuild speed: frames + hub + spoke kernels (SurfaceBuilder.compute). Prints JSON.
 
-Kernels per rebuild: frames, hub, guard (the guarded spoke lengths; skipped with the guard off), spoke.
+A rebuild is one launch of the fused kernel (a thread per world; the CPU's default) or four split
+kernels (CUDA's): frames, hub, guard (the guarded spoke lengths, a thread per ring; skipped with
+the guard off), spoke.
 
 - CPU, one tube: 20 hubs x 9 spokes; median wall time of one rebuild over many calls after a
   warm-up, each call replaying recorded launches (``wp.launch(record_cmd=True)``, no argument
-  packing per call). Mostly launch overhead at this size.
+  packing per call), fused and split side by side.
 - CPU, batch: 256 tubes (worlds) x 32 hubs x 32 spokes (262,144 vertices), median of a few
-  rebuilds, with each launch timed alone as well, so that the per-vertex cost shows.
+  rebuilds, fused, and split with each launch timed alone as well, so that the per-vertex cost
+  shows.
 - CUDA (when a device exists): 65,536 tubes (worlds) x 32 hubs x 32 spokes, the rebuild and each of
   its kernels captured in CUDA graphs and timed with CUDA events over many replays. Reported:
   surface vertices per second, and the memory-bandwidth bound for the 24 bytes the spoke kernel
@@ -66,33 +69,34 @@ def _median_s(fn, calls: int) -> float:
 
 def bench_cpu(repeats: int) -> dict:
     n, S = 20, 9
-    b = SurfaceBuilder([0, n], straight_rest(n), S, np.full(n, 0.01), device="cpu")
     q = wp.array(helix(n).astype(np.float32), dtype=wp.vec3, device="cpu")
-    for _ in range(50):
-        b.compute(q)
-    samples = []
-    for _ in range(repeats):
-        t0 = time.perf_counter()
-        b.compute(q)
-        samples.append(time.perf_counter() - t0)
-    return {
-        "device": "cpu",
-        "tubes": 1,
-        "hubs": n,
-        "spokes": S,
-        "vertices": b.vertex_count,
-        "rebuild_median_us": 1e6 * statistics.median(samples),
-        "rebuild_p10_us": 1e6 * float(np.percentile(samples, 10)),
-        "rebuild_p90_us": 1e6 * float(np.percentile(samples, 90)),
-        "calls": repeats,
-        "method": "median of per-call perf_counter times of SurfaceBuilder.compute (4 recorded launches)",
-    }
+    out = {"device": "cpu", "tubes": 1, "hubs": n, "spokes": S}
+    for fused in (True, False):
+        b = SurfaceBuilder([0, n], straight_rest(n), S, np.full(n, 0.01), device="cpu", fused=fused)
+        for _ in range(50):
+            b.compute(q)
+        samples = []
+        for _ in range(repeats):
+            t0 = time.perf_counter()
+            b.compute(q)
+            samples.append(time.perf_counter() - t0)
+        key = "fused" if fused else "split"
+        out["vertices"] = b.vertex_count
+        out[f"rebuild_{key}_median_us"] = 1e6 * statistics.median(samples)
+        out[f"rebuild_{key}_p10_us"] = 1e6 * float(np.percentile(samples, 10))
+        out[f"rebuild_{key}_p90_us"] = 1e6 * float(np.percentile(samples, 90))
+    out["calls"] = repeats
+    out["method"] = "median of per-call perf_counter times of SurfaceBuilder.compute (recorded launches)"
+    return out
 
 
 def bench_cpu_batch(repeats: int) -> dict:
     W, n, S = 256, 32, 32
-    b = SurfaceBuilder([0, n], straight_rest(n), S, np.full(n, 0.01), world_count=W, device="cpu")
     q = wp.array(np.ascontiguousarray(helix(n, W)).astype(np.float32), dtype=wp.vec3, device="cpu")
+    fused = SurfaceBuilder([0, n], straight_rest(n), S, np.full(n, 0.01), world_count=W, device="cpu")
+    fused.compute(q)
+    t_fused = _median_s(lambda: fused.compute(q), repeats)
+    b = SurfaceBuilder([0, n], straight_rest(n), S, np.full(n, 0.01), world_count=W, device="cpu", fused=False)
     for _ in range(2):
         b.compute(q)
     t_all = _median_s(lambda: b.compute(q), repeats)
@@ -104,10 +108,12 @@ def bench_cpu_batch(repeats: int) -> dict:
         "hubs": n,
         "spokes": S,
         "vertices": vertices,
-        "rebuild_median_ms": 1e3 * t_all,
+        "rebuild_fused_median_ms": 1e3 * t_fused,
+        "ns_per_vertex_rebuild_fused": 1e9 * t_fused / vertices,
+        "rebuild_split_median_ms": 1e3 * t_all,
         **{f"{name}_kernel_median_ms": 1e3 * t for name, t in t_kernel.items()},
-        "vertices_per_s_rebuild": vertices / t_all,
-        "ns_per_vertex_rebuild": 1e9 * t_all / vertices,
+        "vertices_per_s_rebuild_fused": vertices / t_fused,
+        "ns_per_vertex_rebuild_split": 1e9 * t_all / vertices,
         "ns_per_vertex_spoke_kernel": 1e9 * t_kernel["spoke"] / vertices,
         "calls": repeats,
         "method": "median of per-call perf_counter times; Warp's CPU backend runs one thread",

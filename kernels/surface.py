@@ -82,11 +82,13 @@ from :data:`CELL_MIN_GAP` hubs on; on a straight or gently bent tube no hub is c
 range stays empty and the walk is the only cost) and two *free lengths*: bounds below which no
 plane (cell planes included) can shorten a spoke of the hub's body ring or of any ring.
 A spoke no longer than its ring's free length keeps its given length (exactly: the guard only
-takes minima with larger values), so only the others are guarded: :func:`spoke_guard_kernel` (one
+takes minima with larger values), so only the others are guarded: :func:`ring_guard_kernel` (one
 thread per (world, ring, spoke)) writes their guarded lengths, five plane tests each plus one per
 hub of the cell range whose ring can reach (the hub kernel's range, re-tested with
 ``|x_k - x| < R + R_k``; hubs in it that the hub kernel passed over cannot limit a spoke of the
-hub, so the result is the same as with those it picked), and leaves the rest unwritten.
+hub, so the result is the same as with those it picked), and leaves the rest unwritten; it runs
+a thread per (world, ring) that returns at once where the ring's largest spoke is within its free
+length.
 :func:`spoke_points_kernel` (one thread per (world, ring, spoke), spokes fastest, so consecutive
 threads write consecutive vertices) takes each of its spoke's and its two neighbours' lengths (for
 the normal) from there or, by the same test, as given. The points kernel
@@ -485,7 +487,7 @@ def spoke_guard(
     # out:
     surface_length_out: wp.array2d[float],
 ):
-    """The work of one thread of :func:`spoke_guard_kernel`."""
+    """The work of one thread of :func:`ring_guard_kernel`."""
     kind = ring_kind[ring]
     if kind == RING_POLE and j > 0:
         return
@@ -523,8 +525,49 @@ def spoke_guard(
     surface_length_out[w, ring_vertex[ring] + j] = out
 
 
+@wp.func
+def ring_guard(
+    w: int,
+    ring: int,
+    node_offset: int,
+    guard_reach: float,
+    tube_node_start: wp.array[wp.int32],
+    node_tube: wp.array[wp.int32],
+    hub_reach: wp.array2d[float],
+    ring_hub: wp.array[wp.int32],
+    ring_kind: wp.array[wp.int32],
+    ring_cos: wp.array[float],
+    ring_sin: wp.array[float],
+    ring_vertex: wp.array[wp.int32],
+    spoke_cos: wp.array[float],
+    spoke_sin: wp.array[float],
+    spoke_length: wp.array3d[float],
+    node_q: wp.array2d[wp.vec3],
+    hub_t: wp.array2d[wp.vec3],
+    hub_r: wp.array2d[wp.vec3],
+    hub_plane: wp.array3d[wp.vec4],
+    hub_cell: wp.array2d[wp.vec2i],
+    hub_free: wp.array2d[wp.vec2],
+    surface_length_out: wp.array2d[float],
+):
+    """Guarded lengths of one ring's spokes (:func:`spoke_guard`), none where the hub's largest
+    spoke is within the ring's free length."""
+    h = ring_hub[ring]
+    free = hub_free[w, h]
+    limit = free[1]
+    if ring_kind[ring] == RING_BODY:
+        limit = free[0]
+    if hub_reach[w % hub_reach.shape[0], h] > limit:
+        for j in range(spoke_cos.shape[0]):
+            spoke_guard(
+                w, ring, j, node_offset, guard_reach, tube_node_start, node_tube, hub_reach, ring_hub, ring_kind,
+                ring_cos, ring_sin, ring_vertex, spoke_cos, spoke_sin, spoke_length, node_q, hub_t, hub_r,
+                hub_plane, hub_cell, hub_free, surface_length_out,
+            )  # fmt: skip
+
+
 @wp.kernel(enable_backward=False, module="unique", module_options=CUDA_OPTIONS)
-def spoke_guard_kernel(
+def ring_guard_kernel(
     # model:
     node_offset: int,
     guard_reach: float,
@@ -550,7 +593,9 @@ def spoke_guard_kernel(
     surface_length_out: wp.array2d[float],
 ):
     """Guarded length of each spoke longer than its ring's free length; one thread per
-    (world, ring, spoke). Other entries are left as they are (and not read).
+    (world, ring), which skips the ring at once where its hub's largest spoke is within the ring's
+    free length (all but the rings of sharp bends and folds) and otherwise takes its spokes in
+    turn. Other entries are left as they are (and not read).
 
     Args:
         node_offset: column of ``node_q`` holding hub 0.
@@ -564,8 +609,12 @@ def spoke_guard_kernel(
         hub_plane, hub_cell, hub_free: per-hub data from :func:`hub_guard_kernel`.
         surface_length_out: guarded spoke lengths [length unit], shape (world_count, vertex_count).
     """
-    w, ring, j = wp.tid()
-    spoke_guard(w, ring, j, node_offset, guard_reach, tube_node_start, node_tube, hub_reach, ring_hub, ring_kind, ring_cos, ring_sin, ring_vertex, spoke_cos, spoke_sin, spoke_length, node_q, hub_t, hub_r, hub_plane, hub_cell, hub_free, surface_length_out)
+    w, ring = wp.tid()
+    ring_guard(
+        w, ring, node_offset, guard_reach, tube_node_start, node_tube, hub_reach, ring_hub, ring_kind, ring_cos,
+        ring_sin, ring_vertex, spoke_cos, spoke_sin, spoke_length, node_q, hub_t, hub_r, hub_plane, hub_cell,
+        hub_free, surface_length_out,
+    )  # fmt: skip
 
 
 @wp.func
@@ -696,7 +745,7 @@ def spoke_points_kernel(
         node_q: hub positions [length unit], shape (world_count, >= node_offset + node_count).
         hub_t, hub_r: hub unit tangents and normals [1], shape (world_count, node_count).
         hub_kappa, hub_chord, hub_free: per-hub data from :func:`hub_guard_kernel`.
-        surface_length: guarded spoke lengths from :func:`spoke_guard_kernel`, read (only) for
+        surface_length: guarded spoke lengths from :func:`ring_guard_kernel`, read (only) for
             spokes longer than their ring's free length when the guard is on.
         surface_q_out: boundary points [length unit], shape (world_count, vertex_count).
         surface_n_out: unit outward normals [1], shape (world_count, vertex_count).
@@ -792,7 +841,7 @@ def surface_world_kernel(arrays: SurfaceArrays, node_q: wp.array2d[wp.vec3]):
     launch instead of four, each ring's frame read once for its spokes).
 
     Same arithmetic as the split kernels (frames, :func:`hub_guard_kernel`,
-    :func:`spoke_guard_kernel`, :func:`spoke_points_kernel`), so both give the same points and
+    :func:`ring_guard_kernel`, :func:`spoke_points_kernel`), so both give the same points and
     normals. A ring is guarded only where its hub's largest spoke exceeds the ring's free length.
 
     Args:
@@ -851,18 +900,11 @@ def surface_world_kernel(arrays: SurfaceArrays, node_q: wp.array2d[wp.vec3]):
     ring_count = ring_hub.shape[0]
     if guard:
         for ring in range(ring_count):
-            h = ring_hub[ring]
-            free = hub_free[w, h]
-            limit = free[1]
-            if ring_kind[ring] == RING_BODY:
-                limit = free[0]
-            if hub_reach[pw, h] > limit:
-                for j in range(spoke_count):
-                    spoke_guard(
-                        w, ring, j, node_offset, guard_reach, tube_node_start, node_tube, hub_reach, ring_hub,
-                        ring_kind, ring_cos, ring_sin, ring_vertex, spoke_cos, spoke_sin, spoke_length, node_q,
-                        hub_t, hub_r, hub_plane, hub_cell, hub_free, surface_length,
-                    )  # fmt: skip
+            ring_guard(
+                w, ring, node_offset, guard_reach, tube_node_start, node_tube, hub_reach, ring_hub, ring_kind,
+                ring_cos, ring_sin, ring_vertex, spoke_cos, spoke_sin, spoke_length, node_q, hub_t, hub_r,
+                hub_plane, hub_cell, hub_free, surface_length,
+            )  # fmt: skip
     lo = wp.vec3(1.0e30)
     hi = wp.vec3(-1.0e30)
     dphi = 2.0 * wp.pi / float(spoke_count)

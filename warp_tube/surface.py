@@ -12,7 +12,7 @@ off), each with a thread per hub or per spoke:
 2. hubs: :func:`~warp_tube.kernels.surface.hub_guard_kernel`, one thread per (world, hub), writing
    each hub's curvature, chords, guard planes, cell range (hubs of a fold back within ``pi``
    radii whose cell planes may limit its spokes) and free lengths once;
-3. guard: :func:`~warp_tube.kernels.surface.spoke_guard_kernel`, one thread per (world, ring, spoke),
+3. guard: :func:`~warp_tube.kernels.surface.ring_guard_kernel`, one thread per (world, ring),
    writing the guarded length of the spokes that a guard plane may shorten (none on gentle bends);
 4. spokes: :func:`~warp_tube.kernels.surface.spoke_points_kernel`, one thread per
    (world, ring, spoke) with the spoke index fastest, writing points and normals.
@@ -35,7 +35,7 @@ from .kernels.frames import local_frames_kernel, rotation_minimizing_frames_kern
 from .kernels.surface import (
     SurfaceArrays,
     hub_guard_kernel,
-    spoke_guard_kernel,
+    ring_guard_kernel,
     spoke_points_kernel,
     surface_extent_kernel,
     surface_world_kernel,
@@ -301,8 +301,8 @@ class SurfaceBuilder:
         launches = [frames, hubs]
         if self.guard_reach > 0.0:
             guard = wp.launch(
-                spoke_guard_kernel,
-                dim=dims_spokes,
+                ring_guard_kernel,
+                dim=(self.world_count, len(topo.ring_hub)),
                 inputs=[
                     self.node_offset,
                     self.guard_reach,
