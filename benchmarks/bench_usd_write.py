@@ -10,7 +10,8 @@ into in-memory stages, medians over ``--frames`` frames, measured side by side i
 ``write_frame`` copies arrays of 2,048 vertices or more into USD with one ``memmove`` each
 (:func:`warp_tube.writer.vec3f_array`) instead of ``FromNumpy``'s element-by-element conversion; the
 bare points written that way (``bare_points_direct_us``) are reported beside the ``FromNumpy`` floor,
-so ``ratio_vs_direct`` shows what the extra normals and extent cost by the same path. Every sample
+so ``ratio_vs_direct`` shows what the extra normals and extent cost by the same path. The extent
+is handed over as a run hands it (the surface kernel writes it beside the points). Every sample
 stays in memory until the stage is saved, so large frames also pay for fresh pages each time.
 """
 
@@ -52,6 +53,7 @@ def main():
         pts = rng.normal(size=(a.frames, V, 3)).astype(np.float32)
         nrm = rng.normal(size=(a.frames, V, 3)).astype(np.float32)
         cl = rng.normal(size=(a.frames, hubs, 3)).astype(np.float32)
+        ext = np.stack([pts.min(axis=1), pts.max(axis=1)], axis=1)  # a run's surface kernel writes it
         st = Usd.Stage.CreateInMemory()
         layer = st.GetRootLayer()
         path_bare = UsdGeom.Mesh.Define(st, "/M").CreatePointsAttr().GetPath()
@@ -61,7 +63,7 @@ def main():
             w = StageWriter(os.path.join(d, "o.usdc"), scene, [Surf()])
             for k in range(a.frames):  # interleaved, so that all three see the same memory state
                 t0 = time.perf_counter()
-                w.write_frame(float(k), [cl[k]], [(pts[k], nrm[k])])
+                w.write_frame(float(k), [cl[k]], [(pts[k], nrm[k], ext[k])])
                 t1 = time.perf_counter()
                 layer.SetTimeSample(path_bare, float(k), Vt.Vec3fArray.FromNumpy(pts[k]))
                 t2 = time.perf_counter()
