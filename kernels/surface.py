@@ -653,6 +653,28 @@ def ring_spoke_lengths(
 
 
 @wp.func
+def pole_point(
+    x: wp.vec3,
+    t: wp.vec3,
+    c: float,
+    w: int,
+    pw: int,
+    h: int,
+    v0: int,
+    guard: bool,
+    free: wp.vec2,
+    spoke_length: wp.array3d[float],
+    surface_length: wp.array2d[float],
+) -> wp.vec3:
+    """End [length unit] of a cap's pole spoke (vertex ``v0``, along ``c t`` from hub ``x``): the
+    mean of the hub's spoke lengths, or the guard's where longer than the ring's free length."""
+    length = pole_length(spoke_length, pw, h)
+    if guard and length > free[1]:
+        length = surface_length[w, v0]
+    return x + length * (c * t)
+
+
+@wp.func
 def body_length_step(pw: int, h: int, j: int, has_prev: int, has_next: int, spoke_length: wp.array3d[float]) -> float:
     """Difference [length unit] of spoke ``j``'s given lengths at the neighbouring hubs (one-sided
     at a tube's end, 0 for a tube of one hub)."""
@@ -771,13 +793,8 @@ def spoke_points_kernel(
     v0 = ring_vertex[ring]
 
     if kind == RING_POLE:
-        d = c * t
-        length = pole_length(spoke_length, pw, h)
-        if guard and length > free[1]:
-            length = surface_length[w, v0]
-        v = v0
-        surface_q_out[w, v] = x + length * d
-        surface_n_out[w, v] = d
+        surface_q_out[w, v0] = pole_point(x, t, c, w, pw, h, v0, guard, free, spoke_length, surface_length)
+        surface_n_out[w, v0] = c * t
         return
 
     r = hub_r[w, h]
@@ -917,13 +934,9 @@ def surface_world_kernel(arrays: SurfaceArrays, node_q: wp.array2d[wp.vec3]):
         free = hub_free[w, h]
         v0 = ring_vertex[ring]
         if kind == RING_POLE:
-            d = c * t
-            length = pole_length(spoke_length, pw, h)
-            if guard and length > free[1]:
-                length = surface_length[w, v0]
-            p = x + length * d
+            p = pole_point(x, t, c, w, pw, h, v0, guard, free, spoke_length, surface_length)
             surface_q_out[w, v0] = p
-            surface_n_out[w, v0] = d
+            surface_n_out[w, v0] = c * t
             lo = wp.min(lo, p)
             hi = wp.max(hi, p)
         else:

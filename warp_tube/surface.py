@@ -195,6 +195,23 @@ class SurfaceBuilder:
             self.points = wp.zeros((self.world_count, topo.vertex_count), dtype=wp.vec3)
             self.normals = wp.zeros((self.world_count, topo.vertex_count), dtype=wp.vec3)
             self._extent = wp.zeros((self.world_count, 2), dtype=wp.vec3)
+        if self.fused:
+            arrays = SurfaceArrays()  # the fused kernel's arguments but node_q, fixed for the builder's life
+            for name, value in (
+                ("node_offset", self.node_offset), ("spoke_count", self.spokes), ("guard_reach", self.guard_reach),
+                ("cell_radius", self._cell_radius), ("local_frames", int(self.frames == "local")),
+                ("tube_node_start", self._tube_node_start), ("node_tube", self._node_tube),
+                ("node_rest_t", self._rest_t), ("node_rest_r", self._rest_r), ("hub_reach", self._hub_reach),
+                ("ring_hub", self._ring_hub), ("ring_kind", self._ring_kind), ("ring_cos", self._ring_cos),
+                ("ring_sin", self._ring_sin), ("ring_vertex", self._ring_vertex), ("spoke_cos", self._spoke_cos),
+                ("spoke_sin", self._spoke_sin), ("spoke_length", self._spoke_length), ("hub_t", self.hub_t),
+                ("hub_r", self.hub_r), ("hub_kappa", self._hub_kappa), ("hub_chord", self._hub_chord),
+                ("hub_plane", self._hub_plane), ("hub_cell", self._hub_cell), ("hub_free", self._hub_free),
+                ("surface_length", self._surface_length), ("surface_q_out", self.points),
+                ("surface_n_out", self.normals), ("extent_out", self._extent),
+            ):  # fmt: skip
+                setattr(arrays, name, value)
+            self._arrays = arrays
         self._launches: dict = {}
         self._extent_launch = None
         self._extent_fresh = False
@@ -236,24 +253,8 @@ class SurfaceBuilder:
 
     # -- per frame -----------------------------------------------------------------------------
     def _record_fused(self, node_q: wp.array):
-        arrays = SurfaceArrays()
-        for name, value in (
-            ("node_offset", self.node_offset), ("spoke_count", self.spokes), ("guard_reach", self.guard_reach),
-            ("cell_radius", self._cell_radius), ("local_frames", int(self.frames == "local")),
-            ("tube_node_start", self._tube_node_start), ("node_tube", self._node_tube),
-            ("node_rest_t", self._rest_t), ("node_rest_r", self._rest_r), ("hub_reach", self._hub_reach),
-            ("ring_hub", self._ring_hub), ("ring_kind", self._ring_kind), ("ring_cos", self._ring_cos),
-            ("ring_sin", self._ring_sin), ("ring_vertex", self._ring_vertex), ("spoke_cos", self._spoke_cos),
-            ("spoke_sin", self._spoke_sin), ("spoke_length", self._spoke_length), ("hub_t", self.hub_t),
-            ("hub_r", self.hub_r), ("hub_kappa", self._hub_kappa), ("hub_chord", self._hub_chord),
-            ("hub_plane", self._hub_plane), ("hub_cell", self._hub_cell), ("hub_free", self._hub_free),
-            ("surface_length", self._surface_length), ("surface_q_out", self.points),
-            ("surface_n_out", self.normals), ("extent_out", self._extent),
-        ):  # fmt: skip
-            setattr(arrays, name, value)
-        self._arrays = arrays  # the launch refers to it
         launch = wp.launch(
-            surface_world_kernel, dim=self.world_count, inputs=[arrays, node_q], device=self.device, record_cmd=True
+            surface_world_kernel, dim=self.world_count, inputs=[self._arrays, node_q], device=self.device, record_cmd=True
         )
         return (launch,)
 
