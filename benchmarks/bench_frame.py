@@ -16,8 +16,9 @@ half the stability bound).
 
 Timed, medians of ``--reps`` calls after a warm-up, side by side in one run:
 
-- ``substeps_us``: the solver's frame (all substeps, one recorded launch on the CPU);
-- ``surface_us``: one surface rebuild (``SurfaceBuilder.compute``);
+- ``substeps_us``: the solver's frame (all substeps: one launch on the CPU, replayed from its
+  captured graph, :mod:`warp_tube.replay`);
+- ``surface_us``: one surface rebuild (``SurfaceBuilder.compute``, replayed the same way);
 - ``frame_us``: both, back to back, as the issue's "one 60 fps frame" counts it;
 - ``simulation_step_us``: ``Simulation.step`` (the frame plus its host-side checks: finite,
   runaway, energy against work), and ``simulation_step_surface_us`` with the surface rebuild after

@@ -28,7 +28,7 @@ from typing import NamedTuple
 
 import warp as wp
 
-from .springs import al_delta, bend_gradients, bend_stencil, curvature_targets, frame_forces, node_delta, spring_force
+from .springs import al_delta, bend_gradients, curvature_targets, frame_forces, node_delta, spring_force
 
 
 @wp.struct
@@ -320,6 +320,9 @@ def make_kernels(features: Features):
         al_qd_out = state_out.al_qd
         w, t = wp.tid()
         pw = w % node_mass.shape[0]
+        kt = w
+        if node_kappa_target.shape[0] == 1:  # one row of targets serves every world
+            kt = 0
         start = tube_node_start[t]
         end = tube_node_start[t + 1]
         for i in range(start, end):
@@ -347,23 +350,26 @@ def make_kernels(features: Features):
                     node_q_out, node_q_lo_out, node_qd_out, node_kappa_target, al_q_out, al_q_lo_out, al_qd_out,
                     node_f_ext, al_active, al_link_length, al_fwd_length, al_bwd_length,
                 )  # fmt: skip
-            # Each spring and bending stencil once, added to all its nodes (one thread owns the tube).
+            # Each spring and bending stencil once, added to all its nodes (one thread owns the
+            # tube); one pass over the edges, the stencil at node i taking edges i - 1 and i.
+            e_prev = wp.vec3(0.0)
             for i in range(start, end - 1):
+                e = node_delta(node_q_out, node_q_lo_out, w, i, i + 1)
                 kd = float(0.0)
                 if wp.static(SPRING_DAMPING):
                     kd = seg_kd[pw, i]
-                fs = spring_force(
-                    node_delta(node_q_out, node_q_lo_out, w, i, i + 1), node_qd_out[w, i + 1] - node_qd_out[w, i],
-                    seg_rest_length[pw, i], seg_ke[pw, i], kd,
-                )  # fmt: skip
+                fs = spring_force(e, node_qd_out[w, i + 1] - node_qd_out[w, i], seg_rest_length[pw, i], seg_ke[pw, i], kd)
                 node_f[w, i] = node_f[w, i] + fs
                 node_f[w, i + 1] = node_f[w, i + 1] - fs
-            if wp.static(BENDING):
-                for j in range(start + 1, end - 1):
-                    ga, gb = bend_stencil(j, pw, w, node_q_out, node_q_lo_out, node_bend_k, node_kappa_target)
-                    node_f[w, j - 1] = node_f[w, j - 1] + ga
-                    node_f[w, j] = node_f[w, j] + gb - ga
-                    node_f[w, j + 1] = node_f[w, j + 1] - gb
+                if wp.static(BENDING):
+                    if i > start:
+                        kb = node_bend_k[pw, i]
+                        if kb != 0.0:
+                            ga, gb = bend_gradients(e_prev, e, node_kappa_target[kt, i], kb)
+                            node_f[w, i - 1] = node_f[w, i - 1] + ga
+                            node_f[w, i] = node_f[w, i] + gb - ga
+                            node_f[w, i + 1] = node_f[w, i + 1] - gb
+                e_prev = e
             if wp.static(CURVED):
                 frame_forces(w, pw, start, end, node_q_out, node_q_lo_out, node_rest_q, node_bend_k, node_kappa_target, node_f)
             if wp.static(AL):

@@ -89,30 +89,6 @@ def bend_gradients(a: wp.vec3, b: wp.vec3, kb_target: wp.vec3, k: float):
 
 
 @wp.func
-def bend_stencil(
-    j: int,
-    pw: int,
-    w: int,
-    node_q: wp.array2d[wp.vec3],
-    node_q_lo: wp.array2d[wp.vec3],
-    node_bend_k: wp.array2d[float],
-    node_kappa_target: wp.array2d[wp.vec3],
-):
-    """Forces [N] of the bending stencil centred on node ``j``: returns ``(ga, gb)``; the nodes
-    ``j - 1``, ``j``, ``j + 1`` get ``ga``, ``gb - ga`` and ``-gb``.
-
-    The stencil's energy is ``E = k/2 |kb - kb_target|^2`` with ``k = node_bend_k = EI / l_voronoi``
-    [N m] (zero: no stencil).
-    """
-    k = node_bend_k[pw, j]
-    if k == 0.0:
-        return wp.vec3(0.0), wp.vec3(0.0)
-    a = node_delta(node_q, node_q_lo, w, j - 1, j)
-    b = node_delta(node_q, node_q_lo, w, j, j + 1)
-    return bend_gradients(a, b, node_kappa_target[w % node_kappa_target.shape[0], j], k)
-
-
-@wp.func
 def rotate_minimal(x: wp.vec3, a: wp.vec3, b: wp.vec3) -> wp.vec3:
     """Rotate ``x`` by the least rotation taking unit vector ``a`` to unit vector ``b``.
 

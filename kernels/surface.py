@@ -634,8 +634,12 @@ def ring_spoke_lengths(
     """Lengths [length unit] of spoke ``j`` of a ring (first vertex ``v0``) and of its two
     neighbours in the ring: given, or the guard's where longer than the ring's free length (the
     test of :func:`spoke_guard`)."""
-    jm = (j + spoke_count - 1) % spoke_count
-    jp = (j + 1) % spoke_count
+    jm = j - 1
+    if j == 0:
+        jm = spoke_count - 1
+    jp = j + 1
+    if jp == spoke_count:
+        jp = 0
     length = spoke_length[pw, h, j]
     length_m = spoke_length[pw, h, jm]
     length_p = spoke_length[pw, h, jp]

@@ -3,7 +3,8 @@
 ``solver.step(state_in, state_out, control, dt)`` advances one substep;
 ``solver.integrate(state_in, state_out, control, dt, substeps)`` advances a whole frame. On the
 CPU a frame is a single launch of the per-tube substep kernel; on CUDA it is ``substeps``
-per-node launches, captured once into a graph and replayed. With ``onchip=True`` a frame is one
+per-node launches. Either way a frame's launches are captured once into a graph and replayed
+(:mod:`warp_tube.replay`; on the CPU through Warp's recorded-operation replay). With ``onchip=True`` a frame is one
 launch of the on-chip kernel (:mod:`warp_tube.kernels.onchip`): a block per group of whole tubes
 keeps their state in registers and shared memory over all the substeps.
 """
@@ -23,6 +24,7 @@ from warp_tube.kernels.onchip import MAX_BLOCK_DIM, UNSUPPORTED, make_onchip_ker
 ONCHIP_BLOCK_DIM = 128
 
 from .model import TubeControl, TubeModel, TubeState
+from .replay import GraphCache
 
 __all__ = ["SemiImplicitEulerSolver"]
 
@@ -61,7 +63,7 @@ class SemiImplicitEulerSolver:
         self._kappa_target = wp.zeros((rows, N), dtype=wp.vec3, device=self.device)
         self._f_frame = wp.zeros((rows, N), dtype=wp.vec3, device=self.device)
         self._tmp = model.state() if self.per_node else None
-        self._graphs = {}
+        self._graphs = GraphCache(self.device)
         self._model_arrays = pack(ModelArrays, model)
         self._scratch = ScratchArrays()
         self._scratch.node_f, self._scratch.al_f, self._scratch.node_kappa_target = self._node_f, self._al_f, self._kappa_target
@@ -179,29 +181,18 @@ class SemiImplicitEulerSolver:
         """Advance ``substeps`` substeps of ``dt`` [s] from ``state_in`` into ``state_out``.
 
         ``state_in`` is left unchanged; pins move linearly from ``control.pin_q_start`` to
-        ``control.pin_q_end`` over the interval.
+        ``control.pin_q_end`` over the interval. The launches of a frame are captured once per
+        (states, control, dt, substeps) and replayed (:mod:`warp_tube.replay`).
         """
+        dt, substeps = float(dt), int(substeps)
         if self.onchip:
-            self._launch_onchip(state_in, state_out, control, float(dt), int(substeps))
-            return
-        if not self.per_node:
-            self._launch_substeps(state_in, state_out, control, float(dt), int(substeps))
-            return
-        key = (id(state_in), id(state_out), id(control), float(dt), int(substeps))
-        cached = self._graphs.get(key)
-        if cached is not None:
-            wp.capture_launch(cached[-1])
-            return
-        use_graph = self.device.is_cuda and wp.is_mempool_enabled(self.device) is not None
-        if use_graph:
-            with wp.ScopedCapture(self.device) as cap:
-                self._chain(state_in, state_out, control, dt, substeps)
-            if len(self._graphs) > 16:
-                self._graphs.clear()
-            self._graphs[key] = (state_in, state_out, control, cap.graph)  # held: see _launch_substeps
-            wp.capture_launch(cap.graph)
+            launch = lambda: self._launch_onchip(state_in, state_out, control, dt, substeps)  # noqa: E731
+        elif self.per_node:
+            launch = lambda: self._chain(state_in, state_out, control, dt, substeps)  # noqa: E731
         else:
-            self._chain(state_in, state_out, control, dt, substeps)
+            launch = lambda: self._launch_substeps(state_in, state_out, control, dt, substeps)  # noqa: E731
+        key = (id(state_in), id(state_out), id(control), dt, substeps)
+        self._graphs.run(key, launch, hold=(state_in, state_out, control))
 
     def _chain(self, state_in, state_out, control, dt, substeps):
         src = state_in

@@ -40,6 +40,7 @@ from .kernels.surface import (
     surface_extent_kernel,
     surface_world_kernel,
 )
+from .replay import GraphCache
 from .topology import SurfaceTopology, build_topology
 
 __all__ = ["SurfaceBuilder", "FRAME_MODES", "DEFAULT_GUARD_REACH"]
@@ -213,6 +214,7 @@ class SurfaceBuilder:
                 setattr(arrays, name, value)
             self._arrays = arrays
         self._launches: dict = {}
+        self._graphs = GraphCache(self.device, size=4)
         self._extent_launch = None
         self._extent_fresh = False
 
@@ -387,10 +389,10 @@ class SurfaceBuilder:
                 raise ValueError(f"node_q is on {node_q.device}, the surface on {self.device}")
             if len(self._launches) >= 4:  # solvers swap a few state arrays; keep the cache small
                 self._launches.clear()
+                self._graphs.clear()
             launches = self._record(node_q)
             self._launches[key] = launches
-        for launch in launches:
-            launch.launch()
+        self._graphs.run(key, lambda: [launch.launch() for launch in launches], hold=(node_q,))
         self._extent_fresh = self.fused
         return self.points, self.normals
 

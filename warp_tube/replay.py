@@ -1,0 +1,76 @@
+"""Replaying a fixed sequence of launches as one captured graph.
+
+A frame launches the same kernels on the same arrays every time. Captured once, it replays with one
+call: on CUDA as a CUDA graph (when the device's memory pool makes capture safe), on the CPU through
+Warp's recorded-operation replay, which runs the kernels from a native loop without re-packing
+their arguments in Python (on the paper's 20-point tube that halves a frame's cost, see
+``benchmarks/bench_frame.py``). Where capture is not available the sequence simply runs.
+"""
+
+from __future__ import annotations
+
+import warp as wp
+
+__all__ = ["GraphCache", "can_capture"]
+
+_cpu_capture = None
+
+
+def can_capture(device) -> bool:
+    """Whether launches on ``device`` can be captured into a replayable graph."""
+    global _cpu_capture
+    device = wp.get_device(device)
+    if device.is_cuda:
+        return bool(wp.is_mempool_enabled(device))
+    if _cpu_capture is None:
+        try:  # CPU capture arrived with Warp's recorded-operation replay; older versions refuse it
+            wp.capture_begin(device=device)
+            wp.capture_end(device=device)
+            _cpu_capture = True
+        except Exception:
+            _cpu_capture = False
+    return _cpu_capture
+
+
+class GraphCache:
+    """Captured graphs of a launch sequence, one per key (the arrays and values it was captured
+    with), at most ``size`` of them.
+
+    The key must name everything the captured launches depend on (array identities, scalar
+    arguments); ``hold`` keeps the objects whose ids are in the key alive while their graph is
+    cached, so that no new object can take an id over.
+    """
+
+    def __init__(self, device, size: int = 16):
+        self.device = wp.get_device(device)
+        self.size = int(size)
+        self.enabled = can_capture(self.device)
+        self._graphs = {}
+        self._seen = set()
+
+    def run(self, key, launch, hold=()) -> None:
+        """Replay the graph for ``key``. The first time a key is seen ``launch()`` (a callable
+        issuing the launches) just runs; the second time it is captured, then replayed. Where
+        capture is unavailable it always just runs."""
+        cached = self._graphs.get(key)
+        if cached is not None:
+            wp.capture_launch(cached[1])
+            return
+        if not self.enabled or key not in self._seen:
+            # Captured from the second use on: a key used once (a one-off array) costs no capture.
+            if len(self._seen) >= 4 * self.size:
+                self._seen.clear()
+            self._seen.add(key)
+            launch()
+            return
+        with wp.ScopedCapture(device=self.device) as cap:
+            launch()
+        if len(self._graphs) >= self.size:
+            self._graphs.clear()
+        self._graphs[key] = (tuple(hold), cap.graph)
+        wp.capture_launch(cap.graph)
+
+    def clear(self) -> None:
+        """Drop every captured graph (for instance after arrays were reallocated)."""
+        self._graphs.clear()
+        self._seen.clear()
