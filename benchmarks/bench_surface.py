@@ -71,8 +71,8 @@ def bench_cpu(repeats: int) -> dict:
     n, S = 20, 9
     q = wp.array(helix(n).astype(np.float32), dtype=wp.vec3, device="cpu")
     out = {"device": "cpu", "tubes": 1, "hubs": n, "spokes": S}
-    for fused in (True, False):
-        b = SurfaceBuilder([0, n], straight_rest(n), S, np.full(n, 0.01), device="cpu", fused=fused)
+    for key in ("world", "split"):
+        b = SurfaceBuilder([0, n], straight_rest(n), S, np.full(n, 0.01), device="cpu", kernel=key)
         for _ in range(50):
             b.compute(q)
         samples = []
@@ -80,13 +80,12 @@ def bench_cpu(repeats: int) -> dict:
             t0 = time.perf_counter()
             b.compute(q)
             samples.append(time.perf_counter() - t0)
-        key = "fused" if fused else "split"
         out["vertices"] = b.vertex_count
         out[f"rebuild_{key}_median_us"] = 1e6 * statistics.median(samples)
         out[f"rebuild_{key}_p10_us"] = 1e6 * float(np.percentile(samples, 10))
         out[f"rebuild_{key}_p90_us"] = 1e6 * float(np.percentile(samples, 90))
     out["calls"] = repeats
-    out["method"] = "median of per-call perf_counter times of SurfaceBuilder.compute (recorded launches)"
+    out["method"] = "median of per-call perf_counter times of SurfaceBuilder.compute (replayed graphs)"
     return out
 
 
@@ -96,7 +95,7 @@ def bench_cpu_batch(repeats: int) -> dict:
     fused = SurfaceBuilder([0, n], straight_rest(n), S, np.full(n, 0.01), world_count=W, device="cpu")
     fused.compute(q)
     t_fused = _median_s(lambda: fused.compute(q), repeats)
-    b = SurfaceBuilder([0, n], straight_rest(n), S, np.full(n, 0.01), world_count=W, device="cpu", fused=False)
+    b = SurfaceBuilder([0, n], straight_rest(n), S, np.full(n, 0.01), world_count=W, device="cpu", kernel="split")
     for _ in range(2):
         b.compute(q)
     t_all = _median_s(lambda: b.compute(q), repeats)
@@ -108,11 +107,11 @@ def bench_cpu_batch(repeats: int) -> dict:
         "hubs": n,
         "spokes": S,
         "vertices": vertices,
-        "rebuild_fused_median_ms": 1e3 * t_fused,
-        "ns_per_vertex_rebuild_fused": 1e9 * t_fused / vertices,
+        "rebuild_world_median_ms": 1e3 * t_fused,
+        "ns_per_vertex_rebuild_world": 1e9 * t_fused / vertices,
         "rebuild_split_median_ms": 1e3 * t_all,
         **{f"{name}_kernel_median_ms": 1e3 * t for name, t in t_kernel.items()},
-        "vertices_per_s_rebuild_fused": vertices / t_fused,
+        "vertices_per_s_rebuild_world": vertices / t_fused,
         "ns_per_vertex_rebuild_split": 1e9 * t_all / vertices,
         "ns_per_vertex_spoke_kernel": 1e9 * t_kernel["spoke"] / vertices,
         "calls": repeats,
@@ -133,43 +132,66 @@ def _time_graph(graph, device, replays: int) -> float:
     return wp.get_event_elapsed_time(start, end) / 1e3 / replays  # seconds per replay
 
 
+@wp.kernel(enable_backward=False)
+def write_reference_kernel(points: wp.array2d[wp.vec3], normals: wp.array2d[wp.vec3]):
+    """The stores a rebuild must make and nothing else: a point and a normal per vertex, one
+    thread per (world, vertex) (what the hardware gives for this output, next to the bound)."""
+    w, v = wp.tid()
+    x = float(v)
+    points[w, v] = wp.vec3(x, x + 1.0, x + 2.0)
+    normals[w, v] = wp.vec3(x + 3.0, x + 4.0, x + 5.0)
+
+
 def bench_cuda(bandwidth_gbs: float, bandwidth_source: str, replays: int) -> dict:
     device = wp.get_device("cuda:0")
     W, n, S = 65536, 32, 32
-    b = SurfaceBuilder([0, n], straight_rest(n), S, np.full(n, 0.01), world_count=W, device=device)
-    q = wp.array(np.ascontiguousarray(helix(n, W)).astype(np.float32), dtype=wp.vec3, device=device)
-    b.compute(q)  # compile, record
-    with wp.ScopedCapture(device) as cap_all:
-        b.compute(q)
-    t_all = _time_graph(cap_all.graph, device, replays)
-    t_kernel = {}
-    for kernel, launch in recorded_launches(b, q).items():
-        with wp.ScopedCapture(device) as cap:
-            launch.launch()
-        t_kernel[kernel] = _time_graph(cap.graph, device, replays)
-    t_spokes = t_kernel["spoke"]
     vertices = W * n * S
     bound = bandwidth_gbs * 1e9 / 24.0
-    return {
+    q = wp.array(np.ascontiguousarray(helix(n, W)).astype(np.float32), dtype=wp.vec3, device=device)
+    out = {
         "device": device.name,
         "tubes": W,
         "hubs": n,
         "spokes": S,
         "vertices": vertices,
-        "rebuild_s": t_all,
-        **{f"{kernel}_kernel_s": t for kernel, t in t_kernel.items()},
-        "vertices_per_s_rebuild": vertices / t_all,
-        "vertices_per_s_spoke_kernel": vertices / t_spokes,
         "bytes_written_per_vertex": 24,
         "bandwidth_gbs": bandwidth_gbs,
         "bandwidth_source": bandwidth_source,
         "bandwidth_bound_vertices_per_s": bound,
-        "spoke_kernel_fraction_of_bound": (vertices / t_spokes) / bound,
-        "rebuild_fraction_of_bound": (vertices / t_all) / bound,
-        "achieved_write_gbs_spoke_kernel": vertices * 24 / t_spokes / 1e9,
-        "replays": replays,
-        "method": "CUDA graph replays timed with CUDA events, mean per replay",
     }
+    for kernel in ("block", "split"):
+        b = SurfaceBuilder([0, n], straight_rest(n), S, np.full(n, 0.01), world_count=W, device=device, kernel=kernel)
+        b.compute(q)  # compile, record
+        b.compute(q)  # capture (warp_tube.replay)
+        t_all = _time_graph(b._graphs._graphs[(q.ptr, q.shape, q.strides)][1], device, replays)
+        with wp.ScopedCapture(device) as cap_extent:
+            b._extent_fresh = False
+            b.extent()
+        t_extent = _time_graph(cap_extent.graph, device, replays)
+        out[f"{kernel}_rebuild_s"] = t_all
+        out[f"{kernel}_vertices_per_s_rebuild"] = vertices / t_all
+        out[f"{kernel}_rebuild_fraction_of_bound"] = (vertices / t_all) / bound
+        out[f"{kernel}_achieved_write_gbs"] = vertices * 24 / t_all / 1e9
+        out["extent_kernel_s"] = t_extent
+        if kernel == "split":
+            for name, launch in recorded_launches(b, q).items():
+                with wp.ScopedCapture(device) as cap:
+                    launch.launch()
+                out[f"split_{name}_kernel_s"] = _time_graph(cap.graph, device, replays)
+            t_spokes = out["split_spoke_kernel_s"]
+            out["split_spoke_kernel_fraction_of_bound"] = (vertices / t_spokes) / bound
+        del b
+    p = wp.empty((W, n * S), dtype=wp.vec3, device=device)
+    nrm = wp.empty((W, n * S), dtype=wp.vec3, device=device)
+    wp.launch(write_reference_kernel, (W, n * S), outputs=[p, nrm], device=device)
+    with wp.ScopedCapture(device) as cap:
+        wp.launch(write_reference_kernel, (W, n * S), outputs=[p, nrm], device=device)
+    t_ref = _time_graph(cap.graph, device, replays)
+    out["write_reference_s"] = t_ref
+    out["write_reference_fraction_of_bound"] = (vertices / t_ref) / bound
+    out["replays"] = replays
+    out["method"] = "CUDA graph replays timed with CUDA events, mean per replay, all in one run"
+    return out
 
 
 def main() -> None:

@@ -1025,3 +1025,111 @@ def shade_orthographic_kernel(
         image_out[row, col] = 0.2 + 0.8 * wp.abs(wp.dot(n, view_dir))
     else:
         image_out[row, col] = -1.0
+
+
+SURFACE_BLOCK_DIM = 32
+"""Threads per block of :func:`surface_block_kernel` (one warp per world)."""
+
+
+@wp.kernel(enable_backward=False, module="unique", module_options=CUDA_OPTIONS)
+def surface_block_kernel(arrays: SurfaceArrays, node_q: wp.array2d[wp.vec3]):
+    """The whole rebuild of one world's surface by one block (``wp.launch_tiled`` over worlds,
+    ``block_dim`` :data:`SURFACE_BLOCK_DIM`): the fused kernel's work, spread over the block's
+    lanes phase by phase, so that a rebuild is one launch and the per-hub data stays on chip.
+
+    1. frames: a lane per tube (rotation-minimizing: a scan along the tube) or per hub (local);
+    2. per-hub guard data (:func:`hub_guard`), a lane per hub;
+    3. guarded lengths (:func:`ring_guard`), a lane per ring (guard on only);
+    4. points and normals: ring after ring, a lane per spoke, so that consecutive lanes write
+       consecutive vertices.
+
+    A phase reads what the previous one wrote (scratch arrays in ``arrays``) after a block barrier
+    (the write of one element of a shared tile, which every lane reaches). Same functions, so the
+    same points and normals as the fused and split kernels. The points' bounds are not written
+    (:func:`surface_extent_kernel` finds them when asked).
+
+    Args:
+        arrays: as :func:`surface_world_kernel` (``extent_out`` unused).
+        node_q: hub positions [length unit], shape (world_count, >= node_offset + node_count).
+    """
+    node_offset = arrays.node_offset
+    spoke_count = arrays.spoke_count
+    guard_reach = arrays.guard_reach
+    tube_node_start = arrays.tube_node_start
+    node_tube = arrays.node_tube
+    ring_hub = arrays.ring_hub
+    ring_kind = arrays.ring_kind
+    ring_cos = arrays.ring_cos
+    ring_sin = arrays.ring_sin
+    ring_vertex = arrays.ring_vertex
+    spoke_cos = arrays.spoke_cos
+    spoke_sin = arrays.spoke_sin
+    spoke_length = arrays.spoke_length
+    hub_t = arrays.hub_t
+    hub_r = arrays.hub_r
+    hub_kappa = arrays.hub_kappa
+    hub_chord = arrays.hub_chord
+    hub_free = arrays.hub_free
+    surface_length = arrays.surface_length
+    surface_q_out = arrays.surface_q_out
+    surface_n_out = arrays.surface_n_out
+    w, lane = wp.tid()
+    pw = w % spoke_length.shape[0]
+    hub_count = node_tube.shape[0]
+    ring_count = ring_hub.shape[0]
+    barrier = wp.tile_zeros(shape=(SURFACE_BLOCK_DIM,), dtype=int, storage="shared")
+
+    if arrays.local_frames != 0:
+        for h in range(lane, hub_count, SURFACE_BLOCK_DIM):
+            hub_local_frame(w, h, node_offset, tube_node_start, node_tube, arrays.node_rest_t, arrays.node_rest_r, node_q, hub_t, hub_r)
+    else:
+        for tube in range(lane, tube_node_start.shape[0] - 1, SURFACE_BLOCK_DIM):
+            tube_rotation_minimizing_frames(w, tube, node_offset, tube_node_start, arrays.node_rest_t, arrays.node_rest_r, node_q, hub_t, hub_r)
+    barrier[lane] = 1
+    for h in range(lane, hub_count, SURFACE_BLOCK_DIM):
+        hub_guard(
+            w, h, node_offset, guard_reach, arrays.cell_radius, tube_node_start, node_tube, arrays.hub_reach, node_q,
+            hub_t, hub_kappa, hub_chord, arrays.hub_plane, arrays.hub_cell, hub_free,
+        )  # fmt: skip
+    barrier[lane] = 2
+    guard = guard_reach > 0.0
+    if guard:
+        for ring in range(lane, ring_count, SURFACE_BLOCK_DIM):
+            ring_guard(
+                w, ring, node_offset, guard_reach, tube_node_start, node_tube, arrays.hub_reach, ring_hub, ring_kind,
+                ring_cos, ring_sin, ring_vertex, spoke_cos, spoke_sin, spoke_length, node_q, hub_t, hub_r,
+                arrays.hub_plane, arrays.hub_cell, hub_free, surface_length,
+            )  # fmt: skip
+        barrier[lane] = 3
+    dphi = 2.0 * wp.pi / float(spoke_count)
+    for ring in range(ring_count):
+        kind = ring_kind[ring]
+        h = ring_hub[ring]
+        x = node_q[w, node_offset + h]
+        t = hub_t[w, h]
+        c = ring_cos[ring]
+        free = hub_free[w, h]
+        v0 = ring_vertex[ring]
+        if kind == RING_POLE:
+            if lane == 0:
+                surface_q_out[w, v0] = pole_point(x, t, c, w, pw, h, v0, guard, free, spoke_length, surface_length)
+                surface_n_out[w, v0] = c * t
+        else:
+            tube = node_tube[h]
+            has_prev = int(h > tube_node_start[tube])
+            has_next = int(h < tube_node_start[tube + 1] - 1)
+            sn = ring_sin[ring]
+            r = hub_r[w, h]
+            s = wp.cross(t, r)
+            kappa = hub_kappa[w, h]
+            ds = hub_chord[w, h]
+            for j in range(lane, spoke_count, SURFACE_BLOCK_DIM):
+                length, length_m, length_p = ring_spoke_lengths(
+                    w, pw, h, j, kind, spoke_count, v0, guard, free, spoke_length, surface_length
+                )  # fmt: skip
+                dl = body_length_step(pw, h, j, has_prev, has_next, spoke_length)
+                p, n = spoke_point_normal(
+                    x, t, r, s, c, sn, kind, spoke_cos[j], spoke_sin[j], length, length_m, length_p, dphi, dl, kappa, ds
+                )  # fmt: skip
+                surface_q_out[w, v0 + j] = p
+                surface_n_out[w, v0 + j] = n

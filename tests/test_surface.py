@@ -471,12 +471,12 @@ def test_cell_planes_leave_circular_arcs_as_the_centre_plane_cuts_them(n, angle,
 
 @pytest.mark.parametrize("frames", ["rotationMinimizing", "local"])
 @pytest.mark.parametrize("caps", [False, True])
-def test_fused_and_split_kernels_agree(frames, caps):
-    """The one-launch CPU kernel and the four split kernels (CUDA's path) give the same points and
-    normals bit for bit (same arithmetic in the same order), guard and cell planes acting (an arc at
-    radius x curvature 1.5 and a hairpin with legs 1.3 radii apart), two curves and three worlds with
-    measured spoke lengths; the fused kernel's extent is the exact bounds of its points, and the
-    split path's extent kernel finds the same."""
+def test_world_block_and_split_kernels_agree(frames, caps):
+    """The three ways a rebuild runs (a thread per world, the CPU's; a block per world, the GPU's;
+    four split kernels) give the same points and normals bit for bit (same arithmetic in the same
+    order), guard and cell planes acting (an arc at radius x curvature 1.5 and a hairpin with legs
+    1.3 radii apart), two curves and three worlds with measured spoke lengths; the world kernel's
+    extent is the exact bounds of its points, and the extent kernel of the others finds the same."""
     rng = np.random.default_rng(5)
     n, S, W = 30, 7, 3
     u = hairpin(0.0065, 0.05, 0.004)[:n]
@@ -486,16 +486,17 @@ def test_fused_and_split_kernels_agree(frames, caps):
     qw = np.repeat(q[None], W, axis=0)
     qw[1] += rng.normal(scale=1e-3, size=qw[1].shape)
     out = []
-    for fused in (False, True):
-        b = SurfaceBuilder([0, n, 2 * n], rest, S, lengths, frames=frames, caps=caps, world_count=W, device=DEVICE, fused=fused)
+    for kernel in ("split", "world", "block"):
+        b = SurfaceBuilder([0, n, 2 * n], rest, S, lengths, frames=frames, caps=caps, world_count=W, device=DEVICE, kernel=kernel)
         p, nrm = b.compute(wp.array(qw.astype(np.float32), dtype=wp.vec3, device=DEVICE))
         guarded = b._surface_length.numpy()
+        assert np.any(guarded > 0.0), f"{kernel}: the guard did not act: the comparison would not cover it"
         out.append((p.numpy().copy(), nrm.numpy().copy(), b.extent().numpy().copy()))
-    assert np.any(guarded > 0.0), "the guard did not act: the comparison would not cover it"
-    (p0, n0, e0), (p1, n1, e1) = out
-    assert np.array_equal(p0, p1) and np.array_equal(n0, n1)
-    exact = np.stack([p1.min(axis=1), p1.max(axis=1)], axis=1)
-    assert np.array_equal(e1, exact) and np.array_equal(e0, exact)
+    p0, n0, _ = out[0]
+    exact = np.stack([p0.min(axis=1), p0.max(axis=1)], axis=1)
+    for p1, n1, e1 in out:
+        assert np.array_equal(p0, p1) and np.array_equal(n0, n1)
+        assert np.array_equal(e1, exact)
 
 
 @pytest.mark.parametrize("name", ["default", "cantilever", "intestine"])

@@ -33,7 +33,9 @@ import warp as wp
 from . import frames as ref_frames
 from .kernels.frames import local_frames_kernel, rotation_minimizing_frames_kernel
 from .kernels.surface import (
+    SURFACE_BLOCK_DIM,
     SurfaceArrays,
+    surface_block_kernel,
     hub_guard_kernel,
     ring_guard_kernel,
     spoke_points_kernel,
@@ -46,6 +48,7 @@ from .topology import SurfaceTopology, build_topology
 __all__ = ["SurfaceBuilder", "FRAME_MODES", "DEFAULT_GUARD_REACH"]
 
 FRAME_MODES = ("rotationMinimizing", "local")
+SURFACE_KERNELS = ("world", "block", "split")
 DEFAULT_GUARD_REACH = 0.95
 """Spoke ends stay within 95% of the way to a neighbouring ring's plane (see kernels.surface)."""
 
@@ -99,9 +102,11 @@ class SurfaceBuilder:
         device: Warp device (default: Warp's default device).
         guard_reach: inner-bend guard fraction in (0, 1), 0 to turn it off (see
             :mod:`warp_tube.kernels.surface`).
-        fused: one launch per rebuild, a thread per world (:func:`surface_world_kernel`), instead
-            of the four split kernels; default: on the CPU only (on a GPU the split kernels keep
-            thousands of threads busy). Both give the same points and normals.
+        kernel: how a rebuild runs: ``"world"``, one launch, a thread per world
+            (:func:`surface_world_kernel`, the CPU's default); ``"block"``, one launch, a block of
+            :data:`SURFACE_BLOCK_DIM` threads per world (:func:`surface_block_kernel`, the GPU's
+            default); ``"split"``, four launches (frames, hub data, guard, spokes; thousands of
+            threads each). All three give the same points and normals.
 
     All lengths share one unit L (the core passes metres); points come out in L.
     """
@@ -119,7 +124,7 @@ class SurfaceBuilder:
         world_count: int = 1,
         device=None,
         guard_reach: float = DEFAULT_GUARD_REACH,
-        fused: bool | None = None,
+        kernel: str | None = None,
     ):
         if frames not in FRAME_MODES:
             raise ValueError(f"frames must be one of {FRAME_MODES}, got {frames!r}")
@@ -165,7 +170,11 @@ class SurfaceBuilder:
         self._cell_radius = float(lengths.mean())  # the window of the cell guard: pi of these
         self._local_starts = local_starts
         self.device = wp.get_device(device)
-        self.fused = self.device.is_cpu if fused is None else bool(fused)
+        if kernel is None:
+            kernel = "world" if self.device.is_cpu else "block"
+        if kernel not in SURFACE_KERNELS:
+            raise ValueError(f"kernel must be one of {SURFACE_KERNELS}, got {kernel!r}")
+        self.kernel = kernel
 
         rest_t, rest_r = rest_frames(rest, local_starts, reference_normal)
         node_tube = np.repeat(np.arange(self.tube_count), np.diff(local_starts))
@@ -196,8 +205,8 @@ class SurfaceBuilder:
             self.points = wp.zeros((self.world_count, topo.vertex_count), dtype=wp.vec3)
             self.normals = wp.zeros((self.world_count, topo.vertex_count), dtype=wp.vec3)
             self._extent = wp.zeros((self.world_count, 2), dtype=wp.vec3)
-        if self.fused:
-            arrays = SurfaceArrays()  # the fused kernel's arguments but node_q, fixed for the builder's life
+        if kernel != "split":
+            arrays = SurfaceArrays()  # the one-launch kernels' arguments but node_q, fixed for the builder's life
             for name, value in (
                 ("node_offset", self.node_offset), ("spoke_count", self.spokes), ("guard_reach", self.guard_reach),
                 ("cell_radius", self._cell_radius), ("local_frames", int(self.frames == "local")),
@@ -254,15 +263,23 @@ class SurfaceBuilder:
         return np.concatenate(out)
 
     # -- per frame -----------------------------------------------------------------------------
-    def _record_fused(self, node_q: wp.array):
-        launch = wp.launch(
-            surface_world_kernel, dim=self.world_count, inputs=[self._arrays, node_q], device=self.device, record_cmd=True
-        )
-        return (launch,)
-
     def _record(self, node_q: wp.array):
-        if self.fused:
-            return self._record_fused(node_q)
+        if self.kernel == "world":
+            launch = wp.launch(
+                surface_world_kernel, dim=self.world_count, inputs=[self._arrays, node_q], device=self.device, record_cmd=True
+            )  # fmt: skip
+            return (launch,)
+        if self.kernel == "block":
+            enabled = wp.config.enable_cpu_blocks
+            wp.config.enable_cpu_blocks = True  # the CPU runs a block's threads as fibers only when asked
+            try:
+                launch = wp.launch_tiled(
+                    surface_block_kernel, dim=(self.world_count,), block_dim=SURFACE_BLOCK_DIM,
+                    inputs=[self._arrays, node_q], device=self.device, record_cmd=True,
+                )  # fmt: skip
+            finally:
+                wp.config.enable_cpu_blocks = enabled
+            return (launch,)
         dims_frames = (self.world_count, self.tube_count)
         if self.frames == "rotationMinimizing":
             frames = wp.launch(
@@ -392,13 +409,27 @@ class SurfaceBuilder:
                 self._graphs.clear()
             launches = self._record(node_q)
             self._launches[key] = launches
-        self._graphs.run(key, lambda: [launch.launch() for launch in launches], hold=(node_q,))
-        self._extent_fresh = self.fused
+        if self.kernel == "block" and self.device.is_cpu:
+            self._launch_cpu_blocks(key, launches)
+        else:
+            self._graphs.run(key, lambda: [launch.launch() for launch in launches], hold=(node_q,))
+        self._extent_fresh = self.kernel == "world"
         return self.points, self.normals
+
+    def _launch_cpu_blocks(self, key, launches):
+        """The block kernel on the CPU (for testing: Warp's cooperative fibers stand in for a
+        block's threads, opt-in through ``wp.config.enable_cpu_blocks``)."""
+        enabled = wp.config.enable_cpu_blocks
+        wp.config.enable_cpu_blocks = True
+        try:
+            for launch in launches:
+                launch.launch()
+        finally:
+            wp.config.enable_cpu_blocks = enabled
 
     def extent(self) -> wp.array:
         """Bounds of the points of the last :meth:`compute`: ``[min, max]`` corners [L] per world,
-        ``wp.array2d`` of ``wp.vec3`` shaped (world_count, 2), this builder's own array. The fused
+        ``wp.array2d`` of ``wp.vec3`` shaped (world_count, 2), this builder's own array. The world
         (CPU) rebuild writes them as it goes; otherwise one more launch finds them here."""
         if not self._extent_fresh:
             if self._extent_launch is None:
