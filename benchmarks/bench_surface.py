@@ -52,10 +52,8 @@ def straight_rest(n: int) -> np.ndarray:
 
 
 def recorded_launches(b: SurfaceBuilder, q: wp.array) -> dict:
-    """The builder's recorded launches for ``q`` by kernel: frames, hub, guard (when on), spoke."""
-    launches = b._launches[(q.ptr, q.shape, q.strides)]
-    names = ("frames", "hub", "guard", "spoke") if len(launches) == 4 else ("frames", "hub", "spoke")
-    return dict(zip(names, launches))
+    """The builder's recorded launches for ``q`` by kernel name."""
+    return {launch.kernel.key: launch for launch in b._launches[(q.ptr, q.shape, q.strides)]}
 
 
 def _median_s(fn, calls: int) -> float:
@@ -99,7 +97,7 @@ def bench_cpu_batch(repeats: int) -> dict:
     for _ in range(2):
         b.compute(q)
     t_all = _median_s(lambda: b.compute(q), repeats)
-    t_kernel = {name: _median_s(launch.launch, repeats) for name, launch in recorded_launches(b, q).items()}
+    t_kernel = {name.removesuffix("_kernel"): _median_s(launch.launch, repeats) for name, launch in recorded_launches(b, q).items()}
     vertices = W * n * S
     return {
         "device": "cpu",
@@ -113,7 +111,7 @@ def bench_cpu_batch(repeats: int) -> dict:
         **{f"{name}_kernel_median_ms": 1e3 * t for name, t in t_kernel.items()},
         "vertices_per_s_rebuild_world": vertices / t_fused,
         "ns_per_vertex_rebuild_split": 1e9 * t_all / vertices,
-        "ns_per_vertex_spoke_kernel": 1e9 * t_kernel["spoke"] / vertices,
+        "ns_per_vertex_spoke_kernels": 1e9 * (t_kernel["spoke_points"] + t_kernel["spoke_points_general"]) / vertices,
         "calls": repeats,
         "method": "median of per-call perf_counter times; Warp's CPU backend runs one thread",
     }
@@ -159,8 +157,10 @@ def bench_cuda(bandwidth_gbs: float, bandwidth_source: str, replays: int) -> dic
         "bandwidth_source": bandwidth_source,
         "bandwidth_bound_vertices_per_s": bound,
     }
-    for kernel in ("block", "split"):
-        b = SurfaceBuilder([0, n], straight_rest(n), S, np.full(n, 0.01), world_count=W, device=device, kernel=kernel)
+    measured = 0.01 * (1.0 + 0.2 * np.random.default_rng(0).random((n, S)))  # a measured shape
+    for case, kernel, lengths in (("block", "block", np.full(n, 0.01)), ("split", "split", np.full(n, 0.01)),
+                                  ("block_measured", "block", measured)):  # fmt: skip
+        b = SurfaceBuilder([0, n], straight_rest(n), S, lengths, world_count=W, device=device, kernel=kernel)
         b.compute(q)  # compile, record
         b.compute(q)  # capture (warp_tube.replay)
         t_all = _time_graph(b._graphs._graphs[(q.ptr, q.shape, q.strides)][1], device, replays)
@@ -168,18 +168,23 @@ def bench_cuda(bandwidth_gbs: float, bandwidth_source: str, replays: int) -> dic
             b._extent_fresh = False
             b.extent()
         t_extent = _time_graph(cap_extent.graph, device, replays)
-        out[f"{kernel}_rebuild_s"] = t_all
-        out[f"{kernel}_vertices_per_s_rebuild"] = vertices / t_all
-        out[f"{kernel}_rebuild_fraction_of_bound"] = (vertices / t_all) / bound
-        out[f"{kernel}_achieved_write_gbs"] = vertices * 24 / t_all / 1e9
+        out[f"{case}_rebuild_s"] = t_all
+        out[f"{case}_vertices_per_s_rebuild"] = vertices / t_all
+        out[f"{case}_rebuild_fraction_of_bound"] = (vertices / t_all) / bound
+        out[f"{case}_achieved_write_gbs"] = vertices * 24 / t_all / 1e9
         out["extent_kernel_s"] = t_extent
-        if kernel == "split":
+        if case == "split":
             for name, launch in recorded_launches(b, q).items():
                 with wp.ScopedCapture(device) as cap:
                     launch.launch()
-                out[f"split_{name}_kernel_s"] = _time_graph(cap.graph, device, replays)
-            t_spokes = out["split_spoke_kernel_s"]
-            out["split_spoke_kernel_fraction_of_bound"] = (vertices / t_spokes) / bound
+                out[f"split_{name.removesuffix('_kernel')}_kernel_s"] = _time_graph(cap.graph, device, replays)
+            with wp.ScopedCapture(device) as cap:  # the per-spoke pair: common rings, then the rest
+                for name in ("spoke_points_kernel", "spoke_points_general_kernel"):
+                    recorded_launches(b, q)[name].launch()
+            t_spokes = _time_graph(cap.graph, device, replays)
+            out["split_per_spoke_kernels_s"] = t_spokes
+            out["split_per_spoke_vertices_per_s"] = vertices / t_spokes
+            out["split_per_spoke_fraction_of_bound"] = (vertices / t_spokes) / bound
         del b
     p = wp.empty((W, n * S), dtype=wp.vec3, device=device)
     nrm = wp.empty((W, n * S), dtype=wp.vec3, device=device)

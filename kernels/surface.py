@@ -96,6 +96,8 @@ holds no guard code, which keeps its register count (and so the GPU's occupancy)
 plain spoke geometry.
 """
 
+import functools
+
 import warp as wp
 
 from .frames import hub_local_frame, rotate_minimal, safe_normalize, tube_rotation_minimizing_frames
@@ -729,8 +731,205 @@ def spoke_point_normal(
     return x + length * d, wp.normalize(n)
 
 
+@wp.func
+def ring_vertices(
+    w: int,
+    pw: int,
+    ring: int,
+    j_first: int,
+    j_step: int,
+    node_offset: int,
+    spoke_count: int,
+    guard: bool,
+    tube_node_start: wp.array[wp.int32],
+    node_tube: wp.array[wp.int32],
+    ring_hub: wp.array[wp.int32],
+    ring_kind: wp.array[wp.int32],
+    ring_cos: wp.array[float],
+    ring_sin: wp.array[float],
+    ring_vertex: wp.array[wp.int32],
+    spoke_cos: wp.array[float],
+    spoke_sin: wp.array[float],
+    spoke_length: wp.array3d[float],
+    hub_uniform: wp.array2d[wp.int32],
+    node_q: wp.array2d[wp.vec3],
+    hub_t: wp.array2d[wp.vec3],
+    hub_r: wp.array2d[wp.vec3],
+    hub_kappa: wp.array2d[wp.vec3],
+    hub_chord: wp.array2d[float],
+    hub_free: wp.array2d[wp.vec2],
+    surface_length: wp.array2d[float],
+    surface_q_out: wp.array2d[wp.vec3],
+    surface_n_out: wp.array2d[wp.vec3],
+    lo: wp.vec3,
+    hi: wp.vec3,
+):
+    """Write spokes ``j_first, j_first + j_step, ...`` of one ring (a pole ring's one vertex when
+    ``j_first`` is 0); returns ``lo``, ``hi`` widened by the points written.
+
+    A ring whose hub and neighbours have equal spoke lengths all round (``hub_uniform``, a
+    circular tube) and that the guard leaves alone reads its length and its step along the tube
+    once: the same values the per-spoke reads give, so the same points and normals.
+    """
+    kind = ring_kind[ring]
+    h = ring_hub[ring]
+    x = node_q[w, node_offset + h]
+    t = hub_t[w, h]
+    c = ring_cos[ring]
+    free = hub_free[w, h]
+    v0 = ring_vertex[ring]
+    out_lo = lo
+    out_hi = hi
+    if kind == RING_POLE:
+        if j_first == 0:
+            p = pole_point(x, t, c, w, pw, h, v0, guard, free, spoke_length, surface_length)
+            surface_q_out[w, v0] = p
+            surface_n_out[w, v0] = c * t
+            out_lo = wp.min(out_lo, p)
+            out_hi = wp.max(out_hi, p)
+        return out_lo, out_hi
+    tube = node_tube[h]
+    has_prev = int(h > tube_node_start[tube])
+    has_next = int(h < tube_node_start[tube + 1] - 1)
+    sn = ring_sin[ring]
+    r = hub_r[w, h]
+    s = wp.cross(t, r)
+    kappa = hub_kappa[w, h]
+    ds = hub_chord[w, h]
+    dphi = 2.0 * wp.pi / float(spoke_count)
+    length = spoke_length[pw, h, 0]
+    limit = free[1]
+    if kind == RING_BODY:
+        limit = free[0]
+    if hub_uniform[pw, h] != 0 and not (guard and length > limit):
+        dl = body_length_step(pw, h, 0, has_prev, has_next, spoke_length)
+        for j in range(j_first, spoke_count, j_step):
+            p, n = spoke_point_normal(
+                x, t, r, s, c, sn, kind, spoke_cos[j], spoke_sin[j], length, length, length, dphi, dl, kappa, ds
+            )  # fmt: skip
+            surface_q_out[w, v0 + j] = p
+            surface_n_out[w, v0 + j] = n
+            out_lo = wp.min(out_lo, p)
+            out_hi = wp.max(out_hi, p)
+    else:
+        for j in range(j_first, spoke_count, j_step):
+            length_j, length_m, length_p = ring_spoke_lengths(
+                w, pw, h, j, kind, spoke_count, v0, guard, free, spoke_length, surface_length
+            )  # fmt: skip
+            dl = body_length_step(pw, h, j, has_prev, has_next, spoke_length)
+            p, n = spoke_point_normal(
+                x, t, r, s, c, sn, kind, spoke_cos[j], spoke_sin[j], length_j, length_m, length_p, dphi, dl, kappa, ds
+            )  # fmt: skip
+            surface_q_out[w, v0 + j] = p
+            surface_n_out[w, v0 + j] = n
+            out_lo = wp.min(out_lo, p)
+            out_hi = wp.max(out_hi, p)
+    return out_lo, out_hi
+
+
+@wp.kernel(enable_backward=False, module="unique", module_options=CUDA_OPTIONS)
+def ring_info_kernel(
+    # model:
+    guard_reach: float,
+    tube_node_start: wp.array[wp.int32],
+    node_tube: wp.array[wp.int32],
+    ring_hub: wp.array[wp.int32],
+    ring_kind: wp.array[wp.int32],
+    spoke_length: wp.array3d[float],
+    hub_uniform: wp.array2d[wp.int32],
+    # state in:
+    hub_chord: wp.array2d[float],
+    hub_free: wp.array2d[wp.vec2],
+    # out:
+    ring_info_out: wp.array2d[wp.vec4],
+):
+    """Sort one ring for the spoke kernels; one thread per (world, ring).
+
+    Writes ``(length, dl, ds, 1)`` for a uniform ring (a circular one the guard leaves alone, see
+    :func:`ring_vertices`): its spokes' common length, the length's step along the tube and the
+    hub's chord sum [length unit], all that :func:`spoke_points_kernel` needs beyond the hub's
+    frame; ``(0, 0, 0, 0)`` for any other ring (pole, measured or guarded), left to
+    :func:`spoke_points_general_kernel`.
+
+    Args: as :func:`spoke_points_kernel`; ``ring_info_out`` shaped (world_count, ring_count).
+    """
+    w, ring = wp.tid()
+    pw = w % spoke_length.shape[0]
+    h = ring_hub[ring]
+    kind = ring_kind[ring]
+    out = wp.vec4(0.0)
+    if kind != RING_POLE and hub_uniform[pw, h] != 0:
+        length = spoke_length[pw, h, 0]
+        free = hub_free[w, h]
+        limit = free[1]
+        if kind == RING_BODY:
+            limit = free[0]
+        if not (guard_reach > 0.0 and length > limit):
+            tube = node_tube[h]
+            has_prev = int(h > tube_node_start[tube])
+            has_next = int(h < tube_node_start[tube + 1] - 1)
+            out = wp.vec4(length, body_length_step(pw, h, 0, has_prev, has_next, spoke_length), hub_chord[w, h], 1.0)
+    ring_info_out[w, ring] = out
+
+
 @wp.kernel(enable_backward=False, module="unique", module_options=CUDA_OPTIONS)
 def spoke_points_kernel(
+    node_offset: int,
+    spoke_count: int,
+    ring_hub: wp.array[wp.int32],
+    ring_kind: wp.array[wp.int32],
+    ring_cos: wp.array[float],
+    ring_sin: wp.array[float],
+    ring_vertex: wp.array[wp.int32],
+    spoke_cos: wp.array[float],
+    spoke_sin: wp.array[float],
+    ring_info: wp.array2d[wp.vec4],
+    node_q: wp.array2d[wp.vec3],
+    hub_t: wp.array2d[wp.vec3],
+    hub_r: wp.array2d[wp.vec3],
+    hub_kappa: wp.array2d[wp.vec3],
+    # out:
+    surface_q_out: wp.array2d[wp.vec3],
+    surface_n_out: wp.array2d[wp.vec3],
+):
+    """Write one spoke's boundary point and unit normal; one thread per (world, ring, spoke), the
+    spoke index fastest. Uniform rings only (``ring_info[w, ring][3] == 1``, from
+    :func:`ring_info_kernel`); :func:`spoke_points_general_kernel` writes the others. Kept to the
+    common case so that it needs few registers; the arithmetic is :func:`ring_vertices`', so the
+    points and normals are the same.
+
+    Args:
+        node_offset: column of ``node_q`` holding hub 0.
+        spoke_count: spokes per ring, S.
+        ring_hub, ring_kind, ring_cos, ring_sin, ring_vertex: the ring table, (ring_count,) each.
+        spoke_cos, spoke_sin: ``cos phi_j``, ``sin phi_j`` of each spoke, (S,).
+        ring_info: per (world, ring) ``(length, dl, ds, uniform)``, see :func:`ring_info_kernel`.
+        node_q: hub positions [length unit], shape (world_count, >= node_offset + node_count).
+        hub_t, hub_r: hub unit tangents and normals [1], shape (world_count, node_count).
+        hub_kappa: hub curvature vectors [1/length unit], shape (world_count, node_count).
+        surface_q_out: boundary points [length unit], shape (world_count, vertex_count).
+        surface_n_out: unit outward normals [1], shape (world_count, vertex_count).
+    """
+    w, ring, j = wp.tid()
+    info = ring_info[w, ring]
+    if info[3] == 0.0:
+        return
+    h = ring_hub[ring]
+    t = hub_t[w, h]
+    r = hub_r[w, h]
+    length = info[0]
+    p, n = spoke_point_normal(
+        node_q[w, node_offset + h], t, r, wp.cross(t, r), ring_cos[ring], ring_sin[ring], ring_kind[ring],
+        spoke_cos[j], spoke_sin[j], length, length, length, 2.0 * wp.pi / float(spoke_count), info[1],
+        hub_kappa[w, h], info[2],
+    )  # fmt: skip
+    v = ring_vertex[ring] + j
+    surface_q_out[w, v] = p
+    surface_n_out[w, v] = n
+
+
+@wp.kernel(enable_backward=False, module="unique", module_options=CUDA_OPTIONS)
+def spoke_points_general_kernel(
     # model:
     node_offset: int,
     spoke_count: int,
@@ -745,7 +944,9 @@ def spoke_points_kernel(
     spoke_cos: wp.array[float],
     spoke_sin: wp.array[float],
     spoke_length: wp.array3d[float],
+    hub_uniform: wp.array2d[wp.int32],
     # state in:
+    ring_info: wp.array2d[wp.vec4],
     node_q: wp.array2d[wp.vec3],
     hub_t: wp.array2d[wp.vec3],
     hub_r: wp.array2d[wp.vec3],
@@ -757,7 +958,10 @@ def spoke_points_kernel(
     surface_q_out: wp.array2d[wp.vec3],
     surface_n_out: wp.array2d[wp.vec3],
 ):
-    """Write one spoke's boundary point and unit normal; one thread per (world, ring, spoke).
+    """Write the spokes' boundary points and unit normals of one ring where
+    :func:`spoke_points_kernel` does not (pole, measured or guarded rings:
+    ``ring_info[w, ring][3] == 0``), through :func:`ring_vertices`; one thread per (world, ring),
+    returning at once for the others (on a circular tube, most: then this launch costs little).
 
     Args:
         node_offset: column of ``node_q`` holding hub 0.
@@ -768,6 +972,9 @@ def spoke_points_kernel(
         ring_hub, ring_kind, ring_cos, ring_sin, ring_vertex: the ring table, (ring_count,) each.
         spoke_cos, spoke_sin: ``cos phi_j``, ``sin phi_j`` of each spoke, (S,).
         spoke_length: spoke lengths [length unit], shape (1 or world_count, node_count, S).
+        hub_uniform: 1 where a hub and its neighbours have one spoke length all round, shape
+            (1 or world_count, node_count) (see :func:`ring_vertices`).
+        ring_info: from :func:`ring_info_kernel`, (world_count, ring_count).
         node_q: hub positions [length unit], shape (world_count, >= node_offset + node_count).
         hub_t, hub_r: hub unit tangents and normals [1], shape (world_count, node_count).
         hub_kappa, hub_chord, hub_free: per-hub data from :func:`hub_guard_kernel`.
@@ -776,44 +983,16 @@ def spoke_points_kernel(
         surface_q_out: boundary points [length unit], shape (world_count, vertex_count).
         surface_n_out: unit outward normals [1], shape (world_count, vertex_count).
     """
-    w, ring, j = wp.tid()
-    kind = ring_kind[ring]
-    if kind == RING_POLE and j > 0:
+    w, ring = wp.tid()
+    if ring_info[w, ring][3] != 0.0:
         return
-    h = ring_hub[ring]
     pw = w % spoke_length.shape[0]
-    tube = node_tube[h]
-    first = tube_node_start[tube]
-    last = tube_node_start[tube + 1] - 1
-    has_prev = int(h > first)
-    has_next = int(h < last)
-
-    x = node_q[w, node_offset + h]
-    t = hub_t[w, h]
-    c = ring_cos[ring]
-    sn = ring_sin[ring]
-    free = hub_free[w, h]
-    guard = guard_reach > 0.0
-    v0 = ring_vertex[ring]
-
-    if kind == RING_POLE:
-        surface_q_out[w, v0] = pole_point(x, t, c, w, pw, h, v0, guard, free, spoke_length, surface_length)
-        surface_n_out[w, v0] = c * t
-        return
-
-    r = hub_r[w, h]
-    s = wp.cross(t, r)
-    length, length_m, length_p = ring_spoke_lengths(
-        w, pw, h, j, kind, spoke_count, v0, guard, free, spoke_length, surface_length
+    far = wp.vec3(1.0e30)
+    ring_vertices(
+        w, pw, ring, 0, 1, node_offset, spoke_count, guard_reach > 0.0, tube_node_start, node_tube,
+        ring_hub, ring_kind, ring_cos, ring_sin, ring_vertex, spoke_cos, spoke_sin, spoke_length, hub_uniform,
+        node_q, hub_t, hub_r, hub_kappa, hub_chord, hub_free, surface_length, surface_q_out, surface_n_out, far, -far,
     )  # fmt: skip
-    dl = body_length_step(pw, h, j, has_prev, has_next, spoke_length)
-    p, n = spoke_point_normal(
-        x, t, r, s, c, sn, kind, spoke_cos[j], spoke_sin[j], length, length_m, length_p,
-        2.0 * wp.pi / float(spoke_count), dl, hub_kappa[w, h], hub_chord[w, h],
-    )  # fmt: skip
-    v = v0 + j
-    surface_q_out[w, v] = p
-    surface_n_out[w, v] = n
 
 
 @wp.struct
@@ -840,6 +1019,7 @@ class SurfaceArrays:
     spoke_cos: wp.array[float]
     spoke_sin: wp.array[float]
     spoke_length: wp.array3d[float]
+    hub_uniform: wp.array2d[wp.int32]
     # scratch (per-hub data and guarded lengths, as the split kernels write them):
     hub_t: wp.array2d[wp.vec3]
     hub_r: wp.array2d[wp.vec3]
@@ -928,42 +1108,12 @@ def surface_world_kernel(arrays: SurfaceArrays, node_q: wp.array2d[wp.vec3]):
             )  # fmt: skip
     lo = wp.vec3(1.0e30)
     hi = wp.vec3(-1.0e30)
-    dphi = 2.0 * wp.pi / float(spoke_count)
     for ring in range(ring_count):
-        kind = ring_kind[ring]
-        h = ring_hub[ring]
-        x = node_q[w, node_offset + h]
-        t = hub_t[w, h]
-        c = ring_cos[ring]
-        free = hub_free[w, h]
-        v0 = ring_vertex[ring]
-        if kind == RING_POLE:
-            p = pole_point(x, t, c, w, pw, h, v0, guard, free, spoke_length, surface_length)
-            surface_q_out[w, v0] = p
-            surface_n_out[w, v0] = c * t
-            lo = wp.min(lo, p)
-            hi = wp.max(hi, p)
-        else:
-            tube = node_tube[h]
-            has_prev = int(h > tube_node_start[tube])
-            has_next = int(h < tube_node_start[tube + 1] - 1)
-            sn = ring_sin[ring]
-            r = hub_r[w, h]
-            s = wp.cross(t, r)
-            kappa = hub_kappa[w, h]
-            ds = hub_chord[w, h]
-            for j in range(spoke_count):
-                length, length_m, length_p = ring_spoke_lengths(
-                    w, pw, h, j, kind, spoke_count, v0, guard, free, spoke_length, surface_length
-                )  # fmt: skip
-                dl = body_length_step(pw, h, j, has_prev, has_next, spoke_length)
-                p, n = spoke_point_normal(
-                    x, t, r, s, c, sn, kind, spoke_cos[j], spoke_sin[j], length, length_m, length_p, dphi, dl, kappa, ds
-                )  # fmt: skip
-                surface_q_out[w, v0 + j] = p
-                surface_n_out[w, v0 + j] = n
-                lo = wp.min(lo, p)
-                hi = wp.max(hi, p)
+        lo, hi = ring_vertices(
+            w, pw, ring, 0, 1, node_offset, spoke_count, guard, tube_node_start, node_tube, ring_hub, ring_kind,
+            ring_cos, ring_sin, ring_vertex, spoke_cos, spoke_sin, spoke_length, arrays.hub_uniform, node_q, hub_t,
+            hub_r, hub_kappa, hub_chord, hub_free, surface_length, surface_q_out, surface_n_out, lo, hi,
+        )  # fmt: skip
     extent_out[w, 0] = lo
     extent_out[w, 1] = hi
 
@@ -1027,109 +1177,126 @@ def shade_orthographic_kernel(
         image_out[row, col] = -1.0
 
 
-SURFACE_BLOCK_DIM = 32
-"""Threads per block of :func:`surface_block_kernel` (one warp per world)."""
+WORLD_LANES = 32
+"""Threads of :func:`make_surface_block_kernel`'s kernel per world (one warp)."""
+
+SURFACE_RING_LANES = 8
+"""Lanes of a world's warp that share a ring (at most; fewer with fewer spokes)."""
 
 
-@wp.kernel(enable_backward=False, module="unique", module_options=CUDA_OPTIONS)
-def surface_block_kernel(arrays: SurfaceArrays, node_q: wp.array2d[wp.vec3]):
-    """The whole rebuild of one world's surface by one block (``wp.launch_tiled`` over worlds,
-    ``block_dim`` :data:`SURFACE_BLOCK_DIM`): the fused kernel's work, spread over the block's
-    lanes phase by phase, so that a rebuild is one launch and the per-hub data stays on chip.
+ALL_PHASES = 0b1111
 
-    1. frames: a lane per tube (rotation-minimizing: a scan along the tube) or per hub (local);
-    2. per-hub guard data (:func:`hub_guard`), a lane per hub;
-    3. guarded lengths (:func:`ring_guard`), a lane per ring (guard on only);
-    4. points and normals: ring after ring, a lane per spoke, so that consecutive lanes write
-       consecutive vertices.
 
-    A phase reads what the previous one wrote (scratch arrays in ``arrays``) after a block barrier
-    (the write of one element of a shared tile, which every lane reaches). Same functions, so the
-    same points and normals as the fused and split kernels. The points' bounds are not written
-    (:func:`surface_extent_kernel` finds them when asked).
+@functools.cache
+def make_surface_block_kernel(worlds_per_block: int, min_blocks: int, phases: int = ALL_PHASES):
+    """The one-launch GPU rebuild: a warp of :data:`WORLD_LANES` threads per world,
+    ``worlds_per_block`` worlds per block, compiled for at least ``min_blocks`` resident blocks per
+    multiprocessor (CUDA ``__launch_bounds__``; 0: no such bound). Cached per arguments.
 
-    Args:
-        arrays: as :func:`surface_world_kernel` (``extent_out`` unused).
-        node_q: hub positions [length unit], shape (world_count, >= node_offset + node_count).
-    """
-    node_offset = arrays.node_offset
-    spoke_count = arrays.spoke_count
-    guard_reach = arrays.guard_reach
-    tube_node_start = arrays.tube_node_start
-    node_tube = arrays.node_tube
-    ring_hub = arrays.ring_hub
-    ring_kind = arrays.ring_kind
-    ring_cos = arrays.ring_cos
-    ring_sin = arrays.ring_sin
-    ring_vertex = arrays.ring_vertex
-    spoke_cos = arrays.spoke_cos
-    spoke_sin = arrays.spoke_sin
-    spoke_length = arrays.spoke_length
-    hub_t = arrays.hub_t
-    hub_r = arrays.hub_r
-    hub_kappa = arrays.hub_kappa
-    hub_chord = arrays.hub_chord
-    hub_free = arrays.hub_free
-    surface_length = arrays.surface_length
-    surface_q_out = arrays.surface_q_out
-    surface_n_out = arrays.surface_n_out
-    w, lane = wp.tid()
-    pw = w % spoke_length.shape[0]
-    hub_count = node_tube.shape[0]
-    ring_count = ring_hub.shape[0]
-    barrier = wp.tile_zeros(shape=(SURFACE_BLOCK_DIM,), dtype=int, storage="shared")
+    ``phases``: bit k set runs phase k + 1 (see the kernel); anything but :data:`ALL_PHASES` is
+    only for timing the phases apart (``benchmarks/bench_surface.py``)."""
+    B = WORLD_LANES * int(worlds_per_block)
+    bounds = (B, int(min_blocks)) if min_blocks else B
 
-    if arrays.local_frames != 0:
-        for h in range(lane, hub_count, SURFACE_BLOCK_DIM):
-            hub_local_frame(w, h, node_offset, tube_node_start, node_tube, arrays.node_rest_t, arrays.node_rest_r, node_q, hub_t, hub_r)
-    else:
-        for tube in range(lane, tube_node_start.shape[0] - 1, SURFACE_BLOCK_DIM):
-            tube_rotation_minimizing_frames(w, tube, node_offset, tube_node_start, arrays.node_rest_t, arrays.node_rest_r, node_q, hub_t, hub_r)
-    barrier[lane] = 1
-    for h in range(lane, hub_count, SURFACE_BLOCK_DIM):
-        hub_guard(
-            w, h, node_offset, guard_reach, arrays.cell_radius, tube_node_start, node_tube, arrays.hub_reach, node_q,
-            hub_t, hub_kappa, hub_chord, arrays.hub_plane, arrays.hub_cell, hub_free,
-        )  # fmt: skip
-    barrier[lane] = 2
-    guard = guard_reach > 0.0
-    if guard:
-        for ring in range(lane, ring_count, SURFACE_BLOCK_DIM):
-            ring_guard(
-                w, ring, node_offset, guard_reach, tube_node_start, node_tube, arrays.hub_reach, ring_hub, ring_kind,
-                ring_cos, ring_sin, ring_vertex, spoke_cos, spoke_sin, spoke_length, node_q, hub_t, hub_r,
-                arrays.hub_plane, arrays.hub_cell, hub_free, surface_length,
-            )  # fmt: skip
-        barrier[lane] = 3
-    dphi = 2.0 * wp.pi / float(spoke_count)
-    for ring in range(ring_count):
-        kind = ring_kind[ring]
-        h = ring_hub[ring]
-        x = node_q[w, node_offset + h]
-        t = hub_t[w, h]
-        c = ring_cos[ring]
-        free = hub_free[w, h]
-        v0 = ring_vertex[ring]
-        if kind == RING_POLE:
-            if lane == 0:
-                surface_q_out[w, v0] = pole_point(x, t, c, w, pw, h, v0, guard, free, spoke_length, surface_length)
-                surface_n_out[w, v0] = c * t
-        else:
-            tube = node_tube[h]
-            has_prev = int(h > tube_node_start[tube])
-            has_next = int(h < tube_node_start[tube + 1] - 1)
-            sn = ring_sin[ring]
-            r = hub_r[w, h]
-            s = wp.cross(t, r)
-            kappa = hub_kappa[w, h]
-            ds = hub_chord[w, h]
-            for j in range(lane, spoke_count, SURFACE_BLOCK_DIM):
-                length, length_m, length_p = ring_spoke_lengths(
-                    w, pw, h, j, kind, spoke_count, v0, guard, free, spoke_length, surface_length
+    @wp.kernel(enable_backward=False, module="unique", module_options=CUDA_OPTIONS, launch_bounds=bounds)
+    def surface_block_kernel(arrays: SurfaceArrays, node_q: wp.array2d[wp.vec3]):
+        """The whole rebuild of one world's surface by one warp (``wp.launch_tiled`` over blocks of
+        ``worlds_per_block`` worlds): the world kernel's work spread over the warp's lanes phase by
+        phase, so that a rebuild is one launch and the per-hub data stays in cache.
+
+        1. frames: rotation-minimizing ones (a scan along each tube) by the block's first
+           ``worlds_per_block`` threads, a world each; local ones by a lane per hub;
+        2. per-hub guard data (:func:`hub_guard`), a lane per hub;
+        3. guarded lengths (:func:`ring_guard`), a lane per ring (guard on only);
+        4. points and normals (:func:`ring_vertices`): :data:`SURFACE_RING_LANES` lanes to a ring,
+           several rings at a time, so that a ring's reads serve several spokes and runs of
+           consecutive lanes write consecutive vertices;
+        5. the points' bounds, reduced over the warp into ``extent_out``.
+
+        A phase reads what the previous one wrote (scratch arrays in ``arrays``) after a block
+        barrier (the write of one element of a shared tile, which every thread reaches). Same
+        functions, so the same points and normals as the world and split kernels.
+
+        Args:
+            arrays: as :func:`surface_world_kernel`.
+            node_q: hub positions [length unit], shape (world_count, >= node_offset + node_count).
+        """
+        node_offset = arrays.node_offset
+        spoke_count = arrays.spoke_count
+        guard_reach = arrays.guard_reach
+        tube_node_start = arrays.tube_node_start
+        node_tube = arrays.node_tube
+        spoke_length = arrays.spoke_length
+        hub_t = arrays.hub_t
+        hub_r = arrays.hub_r
+        hub_free = arrays.hub_free
+        block, thread = wp.tid()
+        w = block * wp.static(worlds_per_block) + thread // WORLD_LANES
+        lane = thread % WORLD_LANES
+        active = w < node_q.shape[0]
+        pw = w % spoke_length.shape[0]
+        hub_count = node_tube.shape[0]
+        ring_count = arrays.ring_hub.shape[0]
+        barrier = wp.tile_zeros(shape=(wp.static(B),), dtype=int, storage="shared")
+        lows = wp.tile_zeros(shape=(wp.static(B),), dtype=wp.vec3, storage="shared")
+        highs = wp.tile_zeros(shape=(wp.static(B),), dtype=wp.vec3, storage="shared")
+
+        if wp.static(not phases & 1):
+            pass
+        elif arrays.local_frames != 0:
+            if active:
+                for h in range(lane, hub_count, WORLD_LANES):
+                    hub_local_frame(w, h, node_offset, tube_node_start, node_tube, arrays.node_rest_t, arrays.node_rest_r, node_q, hub_t, hub_r)
+        elif thread < wp.static(worlds_per_block):
+            # The scans along the tubes: the block's first lanes, one world each, side by side (a
+            # world's own warp would run one lane at a time).
+            wf = block * wp.static(worlds_per_block) + thread
+            if wf < node_q.shape[0]:
+                for tube in range(tube_node_start.shape[0] - 1):
+                    tube_rotation_minimizing_frames(wf, tube, node_offset, tube_node_start, arrays.node_rest_t, arrays.node_rest_r, node_q, hub_t, hub_r)
+        barrier[thread] = 1
+        if active and wp.static(phases & 2):
+            for h in range(lane, hub_count, WORLD_LANES):
+                hub_guard(
+                    w, h, node_offset, guard_reach, arrays.cell_radius, tube_node_start, node_tube, arrays.hub_reach,
+                    node_q, hub_t, arrays.hub_kappa, arrays.hub_chord, arrays.hub_plane, arrays.hub_cell, hub_free,
                 )  # fmt: skip
-                dl = body_length_step(pw, h, j, has_prev, has_next, spoke_length)
-                p, n = spoke_point_normal(
-                    x, t, r, s, c, sn, kind, spoke_cos[j], spoke_sin[j], length, length_m, length_p, dphi, dl, kappa, ds
-                )  # fmt: skip
-                surface_q_out[w, v0 + j] = p
-                surface_n_out[w, v0 + j] = n
+        barrier[thread] = 2
+        guard = guard_reach > 0.0
+        if guard:
+            if active and wp.static(phases & 4):
+                for ring in range(lane, ring_count, WORLD_LANES):
+                    ring_guard(
+                        w, ring, node_offset, guard_reach, tube_node_start, node_tube, arrays.hub_reach, arrays.ring_hub,
+                        arrays.ring_kind, arrays.ring_cos, arrays.ring_sin, arrays.ring_vertex, arrays.spoke_cos,
+                        arrays.spoke_sin, spoke_length, node_q, hub_t, hub_r, arrays.hub_plane, arrays.hub_cell, hub_free,
+                        arrays.surface_length,
+                    )  # fmt: skip
+            barrier[thread] = 3
+        lanes = wp.min(spoke_count, SURFACE_RING_LANES)
+        rings_per_pass = WORLD_LANES // lanes
+        sub = lane % lanes
+        group = lane // lanes
+        lo = wp.vec3(1.0e30)
+        hi = wp.vec3(-1.0e30)
+        if active and wp.static(phases & 8):
+            for first in range(0, ring_count, rings_per_pass):
+                ring = first + group
+                if group < rings_per_pass and ring < ring_count:
+                    lo, hi = ring_vertices(
+                        w, pw, ring, sub, lanes, node_offset, spoke_count, guard, tube_node_start, node_tube,
+                        arrays.ring_hub, arrays.ring_kind, arrays.ring_cos, arrays.ring_sin, arrays.ring_vertex,
+                        arrays.spoke_cos, arrays.spoke_sin, spoke_length, arrays.hub_uniform, node_q, hub_t, hub_r,
+                        arrays.hub_kappa, arrays.hub_chord, hub_free, arrays.surface_length, arrays.surface_q_out,
+                        arrays.surface_n_out, lo, hi,
+                    )  # fmt: skip
+        lows[thread] = lo
+        highs[thread] = hi
+        if active and lane == 0:
+            for k in range(1, WORLD_LANES):
+                lo = wp.min(lo, lows[thread + k])
+                hi = wp.max(hi, highs[thread + k])
+            arrays.extent_out[w, 0] = lo
+            arrays.extent_out[w, 1] = hi
+
+    return surface_block_kernel

@@ -471,23 +471,30 @@ def test_cell_planes_leave_circular_arcs_as_the_centre_plane_cuts_them(n, angle,
 
 @pytest.mark.parametrize("frames", ["rotationMinimizing", "local"])
 @pytest.mark.parametrize("caps", [False, True])
-def test_world_block_and_split_kernels_agree(frames, caps):
+@pytest.mark.parametrize("measured", [True, False])
+def test_world_block_and_split_kernels_agree(frames, caps, measured):
     """The three ways a rebuild runs (a thread per world, the CPU's; a block per world, the GPU's;
     four split kernels) give the same points and normals bit for bit (same arithmetic in the same
     order), guard and cell planes acting (an arc at radius x curvature 1.5 and a hairpin with legs
-    1.3 radii apart), two curves and three worlds with measured spoke lengths; the world kernel's
-    extent is the exact bounds of its points, and the extent kernel of the others finds the same."""
+    1.3 radii apart), two curves and three worlds, with measured spoke lengths or circular ones
+    (where the one-launch kernels read a ring's length once unless the guard acts); the world
+    kernel's extent is the exact bounds of its points, and the extent kernel of the others finds
+    the same."""
     rng = np.random.default_rng(5)
     n, S, W = 30, 7, 3
     u = hairpin(0.0065, 0.05, 0.004)[:n]
     rest = np.concatenate([straight(n, 0.3), straight(n, 0.3) + [0.0, 0.1, 0.0]])
     lengths = 0.01 * (1.0 + 0.2 * rng.random((2 * n, S)))
+    if not measured:
+        lengths = np.full(2 * n, 0.01)
     q = np.concatenate([arc(n, 0.01 / 1.5, 1.5 * np.pi), u + [0.0, 0.2, 0.0]])
     qw = np.repeat(q[None], W, axis=0)
     qw[1] += rng.normal(scale=1e-3, size=qw[1].shape)
     out = []
-    for kernel in ("split", "world", "block"):
+    # The block kernel also with two and four worlds per block (W = 3: idle warps).
+    for kernel, shape in (("split", None), ("world", None), ("block", (1, 0)), ("block", (2, 4)), ("block", (4, 0))):
         b = SurfaceBuilder([0, n, 2 * n], rest, S, lengths, frames=frames, caps=caps, world_count=W, device=DEVICE, kernel=kernel)
+        b.block_shape = shape or b.block_shape
         p, nrm = b.compute(wp.array(qw.astype(np.float32), dtype=wp.vec3, device=DEVICE))
         guarded = b._surface_length.numpy()
         assert np.any(guarded > 0.0), f"{kernel}: the guard did not act: the comparison would not cover it"

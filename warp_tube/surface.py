@@ -2,23 +2,36 @@
 
 :class:`SurfaceBuilder` serves one tube prim (one spoke count S; all its curves). It is built once
 from the rest centerline and the spoke lengths, allocates everything then, and at every output
-frame rebuilds the boundary from the deformed centerline. On the CPU (by default) one launch of
-:func:`~warp_tube.kernels.surface.surface_world_kernel` does it all, one thread per world, and also
-writes the bounds of the points (the ``extent``). On CUDA, four launches (three with the guard
-off), each with a thread per hub or per spoke:
+frame rebuilds the boundary from the deformed centerline, in one of three ways (``kernel``):
 
-1. frames: :func:`~warp_tube.kernels.frames.rotation_minimizing_frames_kernel` (one thread per
-   (world, tube)) or :func:`~warp_tube.kernels.frames.local_frames_kernel` (one per (world, hub));
-2. hubs: :func:`~warp_tube.kernels.surface.hub_guard_kernel`, one thread per (world, hub), writing
-   each hub's curvature, chords, guard planes, cell range (hubs of a fold back within ``pi``
-   radii whose cell planes may limit its spokes) and free lengths once;
-3. guard: :func:`~warp_tube.kernels.surface.ring_guard_kernel`, one thread per (world, ring),
-   writing the guarded length of the spokes that a guard plane may shorten (none on gentle bends);
-4. spokes: :func:`~warp_tube.kernels.surface.spoke_points_kernel`, one thread per
-   (world, ring, spoke) with the spoke index fastest, writing points and normals.
+- ``"world"`` (the CPU's default): one launch of
+  :func:`~warp_tube.kernels.surface.surface_world_kernel`, a thread per world, which also writes
+  the bounds of the points (the ``extent``);
+- ``"block"`` (the GPU's default): one launch of
+  :func:`~warp_tube.kernels.surface.make_surface_block_kernel`'s kernel, a warp per world going
+  through the same phases as the split kernels below, the extent included;
+- ``"split"``: six launches, each with a thread per tube, hub, ring or spoke:
 
-and :meth:`SurfaceBuilder.extent` adds a fifth,
-:func:`~warp_tube.kernels.surface.surface_extent_kernel`, when the bounds are asked for.
+  1. frames: :func:`~warp_tube.kernels.frames.rotation_minimizing_frames_kernel` (one thread per
+     (world, tube)) or :func:`~warp_tube.kernels.frames.local_frames_kernel` (one per (world, hub));
+  2. hubs: :func:`~warp_tube.kernels.surface.hub_guard_kernel`, one thread per (world, hub),
+     writing each hub's curvature, chords, guard planes, cell range (hubs of a fold back within
+     ``pi`` radii whose cell planes may limit its spokes) and free lengths once;
+  3. guard (skipped with the guard off): :func:`~warp_tube.kernels.surface.ring_guard_kernel`, one
+     thread per (world, ring), writing the guarded length of the spokes that a guard plane may
+     shorten (none on gentle bends);
+  4. ring info: :func:`~warp_tube.kernels.surface.ring_info_kernel`, one thread per (world, ring),
+     marking the rings the guard leaves alone on circular stretches (uniform rings);
+  5. spokes: :func:`~warp_tube.kernels.surface.spoke_points_kernel`, one thread per
+     (world, ring, spoke) with the spoke index fastest, writing the points and normals of uniform
+     rings with few registers;
+  6. the rest: :func:`~warp_tube.kernels.surface.spoke_points_general_kernel`, one thread per
+     (world, ring), for poles, measured shapes and guarded rings;
+
+  and :meth:`SurfaceBuilder.extent` adds
+  :func:`~warp_tube.kernels.surface.surface_extent_kernel` when the bounds are asked for.
+
+All three give the same points and normals, bit for bit (same functions, same order).
 
 Rest frames (tangent and spoke-0 normal of every hub at rest) follow :mod:`warp_tube.frames`
 in float64: the first hub's normal is the tube's reference normal (or the convention's default),
@@ -33,11 +46,13 @@ import warp as wp
 from . import frames as ref_frames
 from .kernels.frames import local_frames_kernel, rotation_minimizing_frames_kernel
 from .kernels.surface import (
-    SURFACE_BLOCK_DIM,
+    WORLD_LANES,
     SurfaceArrays,
-    surface_block_kernel,
+    make_surface_block_kernel,
     hub_guard_kernel,
     ring_guard_kernel,
+    ring_info_kernel,
+    spoke_points_general_kernel,
     spoke_points_kernel,
     surface_extent_kernel,
     surface_world_kernel,
@@ -49,6 +64,8 @@ __all__ = ["SurfaceBuilder", "FRAME_MODES", "DEFAULT_GUARD_REACH"]
 
 FRAME_MODES = ("rotationMinimizing", "local")
 SURFACE_KERNELS = ("world", "block", "split")
+BLOCK_SHAPE = (1, 0)
+"""The block kernel's worlds per block and least resident blocks per multiprocessor."""
 DEFAULT_GUARD_REACH = 0.95
 """Spoke ends stay within 95% of the way to a neighbouring ring's plane (see kernels.surface)."""
 
@@ -80,6 +97,17 @@ def rest_frames(
             ref = refs[tube]
         t[a:b], r[a:b], _ = ref_frames.rotation_minimizing_frames(x[a:b], normal0=ref)
     return t, r
+
+
+def uniform_hubs(lengths: np.ndarray) -> np.ndarray:
+    """1 where a hub and its neighbours (the hubs before and after it in the array) each have one
+    spoke length all round, else 0: int32 of shape ``lengths.shape[:2]`` from spoke lengths shaped
+    (rows, hubs, S). There the kernels read a ring's length and its step along the tube once."""
+    flat = np.all(lengths == lengths[..., :1], axis=-1)
+    out = flat.copy()
+    out[:, 1:] &= flat[:, :-1]
+    out[:, :-1] &= flat[:, 1:]
+    return out.astype(np.int32)
 
 
 class SurfaceBuilder:
@@ -175,6 +203,7 @@ class SurfaceBuilder:
         if kernel not in SURFACE_KERNELS:
             raise ValueError(f"kernel must be one of {SURFACE_KERNELS}, got {kernel!r}")
         self.kernel = kernel
+        self.block_shape = BLOCK_SHAPE  # worlds per block, least resident blocks (the block kernel)
 
         rest_t, rest_r = rest_frames(rest, local_starts, reference_normal)
         node_tube = np.repeat(np.arange(self.tube_count), np.diff(local_starts))
@@ -186,6 +215,7 @@ class SurfaceBuilder:
             self._rest_r = wp.array(rest_r[None].astype(np.float32), dtype=wp.vec3)
             self._spoke_length = wp.array(lengths.astype(np.float32), dtype=float)
             self._hub_reach = wp.array(lengths.max(axis=2).astype(np.float32), dtype=float)
+            self._hub_uniform = wp.array(uniform_hubs(lengths.astype(np.float32)), dtype=wp.int32)
             self._ring_hub = wp.array(topo.ring_hub, dtype=wp.int32)
             self._ring_kind = wp.array(topo.ring_kind, dtype=wp.int32)
             self._ring_cos = wp.array(topo.ring_cos, dtype=float)
@@ -202,6 +232,7 @@ class SurfaceBuilder:
             self._hub_cell = wp.zeros((self.world_count, n_hubs), dtype=wp.vec2i)
             self._hub_free = wp.zeros((self.world_count, n_hubs), dtype=wp.vec2)
             self._surface_length = wp.zeros((self.world_count, topo.vertex_count), dtype=float)
+            self._ring_info = wp.zeros((self.world_count, len(topo.ring_hub)), dtype=wp.vec4)
             self.points = wp.zeros((self.world_count, topo.vertex_count), dtype=wp.vec3)
             self.normals = wp.zeros((self.world_count, topo.vertex_count), dtype=wp.vec3)
             self._extent = wp.zeros((self.world_count, 2), dtype=wp.vec3)
@@ -214,7 +245,8 @@ class SurfaceBuilder:
                 ("node_rest_t", self._rest_t), ("node_rest_r", self._rest_r), ("hub_reach", self._hub_reach),
                 ("ring_hub", self._ring_hub), ("ring_kind", self._ring_kind), ("ring_cos", self._ring_cos),
                 ("ring_sin", self._ring_sin), ("ring_vertex", self._ring_vertex), ("spoke_cos", self._spoke_cos),
-                ("spoke_sin", self._spoke_sin), ("spoke_length", self._spoke_length), ("hub_t", self.hub_t),
+                ("spoke_sin", self._spoke_sin), ("spoke_length", self._spoke_length),
+                ("hub_uniform", self._hub_uniform), ("hub_t", self.hub_t),
                 ("hub_r", self.hub_r), ("hub_kappa", self._hub_kappa), ("hub_chord", self._hub_chord),
                 ("hub_plane", self._hub_plane), ("hub_cell", self._hub_cell), ("hub_free", self._hub_free),
                 ("surface_length", self._surface_length), ("surface_q_out", self.points),
@@ -270,12 +302,14 @@ class SurfaceBuilder:
             )  # fmt: skip
             return (launch,)
         if self.kernel == "block":
+            kernel = make_surface_block_kernel(*self.block_shape)
+            blocks = -(-self.world_count // self.block_shape[0])
             enabled = wp.config.enable_cpu_blocks
             wp.config.enable_cpu_blocks = True  # the CPU runs a block's threads as fibers only when asked
             try:
                 launch = wp.launch_tiled(
-                    surface_block_kernel, dim=(self.world_count,), block_dim=SURFACE_BLOCK_DIM,
-                    inputs=[self._arrays, node_q], device=self.device, record_cmd=True,
+                    kernel, dim=(blocks,), block_dim=WORLD_LANES * self.block_shape[0], inputs=[self._arrays, node_q],
+                    device=self.device, record_cmd=True,
                 )  # fmt: skip
             finally:
                 wp.config.enable_cpu_blocks = enabled
@@ -349,36 +383,43 @@ class SurfaceBuilder:
                 record_cmd=True,
             )
             launches.append(guard)
+        ring_info = wp.launch(
+            ring_info_kernel,
+            dim=(self.world_count, len(topo.ring_hub)),
+            inputs=[
+                self.guard_reach, self._tube_node_start, self._node_tube, self._ring_hub, self._ring_kind,
+                self._spoke_length, self._hub_uniform, self._hub_chord, self._hub_free,
+            ],
+            outputs=[self._ring_info],
+            device=self.device,
+            record_cmd=True,
+        )  # fmt: skip
         spokes = wp.launch(
             spoke_points_kernel,
             dim=dims_spokes,
             inputs=[
-                self.node_offset,
-                self.spokes,
-                self.guard_reach,
-                self._tube_node_start,
-                self._node_tube,
-                self._ring_hub,
-                self._ring_kind,
-                self._ring_cos,
-                self._ring_sin,
-                self._ring_vertex,
-                self._spoke_cos,
-                self._spoke_sin,
-                self._spoke_length,
-                node_q,
-                self.hub_t,
-                self.hub_r,
+                self.node_offset, self.spokes, self._ring_hub, self._ring_kind, self._ring_cos, self._ring_sin,
+                self._ring_vertex, self._spoke_cos, self._spoke_sin, self._ring_info, node_q, self.hub_t, self.hub_r,
                 self._hub_kappa,
-                self._hub_chord,
-                self._hub_free,
-                self._surface_length,
             ],
             outputs=[self.points, self.normals],
             device=self.device,
             record_cmd=True,
-        )
-        launches.append(spokes)
+        )  # fmt: skip
+        general = wp.launch(
+            spoke_points_general_kernel,
+            dim=(self.world_count, len(topo.ring_hub)),
+            inputs=[
+                self.node_offset, self.spokes, self.guard_reach, self._tube_node_start, self._node_tube,
+                self._ring_hub, self._ring_kind, self._ring_cos, self._ring_sin, self._ring_vertex, self._spoke_cos,
+                self._spoke_sin, self._spoke_length, self._hub_uniform, self._ring_info, node_q, self.hub_t,
+                self.hub_r, self._hub_kappa, self._hub_chord, self._hub_free, self._surface_length,
+            ],
+            outputs=[self.points, self.normals],
+            device=self.device,
+            record_cmd=True,
+        )  # fmt: skip
+        launches += [ring_info, spokes, general]
         return tuple(launches)
 
     def compute(self, node_q: wp.array) -> tuple[wp.array, wp.array]:
@@ -413,7 +454,7 @@ class SurfaceBuilder:
             self._launch_cpu_blocks(key, launches)
         else:
             self._graphs.run(key, lambda: [launch.launch() for launch in launches], hold=(node_q,))
-        self._extent_fresh = self.kernel == "world"
+        self._extent_fresh = self.kernel != "split"
         return self.points, self.normals
 
     def _launch_cpu_blocks(self, key, launches):
@@ -430,7 +471,7 @@ class SurfaceBuilder:
     def extent(self) -> wp.array:
         """Bounds of the points of the last :meth:`compute`: ``[min, max]`` corners [L] per world,
         ``wp.array2d`` of ``wp.vec3`` shaped (world_count, 2), this builder's own array. The world
-        (CPU) rebuild writes them as it goes; otherwise one more launch finds them here."""
+        and block rebuilds write them as they go; the split one needs one more launch."""
         if not self._extent_fresh:
             if self._extent_launch is None:
                 self._extent_launch = wp.launch(
