@@ -1,23 +1,25 @@
-"""Surface rebuild speed: frames + hub + spoke kernels (SurfaceBuilder.compute). Prints JSON.
+"""Surface rebuild speed (SurfaceBuilder.compute), by kernel path. Prints JSON.
 
-A rebuild is one launch of the fused kernel (a thread per world; the CPU's default) or four split
-kernels (CUDA's): frames, hub, guard (the guarded spoke lengths, a thread per ring; skipped with
-the guard off), spoke.
+A rebuild runs as one launch of the world kernel (a thread per world; the CPU's default), one
+launch of the block kernel (a warp per world; the GPU's default) or the split kernels (frames,
+hub data, guard, ring info, the per-spoke kernel for uniform rings, a per-ring kernel for the
+rest); see :mod:`warp_tube.surface`.
 
 - CPU, one tube: 20 hubs x 9 spokes; median wall time of one rebuild over many calls after a
-  warm-up, each call replaying recorded launches (``wp.launch(record_cmd=True)``, no argument
-  packing per call), fused and split side by side.
+  warm-up (each call replays a captured graph), world and split side by side.
 - CPU, batch: 256 tubes (worlds) x 32 hubs x 32 spokes (262,144 vertices), median of a few
-  rebuilds, fused, and split with each launch timed alone as well, so that the per-vertex cost
-  shows.
-- CUDA (when a device exists): 65,536 tubes (worlds) x 32 hubs x 32 spokes, the rebuild and each of
-  its kernels captured in CUDA graphs and timed with CUDA events over many replays. Reported:
-  surface vertices per second, and the memory-bandwidth bound for the 24 bytes the spoke kernel
-  must write per vertex (points + normals, float32 vec3 each): ``bandwidth / 24 B``. The bandwidth
-  is ``--bandwidth-gbs`` (default 2988 GB/s, an H100's measured by ``benchmarks/bandwidth.py``) or
-  the ``bandwidth_gbs`` of that script's JSON output given by ``--bandwidth-json``. Reads (hub
-  positions, frames, per-hub guard data) are per hub and shared by the S spokes of a ring; the
-  spoke lengths (4 B per vertex) are shared by all worlds here, so writes dominate the traffic.
+  rebuilds, world, and split with each launch timed alone as well.
+- CUDA (when a device exists): 65,536 tubes (worlds) x 32 hubs x 32 spokes (67,108,864 vertices),
+  circular (one spoke length per hub) and measured (lengths varying around each ring), each
+  captured in CUDA graphs and timed with CUDA events over many replays: the whole rebuild by the
+  block and the split paths, each split kernel alone, the per-spoke pair (uniform rings, then the
+  rest), the extent, and a reference kernel that only stores a point and a normal per vertex.
+  Reported as surface vertices per second against the bound that the memory bandwidth sets for
+  the 24 bytes a rebuild must write per vertex (points + normals, float32 vec3 each):
+  ``bandwidth / 24 B``. The bandwidth is ``--bandwidth-gbs`` (default 2988 GB/s, an H100's
+  measured by ``benchmarks/bandwidth.py``: a device-to-device copy) or the ``bandwidth_gbs`` of
+  that script's JSON output given by ``--bandwidth-json``. Reads (hub positions, frames, per-hub
+  data) are per hub and shared by the S spokes of a ring, so writes dominate the traffic.
 
 Usage: python benchmarks/bench_surface.py [--bandwidth-gbs GBS | --bandwidth-json PATH] [--repeats N]
 """
@@ -159,7 +161,7 @@ def bench_cuda(bandwidth_gbs: float, bandwidth_source: str, replays: int) -> dic
     }
     measured = 0.01 * (1.0 + 0.2 * np.random.default_rng(0).random((n, S)))  # a measured shape
     for case, kernel, lengths in (("block", "block", np.full(n, 0.01)), ("split", "split", np.full(n, 0.01)),
-                                  ("block_measured", "block", measured)):  # fmt: skip
+                                  ("block_measured", "block", measured), ("split_measured", "split", measured)):  # fmt: skip
         b = SurfaceBuilder([0, n], straight_rest(n), S, lengths, world_count=W, device=device, kernel=kernel)
         b.compute(q)  # compile, record
         b.compute(q)  # capture (warp_tube.replay)

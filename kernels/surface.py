@@ -845,11 +845,11 @@ def ring_info_kernel(
 ):
     """Sort one ring for the spoke kernels; one thread per (world, ring).
 
-    Writes ``(length, dl, ds, 1)`` for a uniform ring (a circular one the guard leaves alone, see
-    :func:`ring_vertices`): its spokes' common length, the length's step along the tube and the
-    hub's chord sum [length unit], all that :func:`spoke_points_kernel` needs beyond the hub's
-    frame; ``(0, 0, 0, 0)`` for any other ring (pole, measured or guarded), left to
-    :func:`spoke_points_general_kernel`.
+    Writes ``(length, dl, ds, 1 + kind)`` for a uniform ring (a circular one the guard leaves alone,
+    see :func:`ring_vertices`; ``kind`` :data:`RING_BODY` or :data:`RING_CAP`): its spokes' common
+    length, the length's step along the tube and the hub's chord sum [length unit], all that
+    :func:`spoke_points_kernel` needs beyond the hub's frame; ``(0, 0, 0, 0)`` for any other ring
+    (pole, measured or guarded), left to :func:`spoke_points_general_kernel`.
 
     Args: as :func:`spoke_points_kernel`; ``ring_info_out`` shaped (world_count, ring_count).
     """
@@ -868,64 +868,67 @@ def ring_info_kernel(
             tube = node_tube[h]
             has_prev = int(h > tube_node_start[tube])
             has_next = int(h < tube_node_start[tube + 1] - 1)
-            out = wp.vec4(length, body_length_step(pw, h, 0, has_prev, has_next, spoke_length), hub_chord[w, h], 1.0)
+            dl = body_length_step(pw, h, 0, has_prev, has_next, spoke_length)
+            out = wp.vec4(length, dl, hub_chord[w, h], float(1 + kind))
     ring_info_out[w, ring] = out
 
 
 @wp.kernel(enable_backward=False, module="unique", module_options=CUDA_OPTIONS)
 def spoke_points_kernel(
     node_offset: int,
+    node_row: int,
+    hub_count: int,
     spoke_count: int,
-    ring_hub: wp.array[wp.int32],
-    ring_kind: wp.array[wp.int32],
-    ring_cos: wp.array[float],
-    ring_sin: wp.array[float],
-    ring_vertex: wp.array[wp.int32],
-    spoke_cos: wp.array[float],
-    spoke_sin: wp.array[float],
-    ring_info: wp.array2d[wp.vec4],
-    node_q: wp.array2d[wp.vec3],
-    hub_t: wp.array2d[wp.vec3],
-    hub_r: wp.array2d[wp.vec3],
-    hub_kappa: wp.array2d[wp.vec3],
+    vertex_count: int,
+    ring_geom: wp.array[wp.vec4],
+    spoke_cs: wp.array[wp.vec2],
+    ring_info: wp.array[wp.vec4],
+    node_q: wp.array[wp.vec3],
+    hub_t: wp.array[wp.vec3],
+    hub_r: wp.array[wp.vec3],
+    hub_kappa: wp.array[wp.vec3],
     # out:
-    surface_q_out: wp.array2d[wp.vec3],
-    surface_n_out: wp.array2d[wp.vec3],
+    surface_q_out: wp.array[wp.vec3],
+    surface_n_out: wp.array[wp.vec3],
 ):
     """Write one spoke's boundary point and unit normal; one thread per (world, ring, spoke), the
-    spoke index fastest. Uniform rings only (``ring_info[w, ring][3] == 1``, from
-    :func:`ring_info_kernel`); :func:`spoke_points_general_kernel` writes the others. Kept to the
-    common case so that it needs few registers; the arithmetic is :func:`ring_vertices`', so the
-    points and normals are the same.
+    spoke index fastest. Uniform rings only (``ring_info`` from :func:`ring_info_kernel` nonzero
+    in its last entry); :func:`spoke_points_general_kernel` writes the others. Kept to the common
+    case, with its per-world arrays flattened to one dimension and its tables packed, so that a
+    thread needs few registers and little index arithmetic; the arithmetic is
+    :func:`ring_vertices`', so the points and normals are the same.
 
     Args:
-        node_offset: column of ``node_q`` holding hub 0.
-        spoke_count: spokes per ring, S.
-        ring_hub, ring_kind, ring_cos, ring_sin, ring_vertex: the ring table, (ring_count,) each.
-        spoke_cos, spoke_sin: ``cos phi_j``, ``sin phi_j`` of each spoke, (S,).
-        ring_info: per (world, ring) ``(length, dl, ds, uniform)``, see :func:`ring_info_kernel`.
-        node_q: hub positions [length unit], shape (world_count, >= node_offset + node_count).
-        hub_t, hub_r: hub unit tangents and normals [1], shape (world_count, node_count).
-        hub_kappa: hub curvature vectors [1/length unit], shape (world_count, node_count).
-        surface_q_out: boundary points [length unit], shape (world_count, vertex_count).
-        surface_n_out: unit outward normals [1], shape (world_count, vertex_count).
+        node_offset: column of ``node_q`` holding hub 0; ``node_row``: its row length (vec3).
+        hub_count, spoke_count, vertex_count: hubs N, spokes S and vertices V per world.
+        ring_geom: per ring ``(cos theta, sin theta, hub, first vertex)`` (indices as exact
+            floats), (ring_count,).
+        spoke_cs: ``(cos phi_j, sin phi_j)`` of each spoke, (S,).
+        ring_info: per (world, ring) ``(length, dl, ds, 1 + kind or 0)``, (world_count * ring_count,).
+        node_q: hub positions [length unit], flattened rows of ``node_row``.
+        hub_t, hub_r: hub unit tangents and normals [1], (world_count * N,).
+        hub_kappa: hub curvature vectors [1/length unit], (world_count * N,).
+        surface_q_out: boundary points [length unit], (world_count * V,).
+        surface_n_out: unit outward normals [1], (world_count * V,).
     """
     w, ring, j = wp.tid()
-    info = ring_info[w, ring]
+    info = ring_info[w * ring_geom.shape[0] + ring]
     if info[3] == 0.0:
         return
-    h = ring_hub[ring]
-    t = hub_t[w, h]
-    r = hub_r[w, h]
+    g = ring_geom[ring]
+    h = int(g[2])
+    wh = w * hub_count + h
+    t = hub_t[wh]
+    r = hub_r[wh]
+    cs = spoke_cs[j]
     length = info[0]
     p, n = spoke_point_normal(
-        node_q[w, node_offset + h], t, r, wp.cross(t, r), ring_cos[ring], ring_sin[ring], ring_kind[ring],
-        spoke_cos[j], spoke_sin[j], length, length, length, 2.0 * wp.pi / float(spoke_count), info[1],
-        hub_kappa[w, h], info[2],
+        node_q[w * node_row + node_offset + h], t, r, wp.cross(t, r), g[0], g[1], int(info[3]) - 1, cs[0], cs[1],
+        length, length, length, 2.0 * wp.pi / float(spoke_count), info[1], hub_kappa[wh], info[2],
     )  # fmt: skip
-    v = ring_vertex[ring] + j
-    surface_q_out[w, v] = p
-    surface_n_out[w, v] = n
+    v = w * vertex_count + int(g[3]) + j
+    surface_q_out[v] = p
+    surface_n_out[v] = n
 
 
 @wp.kernel(enable_backward=False, module="unique", module_options=CUDA_OPTIONS)

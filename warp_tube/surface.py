@@ -99,6 +99,11 @@ def rest_frames(
     return t, r
 
 
+def _flat(a: wp.array) -> wp.array:
+    """A contiguous 2-d array seen as 1-d (the same memory; ``a`` must outlive it)."""
+    return wp.array(ptr=a.ptr, shape=(a.shape[0] * a.shape[1],), dtype=a.dtype, device=a.device)
+
+
 def uniform_hubs(lengths: np.ndarray) -> np.ndarray:
     """1 where a hub and its neighbours (the hubs before and after it in the array) each have one
     spoke length all round, else 0: int32 of shape ``lengths.shape[:2]`` from spoke lengths shaped
@@ -232,7 +237,12 @@ class SurfaceBuilder:
             self._hub_cell = wp.zeros((self.world_count, n_hubs), dtype=wp.vec2i)
             self._hub_free = wp.zeros((self.world_count, n_hubs), dtype=wp.vec2)
             self._surface_length = wp.zeros((self.world_count, topo.vertex_count), dtype=float)
+            if topo.vertex_count >= 1 << 24:  # the packed ring table holds vertex indices as float32
+                raise ValueError(f"{topo.vertex_count} surface vertices per world: at most {(1 << 24) - 1}")
             self._ring_info = wp.zeros((self.world_count, len(topo.ring_hub)), dtype=wp.vec4)
+            geom = np.stack([topo.ring_cos, topo.ring_sin, topo.ring_hub, topo.ring_vertex], axis=1)
+            self._ring_geom = wp.array(geom.astype(np.float32), dtype=wp.vec4)  # indices < 2^24: exact
+            self._spoke_cs = wp.array(np.stack([np.cos(phi), np.sin(phi)], axis=1).astype(np.float32), dtype=wp.vec2)
             self.points = wp.zeros((self.world_count, topo.vertex_count), dtype=wp.vec3)
             self.normals = wp.zeros((self.world_count, topo.vertex_count), dtype=wp.vec3)
             self._extent = wp.zeros((self.world_count, 2), dtype=wp.vec3)
@@ -394,18 +404,21 @@ class SurfaceBuilder:
             device=self.device,
             record_cmd=True,
         )  # fmt: skip
+        rows = node_q.strides[0] // 12
+        flat_q = wp.array(ptr=node_q.ptr, shape=((node_q.shape[0] - 1) * rows + node_q.shape[1],), dtype=wp.vec3,
+                          device=self.device)  # fmt: skip
         spokes = wp.launch(
             spoke_points_kernel,
             dim=dims_spokes,
             inputs=[
-                self.node_offset, self.spokes, self._ring_hub, self._ring_kind, self._ring_cos, self._ring_sin,
-                self._ring_vertex, self._spoke_cos, self._spoke_sin, self._ring_info, node_q, self.hub_t, self.hub_r,
-                self._hub_kappa,
+                self.node_offset, rows, self.hub_count, self.spokes, topo.vertex_count, self._ring_geom, self._spoke_cs,
+                _flat(self._ring_info), flat_q, _flat(self.hub_t), _flat(self.hub_r), _flat(self._hub_kappa),
             ],
-            outputs=[self.points, self.normals],
+            outputs=[_flat(self.points), _flat(self.normals)],
             device=self.device,
             record_cmd=True,
         )  # fmt: skip
+        spokes.node_q = node_q  # the flat view does not hold the array
         general = wp.launch(
             spoke_points_general_kernel,
             dim=(self.world_count, len(topo.ring_hub)),
@@ -443,6 +456,8 @@ class SurfaceBuilder:
                     f"node_q must be shaped ({self.world_count}, >= {self.node_offset + self.hub_count}), "
                     f"got {node_q.shape}"
                 )
+            if node_q.strides[1] != 12 or node_q.strides[0] % 12:
+                raise ValueError(f"node_q's rows must be contiguous vec3, got strides {node_q.strides}")
             if node_q.device != self.device:
                 raise ValueError(f"node_q is on {node_q.device}, the surface on {self.device}")
             if len(self._launches) >= 4:  # solvers swap a few state arrays; keep the cache small
