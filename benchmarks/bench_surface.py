@@ -34,7 +34,9 @@ import time
 import numpy as np
 import warp as wp
 
-from warp_tube.surface import SurfaceBuilder
+wp.config.quiet = True  # stdout carries the JSON only
+
+from warp_tube.surface import SurfaceBuilder  # noqa: E402
 
 
 def helix(n: int, world_count: int = 1) -> np.ndarray:

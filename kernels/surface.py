@@ -936,6 +936,7 @@ def spoke_points_general_kernel(
     # model:
     node_offset: int,
     spoke_count: int,
+    lanes: int,
     guard_reach: float,
     tube_node_start: wp.array[wp.int32],
     node_tube: wp.array[wp.int32],
@@ -961,14 +962,17 @@ def spoke_points_general_kernel(
     surface_q_out: wp.array2d[wp.vec3],
     surface_n_out: wp.array2d[wp.vec3],
 ):
-    """Write the spokes' boundary points and unit normals of one ring where
-    :func:`spoke_points_kernel` does not (pole, measured or guarded rings:
-    ``ring_info[w, ring][3] == 0``), through :func:`ring_vertices`; one thread per (world, ring),
-    returning at once for the others (on a circular tube, most: then this launch costs little).
+    """Write the spokes' boundary points and unit normals where :func:`spoke_points_kernel` does
+    not (pole, measured or guarded rings: ``ring_info[w, ring][3] == 0``), through
+    :func:`ring_vertices`; one thread per (world, ring, lane), lane ``k`` writing spokes
+    ``k, k + lanes, ...``, returning at once for the other rings. The host launches one lane per
+    ring for circular tubes (few rings come here, so the launch costs little) and one per spoke
+    for measured shapes (all rings come here).
 
     Args:
         node_offset: column of ``node_q`` holding hub 0.
         spoke_count: spokes per ring, S.
+        lanes: threads per ring (1 or S).
         guard_reach: inner-bend guard fraction in (0, 1); 0 turns the guard off.
         tube_node_start: first hub of each tube, (tube_count + 1,).
         node_tube: tube of each hub, (node_count,).
@@ -986,13 +990,13 @@ def spoke_points_general_kernel(
         surface_q_out: boundary points [length unit], shape (world_count, vertex_count).
         surface_n_out: unit outward normals [1], shape (world_count, vertex_count).
     """
-    w, ring = wp.tid()
+    w, ring, lane = wp.tid()
     if ring_info[w, ring][3] != 0.0:
         return
     pw = w % spoke_length.shape[0]
     far = wp.vec3(1.0e30)
     ring_vertices(
-        w, pw, ring, 0, 1, node_offset, spoke_count, guard_reach > 0.0, tube_node_start, node_tube,
+        w, pw, ring, lane, lanes, node_offset, spoke_count, guard_reach > 0.0, tube_node_start, node_tube,
         ring_hub, ring_kind, ring_cos, ring_sin, ring_vertex, spoke_cos, spoke_sin, spoke_length, hub_uniform,
         node_q, hub_t, hub_r, hub_kappa, hub_chord, hub_free, surface_length, surface_q_out, surface_n_out, far, -far,
     )  # fmt: skip
