@@ -12,6 +12,9 @@ import json
 import numpy as np
 import warp as wp
 
+wp.config.quiet = True  # stdout carries the JSON only: no banner, no module messages
+wp.config.log_level = getattr(wp, "LOG_WARNING", 30)  # (the same for Warp >= 1.19)
+
 
 def main():
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])

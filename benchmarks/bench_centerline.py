@@ -30,6 +30,9 @@ import time
 import numpy as np
 import warp as wp
 
+wp.config.quiet = True  # stdout carries the JSON only: no banner, no module messages
+wp.config.log_level = getattr(wp, "LOG_WARNING", 30)  # (the same for Warp >= 1.19)
+
 from warp_tube.model import build_model
 from warp_tube.references import cantilever_frequency, elastica_tip
 from warp_tube.scene import ForceSpec, Scene, StageInfo, TubeParams, TubeSpec

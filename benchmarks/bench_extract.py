@@ -21,6 +21,9 @@ import time
 import numpy as np
 import warp as wp
 
+wp.config.quiet = True  # stdout carries the JSON only: no banner, no module messages
+wp.config.log_level = getattr(wp, "LOG_WARNING", 30)  # (the same for Warp >= 1.19)
+
 from warp_tube.extract import extract_centerline
 from warp_tube.extract_fidelity import surface_fidelity
 from warp_tube.mesh_io import load_mesh

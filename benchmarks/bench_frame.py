@@ -40,6 +40,9 @@ import time
 import numpy as np
 import warp as wp
 
+wp.config.quiet = True  # stdout carries the JSON only: no banner, no module messages
+wp.config.log_level = getattr(wp, "LOG_WARNING", 30)  # (the same for Warp >= 1.19)
+
 from warp_tube.scene import ForceSpec, Scene, SimulationSettings, StageInfo, TubeParams, TubeSpec
 from warp_tube.simulation import Simulation
 

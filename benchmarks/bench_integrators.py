@@ -24,6 +24,9 @@ from pathlib import Path
 import numpy as np
 import warp as wp
 
+wp.config.quiet = True  # stdout carries the JSON only: no banner, no module messages
+wp.config.log_level = getattr(wp, "LOG_WARNING", 30)  # (the same for Warp >= 1.19)
+
 sys.path.insert(0, str(Path(__file__).resolve().parents[1]))
 
 from tests.conftest import settle, straight_points  # noqa: E402

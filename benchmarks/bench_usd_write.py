@@ -13,6 +13,11 @@ bare points written that way (``bare_points_direct_us``) are reported beside the
 so ``ratio_vs_direct`` shows what the extra normals and extent cost by the same path. The extent
 is handed over as a run hands it (the surface kernel writes it beside the points). Every sample
 stays in memory until the stage is saved, so large frames also pay for fresh pages each time.
+
+``three_bare_writes_us``: usd-core's own cost of the three Surface samples alone (points, normals,
+extent, each ``FromNumpy`` + ``SetTimeSample``), the floor of any writer going through its Python
+API; on small meshes its ratio to one bare write shows that the fixed cost per sample (a few
+microseconds) dominates there.
 """
 
 from __future__ import annotations
@@ -58,7 +63,9 @@ def main():
         layer = st.GetRootLayer()
         path_bare = UsdGeom.Mesh.Define(st, "/M").CreatePointsAttr().GetPath()
         path_direct = UsdGeom.Mesh.Define(st, "/D").CreatePointsAttr().GetPath()
-        ours, bare, direct = [], [], []
+        floor_mesh = UsdGeom.Mesh.Define(st, "/F")
+        floor_paths = [a.GetPath() for a in (floor_mesh.CreatePointsAttr(), floor_mesh.CreateNormalsAttr(), floor_mesh.CreateExtentAttr())]
+        ours, bare, direct, floor = [], [], [], []
         with tempfile.TemporaryDirectory() as d:
             w = StageWriter(os.path.join(d, "o.usdc"), scene, [Surf()])
             for k in range(a.frames):  # interleaved, so that all three see the same memory state
@@ -69,14 +76,19 @@ def main():
                 t2 = time.perf_counter()
                 layer.SetTimeSample(path_direct, float(k), vec3f_array(pts[k]))
                 t3 = time.perf_counter()
+                for path, values in zip(floor_paths, (pts[k], nrm[k], ext[k])):
+                    layer.SetTimeSample(path, float(k), Vt.Vec3fArray.FromNumpy(values))
+                t4 = time.perf_counter()
                 ours.append(t1 - t0)
                 bare.append(t2 - t1)
                 direct.append(t3 - t2)
+                floor.append(t4 - t3)
             w.abort()
-        mo, mb, md = float(np.median(ours)), float(np.median(bare)), float(np.median(direct))
+        mo, mb, md, mf = (float(np.median(x)) for x in (ours, bare, direct, floor))
         out["cases"].append({"hubs": hubs, "spokes": spokes, "vertices": V, "write_frame_us": mo * 1e6,
                              "bare_points_us": mb * 1e6, "ratio": mo / mb,
-                             "bare_points_direct_us": md * 1e6, "ratio_vs_direct": mo / md})  # fmt: skip
+                             "bare_points_direct_us": md * 1e6, "ratio_vs_direct": mo / md,
+                             "three_bare_writes_us": mf * 1e6, "three_bare_writes_ratio": mf / mb})  # fmt: skip
     print(json.dumps(out, indent=2))
 
 
