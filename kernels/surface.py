@@ -1191,17 +1191,11 @@ SURFACE_RING_LANES = 8
 """Lanes of a world's warp that share a ring (at most; fewer with fewer spokes)."""
 
 
-ALL_PHASES = 0b1111
-
-
 @functools.cache
-def make_surface_block_kernel(worlds_per_block: int, min_blocks: int, phases: int = ALL_PHASES):
+def make_surface_block_kernel(worlds_per_block: int, min_blocks: int):
     """The one-launch GPU rebuild: a warp of :data:`WORLD_LANES` threads per world,
     ``worlds_per_block`` worlds per block, compiled for at least ``min_blocks`` resident blocks per
-    multiprocessor (CUDA ``__launch_bounds__``; 0: no such bound). Cached per arguments.
-
-    ``phases``: bit k set runs phase k + 1 (see the kernel); anything but :data:`ALL_PHASES` is
-    only for timing the phases apart (``benchmarks/bench_surface.py``)."""
+    multiprocessor (CUDA ``__launch_bounds__``; 0: no such bound). Cached per arguments."""
     B = WORLD_LANES * int(worlds_per_block)
     bounds = (B, int(min_blocks)) if min_blocks else B
 
@@ -1248,9 +1242,7 @@ def make_surface_block_kernel(worlds_per_block: int, min_blocks: int, phases: in
         lows = wp.tile_zeros(shape=(wp.static(B),), dtype=wp.vec3, storage="shared")
         highs = wp.tile_zeros(shape=(wp.static(B),), dtype=wp.vec3, storage="shared")
 
-        if wp.static(not phases & 1):
-            pass
-        elif arrays.local_frames != 0:
+        if arrays.local_frames != 0:
             if active:
                 for h in range(lane, hub_count, WORLD_LANES):
                     hub_local_frame(w, h, node_offset, tube_node_start, node_tube, arrays.node_rest_t, arrays.node_rest_r, node_q, hub_t, hub_r)
@@ -1262,7 +1254,7 @@ def make_surface_block_kernel(worlds_per_block: int, min_blocks: int, phases: in
                 for tube in range(tube_node_start.shape[0] - 1):
                     tube_rotation_minimizing_frames(wf, tube, node_offset, tube_node_start, arrays.node_rest_t, arrays.node_rest_r, node_q, hub_t, hub_r)
         barrier[thread] = 1
-        if active and wp.static(phases & 2):
+        if active:
             for h in range(lane, hub_count, WORLD_LANES):
                 hub_guard(
                     w, h, node_offset, guard_reach, arrays.cell_radius, tube_node_start, node_tube, arrays.hub_reach,
@@ -1271,7 +1263,7 @@ def make_surface_block_kernel(worlds_per_block: int, min_blocks: int, phases: in
         barrier[thread] = 2
         guard = guard_reach > 0.0
         if guard:
-            if active and wp.static(phases & 4):
+            if active:
                 for ring in range(lane, ring_count, WORLD_LANES):
                     ring_guard(
                         w, ring, node_offset, guard_reach, tube_node_start, node_tube, arrays.hub_reach, arrays.ring_hub,
@@ -1286,7 +1278,7 @@ def make_surface_block_kernel(worlds_per_block: int, min_blocks: int, phases: in
         group = lane // lanes
         lo = wp.vec3(1.0e30)
         hi = wp.vec3(-1.0e30)
-        if active and wp.static(phases & 8):
+        if active:
             for first in range(0, ring_count, rings_per_pass):
                 ring = first + group
                 if group < rings_per_pass and ring < ring_count:
