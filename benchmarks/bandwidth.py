@@ -12,8 +12,7 @@ import json
 import numpy as np
 import warp as wp
 
-wp.config.quiet = True  # stdout carries the JSON only: no banner, no module messages
-wp.config.log_level = getattr(wp, "LOG_WARNING", 30)  # (the same for Warp >= 1.19)
+wp.config.log_level = wp.LOG_WARNING  # stdout carries the JSON only: no banner, no module messages
 
 
 def main():
@@ -21,7 +20,6 @@ def main():
     ap.add_argument("--device", default="cuda:0")
     ap.add_argument("--gib", type=float, default=2.0)
     a = ap.parse_args()
-    wp.config.log_level = wp.LOG_WARNING
     dev = wp.get_device(a.device)
     n = int(a.gib * 2**30 / 4)
     src = wp.zeros(n, dtype=wp.float32, device=dev)

@@ -30,8 +30,7 @@ import time
 import numpy as np
 import warp as wp
 
-wp.config.quiet = True  # stdout carries the JSON only: no banner, no module messages
-wp.config.log_level = getattr(wp, "LOG_WARNING", 30)  # (the same for Warp >= 1.19)
+wp.config.log_level = wp.LOG_WARNING  # stdout carries the JSON only: no banner, no module messages
 
 from warp_tube.model import build_model
 from warp_tube.references import cantilever_frequency, elastica_tip
@@ -146,7 +145,6 @@ def main():
     ap.add_argument("--points", type=int, default=32, help="points per tube in the batch cases")
     ap.add_argument("--batch-only", action="store_true", help="only the batch cases")
     a = ap.parse_args()
-    wp.config.log_level = wp.LOG_WARNING
     wp.init()
     device = a.device or ("cuda:0" if wp.get_cuda_device_count() else "cpu")
     dev = wp.get_device(device)

@@ -21,8 +21,7 @@ import time
 import numpy as np
 import warp as wp
 
-wp.config.quiet = True  # stdout carries the JSON only: no banner, no module messages
-wp.config.log_level = getattr(wp, "LOG_WARNING", 30)  # (the same for Warp >= 1.19)
+wp.config.log_level = wp.LOG_WARNING  # stdout carries the JSON only: no banner, no module messages
 
 from warp_tube.extract import extract_centerline
 from warp_tube.extract_fidelity import surface_fidelity

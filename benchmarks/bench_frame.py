@@ -40,8 +40,7 @@ import time
 import numpy as np
 import warp as wp
 
-wp.config.quiet = True  # stdout carries the JSON only: no banner, no module messages
-wp.config.log_level = getattr(wp, "LOG_WARNING", 30)  # (the same for Warp >= 1.19)
+wp.config.log_level = wp.LOG_WARNING  # stdout carries the JSON only: no banner, no module messages
 
 from warp_tube.scene import ForceSpec, Scene, SimulationSettings, StageInfo, TubeParams, TubeSpec
 from warp_tube.simulation import Simulation
@@ -123,7 +122,6 @@ def main() -> None:
     ap.add_argument("--reps", type=int, default=3000)
     ap.add_argument("--device", default="cpu")
     a = ap.parse_args()
-    wp.config.quiet = True
     wp.init()
     res = {
         "benchmark": "frame_60fps_paper_tube",

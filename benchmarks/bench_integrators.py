@@ -24,8 +24,7 @@ from pathlib import Path
 import numpy as np
 import warp as wp
 
-wp.config.quiet = True  # stdout carries the JSON only: no banner, no module messages
-wp.config.log_level = getattr(wp, "LOG_WARNING", 30)  # (the same for Warp >= 1.19)
+wp.config.log_level = wp.LOG_WARNING  # stdout carries the JSON only: no banner, no module messages
 
 sys.path.insert(0, str(Path(__file__).resolve().parents[1]))
 
@@ -125,7 +124,6 @@ def main():
     ap.add_argument("--segments", type=int, nargs="+", default=[10, 20, 40, 80])
     ap.add_argument("--implicit-steps", type=float, nargs="+", default=[1 / 60, 1 / 240, 1 / 1000])
     args = ap.parse_args()
-    wp.config.quiet = True
     wp.init()
     rows = []
     for n in args.segments:

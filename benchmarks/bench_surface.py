@@ -34,8 +34,7 @@ import time
 import numpy as np
 import warp as wp
 
-wp.config.quiet = True  # stdout carries the JSON only: no banner, no module messages
-wp.config.log_level = getattr(wp, "LOG_WARNING", 30)  # (the same for Warp >= 1.19)
+wp.config.log_level = wp.LOG_WARNING  # stdout carries the JSON only: no banner, no module messages
 
 from warp_tube.surface import SurfaceBuilder  # noqa: E402
 
@@ -223,7 +222,6 @@ def main() -> None:
     else:
         bandwidth_gbs = args.bandwidth_gbs
         bandwidth_source = "--bandwidth-gbs"
-    wp.config.quiet = True
     wp.init()
     results = {
         "warp": wp.__version__,

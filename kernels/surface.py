@@ -732,6 +732,37 @@ def spoke_point_normal(
 
 
 @wp.func
+def uniform_ring(
+    pw: int,
+    h: int,
+    kind: int,
+    guard: bool,
+    free: wp.vec2,
+    tube_node_start: wp.array[wp.int32],
+    node_tube: wp.array[wp.int32],
+    spoke_length: wp.array3d[float],
+    hub_uniform: wp.array2d[wp.int32],
+):
+    """Whether a (non-pole) ring of hub ``h`` is uniform: the hub and its neighbours have one spoke
+    length all round (``hub_uniform``) and the guard leaves the ring alone (the length is within
+    its free length, the test of :func:`ring_spoke_lengths`). Returns ``(uniform, length, dl)``:
+    the common length and its step along the tube [length unit] (meaningful when uniform), the
+    values every spoke of the ring would read."""
+    length = spoke_length[pw, h, 0]
+    limit = free[1]
+    if kind == RING_BODY:
+        limit = free[0]
+    dl = float(0.0)
+    uniform = hub_uniform[pw, h] != 0 and not (guard and length > limit)
+    if uniform:
+        tube = node_tube[h]
+        has_prev = int(h > tube_node_start[tube])
+        has_next = int(h < tube_node_start[tube + 1] - 1)
+        dl = body_length_step(pw, h, 0, has_prev, has_next, spoke_length)
+    return uniform, length, dl
+
+
+@wp.func
 def ring_vertices(
     w: int,
     pw: int,
@@ -797,33 +828,24 @@ def ring_vertices(
     kappa = hub_kappa[w, h]
     ds = hub_chord[w, h]
     dphi = 2.0 * wp.pi / float(spoke_count)
-    length = spoke_length[pw, h, 0]
-    limit = free[1]
-    if kind == RING_BODY:
-        limit = free[0]
-    if hub_uniform[pw, h] != 0 and not (guard and length > limit):
-        dl = body_length_step(pw, h, 0, has_prev, has_next, spoke_length)
-        for j in range(j_first, spoke_count, j_step):
-            p, n = spoke_point_normal(
-                x, t, r, s, c, sn, kind, spoke_cos[j], spoke_sin[j], length, length, length, dphi, dl, kappa, ds
-            )  # fmt: skip
-            surface_q_out[w, v0 + j] = p
-            surface_n_out[w, v0 + j] = n
-            out_lo = wp.min(out_lo, p)
-            out_hi = wp.max(out_hi, p)
-    else:
-        for j in range(j_first, spoke_count, j_step):
+    uniform, length, dl = uniform_ring(pw, h, kind, guard, free, tube_node_start, node_tube, spoke_length, hub_uniform)
+    for j in range(j_first, spoke_count, j_step):
+        length_j = length
+        length_m = length
+        length_p = length
+        dl_j = dl
+        if not uniform:
             length_j, length_m, length_p = ring_spoke_lengths(
                 w, pw, h, j, kind, spoke_count, v0, guard, free, spoke_length, surface_length
             )  # fmt: skip
-            dl = body_length_step(pw, h, j, has_prev, has_next, spoke_length)
-            p, n = spoke_point_normal(
-                x, t, r, s, c, sn, kind, spoke_cos[j], spoke_sin[j], length_j, length_m, length_p, dphi, dl, kappa, ds
-            )  # fmt: skip
-            surface_q_out[w, v0 + j] = p
-            surface_n_out[w, v0 + j] = n
-            out_lo = wp.min(out_lo, p)
-            out_hi = wp.max(out_hi, p)
+            dl_j = body_length_step(pw, h, j, has_prev, has_next, spoke_length)
+        p, n = spoke_point_normal(
+            x, t, r, s, c, sn, kind, spoke_cos[j], spoke_sin[j], length_j, length_m, length_p, dphi, dl_j, kappa, ds
+        )  # fmt: skip
+        surface_q_out[w, v0 + j] = p
+        surface_n_out[w, v0 + j] = n
+        out_lo = wp.min(out_lo, p)
+        out_hi = wp.max(out_hi, p)
     return out_lo, out_hi
 
 
@@ -858,17 +880,11 @@ def ring_info_kernel(
     h = ring_hub[ring]
     kind = ring_kind[ring]
     out = wp.vec4(0.0)
-    if kind != RING_POLE and hub_uniform[pw, h] != 0:
-        length = spoke_length[pw, h, 0]
-        free = hub_free[w, h]
-        limit = free[1]
-        if kind == RING_BODY:
-            limit = free[0]
-        if not (guard_reach > 0.0 and length > limit):
-            tube = node_tube[h]
-            has_prev = int(h > tube_node_start[tube])
-            has_next = int(h < tube_node_start[tube + 1] - 1)
-            dl = body_length_step(pw, h, 0, has_prev, has_next, spoke_length)
+    if kind != RING_POLE:
+        uniform, length, dl = uniform_ring(
+            pw, h, kind, guard_reach > 0.0, hub_free[w, h], tube_node_start, node_tube, spoke_length, hub_uniform
+        )  # fmt: skip
+        if uniform:
             out = wp.vec4(length, dl, hub_chord[w, h], float(1 + kind))
     ring_info_out[w, ring] = out
 

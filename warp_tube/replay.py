@@ -9,9 +9,11 @@ their arguments in Python (on the paper's 20-point tube that halves a frame's co
 
 from __future__ import annotations
 
+import contextlib
+
 import warp as wp
 
-__all__ = ["GraphCache", "can_capture"]
+__all__ = ["GraphCache", "can_capture", "cpu_blocks"]
 
 _cpu_capture = None
 
@@ -30,6 +32,19 @@ def can_capture(device) -> bool:
         except Exception:
             _cpu_capture = False
     return _cpu_capture
+
+
+@contextlib.contextmanager
+def cpu_blocks():
+    """Launches inside run block kernels (``wp.launch_tiled``) on the CPU with a block's threads as
+    Warp's cooperative fibers, an opt-in (``wp.config.enable_cpu_blocks``) that this turns on and
+    back to what it was. Slow: for running the GPU's block kernels on the CPU in tests."""
+    enabled = wp.config.enable_cpu_blocks
+    wp.config.enable_cpu_blocks = True
+    try:
+        yield
+    finally:
+        wp.config.enable_cpu_blocks = enabled
 
 
 class GraphCache:

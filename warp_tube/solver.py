@@ -24,7 +24,7 @@ from warp_tube.kernels.onchip import MAX_BLOCK_DIM, UNSUPPORTED, make_onchip_ker
 ONCHIP_BLOCK_DIM = 128
 
 from .model import TubeControl, TubeModel, TubeState
-from .replay import GraphCache
+from .replay import GraphCache, cpu_blocks
 
 __all__ = ["SemiImplicitEulerSolver"]
 
@@ -107,9 +107,7 @@ class SemiImplicitEulerSolver:
 
     def _launch_onchip(self, s_in: TubeState, s_out: TubeState, c: TubeControl, dt: float, substeps: int):
         m = self.model
-        cpu_blocks = wp.config.enable_cpu_blocks
-        wp.config.enable_cpu_blocks = True  # on the CPU a block's threads are fibers (opt-in)
-        try:
+        with cpu_blocks():  # on the CPU a block's threads are fibers (opt-in)
             wp.launch_tiled(
                 self.onchip_kernel, dim=self._onchip_dim, block_dim=self.onchip_block_dim, device=self.device,
                 inputs=[int(substeps), float(dt), self._onchip_slot, self._onchip_worlds_per_block, self._onchip_group,
@@ -118,8 +116,6 @@ class SemiImplicitEulerSolver:
                         s_in.node_q, s_in.node_q_lo, s_in.node_qd, c.node_f_ext, c.pin_q_start, c.pin_q_end],
                 outputs=[s_out.node_q, s_out.node_q_lo, s_out.node_qd],
             )  # fmt: skip
-        finally:
-            wp.config.enable_cpu_blocks = cpu_blocks
 
     # -- one substep on the per-node path ------------------------------------------------------
     def _launch_step(self, s_in: TubeState, s_out: TubeState, c: TubeControl, dt: float, frac: float):

@@ -57,7 +57,7 @@ from .kernels.surface import (
     surface_extent_kernel,
     surface_world_kernel,
 )
-from .replay import GraphCache
+from .replay import GraphCache, cpu_blocks
 from .topology import SurfaceTopology, build_topology
 
 __all__ = ["SurfaceBuilder", "FRAME_MODES", "DEFAULT_GUARD_REACH"]
@@ -138,10 +138,11 @@ class SurfaceBuilder:
         guard_reach: inner-bend guard fraction in (0, 1), 0 to turn it off (see
             :mod:`warp_tube.kernels.surface`).
         kernel: how a rebuild runs: ``"world"``, one launch, a thread per world
-            (:func:`surface_world_kernel`, the CPU's default); ``"block"``, one launch, a block of
-            :data:`SURFACE_BLOCK_DIM` threads per world (:func:`surface_block_kernel`, the GPU's
-            default); ``"split"``, four launches (frames, hub data, guard, spokes; thousands of
-            threads each). All three give the same points and normals.
+            (:func:`~warp_tube.kernels.surface.surface_world_kernel`, the CPU's default);
+            ``"block"``, one launch, a warp per world
+            (:func:`~warp_tube.kernels.surface.make_surface_block_kernel`, the GPU's default);
+            ``"split"``, six launches (frames, hub data, guard, ring info, spokes of uniform rings,
+            the rest; thousands of threads each). All three give the same points and normals.
 
     All lengths share one unit L (the core passes metres); points come out in L.
     """
@@ -241,12 +242,14 @@ class SurfaceBuilder:
             self._hub_cell = wp.zeros((self.world_count, n_hubs), dtype=wp.vec2i)
             self._hub_free = wp.zeros((self.world_count, n_hubs), dtype=wp.vec2)
             self._surface_length = wp.zeros((self.world_count, topo.vertex_count), dtype=float)
-            if topo.vertex_count >= 1 << 24:  # the packed ring table holds vertex indices as float32
-                raise ValueError(f"{topo.vertex_count} surface vertices per world: at most {(1 << 24) - 1}")
-            self._ring_info = wp.zeros((self.world_count, len(topo.ring_hub)), dtype=wp.vec4)
-            geom = np.stack([topo.ring_cos, topo.ring_sin, topo.ring_hub, topo.ring_vertex], axis=1)
-            self._ring_geom = wp.array(geom.astype(np.float32), dtype=wp.vec4)  # indices < 2^24: exact
-            self._spoke_cs = wp.array(np.stack([np.cos(phi), np.sin(phi)], axis=1).astype(np.float32), dtype=wp.vec2)
+            if kernel == "split":  # the per-spoke kernel's packed tables and per-ring records
+                if topo.vertex_count >= 1 << 24:  # the packed ring table holds vertex indices as float32
+                    raise ValueError(f"{topo.vertex_count} surface vertices per world: at most {(1 << 24) - 1}")
+                self._ring_info = wp.zeros((self.world_count, len(topo.ring_hub)), dtype=wp.vec4)
+                geom = np.stack([topo.ring_cos, topo.ring_sin, topo.ring_hub, topo.ring_vertex], axis=1)
+                self._ring_geom = wp.array(geom.astype(np.float32), dtype=wp.vec4)  # indices < 2^24: exact
+                cs = np.stack([np.cos(phi), np.sin(phi)], axis=1)
+                self._spoke_cs = wp.array(cs.astype(np.float32), dtype=wp.vec2)
             self.points = wp.zeros((self.world_count, topo.vertex_count), dtype=wp.vec3)
             self.normals = wp.zeros((self.world_count, topo.vertex_count), dtype=wp.vec3)
             self._extent = wp.zeros((self.world_count, 2), dtype=wp.vec3)
@@ -318,15 +321,11 @@ class SurfaceBuilder:
         if self.kernel == "block":
             kernel = make_surface_block_kernel(*self.block_shape)
             blocks = -(-self.world_count // self.block_shape[0])
-            enabled = wp.config.enable_cpu_blocks
-            wp.config.enable_cpu_blocks = True  # the CPU runs a block's threads as fibers only when asked
-            try:
+            with cpu_blocks():  # on the CPU a block's threads are fibers (opt-in)
                 launch = wp.launch_tiled(
                     kernel, dim=(blocks,), block_dim=WORLD_LANES * self.block_shape[0], inputs=[self._arrays, node_q],
                     device=self.device, record_cmd=True,
                 )  # fmt: skip
-            finally:
-                wp.config.enable_cpu_blocks = enabled
             return (launch,)
         dims_frames = (self.world_count, self.tube_count)
         if self.frames == "rotationMinimizing":
@@ -471,22 +470,13 @@ class SurfaceBuilder:
             launches = self._record(node_q)
             self._launches[key] = launches
         if self.kernel == "block" and self.device.is_cpu:
-            self._launch_cpu_blocks(key, launches)
+            with cpu_blocks():  # for tests only: no graph, fibers
+                for launch in launches:
+                    launch.launch()
         else:
             self._graphs.run(key, lambda: [launch.launch() for launch in launches], hold=(node_q,))
         self._extent_fresh = self.kernel != "split"
         return self.points, self.normals
-
-    def _launch_cpu_blocks(self, key, launches):
-        """The block kernel on the CPU (for testing: Warp's cooperative fibers stand in for a
-        block's threads, opt-in through ``wp.config.enable_cpu_blocks``)."""
-        enabled = wp.config.enable_cpu_blocks
-        wp.config.enable_cpu_blocks = True
-        try:
-            for launch in launches:
-                launch.launch()
-        finally:
-            wp.config.enable_cpu_blocks = enabled
 
     def extent(self) -> wp.array:
         """Bounds of the points of the last :meth:`compute`: ``[min, max]`` corners [L] per world,
