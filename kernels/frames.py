@@ -101,22 +101,65 @@ def rotate_minimal(a: wp.vec3, b: wp.vec3, x: wp.vec3) -> wp.vec3:
 
 
 @wp.func
-def double_reflection(x0: wp.vec3, x1: wp.vec3, t0: wp.vec3, t1: wp.vec3, r0: wp.vec3) -> wp.vec3:
-    """Normal at hub ``x1`` carried from ``(x0, t0, r0)`` by one double-reflection step [1]."""
+def reflection_pair_a(x0: wp.vec3, x1: wp.vec3) -> wp.vec4:
+    """The first reflection of a double-reflection step from hub ``x0`` to hub ``x1`` [1]: its
+    plane normal ``v1 = x1 - x0`` and ``2 / |v1|^2``, or ``w = -1`` where the hubs coincide (the
+    step then keeps the normal as it is)."""
     v1 = x1 - x0
     c1 = wp.dot(v1, v1)
     if c1 <= 0.0:
-        return r0
-    r_l = r0 - (2.0 / c1) * wp.dot(v1, r0) * v1
-    t_l = t0 - (2.0 / c1) * wp.dot(v1, t0) * v1
+        return wp.vec4(0.0, 0.0, 0.0, -1.0)
+    return wp.vec4(v1[0], v1[1], v1[2], 2.0 / c1)
+
+
+@wp.func
+def reflection_pair_b(a: wp.vec4, t0: wp.vec3, t1: wp.vec3) -> wp.vec4:
+    """The second reflection of the step whose first is ``a`` (:func:`reflection_pair_a`), from
+    tangent ``t0`` to ``t1``: normal ``v2 = t1 - R1 t0`` and ``2 / |v2|^2``, or ``w = 0`` where
+    ``v2`` vanishes (no second reflection)."""
+    v1 = wp.vec3(a[0], a[1], a[2])
+    t_l = t0 - a[3] * wp.dot(v1, t0) * v1
     v2 = t1 - t_l
     c2 = wp.dot(v2, v2)
-    r_n = r_l
     if c2 > 1.0e-30:
-        r_n = r_l - (2.0 / c2) * wp.dot(v2, r_l) * v2
+        return wp.vec4(v2[0], v2[1], v2[2], 2.0 / c2)
+    return wp.vec4(0.0)
+
+
+@wp.func
+def reflect_frame(r0: wp.vec3, a: wp.vec4, b: wp.vec4, t1: wp.vec3) -> wp.vec3:
+    """Normal ``r0`` carried by the double-reflection step ``(a, b)`` to the hub of tangent ``t1``.
+
+    The step's two reflections depend on the hubs and their tangents only, not on the normal they
+    carry: they are found for all hubs at once (:func:`reflection_pair_a`, :func:`reflection_pair_b`)
+    and only this product runs along the tube, one hub after the other.
+    """
+    if a[3] < 0.0:
+        return r0
+    v1 = wp.vec3(a[0], a[1], a[2])
+    r_l = r0 - a[3] * wp.dot(v1, r0) * v1
+    r_n = r_l
+    if b[3] > 0.0:
+        v2 = wp.vec3(b[0], b[1], b[2])
+        r_n = r_l - b[3] * wp.dot(v2, r_l) * v2
     # Re-orthonormalise against round-off so long tubes keep an orthonormal frame.
     r_n = r_n - wp.dot(r_n, t1) * t1
     return wp.normalize(r_n)
+
+
+@wp.func
+def double_reflection(x0: wp.vec3, x1: wp.vec3, t0: wp.vec3, t1: wp.vec3, r0: wp.vec3) -> wp.vec3:
+    """Normal at hub ``x1`` carried from ``(x0, t0, r0)`` by one double-reflection step [1]."""
+    a = reflection_pair_a(x0, x1)
+    return reflect_frame(r0, a, reflection_pair_b(a, t0, t1), t1)
+
+
+@wp.func
+def tube_start_normal(rest_t: wp.vec3, rest_r: wp.vec3, t: wp.vec3) -> wp.vec3:
+    """Normal at a tube's first hub: its rest normal turned by the least rotation of its rest
+    tangent onto ``t``, made orthonormal to ``t``."""
+    r = rotate_minimal(rest_t, t, rest_r)
+    return wp.normalize(r - wp.dot(r, t) * t)
 
 
 @wp.kernel(enable_backward=False)
@@ -158,8 +201,7 @@ def tube_rotation_minimizing_frames(
     last = node_offset + end - 1
 
     t = hub_tangent(node_q, w, first, first, last)
-    r = rotate_minimal(node_rest_t[pw, start], t, node_rest_r[pw, start])
-    r = wp.normalize(r - wp.dot(r, t) * t)
+    r = tube_start_normal(node_rest_t[pw, start], node_rest_r[pw, start], t)
     hub_t_out[w, start] = t
     hub_r_out[w, start] = r
     x = node_q[w, first]

@@ -100,7 +100,17 @@ import functools
 
 import warp as wp
 
-from .frames import hub_local_frame, rotate_minimal, safe_normalize, tube_rotation_minimizing_frames
+from .frames import (
+    hub_local_frame,
+    hub_tangent,
+    reflect_frame,
+    reflection_pair_a,
+    reflection_pair_b,
+    rotate_minimal,
+    safe_normalize,
+    tube_rotation_minimizing_frames,
+    tube_start_normal,
+)
 
 RING_BODY = wp.constant(0)
 RING_CAP = wp.constant(1)
@@ -1221,8 +1231,9 @@ def make_surface_block_kernel(worlds_per_block: int, min_blocks: int):
         ``worlds_per_block`` worlds): the world kernel's work spread over the warp's lanes phase by
         phase, so that a rebuild is one launch and the per-hub data stays in cache.
 
-        1. frames: rotation-minimizing ones (a scan along each tube) by the block's first
-           ``worlds_per_block`` threads, a world each; local ones by a lane per hub;
+        1. frames: local ones by a lane per hub; rotation-minimizing ones a chunk of hubs at a
+           time, each step's reflections by a lane per hub, their product along the tube by the
+           world's lane 0 (:func:`reflect_frame`);
         2. per-hub guard data (:func:`hub_guard`), a lane per hub;
         3. guarded lengths (:func:`ring_guard`), a lane per ring (guard on only);
         4. points and normals (:func:`ring_vertices`): :data:`SURFACE_RING_LANES` lanes to a ring,
@@ -1255,6 +1266,10 @@ def make_surface_block_kernel(worlds_per_block: int, min_blocks: int):
         hub_count = node_tube.shape[0]
         ring_count = arrays.ring_hub.shape[0]
         barrier = wp.tile_zeros(shape=(wp.static(B),), dtype=int, storage="shared")
+        step_a = wp.tile_zeros(shape=(wp.static(B),), dtype=wp.vec4, storage="shared")
+        step_b = wp.tile_zeros(shape=(wp.static(B),), dtype=wp.vec4, storage="shared")
+        step_c = wp.tile_zeros(shape=(wp.static(B),), dtype=wp.vec4, storage="shared")
+        r_carried = wp.vec3(0.0)
         lows = wp.tile_zeros(shape=(wp.static(B),), dtype=wp.vec3, storage="shared")
         highs = wp.tile_zeros(shape=(wp.static(B),), dtype=wp.vec3, storage="shared")
 
@@ -1262,13 +1277,47 @@ def make_surface_block_kernel(worlds_per_block: int, min_blocks: int):
             if active:
                 for h in range(lane, hub_count, WORLD_LANES):
                     hub_local_frame(w, h, node_offset, tube_node_start, node_tube, arrays.node_rest_t, arrays.node_rest_r, node_q, hub_t, hub_r)
-        elif thread < wp.static(worlds_per_block):
-            # The scans along the tubes: the block's first lanes, one world each, side by side (a
-            # world's own warp would run one lane at a time).
-            wf = block * wp.static(worlds_per_block) + thread
-            if wf < node_q.shape[0]:
-                for tube in range(tube_node_start.shape[0] - 1):
-                    tube_rotation_minimizing_frames(wf, tube, node_offset, tube_node_start, arrays.node_rest_t, arrays.node_rest_r, node_q, hub_t, hub_r)
+        else:
+            # Rotation-minimizing frames, a chunk of WORLD_LANES hubs at a time: every lane finds
+            # its hub's tangent and the two reflections of the step that reaches it (or, at a
+            # tube's first hub, its start normal), which depend on positions and tangents only;
+            # then the world's lane 0 carries the normal along the chunk through them, one hub
+            # after the other, so only that short product is sequential.
+            base = thread - lane
+            for chunk in range(0, hub_count, WORLD_LANES):
+                h = chunk + lane
+                a = wp.vec4(0.0)
+                b = wp.vec4(0.0)
+                c = wp.vec4(0.0)
+                if active and h < hub_count:
+                    tube = node_tube[h]
+                    start = tube_node_start[tube]
+                    first = node_offset + start
+                    last = node_offset + tube_node_start[tube + 1] - 1
+                    t = hub_tangent(node_q, w, node_offset + h, first, last)
+                    hub_t[w, h] = t
+                    if h == start:
+                        r = tube_start_normal(arrays.node_rest_t[pw, h], arrays.node_rest_r[pw, h], t)
+                        a = wp.vec4(r[0], r[1], r[2], 0.0)
+                        c = wp.vec4(t[0], t[1], t[2], 1.0)
+                    else:
+                        t0 = hub_tangent(node_q, w, node_offset + h - 1, first, last)
+                        a = reflection_pair_a(node_q[w, node_offset + h - 1], node_q[w, node_offset + h])
+                        b = reflection_pair_b(a, t0, t)
+                        c = wp.vec4(t[0], t[1], t[2], 0.0)
+                step_a[thread] = a
+                step_b[thread] = b
+                step_c[thread] = c
+                if active and lane == 0:
+                    for k in range(wp.min(WORLD_LANES, hub_count - chunk)):
+                        a = step_a[base + k]
+                        c = step_c[base + k]
+                        if c[3] > 0.0:
+                            r_carried = wp.vec3(a[0], a[1], a[2])
+                        else:
+                            r_carried = reflect_frame(r_carried, a, step_b[base + k], wp.vec3(c[0], c[1], c[2]))
+                        hub_r[w, chunk + k] = r_carried
+                barrier[thread] = 4  # the chunk's steps are read before the next chunk's overwrite them
         barrier[thread] = 1
         if active:
             for h in range(lane, hub_count, WORLD_LANES):
