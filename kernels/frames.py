@@ -215,7 +215,7 @@ def tube_rotation_minimizing_frames(
         t = t_next
 
 
-@wp.kernel(enable_backward=False)
+@wp.kernel(enable_backward=False, module="unique", module_options={"fast_math": True})
 def rotation_minimizing_frames_kernel(
     # model:
     node_offset: int,
@@ -267,7 +267,7 @@ def hub_local_frame(
     hub_r_out[w, i] = wp.normalize(r - wp.dot(r, t) * t)
 
 
-@wp.kernel(enable_backward=False)
+@wp.kernel(enable_backward=False, module="unique", module_options={"fast_math": True})
 def local_frames_kernel(
     # model:
     node_offset: int,

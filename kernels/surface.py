@@ -728,11 +728,18 @@ def spoke_point_normal(
 
     The normal is the module's formula: the central difference ``length_p - length_m`` over
     ``2 dphi`` around the ring; on body rings ``dl / ds`` along the tube (``ds``: the hub's chord
-    sum) over the stretch ``1 - L kappa . u`` floored at :data:`MIN_STRETCH`.
+    sum) over the stretch ``1 - L kappa . u`` floored at :data:`MIN_STRETCH`. Where both terms are
+    zero (a circular stretch of constant radius) the normal is the spoke direction, found without
+    them.
     """
     u = cos_j * r + sin_j * s
-    u_perp = wp.cross(t, u)
     d = c * t + sn * u
+    if length_p == length_m and (dl == 0.0 or kind != RING_BODY or not ds > 0.0):
+        # Both correction terms vanish (no change of length round the ring here, none along the
+        # tube that enters): the normal is the spoke direction. The same value the general
+        # branch gives (it would subtract exact zeros), for a fraction of the work.
+        return x + length * d, wp.normalize(d)
+    u_perp = wp.cross(t, u)
     n = d - ((length_p - length_m) / (2.0 * dphi * length * sn)) * u_perp
     if kind == RING_BODY:
         stretch = wp.max(1.0 - length * wp.dot(kappa, u), MIN_STRETCH)
@@ -1217,25 +1224,43 @@ SURFACE_RING_LANES = 8
 """Lanes of a world's warp that share a ring (at most; fewer with fewer spokes)."""
 
 
+BLOCK_HUBS = 1
+"""Phases of :func:`make_surface_block_kernel`'s kernel: frames, per-hub data, guarded lengths."""
+BLOCK_VERTICES = 2
+"""Phases of :func:`make_surface_block_kernel`'s kernel: points, normals and their bounds."""
+
+
 @functools.cache
-def make_surface_block_kernel(worlds_per_block: int, min_blocks: int):
-    """The one-launch GPU rebuild: a warp of :data:`WORLD_LANES` threads per world,
-    ``worlds_per_block`` worlds per block, compiled for at least ``min_blocks`` resident blocks per
-    multiprocessor (CUDA ``__launch_bounds__``; 0: no such bound). Cached per arguments."""
+def make_surface_block_kernel(worlds_per_block: int, min_blocks: int, phases: int = BLOCK_HUBS | BLOCK_VERTICES):
+    """The GPU rebuild, a warp of :data:`WORLD_LANES` threads per world, ``worlds_per_block``
+    worlds per block, compiled for at least ``min_blocks`` resident blocks per multiprocessor (CUDA
+    ``__launch_bounds__``; 0: no such bound), doing the ``phases`` (:data:`BLOCK_HUBS`,
+    :data:`BLOCK_VERTICES` or both). Cached per arguments.
+
+    One kernel for both keeps the per-hub data in cache between them; one for each lets each run
+    with the registers it needs (the per-hub phases take far more than the points), so more
+    warps fit on a multiprocessor for the phase that writes the points."""
     B = WORLD_LANES * int(worlds_per_block)
     bounds = (B, int(min_blocks)) if min_blocks else B
+    hubs = bool(phases & BLOCK_HUBS)
+    vertices = bool(phases & BLOCK_VERTICES)
 
     @wp.kernel(enable_backward=False, module="unique", module_options=CUDA_OPTIONS, launch_bounds=bounds)
     def surface_block_kernel(arrays: SurfaceArrays, node_q: wp.array2d[wp.vec3]):
-        """The whole rebuild of one world's surface by one warp (``wp.launch_tiled`` over blocks of
+        """A world's surface rebuilt by one warp (``wp.launch_tiled`` over blocks of
         ``worlds_per_block`` worlds): the world kernel's work spread over the warp's lanes phase by
-        phase, so that a rebuild is one launch and the per-hub data stays in cache.
+        phase.
+
+        With :data:`BLOCK_HUBS`:
 
         1. frames: local ones by a lane per hub; rotation-minimizing ones a chunk of hubs at a
            time, each step's reflections by a lane per hub, their product along the tube by the
            world's lane 0 (:func:`reflect_frame`);
         2. per-hub guard data (:func:`hub_guard`), a lane per hub;
         3. guarded lengths (:func:`ring_guard`), a lane per ring (guard on only);
+
+        with :data:`BLOCK_VERTICES`:
+
         4. points and normals (:func:`ring_vertices`): :data:`SURFACE_RING_LANES` lanes to a ring,
            several rings at a time, so that a ring's reads serve several spokes and runs of
            consecutive lanes write consecutive vertices;
@@ -1265,102 +1290,104 @@ def make_surface_block_kernel(worlds_per_block: int, min_blocks: int):
         pw = w % spoke_length.shape[0]
         hub_count = node_tube.shape[0]
         ring_count = arrays.ring_hub.shape[0]
-        barrier = wp.tile_zeros(shape=(wp.static(B),), dtype=int, storage="shared")
-        step_a = wp.tile_zeros(shape=(wp.static(B),), dtype=wp.vec4, storage="shared")
-        step_b = wp.tile_zeros(shape=(wp.static(B),), dtype=wp.vec4, storage="shared")
-        step_c = wp.tile_zeros(shape=(wp.static(B),), dtype=wp.vec4, storage="shared")
-        r_carried = wp.vec3(0.0)
-        lows = wp.tile_zeros(shape=(wp.static(B),), dtype=wp.vec3, storage="shared")
-        highs = wp.tile_zeros(shape=(wp.static(B),), dtype=wp.vec3, storage="shared")
+        guard = guard_reach > 0.0
+        if wp.static(hubs):
+            barrier = wp.tile_zeros(shape=(wp.static(B),), dtype=int, storage="shared")
+            step_a = wp.tile_zeros(shape=(wp.static(B),), dtype=wp.vec4, storage="shared")
+            step_b = wp.tile_zeros(shape=(wp.static(B),), dtype=wp.vec4, storage="shared")
+            step_c = wp.tile_zeros(shape=(wp.static(B),), dtype=wp.vec4, storage="shared")
+            r_carried = wp.vec3(0.0)
 
-        if arrays.local_frames != 0:
+            if arrays.local_frames != 0:
+                if active:
+                    for h in range(lane, hub_count, WORLD_LANES):
+                        hub_local_frame(w, h, node_offset, tube_node_start, node_tube, arrays.node_rest_t, arrays.node_rest_r, node_q, hub_t, hub_r)
+            else:
+                # Rotation-minimizing frames, a chunk of WORLD_LANES hubs at a time: every lane finds
+                # its hub's tangent and the two reflections of the step that reaches it (or, at a
+                # tube's first hub, its start normal), which depend on positions and tangents only;
+                # then the world's lane 0 carries the normal along the chunk through them, one hub
+                # after the other, so only that short product is sequential.
+                base = thread - lane
+                for chunk in range(0, hub_count, WORLD_LANES):
+                    h = chunk + lane
+                    a = wp.vec4(0.0)
+                    b = wp.vec4(0.0)
+                    c = wp.vec4(0.0)
+                    if active and h < hub_count:
+                        tube = node_tube[h]
+                        start = tube_node_start[tube]
+                        first = node_offset + start
+                        last = node_offset + tube_node_start[tube + 1] - 1
+                        t = hub_tangent(node_q, w, node_offset + h, first, last)
+                        hub_t[w, h] = t
+                        if h == start:
+                            r = tube_start_normal(arrays.node_rest_t[pw, h], arrays.node_rest_r[pw, h], t)
+                            a = wp.vec4(r[0], r[1], r[2], 0.0)
+                            c = wp.vec4(t[0], t[1], t[2], 1.0)
+                        else:
+                            t0 = hub_tangent(node_q, w, node_offset + h - 1, first, last)
+                            a = reflection_pair_a(node_q[w, node_offset + h - 1], node_q[w, node_offset + h])
+                            b = reflection_pair_b(a, t0, t)
+                            c = wp.vec4(t[0], t[1], t[2], 0.0)
+                    step_a[thread] = a
+                    step_b[thread] = b
+                    step_c[thread] = c
+                    if active and lane == 0:
+                        for k in range(wp.min(WORLD_LANES, hub_count - chunk)):
+                            a = step_a[base + k]
+                            c = step_c[base + k]
+                            if c[3] > 0.0:
+                                r_carried = wp.vec3(a[0], a[1], a[2])
+                            else:
+                                r_carried = reflect_frame(r_carried, a, step_b[base + k], wp.vec3(c[0], c[1], c[2]))
+                            hub_r[w, chunk + k] = r_carried
+                    barrier[thread] = 4  # the chunk's steps are read before the next chunk's overwrite them
+            barrier[thread] = 1
             if active:
                 for h in range(lane, hub_count, WORLD_LANES):
-                    hub_local_frame(w, h, node_offset, tube_node_start, node_tube, arrays.node_rest_t, arrays.node_rest_r, node_q, hub_t, hub_r)
-        else:
-            # Rotation-minimizing frames, a chunk of WORLD_LANES hubs at a time: every lane finds
-            # its hub's tangent and the two reflections of the step that reaches it (or, at a
-            # tube's first hub, its start normal), which depend on positions and tangents only;
-            # then the world's lane 0 carries the normal along the chunk through them, one hub
-            # after the other, so only that short product is sequential.
-            base = thread - lane
-            for chunk in range(0, hub_count, WORLD_LANES):
-                h = chunk + lane
-                a = wp.vec4(0.0)
-                b = wp.vec4(0.0)
-                c = wp.vec4(0.0)
-                if active and h < hub_count:
-                    tube = node_tube[h]
-                    start = tube_node_start[tube]
-                    first = node_offset + start
-                    last = node_offset + tube_node_start[tube + 1] - 1
-                    t = hub_tangent(node_q, w, node_offset + h, first, last)
-                    hub_t[w, h] = t
-                    if h == start:
-                        r = tube_start_normal(arrays.node_rest_t[pw, h], arrays.node_rest_r[pw, h], t)
-                        a = wp.vec4(r[0], r[1], r[2], 0.0)
-                        c = wp.vec4(t[0], t[1], t[2], 1.0)
-                    else:
-                        t0 = hub_tangent(node_q, w, node_offset + h - 1, first, last)
-                        a = reflection_pair_a(node_q[w, node_offset + h - 1], node_q[w, node_offset + h])
-                        b = reflection_pair_b(a, t0, t)
-                        c = wp.vec4(t[0], t[1], t[2], 0.0)
-                step_a[thread] = a
-                step_b[thread] = b
-                step_c[thread] = c
-                if active and lane == 0:
-                    for k in range(wp.min(WORLD_LANES, hub_count - chunk)):
-                        a = step_a[base + k]
-                        c = step_c[base + k]
-                        if c[3] > 0.0:
-                            r_carried = wp.vec3(a[0], a[1], a[2])
-                        else:
-                            r_carried = reflect_frame(r_carried, a, step_b[base + k], wp.vec3(c[0], c[1], c[2]))
-                        hub_r[w, chunk + k] = r_carried
-                barrier[thread] = 4  # the chunk's steps are read before the next chunk's overwrite them
-        barrier[thread] = 1
-        if active:
-            for h in range(lane, hub_count, WORLD_LANES):
-                hub_guard(
-                    w, h, node_offset, guard_reach, arrays.cell_radius, tube_node_start, node_tube, arrays.hub_reach,
-                    node_q, hub_t, arrays.hub_kappa, arrays.hub_chord, arrays.hub_plane, arrays.hub_cell, hub_free,
-                )  # fmt: skip
-        barrier[thread] = 2
-        guard = guard_reach > 0.0
-        if guard:
+                    hub_guard(
+                        w, h, node_offset, guard_reach, arrays.cell_radius, tube_node_start, node_tube, arrays.hub_reach,
+                        node_q, hub_t, arrays.hub_kappa, arrays.hub_chord, arrays.hub_plane, arrays.hub_cell, hub_free,
+                    )  # fmt: skip
+            barrier[thread] = 2
+            if guard:
+                if active:
+                    for ring in range(lane, ring_count, WORLD_LANES):
+                        ring_guard(
+                            w, ring, node_offset, guard_reach, tube_node_start, node_tube, arrays.hub_reach, arrays.ring_hub,
+                            arrays.ring_kind, arrays.ring_cos, arrays.ring_sin, arrays.ring_vertex, arrays.spoke_cos,
+                            arrays.spoke_sin, spoke_length, node_q, hub_t, hub_r, arrays.hub_plane, arrays.hub_cell, hub_free,
+                            arrays.surface_length,
+                        )  # fmt: skip
+                barrier[thread] = 3
+        if wp.static(vertices):
+            lows = wp.tile_zeros(shape=(wp.static(B),), dtype=wp.vec3, storage="shared")
+            highs = wp.tile_zeros(shape=(wp.static(B),), dtype=wp.vec3, storage="shared")
+            lanes = wp.min(spoke_count, SURFACE_RING_LANES)
+            rings_per_pass = WORLD_LANES // lanes
+            sub = lane % lanes
+            group = lane // lanes
+            lo = wp.vec3(1.0e30)
+            hi = wp.vec3(-1.0e30)
             if active:
-                for ring in range(lane, ring_count, WORLD_LANES):
-                    ring_guard(
-                        w, ring, node_offset, guard_reach, tube_node_start, node_tube, arrays.hub_reach, arrays.ring_hub,
-                        arrays.ring_kind, arrays.ring_cos, arrays.ring_sin, arrays.ring_vertex, arrays.spoke_cos,
-                        arrays.spoke_sin, spoke_length, node_q, hub_t, hub_r, arrays.hub_plane, arrays.hub_cell, hub_free,
-                        arrays.surface_length,
-                    )  # fmt: skip
-            barrier[thread] = 3
-        lanes = wp.min(spoke_count, SURFACE_RING_LANES)
-        rings_per_pass = WORLD_LANES // lanes
-        sub = lane % lanes
-        group = lane // lanes
-        lo = wp.vec3(1.0e30)
-        hi = wp.vec3(-1.0e30)
-        if active:
-            for first in range(0, ring_count, rings_per_pass):
-                ring = first + group
-                if group < rings_per_pass and ring < ring_count:
-                    lo, hi = ring_vertices(
-                        w, pw, ring, sub, lanes, node_offset, spoke_count, guard, tube_node_start, node_tube,
-                        arrays.ring_hub, arrays.ring_kind, arrays.ring_cos, arrays.ring_sin, arrays.ring_vertex,
-                        arrays.spoke_cos, arrays.spoke_sin, spoke_length, arrays.hub_uniform, node_q, hub_t, hub_r,
-                        arrays.hub_kappa, arrays.hub_chord, hub_free, arrays.surface_length, arrays.surface_q_out,
-                        arrays.surface_n_out, lo, hi,
-                    )  # fmt: skip
-        lows[thread] = lo
-        highs[thread] = hi
-        if active and lane == 0:
-            for k in range(1, WORLD_LANES):
-                lo = wp.min(lo, lows[thread + k])
-                hi = wp.max(hi, highs[thread + k])
-            arrays.extent_out[w, 0] = lo
-            arrays.extent_out[w, 1] = hi
+                for first in range(0, ring_count, rings_per_pass):
+                    ring = first + group
+                    if group < rings_per_pass and ring < ring_count:
+                        lo, hi = ring_vertices(
+                            w, pw, ring, sub, lanes, node_offset, spoke_count, guard, tube_node_start, node_tube,
+                            arrays.ring_hub, arrays.ring_kind, arrays.ring_cos, arrays.ring_sin, arrays.ring_vertex,
+                            arrays.spoke_cos, arrays.spoke_sin, spoke_length, arrays.hub_uniform, node_q, hub_t, hub_r,
+                            arrays.hub_kappa, arrays.hub_chord, hub_free, arrays.surface_length, arrays.surface_q_out,
+                            arrays.surface_n_out, lo, hi,
+                        )  # fmt: skip
+            lows[thread] = lo
+            highs[thread] = hi
+            if active and lane == 0:
+                for k in range(1, WORLD_LANES):
+                    lo = wp.min(lo, lows[thread + k])
+                    hi = wp.max(hi, highs[thread + k])
+                arrays.extent_out[w, 0] = lo
+                arrays.extent_out[w, 1] = hi
 
     return surface_block_kernel

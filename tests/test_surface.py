@@ -469,17 +469,10 @@ def test_cell_planes_leave_circular_arcs_as_the_centre_plane_cuts_them(n, angle,
     np.testing.assert_allclose(got, expected, rtol=2e-5)
 
 
-@pytest.mark.parametrize("frames", ["rotationMinimizing", "local"])
-@pytest.mark.parametrize("caps", [False, True])
-@pytest.mark.parametrize("measured", [True, False])
-def test_world_block_and_split_kernels_agree(frames, caps, measured):
-    """The three ways a rebuild runs (a thread per world, the CPU's; a block per world, the GPU's;
-    four split kernels) give the same points and normals bit for bit (same arithmetic in the same
-    order), guard and cell planes acting (an arc at radius x curvature 1.5 and a hairpin with legs
-    1.3 radii apart), two curves and three worlds, with measured spoke lengths or circular ones
-    (where the one-launch kernels read a ring's length once unless the guard acts); the world
-    kernel's extent is the exact bounds of its points, and the extent kernel of the others finds
-    the same."""
+def _rebuilds_of_a_hard_case(frames, caps, measured, device, variants):
+    """Points, normals and extent of each rebuild variant ``(kernel, block shape, block split)`` on
+    an arc at radius x curvature 1.5 and a hairpin with legs 1.3 radii apart (guard and cell planes
+    acting), two curves, three worlds."""
     rng = np.random.default_rng(5)
     n, S, W = 30, 7, 3
     u = hairpin(0.0065, 0.05, 0.004)[:n]
@@ -491,14 +484,48 @@ def test_world_block_and_split_kernels_agree(frames, caps, measured):
     qw = np.repeat(q[None], W, axis=0)
     qw[1] += rng.normal(scale=1e-3, size=qw[1].shape)
     out = []
-    # The block kernel also with two and four worlds per block (W = 3: idle warps).
-    for kernel, shape in (("split", None), ("world", None), ("block", (1, 0)), ("block", (2, 4)), ("block", (4, 0))):
-        b = SurfaceBuilder([0, n, 2 * n], rest, S, lengths, frames=frames, caps=caps, world_count=W, device=DEVICE, kernel=kernel)
+    for kernel, shape, split in variants:
+        b = SurfaceBuilder([0, n, 2 * n], rest, S, lengths, frames=frames, caps=caps, world_count=W, device=device, kernel=kernel)
         b.block_shape = shape or b.block_shape
-        p, nrm = b.compute(wp.array(qw.astype(np.float32), dtype=wp.vec3, device=DEVICE))
+        b.block_split = split
+        p, nrm = b.compute(wp.array(qw.astype(np.float32), dtype=wp.vec3, device=device))
         guarded = b._surface_length.numpy()
         assert np.any(guarded > 0.0), f"{kernel}: the guard did not act: the comparison would not cover it"
         out.append((p.numpy().copy(), nrm.numpy().copy(), b.extent().numpy().copy()))
+    return out
+
+
+@pytest.mark.parametrize("frames", ["rotationMinimizing", "local"])
+@pytest.mark.parametrize("caps", [False, True])
+@pytest.mark.parametrize("measured", [True, False])
+def test_world_block_and_split_kernels_agree(frames, caps, measured):
+    """The three ways a rebuild runs (a thread per world, the CPU's; a warp per world, the GPU's,
+    in one kernel or with its per-hub phases in a kernel of their own; the split kernels) give the
+    same points and normals bit for bit (same arithmetic in the same order), guard and cell
+    planes acting, with measured spoke lengths or circular ones (where the one-launch kernels
+    read a ring's length once unless the guard acts); the world kernel's extent is the exact
+    bounds of its points, and the extent kernel of the others finds the same. A curve of 60 hubs
+    takes the block kernel's frames two chunks of 32, the second tube starting inside the first."""
+    # The block kernel also with two and four worlds per block (W = 3: idle warps).
+    variants = [("split", None, True), ("world", None, True), ("block", (1, 0), False), ("block", (2, 4), True), ("block", (4, 0), False), ("block", (4, 0), True)]
+    out = _rebuilds_of_a_hard_case(frames, caps, measured, DEVICE, variants)
+    p0, n0, _ = out[0]
+    exact = np.stack([p0.min(axis=1), p0.max(axis=1)], axis=1)
+    for p1, n1, e1 in out:
+        assert np.array_equal(p0, p1) and np.array_equal(n0, n1)
+        assert np.array_equal(e1, exact)
+
+
+@pytest.mark.skipif(wp.get_cuda_device_count() == 0, reason="no CUDA device")
+@pytest.mark.parametrize("frames", ["rotationMinimizing", "local"])
+@pytest.mark.parametrize("measured", [True, False])
+def test_block_and_split_kernels_agree_on_cuda(frames, measured):
+    """On a GPU the block rebuild (one kernel or two) and the split kernels, all compiled with the
+    same fast-math options, give the same points and normals bit for bit, and the block kernel's
+    extent is the exact bounds of its points (the world kernel, the CPU's, is compiled without
+    them and is not compared here)."""
+    variants = [("split", None, True), ("block", (1, 0), False), ("block", (2, 4), True), ("block", (4, 0), False)]
+    out = _rebuilds_of_a_hard_case(frames, True, measured, "cuda:0", variants)
     p0, n0, _ = out[0]
     exact = np.stack([p0.min(axis=1), p0.max(axis=1)], axis=1)
     for p1, n1, e1 in out:

@@ -46,6 +46,8 @@ import warp as wp
 from . import frames as ref_frames
 from .kernels.frames import local_frames_kernel, rotation_minimizing_frames_kernel
 from .kernels.surface import (
+    BLOCK_HUBS,
+    BLOCK_VERTICES,
     WORLD_LANES,
     SurfaceArrays,
     make_surface_block_kernel,
@@ -68,6 +70,10 @@ BLOCK_SHAPE = (4, 8)
 """The block kernel's worlds per block and least resident blocks per multiprocessor (H100, 65,536
 worlds x 32 x 32: 1.26 ms against 1.34-1.46 ms for (1, 0), (1, 24), (2, 8), (4, 4), (8, 4); larger
 blocks wait longer at the phase barriers)."""
+HUB_BLOCK_SHAPE = (4, 0)
+"""Worlds per block and least resident blocks of the per-hub phases' kernel (``BLOCK_SPLIT``)."""
+BLOCK_SPLIT = True
+"""Whether the block rebuild runs its per-hub phases and its points as two kernels."""
 DEFAULT_GUARD_REACH = 0.95
 """Spoke ends stay within 95% of the way to a neighbouring ring's plane (see kernels.surface)."""
 
@@ -212,6 +218,8 @@ class SurfaceBuilder:
             raise ValueError(f"kernel must be one of {SURFACE_KERNELS}, got {kernel!r}")
         self.kernel = kernel
         self.block_shape = BLOCK_SHAPE  # worlds per block, least resident blocks (the block kernel)
+        self.hub_block_shape = HUB_BLOCK_SHAPE  # the same for the per-hub phases, when split off
+        self.block_split = BLOCK_SPLIT
 
         rest_t, rest_r = rest_frames(rest, local_starts, reference_normal)
         node_tube = np.repeat(np.arange(self.tube_count), np.diff(local_starts))
@@ -319,14 +327,20 @@ class SurfaceBuilder:
             )  # fmt: skip
             return (launch,)
         if self.kernel == "block":
-            kernel = make_surface_block_kernel(*self.block_shape)
-            blocks = -(-self.world_count // self.block_shape[0])
-            with cpu_blocks():  # on the CPU a block's threads are fibers (opt-in)
-                launch = wp.launch_tiled(
-                    kernel, dim=(blocks,), block_dim=WORLD_LANES * self.block_shape[0], inputs=[self._arrays, node_q],
-                    device=self.device, record_cmd=True,
-                )  # fmt: skip
-            return (launch,)
+            if self.block_split:
+                parts = ((self.hub_block_shape, BLOCK_HUBS), (self.block_shape, BLOCK_VERTICES))
+            else:
+                parts = ((self.block_shape, BLOCK_HUBS | BLOCK_VERTICES),)
+            launches = []
+            for (worlds_per_block, min_blocks), phases in parts:
+                kernel = make_surface_block_kernel(worlds_per_block, min_blocks, phases)
+                blocks = -(-self.world_count // worlds_per_block)
+                with cpu_blocks():  # on the CPU a block's threads are fibers (opt-in)
+                    launches.append(wp.launch_tiled(
+                        kernel, dim=(blocks,), block_dim=WORLD_LANES * worlds_per_block, inputs=[self._arrays, node_q],
+                        device=self.device, record_cmd=True,
+                    ))  # fmt: skip
+            return tuple(launches)
         dims_frames = (self.world_count, self.tube_count)
         if self.frames == "rotationMinimizing":
             frames = wp.launch(
