@@ -9,7 +9,8 @@ frame rebuilds the boundary from the deformed centerline, in one of three ways (
   the bounds of the points (the ``extent``);
 - ``"block"`` (the GPU's default): one launch of
   :func:`~warp_tube.kernels.surface.make_surface_block_kernel`'s kernel, a warp per world going
-  through the same phases as the split kernels below, the extent included;
+  through the same phases as the split kernels below, the extent included (or two, the per-hub
+  phases in a kernel of their own, with ``block_split``);
 - ``"split"``: six launches, each with a thread per tube, hub, ring or spoke:
 
   1. frames: :func:`~warp_tube.kernels.frames.rotation_minimizing_frames_kernel` (one thread per
@@ -66,14 +67,16 @@ __all__ = ["SurfaceBuilder", "FRAME_MODES", "DEFAULT_GUARD_REACH"]
 
 FRAME_MODES = ("rotationMinimizing", "local")
 SURFACE_KERNELS = ("world", "block", "split")
-BLOCK_SHAPE = (4, 8)
+BLOCK_SHAPE = (2, 8)
 """The block kernel's worlds per block and least resident blocks per multiprocessor (H100, 65,536
-worlds x 32 x 32: 1.26 ms against 1.34-1.46 ms for (1, 0), (1, 24), (2, 8), (4, 4), (8, 4); larger
-blocks wait longer at the phase barriers)."""
-HUB_BLOCK_SHAPE = (4, 0)
-"""Worlds per block and least resident blocks of the per-hub phases' kernel (``BLOCK_SPLIT``)."""
-BLOCK_SPLIT = True
-"""Whether the block rebuild runs its per-hub phases and its points as two kernels."""
+worlds x 32 x 32, 2026-11-23: 1.10 ms against 1.10-1.25 ms for (1, 0), (2, 0), (4, 0), (4, 8)
+with circular tubes; with measured shapes (4, 8) is faster, 1.63 against 1.95 ms)."""
+HUB_BLOCK_SHAPE = (2, 0)
+"""Worlds per block and least resident blocks of the per-hub phases' kernel (``block_split``)."""
+BLOCK_SPLIT = False
+"""Whether the block rebuild runs its per-hub phases and its points as two kernels (H100, same
+case: slower for circular tubes, 1.19 against 1.10 ms; faster for measured shapes at a vertex
+block shape of (4, 8), 1.52 against 1.63 ms)."""
 DEFAULT_GUARD_REACH = 0.95
 """Spoke ends stay within 95% of the way to a neighbouring ring's plane (see kernels.surface)."""
 
