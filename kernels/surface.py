@@ -1264,7 +1264,7 @@ def make_surface_block_kernel(worlds_per_block: int, min_blocks: int, phases: in
         4. points and normals (:func:`ring_vertices`): :data:`SURFACE_RING_LANES` lanes to a ring,
            several rings at a time, so that a ring's reads serve several spokes and runs of
            consecutive lanes write consecutive vertices;
-        5. the points' bounds, reduced over the warp into ``extent_out``.
+        5. the points' bounds, reduced over the warp (halving, five rounds) into ``extent_out``.
 
         A phase reads what the previous one wrote (scratch arrays in ``arrays``) after a block
         barrier (the write of one element of a shared tile, which every thread reaches). Same
@@ -1381,12 +1381,19 @@ def make_surface_block_kernel(worlds_per_block: int, min_blocks: int, phases: in
                             arrays.hub_kappa, arrays.hub_chord, hub_free, arrays.surface_length, arrays.surface_q_out,
                             arrays.surface_n_out, lo, hi,
                         )  # fmt: skip
+            # The warp's bounds by halving: in each round the lower half takes in the upper half's
+            # (which writes back what it holds, so reading it while it is written is harmless).
             lows[thread] = lo
             highs[thread] = hi
+            step = int(wp.static(WORLD_LANES // 2))
+            while step > 0:
+                if lane < step:
+                    lo = wp.min(lo, lows[thread + step])
+                    hi = wp.max(hi, highs[thread + step])
+                lows[thread] = lo
+                highs[thread] = hi
+                step = step // 2
             if active and lane == 0:
-                for k in range(1, WORLD_LANES):
-                    lo = wp.min(lo, lows[thread + k])
-                    hi = wp.max(hi, highs[thread + k])
                 arrays.extent_out[w, 0] = lo
                 arrays.extent_out[w, 1] = hi
 
