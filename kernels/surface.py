@@ -1237,9 +1237,10 @@ def make_surface_block_kernel(worlds_per_block: int, min_blocks: int, phases: in
     ``__launch_bounds__``; 0: no such bound), doing the ``phases`` (:data:`BLOCK_HUBS`,
     :data:`BLOCK_VERTICES` or both). Cached per arguments.
 
-    One kernel for both keeps the per-hub data in cache between them; one for each lets each run
-    with the registers it needs (the per-hub phases take far more than the points), so more
-    warps fit on a multiprocessor for the phase that writes the points."""
+    One kernel for both keeps the per-hub data in cache between them and is the faster for
+    circular tubes; one for each lets each be compiled and launched on its own (block shape,
+    registers), which was the faster for measured shapes on an H100 (see
+    ``warp_tube.surface.BLOCK_SPLIT``)."""
     B = WORLD_LANES * int(worlds_per_block)
     bounds = (B, int(min_blocks)) if min_blocks else B
     hubs = bool(phases & BLOCK_HUBS)

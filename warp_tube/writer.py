@@ -4,9 +4,9 @@ For each tube prim at path P the stage holds an ``Xform`` at P with ``P/Centerli
 ``points`` time-sampled) and, unless disabled, ``P/Surface`` (Mesh: static triangle topology and
 ``primvars:st``; ``points``, ``normals`` and ``extent`` time-sampled). Samples are written straight
 into the layer, which no stage has open after the prims are defined (``Sdf.Layer.SetTimeSample`` of
-``Vt.Vec3fArray`` values: about 1 us less per sample than through an open stage). The stage is saved under a temporary name beside the target and
-renamed over it only when :meth:`StageWriter.close` runs, so an existing file is replaced only by a
-complete one; on failure or interrupt the caller still closes, keeping the frames written so far.
+``Vt.Vec3fArray`` values: about 1 us less per sample than through an open stage). The layer is
+saved under a temporary name beside the target and renamed over it only when
+:meth:`StageWriter.close` runs, so an existing file is replaced only by a complete one; on failure or interrupt the caller still closes, keeping the frames written so far.
 """
 
 from __future__ import annotations
@@ -191,9 +191,9 @@ class StageWriter:
             if entry["surface"] is not None and surfaces is not None and surfaces[k] is not None:
                 p_path, n_path, e_path = entry["surface"]
                 sp, sn, *ext = surfaces[k]
-                sp = vec3f_array(sp)
-                ext = points_extent(np.asarray(sp)) if not ext else np.asarray(ext[0], dtype=np.float32)
-                put(p_path, t, sp)
+                sp = np.ascontiguousarray(sp, dtype=np.float32)
+                ext = points_extent(sp) if not ext else np.asarray(ext[0], dtype=np.float32)
+                put(p_path, t, vec3f_array(sp))
                 put(n_path, t, vec3f_array(sn))
                 put(e_path, t, vec3f_array(ext))
         self.frames_written += 1
