@@ -32,12 +32,12 @@ import warp as wp
 
 wp.config.log_level = wp.LOG_WARNING  # stdout carries the JSON only: no banner, no module messages
 
-from warp_tube.model import build_model
-from warp_tube.references import cantilever_frequency, elastica_tip
-from warp_tube.scene import ForceSpec, Scene, StageInfo, TubeParams, TubeSpec
-from warp_tube.simulation import Simulation
-from warp_tube.solver import SemiImplicitEulerSolver
-from warp_tube.stability import critical_time_step
+from warp_tube.model.tube import build_model
+from warp_tube.bench.references import cantilever_frequency, elastica_tip
+from warp_tube.scene.spec import ForceSpec, Scene, StageInfo, TubeParams, TubeSpec
+from warp_tube.sim.simulation import Simulation
+from warp_tube.centerline.explicit import SemiImplicitEulerSolver
+from warp_tube.centerline.stability import critical_time_step
 
 E, RHO, R = 1.0e6, 1000.0, 0.02
 
@@ -56,7 +56,7 @@ def tube(n_points, curved=False, extras=False, length=1.0):
 def scene(n_points, extras=False, fps=60.0):
     forces = (ForceSpec("/World/Push", 0, n_points - 3, [0.0], [[0.0, 0.0, 0.01]], assistant_line=True),) if extras else ()
     stage = StageInfo(meters_per_unit=1.0, time_codes_per_second=fps, frames_per_second=fps, end_time_code=fps)
-    from warp_tube.scene import SimulationSettings
+    from warp_tube.scene.spec import SimulationSettings
 
     settings = SimulationSettings(gravity=(0.0, -9.81, 0.0)) if extras else SimulationSettings()
     return Scene((tube(n_points, curved=extras, extras=extras),), forces, settings=settings, stage=stage)

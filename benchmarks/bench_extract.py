@@ -23,9 +23,9 @@ import warp as wp
 
 wp.config.log_level = wp.LOG_WARNING  # stdout carries the JSON only: no banner, no module messages
 
-from warp_tube.extract import extract_centerline
-from warp_tube.extract_fidelity import surface_fidelity
-from warp_tube.mesh_io import load_mesh
+from warp_tube.extract.pipeline import extract_centerline
+from warp_tube.extract.fidelity import surface_fidelity
+from warp_tube.extract.mesh_io import load_mesh
 
 VOXEL_MM = (0.832031, 0.832031, 1.0)  # EdinGCA CT voxel size (SOURCES.md): mesh units -> mm
 DEFAULT_DIR = pathlib.Path(__file__).resolve().parents[1].parent / "shared" / "data" / "meshes"

@@ -42,8 +42,8 @@ import warp as wp
 
 wp.config.log_level = wp.LOG_WARNING  # stdout carries the JSON only: no banner, no module messages
 
-from warp_tube.scene import ForceSpec, Scene, SimulationSettings, StageInfo, TubeParams, TubeSpec
-from warp_tube.simulation import Simulation
+from warp_tube.scene.spec import ForceSpec, Scene, SimulationSettings, StageInfo, TubeParams, TubeSpec
+from warp_tube.sim.simulation import Simulation
 
 HUBS, SPOKES, RADIUS, LENGTH = 20, 9, 0.015, 0.4
 

@@ -28,14 +28,13 @@ wp.config.log_level = wp.LOG_WARNING  # stdout carries the JSON only: no banner,
 
 sys.path.insert(0, str(Path(__file__).resolve().parents[1]))
 
-from tests.conftest import settle, straight_points  # noqa: E402
-from tests.test_dynamics import mode1  # noqa: E402
-from warp_tube.implicit_solver import ImplicitEulerSolver  # noqa: E402
-from warp_tube.model import build_model  # noqa: E402
-from warp_tube.references import cantilever_frequency, elastica_tip  # noqa: E402
-from warp_tube.scene import ForceSpec, Scene, TubeParams, TubeSpec  # noqa: E402
-from warp_tube.solver import SemiImplicitEulerSolver  # noqa: E402
-from warp_tube.stability import critical_time_step  # noqa: E402
+from warp_tube.bench.problems import settle, straight_points  # noqa: E402
+from warp_tube.centerline.implicit import ImplicitEulerSolver  # noqa: E402
+from warp_tube.model.tube import build_model  # noqa: E402
+from warp_tube.bench.references import cantilever_frequency, elastica_tip, mode1  # noqa: E402
+from warp_tube.scene.spec import ForceSpec, Scene, TubeParams, TubeSpec  # noqa: E402
+from warp_tube.centerline.explicit import SemiImplicitEulerSolver  # noqa: E402
+from warp_tube.centerline.stability import critical_time_step  # noqa: E402
 
 E, RHO, L, R, LOAD = 1.0e6, 1000.0, 1.0, 0.02, 5.0
 EI = E * np.pi * R**4 / 4

@@ -3,7 +3,7 @@
 A rebuild runs as one launch of the world kernel (a thread per world; the CPU's default), one
 launch of the block kernel (a warp per world; the GPU's default) or the split kernels (frames,
 hub data, guard, ring info, the per-spoke kernel for uniform rings, a per-ring kernel for the
-rest); see :mod:`warp_tube.surface`.
+rest); see :mod:`warp_tube.surface.builder`.
 
 - CPU, one tube: 20 hubs x 9 spokes; median wall time of one rebuild over many calls after a
   warm-up (each call replays a captured graph), world and split side by side.
@@ -36,7 +36,7 @@ import warp as wp
 
 wp.config.log_level = wp.LOG_WARNING  # stdout carries the JSON only: no banner, no module messages
 
-from warp_tube.surface import SurfaceBuilder  # noqa: E402
+from warp_tube.surface.builder import SurfaceBuilder  # noqa: E402
 
 
 def helix(n: int, world_count: int = 1) -> np.ndarray:

@@ -11,7 +11,7 @@ points written the everyday way, ``UsdAttribute.Set`` on an open stage (about 1 
 for the stage's change processing), and ``ratio_vs_stage_set`` the frame's time against it.
 
 ``write_frame`` copies arrays of 2,048 vertices or more into USD with one ``memmove`` each
-(:func:`warp_tube.writer.vec3f_array`) instead of ``FromNumpy``'s element-by-element conversion; the
+(:func:`warp_tube.io.writer.vec3f_array`) instead of ``FromNumpy``'s element-by-element conversion; the
 bare points written that way (``bare_points_direct_us``) are reported beside the ``FromNumpy`` floor,
 so ``ratio_vs_direct`` shows what the extra normals and extent cost by the same path. The extent
 is handed over as a run hands it (the surface kernel writes it beside the points). Every sample
@@ -40,8 +40,8 @@ def main():
     a = ap.parse_args()
     from pxr import Sdf, Usd, UsdGeom, Vt
 
-    from warp_tube.scene import Scene, StageInfo, TubeParams, TubeSpec
-    from warp_tube.writer import StageWriter, vec3f_array
+    from warp_tube.scene.spec import Scene, StageInfo, TubeParams, TubeSpec
+    from warp_tube.io.writer import StageWriter, vec3f_array
 
     rng = np.random.default_rng(0)
     out = {"benchmark": "usd_write", "frames": a.frames, "cases": []}

@@ -1,6 +1,6 @@
 """Hub tangents and twist-free frames along batched centerlines (Warp).
 
-These functions and kernels follow the frame convention of :mod:`warp_tube.frames` (the NumPy
+These functions and kernels follow the frame convention of :mod:`warp_tube.model.frames` (the NumPy
 reference) exactly, in float32:
 
 - Tangent at a hub: the normalised sum of the unit vectors of its two edges (the bisector), the

@@ -15,7 +15,7 @@ and after the last substep stores the state once. The tile is double-buffered by
 so one barrier per substep suffices: a thread writes buffer ``s % 2`` only after the barrier of
 substep ``s - 1``, which every thread passes after its reads of substep ``s - 2``.
 
-Block layout (set by the host, :class:`warp_tube.solver.SemiImplicitEulerSolver`): the tubes of one
+Block layout (set by the host, :class:`warp_tube.centerline.explicit.SemiImplicitEulerSolver`): the tubes of one
 world are packed, in order, into groups of at most ``block_dim`` nodes (``group_node_start``); a
 block holds ``worlds_per_block`` copies of one group from consecutive worlds, each in ``slot``
 consecutive lanes (``slot`` is the largest group's node count). So a tube must fit in one block:

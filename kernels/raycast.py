@@ -1,7 +1,7 @@
 """Mesh queries of centerline extraction: ray casts, inside/outside voxel columns, distances.
 
 Pure functions of arrays on a ``wp.Mesh`` (id passed as ``wp.uint64``); the host side is
-:mod:`warp_tube.distance_map` and :mod:`warp_tube.extract`. Lengths are in the mesh's units.
+:mod:`warp_tube.extract.distance_map` and :mod:`warp_tube.extract.pipeline`. Lengths are in the mesh's units.
 """
 
 import warp as wp

@@ -4,7 +4,7 @@ Every force a node feels is computed from its own neighbourhood (two nodes eithe
 node's force is one function call and no atomics are needed: the per-tube substep kernel and the
 per-node kernel of :mod:`warp_tube.kernels.integrate` share these functions.
 
-Array conventions (see ``warp_tube.model.TubeModel``): nodes of all tubes of one world are
+Array conventions (see ``warp_tube.model.tube.TubeModel``): nodes of all tubes of one world are
 concatenated; state arrays are (world_count, node_count); parameter arrays are
 (1 or world_count, node_count) and read at row ``pw = w % rows``. Segment ``i`` joins node ``i``
 to node ``i + 1`` of the same tube. Units: m, kg, s, N.
@@ -125,7 +125,7 @@ def curvature_targets(
     t_rest = wp.normalize(node_rest_q[pw, start + 1] - node_rest_q[pw, start])
     t = wp.normalize(node_q[w, start + 1] - node_q[w, start])
     # Rest frame of the first edge: any fixed perpendicular pair; the stored coordinates use the
-    # same construction (warp_tube.model), so only consistency matters.
+    # same construction (warp_tube.model.tube), so only consistency matters.
     u_rest = wp.vec3(1.0, 0.0, 0.0)
     if wp.abs(t_rest[0]) > 0.6:
         u_rest = wp.vec3(0.0, 1.0, 0.0)

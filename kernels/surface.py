@@ -1,7 +1,7 @@
 """Boundary points and normals of the hubs-and-spokes surface (Warp): per-hub data, then one thread per spoke.
 
 A ring is a set of ``S`` spokes leaving one hub at the same angle ``theta`` to the hub tangent
-(see :mod:`warp_tube.topology` for the ring table): body rings at 90 degrees, cap rings at smaller
+(see :mod:`warp_tube.surface.topology` for the ring table): body rings at 90 degrees, cap rings at smaller
 angles to the outward axis, and a cap's pole (one vertex, on the axis). Spoke ``j`` of a ring
 points along::
 
@@ -1240,7 +1240,7 @@ def make_surface_block_kernel(worlds_per_block: int, min_blocks: int, phases: in
     One kernel for both keeps the per-hub data in cache between them and is the faster for
     circular tubes; one for each lets each be compiled and launched on its own (block shape,
     registers), which was the faster for measured shapes on an H100 (see
-    ``warp_tube.surface.BLOCK_SPLIT``)."""
+    ``warp_tube.surface.builder.BLOCK_SPLIT``)."""
     B = WORLD_LANES * int(worlds_per_block)
     bounds = (B, int(min_blocks)) if min_blocks else B
     hubs = bool(phases & BLOCK_HUBS)

@@ -3,8 +3,8 @@
 import numpy as np
 import pytest
 
-from warp_tube.scene import ForceSpec, Scene, StageInfo, TubeParams, TubeSpec
-from warp_tube.simulation import Simulation
+from warp_tube.scene.spec import ForceSpec, Scene, StageInfo, TubeParams, TubeSpec
+from warp_tube.sim.simulation import Simulation
 
 FPS = 24.0
 

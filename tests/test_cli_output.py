@@ -85,7 +85,7 @@ def test_check_validates_without_writing(tmp_cwd, capsys):
 def test_writer_copies_large_and_small_arrays_exactly():
     """The direct-copy path (>= DIRECT_COPY_MIN vertices) and FromNumpy give the input bit for bit,
     and the blocked extent equals NumPy's plain min/max, for sizes on both sides of each switch."""
-    from warp_tube.writer import DIRECT_COPY_MIN, points_extent, vec3f_array
+    from warp_tube.io.writer import DIRECT_COPY_MIN, points_extent, vec3f_array
 
     rng = np.random.default_rng(3)
     for n in (1, 5, DIRECT_COPY_MIN - 1, DIRECT_COPY_MIN, 4095, 4096, 4097, 70_001):

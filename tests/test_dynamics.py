@@ -2,23 +2,15 @@
 
 import numpy as np
 
-from warp_tube.energy import total_energy
-from warp_tube.model import build_model
-from warp_tube.solver import SemiImplicitEulerSolver
-from warp_tube.stability import critical_time_step
+from warp_tube.bench.references import BETA1, mode1  # noqa: F401 (mode1 is used by test_implicit)
+
+from .oracle_energy import total_energy
+from warp_tube.model.tube import build_model
+from warp_tube.centerline.explicit import SemiImplicitEulerSolver
+from warp_tube.centerline.stability import critical_time_step
 
 from .test_elastica import L, cantilever_scene
 
-BETA1 = 1.8751040687  # first root of 1 + cos(b) cosh(b) = 0
-
-
-def mode1(s):
-    """First clamped-free mode shape of the Euler-Bernoulli beam at s / L (max 1 at the tip)."""
-    b = BETA1 * s
-    sigma = (np.cosh(BETA1) + np.cos(BETA1)) / (np.sinh(BETA1) + np.sin(BETA1))
-    phi = np.cosh(b) - np.cos(b) - sigma * (np.sinh(b) - np.sin(b))
-    tip = np.cosh(BETA1) - np.cos(BETA1) - sigma * (np.sinh(BETA1) - np.sin(BETA1))
-    return phi / tip
 
 
 def released_cantilever(amplitude, segments=20):

@@ -12,11 +12,11 @@ discretisation error, so an inextensible reference would hide the convergence or
 import numpy as np
 import pytest
 
-from warp_tube.model import build_model
-from warp_tube.references import elastica_tip
-from warp_tube.scene import ForceSpec, Scene, TubeParams, TubeSpec
-from warp_tube.solver import SemiImplicitEulerSolver
-from warp_tube.stability import critical_time_step
+from warp_tube.model.tube import build_model
+from warp_tube.bench.references import elastica_tip
+from warp_tube.scene.spec import ForceSpec, Scene, TubeParams, TubeSpec
+from warp_tube.centerline.explicit import SemiImplicitEulerSolver
+from warp_tube.centerline.stability import critical_time_step
 
 from .conftest import settle, straight_points
 

@@ -7,10 +7,10 @@ import warp as wp
 from PIL import Image
 from pxr import Gf, Sdf, Usd, UsdGeom, Vt
 
-from warp_tube.export import export
-from warp_tube.preview import preview
-from warp_tube.scene import SceneError
-from warp_tube.surface import SurfaceBuilder
+from warp_tube.io.export import export
+from warp_tube.io.preview import preview
+from warp_tube.scene.spec import SceneError
+from warp_tube.surface.builder import SurfaceBuilder
 
 N, S, RADIUS = 8, 10, 1.0  # stage units (cm)
 FRAMES = (0, 1, 2)

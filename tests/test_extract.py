@@ -1,4 +1,4 @@
-"""Centerline extraction (warp_tube.extract) against tubes built around known curves, and on the
+"""Centerline extraction (warp_tube.extract.pipeline) against tubes built around known curves, and on the
 five real meshes of ../shared/data/meshes (skipped when that folder is absent).
 
 Oracles: synthetic meshes are rings of known radius around a known curve, so the true centerline
@@ -16,12 +16,12 @@ import numpy as np
 import pytest
 import trimesh
 
-from warp_tube.extract import extract_centerline
-from warp_tube.extract_fidelity import surface_fidelity
-from warp_tube.frames import rotation_minimizing_frames
-from warp_tube.mesh_io import load_mesh, mesh_from_arrays
-from warp_tube.polyline import arclength, project_points
-from warp_tube.scene import SceneError
+from warp_tube.extract.pipeline import extract_centerline
+from warp_tube.extract.fidelity import surface_fidelity
+from warp_tube.model.frames import rotation_minimizing_frames
+from warp_tube.extract.mesh_io import load_mesh, mesh_from_arrays
+from warp_tube.extract.polyline import arclength, project_points
+from warp_tube.scene.spec import SceneError
 
 MESHES = pathlib.Path(__file__).resolve().parents[1].parent / "shared" / "data" / "meshes"
 needs_meshes = pytest.mark.skipif(not MESHES.is_dir(), reason="../shared/data/meshes is not beside this checkout")
@@ -246,7 +246,7 @@ def test_polygons_and_usd_mesh_prim():
     pxr = pytest.importorskip("pxr")
     from pxr import Gf, Usd, UsdGeom
 
-    from warp_tube.mesh_io import load_usd_mesh
+    from warp_tube.extract.mesh_io import load_usd_mesh
 
     mesh, curve_pts, radii = tube_mesh(stations=60, ring=24, caps=False)
     # Rebuild the strips as quads: 4 vertex indices per face.
@@ -269,8 +269,8 @@ def test_polygons_and_usd_mesh_prim():
 
 def test_write_scene_round_trip(tmp_path):
     pytest.importorskip("pxr")
-    from warp_tube.extract_usd import write_scene
-    from warp_tube.usd_scene import load_scene
+    from warp_tube.extract.usd import write_scene
+    from warp_tube import load_scene
 
     mesh, _, _ = tube_mesh(caps=True)
     tube = extract_centerline(mesh, hubs=24)

@@ -1,13 +1,13 @@
-"""The kernels' forces are the exact negative gradient of the energy (warp_tube.energy, written
+"""The kernels' forces are the exact negative gradient of the energy (tests.oracle_energy, written
 independently in NumPy/float64), checked by central finite differences."""
 
 import numpy as np
 import pytest
 
-from warp_tube.energy import potential_energy
-from warp_tube.model import build_model
-from warp_tube.scene import Scene, TubeParams, TubeSpec
-from warp_tube.solver import SemiImplicitEulerSolver
+from .oracle_energy import potential_energy
+from warp_tube.model.tube import build_model
+from warp_tube.scene.spec import Scene, TubeParams, TubeSpec
+from warp_tube.centerline.explicit import SemiImplicitEulerSolver
 
 
 def kernel_force(model, q, per_node):

@@ -6,7 +6,7 @@ import warp as wp
 
 from warp_tube import frames as ref
 from warp_tube.kernels.frames import local_frames_kernel, rotation_minimizing_frames_kernel
-from warp_tube.surface import SurfaceBuilder, rest_frames
+from warp_tube.surface.builder import SurfaceBuilder, rest_frames
 
 DEVICE = "cpu"
 
@@ -50,7 +50,7 @@ def run_kernel(mode, node_q, starts, rest_t, rest_r, node_offset=0):
 
 
 def reference_frames(mode, x, rest_t, rest_r):
-    """Frames of one tube by warp_tube.frames, float64."""
+    """Frames of one tube by warp_tube.model.frames, float64."""
     t = ref.hub_tangents(x)
     if mode == "rotationMinimizing":
         normal0 = ref.minimal_rotation(rest_t[0], t[0]) @ rest_r[0]

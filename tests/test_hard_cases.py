@@ -4,15 +4,15 @@ stays bounded by the work the forces did, and one criterion of its own."""
 import numpy as np
 import pytest
 
-from warp_tube.energy import total_energy
-from warp_tube.model import build_model
-from warp_tube.references import elastica_tip
-from warp_tube.scene import ForceSpec, Scene, SceneError, SimulationSettings, StageInfo, TubeParams, TubeSpec
-from warp_tube.simulation import Simulation
-from warp_tube.solver import SemiImplicitEulerSolver
-from warp_tube.stability import critical_time_step
+from .oracle_energy import total_energy
+from warp_tube.model.tube import build_model
+from warp_tube.bench.references import elastica_tip
+from warp_tube.scene.spec import ForceSpec, Scene, SceneError, SimulationSettings, StageInfo, TubeParams, TubeSpec
+from warp_tube.sim.simulation import Simulation
+from warp_tube.centerline.explicit import SemiImplicitEulerSolver
+from warp_tube.centerline.stability import critical_time_step
 
-from warp_tube.topology import RING_POLE
+from warp_tube.surface.topology import RING_POLE
 
 from .conftest import settle
 from .test_surface import intersecting_pairs

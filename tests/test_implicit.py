@@ -1,20 +1,20 @@
 """Implicit (backward) Euler: statics at steps far beyond the explicit bound, stiff stability and
 energy, first natural frequency and numerical damping, batches.
 
-Oracles: the elastica (scipy BVP, :func:`warp_tube.references.elastica_tip`), the Euler-Bernoulli
-cantilever frequency, the NumPy energy of :mod:`warp_tube.energy`, and backward Euler's own
+Oracles: the elastica (scipy BVP, :func:`warp_tube.bench.references.elastica_tip`), the Euler-Bernoulli
+cantilever frequency, the NumPy energy of :mod:`tests.oracle_energy`, and backward Euler's own
 amplification factor ``1 / sqrt(1 + (h w)^2)`` per step for a linear oscillator.
 """
 
 import numpy as np
 import pytest
 
-from warp_tube.energy import total_energy
-from warp_tube.implicit_solver import AssistantLineNotSupported, ImplicitEulerSolver
-from warp_tube.model import build_model
-from warp_tube.references import cantilever_frequency, elastica_tip
-from warp_tube.scene import Scene, SimulationSettings, TubeParams, TubeSpec
-from warp_tube.stability import critical_time_step
+from .oracle_energy import total_energy
+from warp_tube.centerline.implicit import AssistantLineNotSupported, ImplicitEulerSolver
+from warp_tube.model.tube import build_model
+from warp_tube.bench.references import cantilever_frequency, elastica_tip
+from warp_tube.scene.spec import Scene, SimulationSettings, TubeParams, TubeSpec
+from warp_tube.centerline.stability import critical_time_step
 
 from .conftest import settle, straight_points
 from .test_dynamics import mode1

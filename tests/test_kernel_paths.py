@@ -5,9 +5,9 @@ import numpy as np
 import pytest
 import warp as wp
 
-from warp_tube.scene import ForceSpec, Scene, SimulationSettings, StageInfo, TubeParams, TubeSpec
-from warp_tube.simulation import Simulation
-from warp_tube.solver import SemiImplicitEulerSolver
+from warp_tube.scene.spec import ForceSpec, Scene, SimulationSettings, StageInfo, TubeParams, TubeSpec
+from warp_tube.sim.simulation import Simulation
+from warp_tube.centerline.explicit import SemiImplicitEulerSolver
 
 
 def all_features_scene():
@@ -56,7 +56,7 @@ def test_cuda_matches_cpu():
 def test_implicit_cuda_matches_cpu():
     import dataclasses
 
-    from warp_tube.implicit_solver import ImplicitEulerSolver
+    from warp_tube.centerline.implicit import ImplicitEulerSolver
 
     scene = all_features_scene()
     scene = dataclasses.replace(scene, forces=tuple(dataclasses.replace(f, assistant_line=False) for f in scene.forces))

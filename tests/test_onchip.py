@@ -6,10 +6,10 @@ import numpy as np
 import pytest
 import warp as wp
 
-from warp_tube.model import build_model
-from warp_tube.scene import ForceSpec, Scene, SimulationSettings, TubeParams, TubeSpec
-from warp_tube.solver import SemiImplicitEulerSolver
-from warp_tube.stability import critical_time_step
+from warp_tube.model.tube import build_model
+from warp_tube.scene.spec import ForceSpec, Scene, SimulationSettings, TubeParams, TubeSpec
+from warp_tube.centerline.explicit import SemiImplicitEulerSolver
+from warp_tube.centerline.stability import critical_time_step
 
 WORLDS = 5
 LENGTHS = (16, 11, 3, 40)  # curves of one prim: a 3-point tube, and one longer than a 32-thread block

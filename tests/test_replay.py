@@ -5,8 +5,8 @@ import pytest
 import warp as wp
 
 from warp_tube.replay import GraphCache, can_capture
-from warp_tube.simulation import Simulation
-from warp_tube.solver import SemiImplicitEulerSolver
+from warp_tube.sim.simulation import Simulation
+from warp_tube.centerline.explicit import SemiImplicitEulerSolver
 
 from .test_kernel_paths import all_features_scene
 

@@ -7,8 +7,8 @@ import numpy as np
 import pytest
 
 from warp_tube.cli import main
-from warp_tube.scene import SceneError
-from warp_tube.usd_scene import load_scene
+from warp_tube.scene.spec import SceneError
+from warp_tube.scene.usd import load_scene
 
 from .conftest import SCENES
 

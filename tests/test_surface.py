@@ -5,8 +5,8 @@ import pytest
 import warp as wp
 
 from warp_tube import frames as ref
-from warp_tube.surface import SurfaceBuilder
-from warp_tube.topology import RING_BODY, RING_POLE, build_topology
+from warp_tube.surface.builder import SurfaceBuilder
+from warp_tube.surface.topology import RING_BODY, RING_POLE, build_topology
 
 DEVICE = "cpu"
 
@@ -538,8 +538,8 @@ def test_no_local_self_intersection_in_the_example_scenes(name):
     """Each scene of scenes/ simulated to its end: at a quarter, half, three quarters and the end,
     no two triangles of one tube whose rings lie less than pi r apart along its centerline cross
     (exhaustive, as for the arcs above; r the curve's mean radius, curves of one prim never paired)."""
-    from warp_tube.simulation import Simulation
-    from warp_tube.usd_scene import load_scene
+    from warp_tube.sim.simulation import Simulation
+    from warp_tube.scene.usd import load_scene
 
     from .conftest import SCENES
 

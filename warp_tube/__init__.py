@@ -22,15 +22,21 @@ __version__ = "0.1.0"
 
 
 def load_scene(path):
-    """Read and validate a USD scene; see :func:`warp_tube.usd_scene.load_scene`."""
-    from .usd_scene import load_scene as _load
+    """Read and validate a USD scene, extracting the tubes given as meshes; see
+    :func:`warp_tube.scene.usd.load_scene` and :func:`warp_tube.extract.usd.tube_from_mesh_prim`.
 
-    return _load(path)
+    Raises:
+        SceneError: the first problem found, naming file, prim, attribute, found and expected.
+    """
+    from .extract.usd import tube_from_mesh_prim
+    from .scene.usd import load_scene as _load
+
+    return _load(path, extract=tube_from_mesh_prim)
 
 
 def __getattr__(name):
     if name == "Simulation":
-        from .simulation import Simulation
+        from .sim.simulation import Simulation
 
         return Simulation
     raise AttributeError(name)

@@ -12,7 +12,7 @@ import os
 import sys
 from importlib import resources
 
-from .scene import SceneError
+from .scene.spec import SceneError
 
 EXIT_OK, EXIT_INPUT, EXIT_NUMERICAL, EXIT_INTERRUPTED = 0, 2, 3, 130
 
@@ -67,9 +67,9 @@ def _parser() -> argparse.ArgumentParser:
 
 
 def _cmd_run(a) -> int:
-    from .simulation import NumericalError, Simulation
-    from .usd_scene import load_scene
-    from .writer import check_output_path
+    from .sim.simulation import NumericalError, Simulation
+    from . import load_scene
+    from .io.writer import check_output_path
 
     scene_path = a.scene or default_scene_path()
     out = a.output or os.path.splitext(os.path.basename(a.scene or "tube"))[0] + ".usdc"
@@ -97,7 +97,7 @@ def _cmd_run(a) -> int:
 
 
 def _cmd_check(a) -> int:
-    from .usd_scene import load_scene
+    from . import load_scene
 
     s = load_scene(a.scene)
     n = sum(len(t.curve_counts) for t in s.tubes)
@@ -107,7 +107,7 @@ def _cmd_check(a) -> int:
 
 
 def _cmd_extract(a) -> int:
-    from .extract_cli import extract_to_scene
+    from .extract.command import extract_to_scene
 
     if a.scale is not None and len(a.scale) not in (1, 3):
         raise SceneError(f"--scale takes 1 or 3 values, got {len(a.scale)}")
@@ -116,7 +116,7 @@ def _cmd_extract(a) -> int:
 
 
 def _cmd_preview(a) -> int:
-    from .preview import preview
+    from .io.preview import preview
 
     preview(a.stage, a.output, frames=a.frames)
     print(a.output)
@@ -124,7 +124,7 @@ def _cmd_preview(a) -> int:
 
 
 def _cmd_export(a) -> int:
-    from .export import export
+    from .io.export import export
 
     for path in export(a.stage, fmt=a.format, out=a.output, frame=a.frame) or []:
         print(path)

@@ -19,11 +19,11 @@ from dataclasses import dataclass, field
 import numpy as np
 import warp as wp
 
-from .model import build_model
-from .scene import Scene, SceneError
-from .solver import SemiImplicitEulerSolver
+from ..model.tube import build_model
+from ..scene.spec import Scene, SceneError
+from ..centerline.explicit import SemiImplicitEulerSolver
 from .proximity import ContactMonitor
-from .stability import critical_time_step
+from ..centerline.stability import critical_time_step
 
 log = logging.getLogger(__name__)
 
@@ -134,7 +134,7 @@ class Simulation:
         self.substeps = max(1, math.ceil(self.frame_dt / dt - 1e-9))
         self.dt = self.frame_dt / self.substeps
         if self.integrator == "implicitEuler":
-            from .implicit_solver import ImplicitEulerSolver
+            from ..centerline.implicit import ImplicitEulerSolver
 
             self.solver = ImplicitEulerSolver(m)
         else:
@@ -209,7 +209,7 @@ class Simulation:
         return "semiImplicitEuler", f"auto: {semi_steps} substeps a frame at {SAFETY:g} x the stability bound {hc:.3g} s; {why}", semi_dt
 
     def _build_surfaces(self):
-        from .surface import SurfaceBuilder
+        from ..surface.builder import SurfaceBuilder
 
         out = []
         for k, t in enumerate(self.scene.tubes):
@@ -391,7 +391,7 @@ class Simulation:
         from now on (not with an assistant line, which only the semi-implicit solver has)."""
         if self.integrator != "semiImplicitEuler" or self.model.features.assistant_line:
             return False
-        from .implicit_solver import ImplicitEulerSolver
+        from ..centerline.implicit import ImplicitEulerSolver
 
         msg = (f"frame {self.frame + 1}: semi-implicit Euler failed even at {MAX_RETRY_FACTOR}x the substeps "
                f"({problem.split(': ', 1)[-1]}); switched to implicit Euler")  # fmt: skip
@@ -524,7 +524,7 @@ class Simulation:
             NumericalError: after writing the frames finished so far.
             KeyboardInterrupt: after writing the frames finished so far.
         """
-        from .writer import StageWriter
+        from ..io.writer import StageWriter
 
         info = self.scene.stage
         frames = info.frame_count if frames is None else int(frames)

@@ -28,7 +28,7 @@ from dataclasses import dataclass
 import numpy as np
 import warp as wp
 
-from .scene import Scene
+from ..scene.spec import Scene
 
 __all__ = ["TubeModel", "TubeState", "TubeControl", "build_model", "rest_curvature_coordinates"]
 

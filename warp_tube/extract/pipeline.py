@@ -3,8 +3,8 @@
 The seed paper's "distance mapping" (Wan et al. 2002) in five steps:
 
 1. Clean the mesh, find its boundary loops: large loops are open ends, small ones holes; all are
-   capped for the inside test (:mod:`warp_tube.mesh_io`).
-2. Distance-from-boundary field on inside voxels and its voxel graph (:mod:`warp_tube.distance_map`).
+   capped for the inside test (:mod:`warp_tube.extract.mesh_io`).
+2. Distance-from-boundary field on inside voxels and its voxel graph (:mod:`warp_tube.extract.distance_map`).
 3. End points: the two open ends farthest apart along the graph; for closed (capped) meshes the
    farthest pair found by a double sweep of geodesic distances. A most-centred path joins them;
    at a closed end the path's off-centre tail is cut and the path extended along its tangent to
@@ -12,8 +12,8 @@ The seed paper's "distance mapping" (Wan et al. 2002) in five steps:
 4. Smoothing and re-centring: each hub is moved to the centroid of its cross-section, measured
    by rays in its ring plane, then the polyline is resampled to N equally spaced hubs.
 5. Spoke lengths: rays from each hub along the package's spoke directions
-   (:func:`warp_tube.frames.rotation_minimizing_frames`, :func:`warp_tube.frames.spoke_directions`,
-   reference normal :func:`warp_tube.frames.initial_normal` of the first tangent), nearest hit on
+   (:func:`warp_tube.model.frames.rotation_minimizing_frames`, :func:`warp_tube.model.frames.spoke_directions`,
+   reference normal :func:`warp_tube.model.frames.initial_normal` of the first tangent), nearest hit on
    the mesh; rays that miss (open ends, holes) take the value of the nearest hub along the tube
    that hit with the same spoke.
 
@@ -34,13 +34,13 @@ import warp as wp
 from scipy.spatial import cKDTree
 
 from . import distance_map as dmap
-from .frames import hub_tangents, initial_normal, rotation_minimizing_frames, spoke_directions
-from .kernels import raycast
+from ..model.frames import hub_tangents, initial_normal, rotation_minimizing_frames, spoke_directions
+from ..kernels import raycast
 from .branches import find_branches
-from .extract_fidelity import fidelity_of
+from .fidelity import fidelity_of
 from .mesh_io import BoundaryLoop, boundary_loops, cap_loops, clean_mesh
 from .polyline import arclength, resample, smooth
-from .scene import SceneError
+from ..scene.spec import SceneError
 
 __all__ = ["ExtractedTube", "TubeEnd", "Branch", "extract_centerline", "default_hub_count"]
 
@@ -216,7 +216,7 @@ def extract_centerline(
         hubs: number of hubs N >= 2. Default: from :func:`default_hub_count` (one per mean radius)
             up, 1.5 times more each try, until the rest surface rebuilt from the hubs and spokes lies
             within 4 % (mean) and 12 % (95th percentile) of the mean radius of the mesh's vertices
-            (ends and side branches left out; see :mod:`warp_tube.extract_fidelity`), at most 1000.
+            (ends and side branches left out; see :mod:`warp_tube.extract.fidelity`), at most 1000.
         spokes: spokes per hub S >= 3.
         scale: one factor or (fx, fy, fz) applied to the vertices first (e.g. CT voxel sizes).
         device: Warp device (default: Warp's default device).
@@ -226,7 +226,7 @@ def extract_centerline(
         The extracted tube, in mesh units after ``scale``.
 
     Raises:
-        SceneError: the mesh is not a usable tube (see :func:`warp_tube.mesh_io.clean_mesh`), encloses
+        SceneError: the mesh is not a usable tube (see :func:`warp_tube.extract.mesh_io.clean_mesh`), encloses
             no volume, or is too thin to resolve.
     """
     t_start = time.perf_counter()

@@ -34,7 +34,7 @@ frame rebuilds the boundary from the deformed centerline, in one of three ways (
 
 All three give the same points and normals, bit for bit (same functions, same order).
 
-Rest frames (tangent and spoke-0 normal of every hub at rest) follow :mod:`warp_tube.frames`
+Rest frames (tangent and spoke-0 normal of every hub at rest) follow :mod:`warp_tube.model.frames`
 in float64: the first hub's normal is the tube's reference normal (or the convention's default),
 and the rest normals are carried along the rest centerline by double reflection.
 """
@@ -44,9 +44,9 @@ from __future__ import annotations
 import numpy as np
 import warp as wp
 
-from . import frames as ref_frames
-from .kernels.frames import local_frames_kernel, rotation_minimizing_frames_kernel
-from .kernels.surface import (
+from ..model import frames as ref_frames
+from ..kernels.frames import local_frames_kernel, rotation_minimizing_frames_kernel
+from ..kernels.surface import (
     BLOCK_HUBS,
     BLOCK_VERTICES,
     WORLD_LANES,
@@ -60,7 +60,7 @@ from .kernels.surface import (
     surface_extent_kernel,
     surface_world_kernel,
 )
-from .replay import GraphCache, cpu_blocks
+from ..replay import GraphCache, cpu_blocks
 from .topology import SurfaceTopology, build_topology
 
 __all__ = ["SurfaceBuilder", "FRAME_MODES", "DEFAULT_GUARD_REACH"]
@@ -84,7 +84,7 @@ DEFAULT_GUARD_REACH = 0.95
 def rest_frames(
     rest_q: np.ndarray, tube_node_start: np.ndarray, reference_normal: np.ndarray | None = None
 ) -> tuple[np.ndarray, np.ndarray]:
-    """Rest tangents and normals of every hub, each (N, 3) float64, per :mod:`warp_tube.frames`.
+    """Rest tangents and normals of every hub, each (N, 3) float64, per :mod:`warp_tube.model.frames`.
 
     Args:
         rest_q: rest hub positions, (N, 3).

@@ -7,7 +7,7 @@ ends), and a ``/World/Push`` force that ramps up on the middle hub, holds, and i
 scene simulates as written. Side branches left out of the tube are recorded in the tube prim's
 ``customData`` (``warptube:branches``).
 
-:func:`tube_from_mesh_prim` is the extraction hook of :func:`warp_tube.usd_scene.load_scene` for
+:func:`tube_from_mesh_prim` is the extraction hook of :func:`warp_tube.scene.usd.load_scene` for
 ``Mesh`` prims carrying ``warptube:extract = true``.
 
 Default material (soft tissue): density 1050 kg/m^3 (water-like tissue); Young's modulus 1e5 Pa,
@@ -26,11 +26,11 @@ import tempfile
 
 import numpy as np
 
-from .extract import ExtractedTube, extract_centerline
-from .frames import rotation_minimizing_frames
+from .pipeline import ExtractedTube, extract_centerline
+from ..model.frames import rotation_minimizing_frames
 from .mesh_io import load_usd_mesh
 from .polyline import arclength
-from .scene import FRAME_MODES, SceneError, StageInfo, TubeParams, TubeSpec
+from ..scene.spec import FRAME_MODES, SceneError, StageInfo, TubeParams, TubeSpec
 
 __all__ = ["write_scene", "tube_from_mesh_prim", "prim_name", "push_force"]
 

@@ -3,13 +3,14 @@
 - :func:`elastica_tip`: the planar elastica of a clamped cantilever under a transverse dead tip
   load, solved with scipy's boundary-value solver (optionally extensible).
 - :func:`cantilever_frequency`: the first natural frequency of an Euler-Bernoulli cantilever.
+- :func:`mode1`: its first mode shape.
 """
 
 from __future__ import annotations
 
 import numpy as np
 
-__all__ = ["elastica_tip", "cantilever_frequency", "BETA1"]
+__all__ = ["elastica_tip", "cantilever_frequency", "mode1", "BETA1"]
 
 #: first root of 1 + cos(b) cosh(b) = 0 (clamped-free beam)
 BETA1 = 1.8751040687119611
@@ -43,3 +44,12 @@ def elastica_tip(load: float, eps_per_sin: float = 0.0) -> np.ndarray:
 def cantilever_frequency(EI: float, mass_per_length: float, length: float) -> float:
     """First natural frequency [Hz] of a clamped-free Euler-Bernoulli beam."""
     return BETA1**2 / (2.0 * np.pi) * np.sqrt(EI / (mass_per_length * length**4))
+
+
+def mode1(s):
+    """First clamped-free mode shape of the Euler-Bernoulli beam at s / L (max 1 at the tip)."""
+    b = BETA1 * s
+    sigma = (np.cosh(BETA1) + np.cos(BETA1)) / (np.sinh(BETA1) + np.sin(BETA1))
+    phi = np.cosh(b) - np.cos(b) - sigma * (np.sinh(b) - np.sin(b))
+    tip = np.cosh(BETA1) - np.cos(BETA1) - sigma * (np.sinh(BETA1) - np.sin(BETA1))
+    return phi / tip

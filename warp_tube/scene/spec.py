@@ -1,6 +1,6 @@
 """Scene description: frozen dataclasses in SI units, read from USD or built in Python.
 
-A :class:`Scene` holds everything a run needs and nothing about USD. :mod:`warp_tube.usd_scene`
+A :class:`Scene` holds everything a run needs and nothing about USD. :mod:`warp_tube.scene.usd`
 reads one from a stage (validating every attribute) and writes one back.
 
 Geometry (points, widths, spoke lengths) is stored in SI metres here; the stage's

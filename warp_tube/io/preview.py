@@ -14,8 +14,8 @@ import numpy as np
 import warp as wp
 
 from .export import open_output_stage, surface_at, surface_frames, surface_meshes
-from .kernels.surface import shade_orthographic_kernel
-from .scene import SceneError
+from ..kernels.surface import shade_orthographic_kernel
+from ..scene.spec import SceneError
 
 __all__ = ["preview"]
 

@@ -23,8 +23,8 @@ from warp_tube.kernels.onchip import MAX_BLOCK_DIM, UNSUPPORTED, make_onchip_ker
 #: 5.4e10 at 256 and 5.0e10 at 512, 65,536 tubes x 32 points)
 ONCHIP_BLOCK_DIM = 128
 
-from .model import TubeControl, TubeModel, TubeState
-from .replay import GraphCache, cpu_blocks
+from ..model.tube import TubeControl, TubeModel, TubeState
+from ..replay import GraphCache, cpu_blocks
 
 __all__ = ["SemiImplicitEulerSolver"]
 

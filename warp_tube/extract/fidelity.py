@@ -16,14 +16,14 @@ from typing import TYPE_CHECKING
 import numpy as np
 import warp as wp
 
-from .frames import rotation_minimizing_frames, spoke_directions
-from .kernels import raycast
+from ..model.frames import rotation_minimizing_frames, spoke_directions
+from ..kernels import raycast
 from .polyline import arclength, nearest_on_polyline
 
 if TYPE_CHECKING:
     import trimesh
 
-    from .extract import ExtractedTube
+    from .pipeline import ExtractedTube
 
 __all__ = ["ring_surface", "rebuild_surface", "Fidelity", "fidelity_of", "surface_fidelity"]
 

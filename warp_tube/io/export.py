@@ -18,7 +18,7 @@ from pathlib import Path
 
 import numpy as np
 
-from .scene import SceneError
+from ..scene.spec import SceneError
 
 __all__ = ["export", "open_output_stage", "surface_meshes", "surface_frames", "surface_at"]
 
@@ -26,7 +26,7 @@ FORMATS = ("obj", "glb")
 
 
 def open_output_stage(usd_path):
-    """Open an output stage; :class:`~warp_tube.scene.SceneError` naming the file if it cannot."""
+    """Open an output stage; :class:`~warp_tube.scene.spec.SceneError` naming the file if it cannot."""
     from pxr import Usd
 
     path = Path(usd_path)

@@ -2,7 +2,7 @@
 
 Meshes come from STL/PLY/OBJ files (through trimesh) or from the points and faces of a USD
 ``Mesh`` prim carrying ``warptube:extract = true``. Everything that is wrong with the input becomes
-a :class:`~warp_tube.scene.SceneError` naming the source and what was found.
+a :class:`~warp_tube.scene.spec.SceneError` naming the source and what was found.
 """
 
 from __future__ import annotations
@@ -14,7 +14,7 @@ from dataclasses import dataclass
 import numpy as np
 import trimesh
 
-from .scene import SceneError
+from ..scene.spec import SceneError
 
 __all__ = [
     "load_mesh",

@@ -33,7 +33,7 @@ import scipy.sparse as sp
 import warp as wp
 from scipy.sparse.csgraph import dijkstra
 
-from .kernels import raycast
+from ..kernels import raycast
 
 __all__ = ["DistanceMap", "build_distance_map", "voxel_size_for", "shortest_tree", "trace_path"]
 

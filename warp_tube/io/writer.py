@@ -16,7 +16,7 @@ import os
 
 import numpy as np
 
-from .scene import Scene, SceneError
+from ..scene.spec import Scene, SceneError
 
 __all__ = ["StageWriter", "check_output_path", "points_extent", "vec3f_array"]
 

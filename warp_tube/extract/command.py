@@ -4,8 +4,8 @@ from __future__ import annotations
 
 import logging
 
-from .extract import ExtractedTube, extract_centerline
-from .extract_usd import write_scene
+from .pipeline import ExtractedTube, extract_centerline
+from .usd import write_scene
 from .mesh_io import load_mesh
 
 __all__ = ["extract_to_scene"]
@@ -18,8 +18,8 @@ def extract_to_scene(mesh_path, output, *, hubs=None, spokes=16, scale=None, dev
 
     Args:
         mesh_path: STL, PLY, OBJ, ... file.
-        output: scene ``.usda`` to write (see :func:`warp_tube.extract_usd.write_scene`).
-        hubs: hubs N (default automatic, see :func:`warp_tube.extract.extract_centerline`).
+        output: scene ``.usda`` to write (see :func:`warp_tube.extract.usd.write_scene`).
+        hubs: hubs N (default automatic, see :func:`warp_tube.extract.pipeline.extract_centerline`).
         spokes: spokes per hub S.
         scale: None, one factor or (fx, fy, fz): metres per mesh unit along each axis (e.g.
             0.000832031 0.000832031 0.001 for CT voxel indices of 0.83 x 0.83 x 1 mm). Without it

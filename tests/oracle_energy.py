@@ -8,14 +8,14 @@ from __future__ import annotations
 
 import numpy as np
 
-from .model import curvature_binormal
+from warp_tube.model.tube import curvature_binormal
 
 __all__ = ["potential_energy", "kinetic_energy", "total_energy"]
 
 
 def _kappa_targets(host: dict, q: np.ndarray) -> np.ndarray:
     """Rest curvature carried into the current shape (same construction as the kernel)."""
-    from .model import _first_edge_normal, _rotate_minimal
+    from warp_tube.model.tube import _first_edge_normal, _rotate_minimal
 
     out = np.zeros_like(q)
     start = host["tube_node_start"]

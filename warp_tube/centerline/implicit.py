@@ -16,7 +16,7 @@ import warp as wp
 from warp_tube.kernels.implicit import ImplicitScratch, make_implicit_kernel
 from warp_tube.kernels.integrate import ControlArrays, ModelArrays, StateArrays, pack
 
-from .model import TubeControl, TubeModel, TubeState
+from ..model.tube import TubeControl, TubeModel, TubeState
 
 __all__ = ["ImplicitEulerSolver", "AssistantLineNotSupported"]
 

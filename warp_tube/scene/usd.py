@@ -1,4 +1,4 @@
-"""Read a USD stage into a validated :class:`~warp_tube.scene.Scene`, and write one back.
+"""Read a USD stage into a validated :class:`~warp_tube.scene.spec.Scene`, and write one back.
 
 The scene contract (README, "Scene format"): a tube is a ``BasisCurves`` prim of type "linear"
 carrying at least one ``warptube:`` attribute, each curve one tube; the settings are the one prim
@@ -16,7 +16,7 @@ import os
 
 import numpy as np
 
-from .scene import (
+from .spec import (
     FRAME_MODES,
     INTEGRATORS,
     ForceSpec,
@@ -338,7 +338,8 @@ def load_scene(path: str, extract=None) -> Scene:
     Args:
         path: a USD file (.usda, .usdc, .usd).
         extract: callable ``(file, prim, info) -> TubeSpec`` for ``Mesh`` prims with
-            ``warptube:extract = true``; default :func:`warp_tube.extract_usd.tube_from_mesh_prim`.
+            ``warptube:extract = true`` (:func:`warp_tube.load_scene` passes
+            :func:`warp_tube.extract.usd.tube_from_mesh_prim`); without one such prims are an error.
 
     Raises:
         SceneError: the first problem found, naming file, prim, attribute, found and expected.
@@ -373,7 +374,10 @@ def load_scene(path: str, extract=None) -> Scene:
     specs = [_read_tube(path, p, info, frame_times) for p in tubes]
     if mesh_prims:
         if extract is None:
-            from .extract_usd import tube_from_mesh_prim as extract
+            raise SceneError(
+                f"{path}: {mesh_prims[0].GetPath()}: a Mesh with warptube:extract = true needs centerline "
+                "extraction: load the scene with warp_tube.load_scene"
+            )
         specs += [extract(path, p, info) for p in mesh_prims]
     by_path = {s.path: k for k, s in enumerate(specs)}
     forces = tuple(_read_force(path, p, by_path, specs, info) for p in force_prims)

@@ -1,0 +1,2 @@
+"""Stage 4, the simulation: the frame loop (:mod:`.simulation`) and the contact monitor
+(:mod:`.proximity`)."""
