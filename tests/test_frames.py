@@ -4,7 +4,7 @@ import numpy as np
 import pytest
 import warp as wp
 
-from warp_tube import frames as ref
+from warp_tube.model import frames as ref
 from warp_tube.kernels.frames import local_frames_kernel, rotation_minimizing_frames_kernel
 from warp_tube.surface.builder import SurfaceBuilder, rest_frames
 

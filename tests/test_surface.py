@@ -4,7 +4,7 @@ import numpy as np
 import pytest
 import warp as wp
 
-from warp_tube import frames as ref
+from warp_tube.model import frames as ref
 from warp_tube.surface.builder import SurfaceBuilder
 from warp_tube.surface.topology import RING_BODY, RING_POLE, build_topology
 
