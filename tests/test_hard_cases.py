@@ -47,7 +47,7 @@ def run_with_energy_bound(scene, frames, gravity=None):
     extent = float(np.ptp(h["node_rest_q"], axis=0).max())
     floor = float(np.sum(h["seg_ke"])) * (1e-6 * extent) ** 2
     for k in range(frames):
-        f = sim._forces_at((sim.frame + 0.5) * sim.frame_dt)
+        f = sim.controls.forces_at((sim.frame + 0.5) * sim.frame_dt)
         x0 = sim.state.node_q.numpy()[0, nodes].astype(np.float64)
         sim.step()
         q = sim.state.node_q.numpy()[0]

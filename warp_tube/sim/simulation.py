@@ -1,12 +1,11 @@
 """Simulation: a scene advanced frame by frame, with output, progress and a run summary.
 
+The frame loop only: what drives a frame (forces, pins, the assistant line) is
+:mod:`warp_tube.sim.control`, which integrator runs is :mod:`warp_tube.centerline.policy`, the
+checks of each frame are :mod:`warp_tube.sim.checks`.
+
 Time: output frame ``k`` is at time code ``startTimeCode + k`` (time ``k / timeCodesPerSecond``
 [s]); frame 0 is the rest state. Each frame is advanced by ``substeps`` substeps of ``dt`` [s].
-Point forces are evaluated at the middle of each frame and held over it. Time-sampled pins move
-linearly between frames. The assistant line of a force is built (from the current shape) when the
-force starts or turns by more than :data:`AL_REBUILD_ANGLE` from the direction it was built with,
-and removed when the force becomes zero. It is offset along the force's part across the tube at
-its point, and not built while the force is within :data:`AL_MIN_ANGLE` of the tube's axis.
 """
 
 from __future__ import annotations
@@ -19,32 +18,21 @@ from dataclasses import dataclass, field
 import numpy as np
 import warp as wp
 
+from ..centerline.explicit import SemiImplicitEulerSolver
+from ..centerline.policy import choose_integrator, implicit_substeps
+from ..centerline.stability import critical_time_step
 from ..model.tube import build_model
 from ..scene.spec import Scene, SceneError
-from ..centerline.explicit import SemiImplicitEulerSolver
+from .checks import FrameChecks
+from .control import FrameControl
 from .proximity import ContactMonitor
-from ..centerline.stability import critical_time_step
 
 log = logging.getLogger(__name__)
 
 __all__ = ["Simulation", "NumericalError", "RunSummary", "resolve_device"]
 
-#: semi-implicit Euler runs at this fraction of its stability bound when it picks the substep.
-SAFETY = 0.5
-#: the assistant line is rebuilt when its force turns by more than this [rad].
-AL_REBUILD_ANGLE = math.radians(45.0)
-#: implicit Euler's default substep [s] (its numerical damping: 1.5% amplitude per period of a
-#: 1 Hz mode at this step).
-IMPLICIT_DT = 1.0 / 240.0
-#: cost of an implicit substep over a semi-implicit one, per node (measured on the CPU: ~0.8 us
-#: against ~0.05 us; benchmarks/bench_integrators.py).
-IMPLICIT_COST_RATIO = 16.0
 #: the largest substep multiplier ``auto`` tries for a frame that blew up.
 MAX_RETRY_FACTOR = 16
-#: no assistant line is built for a force within this angle of the tube's axis [rad].
-AL_MIN_ANGLE = math.radians(15.0)
-#: a free point farther than this many tube lengths from its rest position is a blow-up.
-RUNAWAY_LENGTHS = 1.0e3
 
 
 class NumericalError(RuntimeError):
@@ -130,8 +118,9 @@ class Simulation:
         self.frame_dt = scene.stage.frame_dt
         spring_damping = max((t.params.spring_damping for t in scene.tubes), default=0.0)
         self.critical_dt = critical_time_step(m.host, m.features.assistant_line, spring_damping)
-        self.integrator, self.reason, dt = self._choose_integrator()
-        self.substeps = max(1, math.ceil(self.frame_dt / dt - 1e-9))
+        choice = choose_integrator(scene.settings, self.critical_dt, self.frame_dt, m.features.assistant_line, scene.source)
+        self.integrator, self.reason = choice.integrator, choice.reason
+        self.substeps = max(1, math.ceil(self.frame_dt / choice.dt - 1e-9))
         self.dt = self.frame_dt / self.substeps
         if self.integrator == "implicitEuler":
             from ..centerline.implicit import ImplicitEulerSolver
@@ -141,72 +130,24 @@ class Simulation:
             self.solver = SemiImplicitEulerSolver(m)
         self.state, self.next_state = m.state(), m.state()
         self.control = m.control()
+        self.controls = FrameControl(scene, m, self.control)
         self.frame = 0
         self.warnings: list[str] = []
-        self._force_override: dict[int, np.ndarray] = {}
-        self._pin_override: dict[int, np.ndarray] = {}
-        self._al_dir = np.zeros((m.force_count, 3))
-        self._extent = max(float(np.ptp(t.points, axis=0).max()) for t in scene.tubes)
         self._prim_start = m.host["prim_node_start"]
         self._prim_count = [len(t.points) for t in scene.tubes]
         self.surfaces = self._build_surfaces() if surface else None
-        self._pinned_nodes = [self._prim_start[k] + t.pinned for k, t in enumerate(scene.tubes)]
         self._contacts = ContactMonitor(m.host)
         self._contact_reported = False
         self._retry = self.scene.settings.integrator == "auto"
-        self._work = np.zeros(world_count)
+        extent = max(float(np.ptp(t.points, axis=0).max()) for t in scene.tubes)
         # float32 round-off moves points by ~1e-7 of their coordinates; springs strained that much
         # (with a 10x margin) hold the energy below which nothing counts as a blow-up.
-        scale = max(self._extent, float(np.abs(m.host["node_rest_q"]).max()), 1e-9)
-        self._energy_floor = float(np.sum(m.host["seg_ke"])) * (1e-6 * scale) ** 2 + 1e-30
-        self._moving_pins = any(t.pin_track is not None for t in scene.tubes)
-        self._free_mass = m.host["node_mass"] * (m.host["node_inv_mass"] > 0)
-        self._rest32 = m.host["node_rest_q"].astype(np.float32)[None]
+        scale = max(extent, float(np.abs(m.host["node_rest_q"]).max()), 1e-9)
+        energy_floor = float(np.sum(m.host["seg_ke"])) * (1e-6 * scale) ** 2 + 1e-30
+        gravity = scene.settings.gravity if m.features.gravity else None
+        self.checks = FrameChecks(m, extent=extent, energy_floor=energy_floor, gravity=gravity)
         self.retried_frames = 0
         self.max_retry_factor = 1
-
-    # -- set-up ----------------------------------------------------------------------------------
-    def _choose_integrator(self):
-        """(integrator, reason, substep [s]) for the scene's settings; see the README."""
-        s = self.scene.settings
-        hc = self.critical_dt
-        semi_dt = SAFETY * hc
-        has_al = self.model.features.assistant_line
-        if s.integrator == "implicitEuler":
-            if has_al:
-                raise SceneError(
-                    f"{self.scene.source}: integrator 'implicitEuler' does not integrate the assistant line of "
-                    "a force with warptube:assistantLine = true: set assistantLine = false on the force, or use "
-                    "'auto' or 'semiImplicitEuler'"
-                )
-            dt = min(s.time_step or IMPLICIT_DT, self.frame_dt)
-            return "implicitEuler", f"from the scene, substep {dt:.3g} s", dt
-        if s.integrator == "semiImplicitEuler":
-            if s.time_step is not None:
-                dt = min(s.time_step, self.frame_dt)
-                if dt > hc:
-                    log.warning("timeStep %.3g s exceeds the semi-implicit Euler stability bound %.3g s: expect a blow-up", dt, hc)
-                    return "semiImplicitEuler", f"forced; timeStep {dt:.3g} s exceeds the stability bound {hc:.3g} s", dt
-                return "semiImplicitEuler", f"from the scene, timeStep {dt:.3g} s (bound {hc:.3g} s)", dt
-            if not math.isfinite(hc):
-                return "semiImplicitEuler", "from the scene; nothing stiff: one substep per frame", self.frame_dt
-            return "semiImplicitEuler", f"from the scene, substep {SAFETY:g} x the stability bound {hc:.3g} s", semi_dt
-        # auto: the cheaper of the two, by the cost per substep and node measured for each.
-        if not math.isfinite(hc):
-            return "semiImplicitEuler", "auto: nothing stiff to bound the step, one substep per frame", self.frame_dt
-        impl_dt = min(s.time_step or IMPLICIT_DT, self.frame_dt)
-        semi_steps = math.ceil(self.frame_dt / semi_dt - 1e-9)
-        impl_steps = math.ceil(self.frame_dt / impl_dt - 1e-9)
-        if s.time_step is not None and s.time_step <= hc:
-            return "semiImplicitEuler", f"auto: timeStep {s.time_step:.3g} s is within the stability bound {hc:.3g} s", s.time_step
-        cheaper = impl_steps * IMPLICIT_COST_RATIO < semi_steps
-        if cheaper and not has_al:
-            return "implicitEuler", (
-                f"auto: stiff ({semi_steps} stable semi-implicit substeps a frame against {impl_steps} implicit "
-                f"ones at ~{IMPLICIT_COST_RATIO:g}x the cost each)"
-            ), impl_dt
-        why = "the assistant line needs it" if cheaper else f"cheaper than implicit ({impl_steps} substeps at ~{IMPLICIT_COST_RATIO:g}x the cost)"
-        return "semiImplicitEuler", f"auto: {semi_steps} substeps a frame at {SAFETY:g} x the stability bound {hc:.3g} s; {why}", semi_dt
 
     def _build_surfaces(self):
         from ..surface.builder import SurfaceBuilder
@@ -227,146 +168,35 @@ class Simulation:
     # -- interactive control ---------------------------------------------------------------------
     def set_force(self, force, vector) -> None:
         """Override a scene force from now on: ``force`` is its index or prim path; ``vector`` [N]."""
-        idx = self._force_index(force)
-        self._force_override[idx] = np.asarray(vector, dtype=np.float64).reshape(3)
+        self.controls.set_force(force, vector)
 
     def set_pin_targets(self, tube, positions) -> None:
         """Move a tube prim's pinned points: ``positions`` [stage units], shape (pinned, 3)."""
-        k = self._tube_index(tube)
-        p = np.asarray(positions, dtype=np.float64) * self.scene.stage.meters_per_unit
-        if p.shape != (len(self.scene.tubes[k].pinned), 3):
-            raise ValueError(f"pin targets of {self.scene.tubes[k].path}: shape {p.shape}, expected ({len(self.scene.tubes[k].pinned)}, 3)")
-        self._pin_override[k] = p
-        self._moving_pins = True
-
-    def _force_index(self, force) -> int:
-        if isinstance(force, str):
-            for k, f in enumerate(self.scene.forces):
-                if f.path == force:
-                    return k
-            raise KeyError(f"no force at {force}")
-        return int(force)
-
-    def _tube_index(self, tube) -> int:
-        if isinstance(tube, str):
-            for k, t in enumerate(self.scene.tubes):
-                if t.path == tube:
-                    return k
-            raise KeyError(f"no tube at {tube}")
-        return int(tube)
+        self.controls.set_pin_targets(tube, positions)
 
     # -- stepping --------------------------------------------------------------------------------
-    def _forces_at(self, t: float) -> np.ndarray:
-        """Force of each model force (model order) at time t [s], shape (force_count, 3)."""
-        order = self.model.host["force_order"]
-        out = np.zeros((len(order), 3))
-        for a, k in enumerate(order):
-            out[a] = self._force_override.get(int(k), None) if int(k) in self._force_override else self.scene.forces[k].at(t)
-        return out
-
-    def _update_control(self):
-        m, c = self.model, self.control
-        W = m.world_count
-        if m.force_count:
-            f = self._forces_at((self.frame + 0.5) * self.frame_dt)
-            fe = np.zeros((m.node_count, 3))
-            np.add.at(fe, m.host["force_node"], f)
-            c.node_f_ext.assign(np.repeat(fe[None], W, axis=0))
-            if m.features.assistant_line:
-                self._update_assistant_lines(f)
-        if any(t.pin_track is not None for t in self.scene.tubes) or self._pin_override:
-            q0 = c.pin_q_end.numpy()
-            q1 = q0.copy()
-            for k, t in enumerate(self.scene.tubes):
-                nodes = self._pinned_nodes[k]
-                if k in self._pin_override:
-                    q1[:, nodes] = self._pin_override[k]
-                elif t.pin_track is not None:
-                    q1[:, nodes] = t.pin_track[min(self.frame + 1, len(t.pin_track) - 1)]
-            c.pin_q_start.assign(q0)
-            c.pin_q_end.assign(q1)
-
-    def _update_assistant_lines(self, f: np.ndarray):
-        m, c, h = self.model, self.control, self.model.host
-        active = c.al_active.numpy()
-        changed = False
-        state_q = state_qd = None
-        for a in range(m.force_count):
-            if not h["force_uses_al"][a]:
-                continue
-            mag = float(np.linalg.norm(f[a]))
-            if mag == 0.0:
-                if active[:, a].any():
-                    active[:, a] = 0
-                    changed = True
-                continue
-            d = f[a] / mag
-            if active[0, a] and float(np.dot(d, self._al_dir[a])) >= math.cos(AL_REBUILD_ANGLE):
-                continue
-            if state_q is None:
-                state_q = self.state.node_q.numpy().astype(np.float64) + self.state.node_q_lo.numpy()
-                state_qd = self.state.node_qd.numpy()
-                al_q, al_qd = self.state.al_q.numpy().astype(np.float64), self.state.al_qd.numpy()
-                lens = {n: getattr(c, n).numpy() for n in ("al_link_length", "al_chord_length", "al_fwd_length", "al_bwd_length")}
-            t = h["force_tube"][a]
-            s, e = h["tube_node_start"][t], h["tube_node_start"][t + 1]
-            # Offset towards the push: the force's part across the tube at its point (world 0).
-            k = h["force_node"][a]
-            tangent = state_q[0, min(k + 1, e - 1)] - state_q[0, max(k - 1, s)]
-            tangent = tangent / max(np.linalg.norm(tangent), 1e-30)
-            across = d - np.dot(d, tangent) * tangent
-            self._al_dir[a] = d
-            if np.linalg.norm(across) < math.sin(AL_MIN_ANGLE):
-                if active[:, a].any():
-                    active[:, a] = 0
-                    changed = True
-                continue
-            offset_dir = across / np.linalg.norm(across)
-            p0 = h["al_start"][a]
-            sl = slice(p0, p0 + e - s)
-            off = h["node_radius"][s:e, None] * offset_dir[None]
-            # Positions in float64 (compensated: float32 + low-order part), so the line is built
-            # unstrained in the kernels' arithmetic.
-            x = state_q[:, s:e]
-            xp = x + off[None]
-            al_q[:, sl] = xp
-            al_qd[:, sl] = state_qd[:, s:e]
-            lens["al_link_length"][:, sl] = np.linalg.norm(xp - x, axis=-1)
-            chord = np.linalg.norm(xp[:, 1:] - xp[:, :-1], axis=-1)
-            lens["al_chord_length"][:, p0 : p0 + e - s - 1] = chord
-            lens["al_fwd_length"][:, p0 : p0 + e - s - 1] = np.linalg.norm(x[:, 1:] - xp[:, :-1], axis=-1)
-            lens["al_bwd_length"][:, p0 + 1 : p0 + e - s] = np.linalg.norm(x[:, :-1] - xp[:, 1:], axis=-1)
-            active[:, a] = 1
-            changed = True
-        if state_q is not None:
-            hi = al_q.astype(np.float32)
-            self.state.al_q.assign(hi)
-            self.state.al_q_lo.assign((al_q - hi).astype(np.float32))
-            self.state.al_qd.assign(al_qd)
-            for n, v in lens.items():
-                getattr(c, n).assign(v)
-        if changed:
-            c.al_active.assign(active)
-
     def step(self) -> None:
         """Advance one output frame (``substeps`` substeps).
 
         The frame is checked for a non-finite state, a point running away, and a kinetic energy
-        above what the forces and gravity can have put in (a blow-up). With ``auto`` a failed frame
-        is redone from its start with 2x, 4x, ... up to :data:`MAX_RETRY_FACTOR` x the substeps.
+        above what the forces and gravity can have put in (a blow-up; not checked while pinned
+        points move, whose work is not measured). With ``auto`` a failed frame is redone from its
+        start with 2x, 4x, ... up to :data:`MAX_RETRY_FACTOR` x the substeps, then, if
+        semi-implicit Euler still fails, with implicit Euler for the rest of the run.
 
         Raises:
             NumericalError: the frame still fails; :attr:`state` keeps the last good frame.
         """
-        self._update_control()
+        self.controls.update(self.frame, self.state)
+        self.checks.pin_allowance[:] = np.inf if self.controls.moving_pins else 0.0
         factor = 1
         while True:
             n = self.substeps * factor
             self.solver.integrate(self.state, self.next_state, self.control, self.frame_dt / n, n)
-            frame_work = self._frame_work(self.state, self.next_state)
-            problem = self._check(self.next_state, factor, self._work + frame_work)
-            if problem is None:
+            failures, frame_work = self.checks.check(self.state, self.next_state, self.control)
+            if not failures:
                 break
+            problem = self._failure(failures[0], factor)
             if not self._retry:
                 raise NumericalError(problem)
             if factor < MAX_RETRY_FACTOR:
@@ -376,11 +206,10 @@ class Simulation:
                 raise NumericalError(problem)
             factor = 1
         if factor > 1:
-            msg = f"frame {self.frame + 1}: redone with {factor}x the substeps to stay stable"
-            log.info(msg)
+            log.info("frame %d: redone with %dx the substeps to stay stable", self.frame + 1, factor)
             self.retried_frames += 1
             self.max_retry_factor = max(self.max_retry_factor, factor)
-        self._work += frame_work
+        self.checks.accept(frame_work)
         self.state, self.next_state = self.next_state, self.state
         self.frame += 1
         if not self._contact_reported:
@@ -400,26 +229,19 @@ class Simulation:
         self.solver = ImplicitEulerSolver(self.model)
         self.integrator = "implicitEuler"
         self.reason += "; switched to implicitEuler after a blow-up"
-        self.substeps = max(1, math.ceil(self.frame_dt / min(IMPLICIT_DT, self.frame_dt) - 1e-9))
+        self.substeps = implicit_substeps(self.frame_dt)
         self.dt = self.frame_dt / self.substeps
         return True
 
-    def _frame_work(self, before, after) -> np.ndarray:
-        """Work [J] of the point forces and gravity from ``before`` to ``after``, per world
-        (forces are held over a frame, so ``f . dx`` is exact for them)."""
-        h = self.model.host
-        w = np.zeros(self.model.world_count)
-        if self.model.force_count:
-            nodes = h["force_node"]
-            dq = after.node_q.numpy()[:, nodes].astype(np.float64) - before.node_q.numpy()[:, nodes]
-            f = self.control.node_f_ext.numpy()[:, nodes].astype(np.float64)
-            w += np.einsum("wnk,wnk->w", f, dq)
-        if self.model.features.gravity:
-            # Gravity's work is g . (sum m x_after - sum m x_before): two weighted sums.
-            m = self._free_mass
-            g = np.array(self.scene.settings.gravity, dtype=np.float64)
-            w += (np.einsum("n,wnk->wk", m, after.node_q.numpy()) - np.einsum("n,wnk->wk", m, before.node_q.numpy())) @ g
-        return w
+    def _failure(self, failure, factor: int) -> str:
+        """The message of a failed frame."""
+        dt = self.frame_dt / (self.substeps * factor)
+        hint = ""
+        if dt > self.critical_dt:
+            hint = f" (substep {dt:.3g} s exceeds the stability bound {self.critical_dt:.3g} s)"
+        elif factor > 1:
+            hint = f" (after {factor}x the substeps)"
+        return f"numerical failure at frame {self.frame + 1}: {failure.what} in {self._node_name(failure.node)}{hint}"
 
     def _report_contact(self):
         """Warn once when distant parts of tubes (world 0) come closer than two radii."""
@@ -437,48 +259,6 @@ class Simulation:
     def _node_name(self, node: int) -> str:
         k = int(np.searchsorted(self._prim_start, node, side="right") - 1)
         return f"{self.scene.tubes[k].path} point {int(node - self._prim_start[k])}"
-
-    def _check(self, state, factor: int = 1, work=None) -> str | None:
-        """What is wrong with a frame's end state, or None; ``work``: per-world work done up to it."""
-        q = state.node_q.numpy()
-        h = self.model.host
-        limit = RUNAWAY_LENGTHS * max(self._extent, 1e-9)
-        # One pass for the common case: finite and nowhere near the runaway distance (NaN fails
-        # the comparison, so it falls through to the detailed check).
-        if not (np.abs(q - self._rest32).max() < limit):
-            bad = ~np.isfinite(q).all(axis=-1)
-            far = ~bad & (np.linalg.norm(q - h["node_rest_q"][None], axis=-1) > limit)
-            if bad.any() or far.any():
-                w, node = np.argwhere(bad | far)[0]
-                what = "non-finite positions" if bad.any() else f"a point more than {RUNAWAY_LENGTHS:g} tube lengths from rest"
-                return self._failure(what, int(node), factor)
-        # Kinetic energy cannot exceed the work put in (the springs' energy is >= 0 and damping
-        # only takes energy); 10x and a floor leave room for measurement error.
-        qd = state.node_qd.numpy()
-        ke = 0.5 * np.einsum("n,wnk,wnk->w", self._free_mass, qd, qd, dtype=np.float64)
-        work = self._work if work is None else work
-        budget = 10.0 * np.maximum(work, 0.0) + self._energy_floor + self._pin_energy_allowance()
-        if not (ke > budget).any():
-            return None
-        hot = int(np.argmax(ke - budget))
-        node = int(np.argmax(np.einsum("nk,nk->n", qd[hot], qd[hot]) * h["node_mass"]))
-        return self._failure("kinetic energy beyond the work the forces did (a blow-up)", node, factor)
-
-    def _failure(self, what: str, node: int, factor: int) -> str:
-        """The message of a failed frame."""
-        dt = self.frame_dt / (self.substeps * factor)
-        hint = ""
-        if dt > self.critical_dt:
-            hint = f" (substep {dt:.3g} s exceeds the stability bound {self.critical_dt:.3g} s)"
-        elif factor > 1:
-            hint = f" (after {factor}x the substeps)"
-        return f"numerical failure at frame {self.frame + 1}: {what} in {self._node_name(int(node))}{hint}"
-
-    def _pin_energy_allowance(self) -> float:
-        """Energy that moving pins can put in [J]: not tracked as work, so allowed for generously."""
-        if not self._moving_pins:
-            return 0.0
-        return float(np.inf)
 
     # -- read-back -------------------------------------------------------------------------------
     def centerline_points(self, world: int = 0) -> list[np.ndarray]:

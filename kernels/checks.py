@@ -1,0 +1,58 @@
+"""Frame checks on the device: per (world, group) sums that tell the host whether a frame failed.
+
+A *group* is a set of tubes that fail together: every tube of a scene run alone is one group; a
+batch gives each variant its own group, so one variant blowing up does not stop the others.
+
+:func:`frame_sums_kernel` runs a thread per (world, node) at the end of a frame and accumulates,
+per (world, group):
+
+- ``bad``: the number of nodes whose position is not finite or lies farther than ``limit`` [m]
+  from its rest position (a runaway);
+- ``kinetic``: the kinetic energy of the free nodes, ``sum m |v|^2 / 2`` [J];
+- ``work``: the work of the point forces and gravity over the frame,
+  ``sum (f_ext + m_free g) . (x_after - x_before)`` [J] (forces are held over a frame, so this is
+  exact for them).
+
+Shapes: positions and velocities (world, node) vec3 [m, m/s]; ``node_group`` (node,) int;
+``node_free_mass`` (node,) [kg], 0 for pinned nodes; outputs (world, group).
+"""
+
+from __future__ import annotations
+
+import warp as wp
+
+
+@wp.kernel(enable_backward=False)
+def frame_sums_kernel(
+    q_before: wp.array2d[wp.vec3],
+    q_after: wp.array2d[wp.vec3],
+    qd_after: wp.array2d[wp.vec3],
+    f_ext: wp.array2d[wp.vec3],
+    rest_q: wp.array[wp.vec3],
+    node_group: wp.array[int],
+    node_free_mass: wp.array[float],
+    gravity: wp.vec3,
+    limit: float,
+    bad: wp.array2d[int],
+    kinetic: wp.array2d[float],
+    work: wp.array2d[float],
+):
+    w, n = wp.tid()
+    g = node_group[n]
+    x = q_after[w, n]
+    v = qd_after[w, n]
+    d = x - rest_q[n]
+    far = wp.dot(d, d)
+    # A NaN fails every comparison: count what is not provably finite and near.
+    finite = far < limit * limit and wp.dot(v, v) < 1.0e30
+    if not finite:
+        wp.atomic_add(bad, w, g, 1)
+        return
+    m = node_free_mass[n]
+    if m > 0.0:
+        wp.atomic_add(kinetic, w, g, 0.5 * m * wp.dot(v, v))
+    f = f_ext[w, n] + m * gravity
+    dx = x - q_before[w, n]
+    fw = wp.dot(f, dx)
+    if fw != 0.0:
+        wp.atomic_add(work, w, g, fw)

@@ -1,0 +1,96 @@
+"""Which integrator and substep a run uses: the scene's choice, or ``auto``'s.
+
+``auto`` (the default) picks semi-implicit Euler at :data:`SAFETY` x its stability bound unless
+implicit Euler needs fewer substeps by more than their cost ratio per node
+(:data:`IMPLICIT_COST_RATIO`), and never implicit Euler with an assistant line (only the
+semi-implicit solver integrates it). The reason for the choice is returned with it and printed in
+the run summary.
+"""
+
+from __future__ import annotations
+
+import logging
+import math
+from dataclasses import dataclass
+
+from ..scene.spec import SceneError, SimulationSettings
+
+__all__ = ["IntegratorChoice", "choose_integrator", "implicit_substeps", "SAFETY", "IMPLICIT_DT", "IMPLICIT_COST_RATIO"]
+
+log = logging.getLogger(__name__)
+
+#: semi-implicit Euler runs at this fraction of its stability bound when it picks the substep.
+SAFETY = 0.5
+#: implicit Euler's default substep [s] (its numerical damping: 1.5% amplitude per period of a
+#: 1 Hz mode at this step).
+IMPLICIT_DT = 1.0 / 240.0
+#: cost of an implicit substep over a semi-implicit one, per node (benchmarks/bench_integrators.py).
+IMPLICIT_COST_RATIO = 16.0
+
+
+@dataclass(frozen=True)
+class IntegratorChoice:
+    """An integrator (``"semiImplicitEuler"`` or ``"implicitEuler"``), why, and its substep [s]."""
+
+    integrator: str
+    reason: str
+    dt: float
+
+
+def implicit_substeps(frame_dt: float, time_step: float | None = None) -> int:
+    """Implicit Euler's substeps per frame of ``frame_dt`` [s] (substep ``time_step`` [s] or
+    :data:`IMPLICIT_DT`, at most a frame)."""
+    return max(1, math.ceil(frame_dt / min(time_step or IMPLICIT_DT, frame_dt) - 1e-9))
+
+
+def choose_integrator(settings: SimulationSettings, critical_dt: float, frame_dt: float, assistant_line: bool,
+                      source: str = "scene") -> IntegratorChoice:  # fmt: skip
+    """The integrator and substep for a scene.
+
+    Args:
+        settings: the scene's simulation settings (integrator, forced substep).
+        critical_dt: semi-implicit Euler's stability bound [s] (``inf`` when nothing is stiff).
+        frame_dt: the output frame's duration [s].
+        assistant_line: whether a force builds an assistant line.
+        source: the scene's file, for messages.
+
+    Raises:
+        SceneError: ``implicitEuler`` asked for a scene with an assistant line.
+    """
+    s, hc = settings, critical_dt
+    semi_dt = SAFETY * hc
+    if s.integrator == "implicitEuler":
+        if assistant_line:
+            raise SceneError(
+                f"{source}: integrator 'implicitEuler' does not integrate the assistant line of "
+                "a force with warptube:assistantLine = true: set assistantLine = false on the force, or use "
+                "'auto' or 'semiImplicitEuler'"
+            )
+        dt = min(s.time_step or IMPLICIT_DT, frame_dt)
+        return IntegratorChoice("implicitEuler", f"from the scene, substep {dt:.3g} s", dt)
+    if s.integrator == "semiImplicitEuler":
+        if s.time_step is not None:
+            dt = min(s.time_step, frame_dt)
+            if dt > hc:
+                log.warning("timeStep %.3g s exceeds the semi-implicit Euler stability bound %.3g s: expect a blow-up", dt, hc)
+                return IntegratorChoice("semiImplicitEuler", f"forced; timeStep {dt:.3g} s exceeds the stability bound {hc:.3g} s", dt)
+            return IntegratorChoice("semiImplicitEuler", f"from the scene, timeStep {dt:.3g} s (bound {hc:.3g} s)", dt)
+        if not math.isfinite(hc):
+            return IntegratorChoice("semiImplicitEuler", "from the scene; nothing stiff: one substep per frame", frame_dt)
+        return IntegratorChoice("semiImplicitEuler", f"from the scene, substep {SAFETY:g} x the stability bound {hc:.3g} s", semi_dt)
+    # auto: the cheaper of the two, by the cost per substep and node measured for each.
+    if not math.isfinite(hc):
+        return IntegratorChoice("semiImplicitEuler", "auto: nothing stiff to bound the step, one substep per frame", frame_dt)
+    impl_dt = min(s.time_step or IMPLICIT_DT, frame_dt)
+    semi_steps = math.ceil(frame_dt / semi_dt - 1e-9)
+    impl_steps = math.ceil(frame_dt / impl_dt - 1e-9)
+    if s.time_step is not None and s.time_step <= hc:
+        return IntegratorChoice("semiImplicitEuler", f"auto: timeStep {s.time_step:.3g} s is within the stability bound {hc:.3g} s", s.time_step)
+    cheaper = impl_steps * IMPLICIT_COST_RATIO < semi_steps
+    if cheaper and not assistant_line:
+        return IntegratorChoice("implicitEuler", (
+            f"auto: stiff ({semi_steps} stable semi-implicit substeps a frame against {impl_steps} implicit "
+            f"ones at ~{IMPLICIT_COST_RATIO:g}x the cost each)"
+        ), impl_dt)  # fmt: skip
+    why = "the assistant line needs it" if cheaper else f"cheaper than implicit ({impl_steps} substeps at ~{IMPLICIT_COST_RATIO:g}x the cost)"
+    return IntegratorChoice("semiImplicitEuler", f"auto: {semi_steps} substeps a frame at {SAFETY:g} x the stability bound {hc:.3g} s; {why}", semi_dt)

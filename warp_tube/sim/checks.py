@@ -1,0 +1,128 @@
+"""Frame checks: did a frame blow up, and where.
+
+Each frame end is checked for non-finite positions, a point running away (farther than
+:data:`RUNAWAY_LENGTHS` tube lengths from rest), and a kinetic energy above what the point forces
+and gravity can have put in (a blow-up). The sums run on the device
+(:func:`warp_tube.kernels.checks.frame_sums_kernel`); the host reads three numbers per (world,
+group) a frame and looks at whole arrays only to name the point of a frame that failed.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import numpy as np
+import warp as wp
+
+from ..kernels.checks import frame_sums_kernel
+
+__all__ = ["FrameChecks", "Failure", "RUNAWAY_LENGTHS", "ENERGY_MARGIN"]
+
+#: a free point farther than this many tube lengths from its rest position is a blow-up.
+RUNAWAY_LENGTHS = 1.0e3
+#: kinetic energy may exceed the work put in by this factor before a frame counts as a blow-up
+#: (the springs' energy is >= 0 and damping only takes energy; the margin covers the error of
+#: measuring the work at frame ends).
+ENERGY_MARGIN = 10.0
+
+
+@dataclass(frozen=True)
+class Failure:
+    """A failed frame of one group: ``what`` went wrong, at model node ``node`` of world ``world``."""
+
+    group: int
+    world: int
+    node: int
+    what: str
+
+
+class FrameChecks:
+    """Device-side frame checks of a model, per world and group.
+
+    Args:
+        model: the :class:`~warp_tube.model.tube.TubeModel`.
+        node_group: (node_count,) int, the group of each node (default: one group).
+        extent: size of each group's tubes [m], shape (groups,), for the runaway distance.
+        energy_floor: (groups,) [J]: kinetic energy that never counts as a blow-up (round-off).
+        gravity: (3,) [m/s^2] or None.
+    """
+
+    def __init__(self, model, node_group=None, extent=None, energy_floor=None, gravity=None):
+        h = model.host
+        n = model.node_count
+        self.model = model
+        self.device = model.device
+        group = np.zeros(n, dtype=np.int32) if node_group is None else np.asarray(node_group, dtype=np.int32)
+        self.group_count = int(group.max()) + 1 if n else 1
+        self.node_group = group
+        G, W = self.group_count, model.world_count
+        self.extent = np.broadcast_to(np.asarray(1.0 if extent is None else extent, dtype=np.float64), (G,)).copy()
+        self.energy_floor = np.broadcast_to(np.asarray(0.0 if energy_floor is None else energy_floor, dtype=np.float64), (G,)).copy()
+        # One runaway distance for the launch: the smallest group's; a group whose own limit is
+        # larger is re-checked against it on the host (rare: only when something is that far).
+        self.limits = RUNAWAY_LENGTHS * np.maximum(self.extent, 1e-9)
+        self.free_mass = h["node_mass"] * (h["node_inv_mass"] > 0)
+        self.gravity = np.zeros(3) if gravity is None else np.asarray(gravity, dtype=np.float64)
+        d = self.device
+        self._group = wp.array(group, dtype=int, device=d)
+        self._free_mass = wp.array(self.free_mass, dtype=float, device=d)
+        self._rest = wp.array(h["node_rest_q"], dtype=wp.vec3, device=d)
+        self._bad = wp.zeros((W, G), dtype=int, device=d)
+        self._kinetic = wp.zeros((W, G), dtype=float, device=d)
+        self._work = wp.zeros((W, G), dtype=float, device=d)
+        #: work of the forces and gravity so far [J], per (world, group), float64
+        self.work = np.zeros((W, G))
+        #: energy moving pins may put in [J] per group: not measured, so unbounded where they move
+        self.pin_allowance = np.zeros(G)
+
+    def measure(self, before, after, control):
+        """Per (world, group): ``(bad, kinetic [J], work of this frame [J])`` as NumPy arrays."""
+        for a in (self._bad, self._kinetic, self._work):
+            a.zero_()
+        W, N = self.model.world_count, self.model.node_count
+        wp.launch(
+            frame_sums_kernel, dim=(W, N), device=self.device,
+            inputs=[before.node_q, after.node_q, after.node_qd, control.node_f_ext, self._rest, self._group,
+                    self._free_mass, wp.vec3(*self.gravity), float(self.limits.min())],
+            outputs=[self._bad, self._kinetic, self._work],
+        )  # fmt: skip
+        return self._bad.numpy(), self._kinetic.numpy().astype(np.float64), self._work.numpy().astype(np.float64)
+
+    def check(self, before, after, control) -> tuple[list[Failure], np.ndarray]:
+        """Failures of the frame from ``before`` to ``after`` (empty when it is good), and its
+        work per (world, group) [J], to be added with :meth:`accept` once the frame is kept."""
+        bad, ke, work = self.measure(before, after, control)
+        budget = ENERGY_MARGIN * np.maximum(self.work + work, 0.0) + self.energy_floor + self.pin_allowance
+        failures = []
+        q = None
+        for w, g in zip(*np.nonzero((bad > 0) | (ke > budget))):
+            if q is None:
+                q = after.node_q.numpy().astype(np.float64)
+                qd = after.node_qd.numpy()
+            failure = self._locate(int(w), int(g), q[w], qd[w], bad[w, g] > 0, budget[w, g])
+            if failure is not None:
+                failures.append(failure)
+        return failures, work
+
+    def accept(self, work: np.ndarray) -> None:
+        """Count a kept frame's work (from :meth:`check`)."""
+        self.work += work
+
+    def _locate(self, w, g, q, qd, flagged, budget) -> Failure | None:
+        nodes = np.flatnonzero(self.node_group == g)
+        x = q[nodes]
+        if flagged:
+            finite = np.isfinite(x).all(axis=1) & np.isfinite(qd[nodes]).all(axis=1)
+            if not finite.all():
+                return Failure(g, w, int(nodes[np.argmin(finite)]), "non-finite positions")
+            dist = np.linalg.norm(x - self.model.host["node_rest_q"][nodes], axis=1)
+            if dist.max() > self.limits[g]:
+                return Failure(g, w, int(nodes[np.argmax(dist)]), f"a point more than {RUNAWAY_LENGTHS:g} tube lengths from rest")
+            # Beyond the launch's limit but within this group's own: not a failure by itself.
+            v = qd[nodes].astype(np.float64)
+            ke = 0.5 * float(np.einsum("n,nk,nk->", self.free_mass[nodes], v, v))
+            if not ke > budget:
+                return None
+        v = qd[nodes]
+        hot = int(np.argmax(np.einsum("nk,nk->n", v, v) * self.model.host["node_mass"][nodes]))
+        return Failure(g, w, int(nodes[hot]), "kinetic energy beyond the work the forces did (a blow-up)")

@@ -1,0 +1,179 @@
+"""What drives a frame: point forces, moving pins and the assistant line, written into the
+model's :class:`~warp_tube.model.tube.TubeControl` before each frame.
+
+- Point forces are evaluated at the middle of each frame and held over it; :meth:`FrameControl.set_force`
+  overrides a scene force from then on.
+- Pinned points move linearly over a frame towards their target at the frame's end: a time-sampled
+  ``points`` attribute's next sample, or what :meth:`FrameControl.set_pin_targets` gave.
+- The assistant line of a force (section 2.2 of the paper) is built from the current shape when
+  the force starts or turns by more than :data:`AL_REBUILD_ANGLE` from the direction it was built
+  with, and removed when the force becomes zero. It is offset along the force's part across the
+  tube at its point, by the tube's radius, and not built while the force is within
+  :data:`AL_MIN_ANGLE` of the tube's axis.
+"""
+
+from __future__ import annotations
+
+import math
+
+import numpy as np
+
+from ..scene.spec import Scene
+
+__all__ = ["FrameControl", "AL_REBUILD_ANGLE", "AL_MIN_ANGLE"]
+
+#: the assistant line is rebuilt when its force turns by more than this [rad].
+AL_REBUILD_ANGLE = math.radians(45.0)
+#: no assistant line is built for a force within this angle of the tube's axis [rad].
+AL_MIN_ANGLE = math.radians(15.0)
+
+
+class FrameControl:
+    """Forces, pin targets and assistant lines of a scene's model.
+
+    Args:
+        scene: the scene (forces, pin tracks, tube paths).
+        model: its :class:`~warp_tube.model.tube.TubeModel`.
+        control: the model's :class:`~warp_tube.model.tube.TubeControl`, written by :meth:`update`.
+    """
+
+    def __init__(self, scene: Scene, model, control):
+        self.scene, self.model, self.control = scene, model, control
+        self.frame_dt = scene.stage.frame_dt
+        self._force_override: dict[int, np.ndarray] = {}
+        self._pin_override: dict[int, np.ndarray] = {}
+        self._al_dir = np.zeros((model.force_count, 3))
+        prim_start = model.host["prim_node_start"]
+        self.pinned_nodes = [prim_start[k] + t.pinned for k, t in enumerate(scene.tubes)]
+
+    @property
+    def moving_pins(self) -> bool:
+        """Whether any pinned point moves (time-sampled points or targets set by the user)."""
+        return bool(self._pin_override) or any(t.pin_track is not None for t in self.scene.tubes)
+
+    # -- interactive control ---------------------------------------------------------------------
+    def set_force(self, force, vector) -> None:
+        """Override a scene force from now on: ``force`` is its index or prim path; ``vector`` [N]."""
+        idx = self.force_index(force)
+        self._force_override[idx] = np.asarray(vector, dtype=np.float64).reshape(3)
+
+    def set_pin_targets(self, tube, positions) -> None:
+        """Move a tube prim's pinned points: ``positions`` [stage units], shape (pinned, 3)."""
+        k = self.tube_index(tube)
+        p = np.asarray(positions, dtype=np.float64) * self.scene.stage.meters_per_unit
+        if p.shape != (len(self.scene.tubes[k].pinned), 3):
+            raise ValueError(f"pin targets of {self.scene.tubes[k].path}: shape {p.shape}, expected ({len(self.scene.tubes[k].pinned)}, 3)")
+        self._pin_override[k] = p
+
+    def force_index(self, force) -> int:
+        """Index of a scene force given by index or prim path."""
+        if isinstance(force, str):
+            for k, f in enumerate(self.scene.forces):
+                if f.path == force:
+                    return k
+            raise KeyError(f"no force at {force}")
+        return int(force)
+
+    def tube_index(self, tube) -> int:
+        """Index of a tube prim given by index or prim path."""
+        if isinstance(tube, str):
+            for k, t in enumerate(self.scene.tubes):
+                if t.path == tube:
+                    return k
+            raise KeyError(f"no tube at {tube}")
+        return int(tube)
+
+    # -- per frame -------------------------------------------------------------------------------
+    def forces_at(self, t: float) -> np.ndarray:
+        """Force of each model force (model order) at time t [s] [N], shape (force_count, 3)."""
+        order = self.model.host["force_order"]
+        out = np.zeros((len(order), 3))
+        for a, k in enumerate(order):
+            out[a] = self._force_override.get(int(k), None) if int(k) in self._force_override else self.scene.forces[k].at(t)
+        return out
+
+    def update(self, frame: int, state) -> None:
+        """Write the control of the frame from ``frame`` to ``frame + 1``; ``state`` is the state
+        at its start (read only when an assistant line is built)."""
+        m, c = self.model, self.control
+        W = m.world_count
+        if m.force_count:
+            f = self.forces_at((frame + 0.5) * self.frame_dt)
+            fe = np.zeros((m.node_count, 3))
+            np.add.at(fe, m.host["force_node"], f)
+            c.node_f_ext.assign(np.repeat(fe[None], W, axis=0))
+            if m.features.assistant_line:
+                self._update_assistant_lines(f, state)
+        if self.moving_pins:
+            q0 = c.pin_q_end.numpy()
+            q1 = q0.copy()
+            for k, t in enumerate(self.scene.tubes):
+                nodes = self.pinned_nodes[k]
+                if k in self._pin_override:
+                    q1[:, nodes] = self._pin_override[k]
+                elif t.pin_track is not None:
+                    q1[:, nodes] = t.pin_track[min(frame + 1, len(t.pin_track) - 1)]
+            c.pin_q_start.assign(q0)
+            c.pin_q_end.assign(q1)
+
+    def _update_assistant_lines(self, f: np.ndarray, state):
+        m, c, h = self.model, self.control, self.model.host
+        active = c.al_active.numpy()
+        changed = False
+        state_q = state_qd = None
+        for a in range(m.force_count):
+            if not h["force_uses_al"][a]:
+                continue
+            mag = float(np.linalg.norm(f[a]))
+            if mag == 0.0:
+                if active[:, a].any():
+                    active[:, a] = 0
+                    changed = True
+                continue
+            d = f[a] / mag
+            if active[0, a] and float(np.dot(d, self._al_dir[a])) >= math.cos(AL_REBUILD_ANGLE):
+                continue
+            if state_q is None:
+                state_q = state.node_q.numpy().astype(np.float64) + state.node_q_lo.numpy()
+                state_qd = state.node_qd.numpy()
+                al_q, al_qd = state.al_q.numpy().astype(np.float64), state.al_qd.numpy()
+                lens = {n: getattr(c, n).numpy() for n in ("al_link_length", "al_chord_length", "al_fwd_length", "al_bwd_length")}
+            t = h["force_tube"][a]
+            s, e = h["tube_node_start"][t], h["tube_node_start"][t + 1]
+            # Offset towards the push: the force's part across the tube at its point (world 0).
+            k = h["force_node"][a]
+            tangent = state_q[0, min(k + 1, e - 1)] - state_q[0, max(k - 1, s)]
+            tangent = tangent / max(np.linalg.norm(tangent), 1e-30)
+            across = d - np.dot(d, tangent) * tangent
+            self._al_dir[a] = d
+            if np.linalg.norm(across) < math.sin(AL_MIN_ANGLE):
+                if active[:, a].any():
+                    active[:, a] = 0
+                    changed = True
+                continue
+            offset_dir = across / np.linalg.norm(across)
+            p0 = h["al_start"][a]
+            sl = slice(p0, p0 + e - s)
+            off = h["node_radius"][s:e, None] * offset_dir[None]
+            # Positions in float64 (compensated: float32 + low-order part), so the line is built
+            # unstrained in the kernels' arithmetic.
+            x = state_q[:, s:e]
+            xp = x + off[None]
+            al_q[:, sl] = xp
+            al_qd[:, sl] = state_qd[:, s:e]
+            lens["al_link_length"][:, sl] = np.linalg.norm(xp - x, axis=-1)
+            chord = np.linalg.norm(xp[:, 1:] - xp[:, :-1], axis=-1)
+            lens["al_chord_length"][:, p0 : p0 + e - s - 1] = chord
+            lens["al_fwd_length"][:, p0 : p0 + e - s - 1] = np.linalg.norm(x[:, 1:] - xp[:, :-1], axis=-1)
+            lens["al_bwd_length"][:, p0 + 1 : p0 + e - s] = np.linalg.norm(x[:, :-1] - xp[:, 1:], axis=-1)
+            active[:, a] = 1
+            changed = True
+        if state_q is not None:
+            hi = al_q.astype(np.float32)
+            state.al_q.assign(hi)
+            state.al_q_lo.assign((al_q - hi).astype(np.float32))
+            state.al_qd.assign(al_qd)
+            for n, v in lens.items():
+                getattr(c, n).assign(v)
+        if changed:
+            c.al_active.assign(active)
