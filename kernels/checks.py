@@ -4,17 +4,18 @@ A *group* is a set of tubes that fail together: every tube of a scene run alone 
 batch gives each variant its own group, so one variant blowing up does not stop the others.
 
 :func:`frame_sums_kernel` runs a thread per (world, node) at the end of a frame and accumulates,
-per (world, group):
+per (world, group), into ``sums[w, g]``:
 
-- ``bad``: the number of nodes whose position is not finite or lies farther than ``limit`` [m]
+- ``[0]`` bad: the number of nodes whose position is not finite or lies farther than ``limit`` [m]
   from its rest position (a runaway);
-- ``kinetic``: the kinetic energy of the free nodes, ``sum m |v|^2 / 2`` [J];
-- ``work``: the work of the point forces and gravity over the frame,
+- ``[1]`` kinetic: the kinetic energy of the free nodes, ``sum m |v|^2 / 2`` [J];
+- ``[2]`` work: the work of the point forces and gravity over the frame,
   ``sum (f_ext + m_free g) . (x_after - x_before)`` [J] (forces are held over a frame, so this is
   exact for them).
 
 Shapes: positions and velocities (world, node) vec3 [m, m/s]; ``node_group`` (node,) int;
-``node_free_mass`` (node,) [kg], 0 for pinned nodes; outputs (world, group).
+``node_free_mass`` (node,) [kg], 0 for pinned nodes; ``sums`` (world, group) vec3, zeroed by the
+host before the launch.
 """
 
 from __future__ import annotations
@@ -33,9 +34,7 @@ def frame_sums_kernel(
     node_free_mass: wp.array[float],
     gravity: wp.vec3,
     limit: float,
-    bad: wp.array2d[int],
-    kinetic: wp.array2d[float],
-    work: wp.array2d[float],
+    sums: wp.array2d[wp.vec3],
 ):
     w, n = wp.tid()
     g = node_group[n]
@@ -46,13 +45,8 @@ def frame_sums_kernel(
     # A NaN fails every comparison: count what is not provably finite and near.
     finite = far < limit * limit and wp.dot(v, v) < 1.0e30
     if not finite:
-        wp.atomic_add(bad, w, g, 1)
+        wp.atomic_add(sums, w, g, wp.vec3(1.0, 0.0, 0.0))
         return
     m = node_free_mass[n]
-    if m > 0.0:
-        wp.atomic_add(kinetic, w, g, 0.5 * m * wp.dot(v, v))
     f = f_ext[w, n] + m * gravity
-    dx = x - q_before[w, n]
-    fw = wp.dot(f, dx)
-    if fw != 0.0:
-        wp.atomic_add(work, w, g, fw)
+    wp.atomic_add(sums, w, g, wp.vec3(0.0, 0.5 * m * wp.dot(v, v), wp.dot(f, x - q_before[w, n])))

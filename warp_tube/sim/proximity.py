@@ -1,51 +1,93 @@
-"""Distant parts of tubes that come into contact (contact itself is not modelled).
+"""Distant parts of tubes that come into contact (contact itself is not modelled): found on the
+device each frame (:mod:`warp_tube.kernels.contact`), located on the host when one is found.
 
 Two centerline points are *in contact* when their distance is below the sum of their radii (the
-tube surfaces meet) while they are *distant* along the tube: on different tubes, or more than
-``pi / 2 x (r_i + r_j)`` apart in rest arclength on the same tube. (On a straight tube or a smooth
-bend, points that close in arclength are never that close in space; a tube folded into a U of bend
-radius below its own radius, or looping onto itself, is.)
+tube surfaces meet) while they are *distant* along the tube: on different tubes of the same group,
+or more than ``pi / 2 x (r_i + r_j)`` apart in rest arclength on the same tube. (On a straight tube
+or a smooth bend, points that close in arclength are never that close in space; a tube folded into
+a U of bend radius below its own radius, or looping onto itself, is.) A group is a set of tubes
+that share a space: a scene's tubes are one group, a batch's variants one group each.
 """
 
 from __future__ import annotations
 
 import numpy as np
+import warp as wp
 from scipy.spatial import cKDTree
+
+from ..kernels.contact import contact_grid_kernel, contact_pairs_kernel
 
 __all__ = ["ContactMonitor"]
 
-#: models up to this many points check all their distant pairs directly each frame
+#: groups of up to this many points check all their distant pairs each frame; larger ones query
+#: a hash grid
 SMALL = 128
 
 
 class ContactMonitor:
-    """Finds contacts between distant parts of a model's tubes, for one world's positions.
+    """Finds contacts between distant parts of a model's tubes, in one world.
 
     Args:
-        host: the TubeModel's host dict (rest positions, radii, tube starts) [m].
+        host: the TubeModel's host dict (rest positions ``node_rest_q`` [m], ``node_radius`` [m],
+            ``tube_node_start``).
+        device: the Warp device of the positions.
+        node_group: (node,) int group of each node (default: all one group).
     """
 
-    def __init__(self, host: dict):
+    def __init__(self, host: dict, device="cpu", node_group=None):
         rest = host["node_rest_q"]
         start = host["tube_node_start"]
+        n = len(rest)
         self.radius = host["node_radius"]
         self.tube = np.repeat(np.arange(len(start) - 1), np.diff(start))
         seg = np.linalg.norm(np.diff(rest, axis=0), axis=1)
         arc = np.concatenate([[0.0], np.cumsum(seg)])
         self.arc = arc - arc[start[:-1]][self.tube]  # arclength from each tube's start
-        self.max_radius = float(self.radius.max())
-        n = len(rest)
-        # Small models: every pair that could ever count, fixed once (distant along the tube);
-        # per frame only their distances. Large ones: a k-d tree per frame.
-        self.pairs = None
-        if n <= SMALL:
+        self.group = np.zeros(n, dtype=np.int32) if node_group is None else np.asarray(node_group, dtype=np.int32)
+        self.group_count = int(self.group.max()) + 1 if n else 1
+        self.max_radius = float(self.radius.max()) if n else 0.0
+        self.device = device
+        d = device
+        self._radius = wp.array(self.radius, dtype=float, device=d)
+        self._arc = wp.array(self.arc, dtype=float, device=d)
+        self._tube = wp.array(self.tube, dtype=int, device=d)
+        self._group = wp.array(self.group, dtype=int, device=d)
+        self._gap = wp.zeros(self.group_count, dtype=float, device=d)
+        self._pairs = None
+        self._grid = None
+        largest = int(np.bincount(self.group).max()) if n else 0
+        if largest <= SMALL:
+            # Every pair of a group that could ever count, fixed once: per frame only distances.
             i, j = np.triu_indices(n, 1)
             rsum = self.radius[i] + self.radius[j]
-            keep = (self.tube[i] != self.tube[j]) | (np.abs(self.arc[i] - self.arc[j]) > 0.5 * np.pi * rsum)
-            self.pairs = (i[keep], j[keep], rsum[keep])
+            keep = (self.group[i] == self.group[j]) & (
+                (self.tube[i] != self.tube[j]) | (np.abs(self.arc[i] - self.arc[j]) > 0.5 * np.pi * rsum))
+            self._pairs = (wp.array(i[keep], dtype=int, device=d), wp.array(j[keep], dtype=int, device=d))
+        else:
+            dim = int(np.clip(round(n ** (1.0 / 3.0)), 8, 128))
+            self._grid = wp.HashGrid(dim, dim, dim, device=d)
 
-    def closest(self, q: np.ndarray):
-        """The contact with the deepest overlap, or None.
+    def deepest(self, q: wp.array) -> np.ndarray:
+        """The deepest overlap of each group, ``distance - (r_i + r_j)`` [m], shape (groups,): 0
+        where nothing touches.
+
+        Args:
+            q: one world's positions [m], shape (node,), vec3, on the monitor's device.
+        """
+        self._gap.zero_()
+        if self._pairs is not None:
+            if self._pairs[0].shape[0]:
+                wp.launch(contact_pairs_kernel, dim=self._pairs[0].shape[0], device=self.device,
+                          inputs=[*self._pairs, q, self._radius, self._arc, self._tube, self._group, self._gap])  # fmt: skip
+        else:
+            self._grid.build(q, 2.0 * self.max_radius, groups=self._group)
+            wp.launch(contact_grid_kernel, dim=q.shape[0], device=self.device,
+                      inputs=[self._grid.id, 2.0 * self.max_radius, q, self._radius, self._arc, self._tube,
+                              self._group, self._gap])  # fmt: skip
+        return self._gap.numpy()
+
+    def closest(self, q: np.ndarray, group: int = 0):
+        """The contact with the deepest overlap in ``group``, or None (host side, to name it).
 
         Args:
             q: positions [m], shape (node_count, 3).
@@ -53,20 +95,15 @@ class ContactMonitor:
         Returns:
             ``(i, j, gap)``: node indices and ``distance - (r_i + r_j)`` [m] (negative), or None.
         """
-        if self.pairs is not None:
-            i, j, rsum = self.pairs
-            gap = np.linalg.norm(q[i] - q[j], axis=1) - rsum
-            k = int(np.argmin(gap)) if len(gap) else -1
-            return (int(i[k]), int(j[k]), float(gap[k])) if k >= 0 and gap[k] < 0.0 else None
-        pairs = cKDTree(q).query_pairs(2.0 * self.max_radius, output_type="ndarray")
-        if len(pairs) == 0:
-            return None
-        i, j = pairs[:, 0], pairs[:, 1]
+        nodes = np.flatnonzero(self.group == group)
+        if len(nodes) <= SMALL:
+            i, j = np.triu_indices(len(nodes), 1)
+        else:
+            pairs = cKDTree(q[nodes]).query_pairs(2.0 * self.max_radius, output_type="ndarray")
+            i, j = pairs[:, 0], pairs[:, 1]
+        i, j = nodes[i], nodes[j]
         rsum = self.radius[i] + self.radius[j]
-        dist = np.linalg.norm(q[i] - q[j], axis=1)
         distant = (self.tube[i] != self.tube[j]) | (np.abs(self.arc[i] - self.arc[j]) > 0.5 * np.pi * rsum)
-        hit = distant & (dist < rsum)
-        if not hit.any():
-            return None
-        k = int(np.argmin(np.where(hit, dist - rsum, np.inf)))
-        return int(i[k]), int(j[k]), float(dist[k] - rsum[k])
+        gap = np.where(distant, np.linalg.norm(q[i] - q[j], axis=1) - rsum, np.inf)
+        k = int(np.argmin(gap)) if len(gap) else -1
+        return (int(i[k]), int(j[k]), float(gap[k])) if k >= 0 and gap[k] < 0.0 else None

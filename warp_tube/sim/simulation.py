@@ -136,7 +136,7 @@ class Simulation:
         self._prim_start = m.host["prim_node_start"]
         self._prim_count = [len(t.points) for t in scene.tubes]
         self.surfaces = self._build_surfaces() if surface else None
-        self._contacts = ContactMonitor(m.host)
+        self._contacts = ContactMonitor(m.host, device=self.device)
         self._contact_reported = False
         self._retry = self.scene.settings.integrator == "auto"
         extent = max(float(np.ptp(t.points, axis=0).max()) for t in scene.tubes)
@@ -245,7 +245,10 @@ class Simulation:
 
     def _report_contact(self):
         """Warn once when distant parts of tubes (world 0) come closer than two radii."""
-        hit = self._contacts.closest(self.state.node_q.numpy()[0])
+        gap = self._contacts.deepest(self.state.node_q[0])
+        if not (gap < 0.0).any():
+            return
+        hit = self._contacts.closest(self.state.node_q.numpy()[0].astype(np.float64), group=int(np.argmin(gap)))
         if hit is None:
             return
         i, j, gap = hit

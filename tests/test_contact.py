@@ -1,0 +1,61 @@
+"""Contact between distant parts of tubes (warp_tube.sim.proximity) on exact geometry: two straight
+tubes crossing at a known distance, on both device paths (all pairs, hash grid) and with groups."""
+
+import numpy as np
+import pytest
+import warp as wp
+
+from warp_tube.sim import proximity
+from warp_tube.sim.proximity import ContactMonitor
+
+
+def crossing(n, gap_z, radius=0.1, copies=1):
+    """Host dict of ``copies`` pairs of straight tubes of ``n`` points crossing at right angles,
+    ``gap_z`` [m] apart at their middles (tube A along x at z = 0, tube B along y at z = gap_z)."""
+    s = np.linspace(-1.0, 1.0, n)
+    a = np.stack([s, 0 * s, 0 * s], axis=1)
+    b = np.stack([0 * s, s, 0 * s + gap_z], axis=1)
+    pts = np.concatenate([a, b] * copies)
+    start = np.arange(0, 2 * copies * n + 1, n)
+    return {"node_rest_q": pts, "node_radius": np.full(len(pts), radius), "tube_node_start": start}
+
+
+@pytest.mark.parametrize("n", [15, 101])  # 30 points: all pairs; 202: hash grid (above SMALL)
+def test_crossing_tubes_touch_exactly_when_closer_than_two_radii(n):
+    assert (2 * n <= proximity.SMALL) == (n == 15)
+    for gap_z, touching in ((0.15, True), (0.25, False)):
+        host = crossing(n, gap_z)
+        mon = ContactMonitor(host, device="cpu")
+        q = wp.array(host["node_rest_q"], dtype=wp.vec3, device="cpu")
+        deepest = mon.deepest(q)
+        # The middles (odd n: a point at s = 0 on each tube) are gap_z apart: overlap gap_z - 2 r,
+        # in float32 (1e-6 covers its round-off).
+        expected = min(gap_z - 0.2, 0.0)
+        np.testing.assert_allclose(deepest, [expected], atol=1e-6)
+        hit = mon.closest(host["node_rest_q"])
+        if touching:
+            assert hit[:2] == (n // 2, n + n // 2) and abs(hit[2] - expected) < 1e-12
+        else:
+            assert hit is None
+
+
+def test_points_close_along_one_tube_never_count():
+    # A straight tube whose points are much closer than two radii: neighbours along the tube.
+    s = np.linspace(0.0, 1.0, 200)
+    host = {"node_rest_q": np.stack([s, 0 * s, 0 * s], axis=1), "node_radius": np.full(200, 0.05),
+            "tube_node_start": np.array([0, 200])}  # fmt: skip
+    mon = ContactMonitor(host, device="cpu")
+    assert mon.deepest(wp.array(host["node_rest_q"], dtype=wp.vec3, device="cpu"))[0] == 0.0
+
+
+@pytest.mark.parametrize("n", [15, 101])
+def test_groups_do_not_touch_each_other(n):
+    # Two copies of the crossing at the same place: group 0 touches (0.15 apart), group 1 holds the
+    # second copy shifted to 0.3 apart; copies overlap in space but are different groups.
+    host = crossing(n, 0.15, copies=2)
+    host["node_rest_q"][2 * n + n :, 2] = 0.3  # group 1's tube B
+    group = np.repeat([0, 1], 2 * n)
+    mon = ContactMonitor(host, device="cpu", node_group=group)
+    deepest = mon.deepest(wp.array(host["node_rest_q"], dtype=wp.vec3, device="cpu"))
+    np.testing.assert_allclose(deepest, [-0.05, 0.0], atol=1e-6)
+    assert mon.closest(host["node_rest_q"], group=1) is None
