@@ -159,3 +159,20 @@ def test_time_sampled_pins_follow_their_track():
         sim.step()
         np.testing.assert_allclose(sim.centerline_points()[0][[0, 1]], track[k], atol=1e-6)
     assert sim.centerline_points()[0][-1, 1] > 0.001  # the free end was carried along
+
+
+def test_surface_of_each_world_of_a_batch():
+    # World 1 moved rigidly by a known offset: its surface is world 0's moved by the same offset
+    # (frames depend on tangents only), to float32 round-off of the moved coordinates (1e-6 m).
+    tube = curved_tube()
+    push = ForceSpec("/World/Push", 0, 10, [0.0], [[0, 0, 0.05]], assistant_line=True)
+    batch = Simulation(Scene((tube,), (push,), stage=stage(0.25)), device="cpu", world_count=2)
+    for _ in range(3):
+        batch.step()
+    q = batch.state.node_q.numpy()
+    offset = np.array([0.3, -0.2, 0.1], dtype=np.float32)
+    q[1] = q[0] + offset
+    batch.state.node_q.assign(q)
+    s0, s1 = batch.surface_points(0)[0], batch.surface_points(1)[0]
+    np.testing.assert_allclose(s1, s0 + offset / batch.scene.stage.meters_per_unit, atol=1e-6)
+    np.testing.assert_array_equal(batch.surface_points(0)[0], s0)  # world 0 read again: unchanged

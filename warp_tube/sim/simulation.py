@@ -136,6 +136,7 @@ class Simulation:
         self._prim_start = m.host["prim_node_start"]
         self._prim_count = [len(t.points) for t in scene.tubes]
         self.surfaces = self._build_surfaces() if surface else None
+        self._world_q = None  # one world's positions for the surface builders, (1, node_count)
         self._contacts = ContactMonitor(m.host, device=self.device)
         self._contact_reported = False
         self._retry = self.scene.settings.integrator == "auto"
@@ -281,7 +282,11 @@ class Simulation:
         mpu = self.scene.stage.meters_per_unit
         q = self.state.node_q
         if q.shape[0] > 1:  # the builders serve one world: hand them that world's row
-            q = wp.array(q.numpy()[world : world + 1], dtype=wp.vec3, device=self.device)
+            n = self.model.node_count
+            if self._world_q is None:
+                self._world_q = wp.empty((1, n), dtype=wp.vec3, device=self.device)
+            wp.copy(self._world_q, q, src_offset=world * n, count=n)
+            q = self._world_q
         out = []
         for b in self.surfaces:
             pts, nrm = b.compute(q)
