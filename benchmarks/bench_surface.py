@@ -1,19 +1,16 @@
 """Surface rebuild speed (SurfaceBuilder.compute), by kernel path. Prints JSON.
 
-A rebuild runs as one launch of the world kernel (a thread per world; the CPU's default), one
-launch of the block kernel (a warp per world; the GPU's default) or the split kernels (frames,
-hub data, guard, ring info, the per-spoke kernel for uniform rings, a per-ring kernel for the
-rest); see :mod:`warp_tube.surface.builder`.
+A rebuild runs as one launch of the world kernel (a thread per world; the CPU's default) or of the
+block kernel (a warp per world; the GPU's default); see :mod:`warp_tube.surface.builder`.
 
 - CPU, one tube: 20 hubs x 9 spokes; median wall time of one rebuild over many calls after a
-  warm-up (each call replays a captured graph), world and split side by side.
+  warm-up (each call replays a captured graph).
 - CPU, batch: 256 tubes (worlds) x 32 hubs x 32 spokes (262,144 vertices), median of a few
-  rebuilds, world, and split with each launch timed alone as well.
+  rebuilds.
 - CUDA (when a device exists): 65,536 tubes (worlds) x 32 hubs x 32 spokes (67,108,864 vertices),
   circular (one spoke length per hub) and measured (lengths varying around each ring), each
-  captured in CUDA graphs and timed with CUDA events over many replays: the whole rebuild by the
-  block and the split paths, each split kernel alone, the per-spoke pair (uniform rings, then the
-  rest), the extent, and a reference kernel that only stores a point and a normal per vertex.
+  captured in a CUDA graph and timed with CUDA events over many replays: the whole rebuild by the
+  block kernel, and a reference kernel that only stores a point and a normal per vertex.
   Reported as surface vertices per second against the bound that the memory bandwidth sets for
   the 24 bytes a rebuild must write per vertex (points + normals, float32 vec3 each):
   ``bandwidth / 24 B``. The bandwidth is ``--bandwidth-gbs`` (default 2988 GB/s, an H100's
@@ -55,11 +52,6 @@ def straight_rest(n: int) -> np.ndarray:
     return rest
 
 
-def recorded_launches(b: SurfaceBuilder, q: wp.array) -> dict:
-    """The builder's recorded launches for ``q`` by kernel name."""
-    return {launch.kernel.key: launch for launch in b._launches[(q.ptr, q.shape, q.strides)]}
-
-
 def _median_s(fn, calls: int) -> float:
     samples = []
     for _ in range(calls):
@@ -72,36 +64,35 @@ def _median_s(fn, calls: int) -> float:
 def bench_cpu(repeats: int) -> dict:
     n, S = 20, 9
     q = wp.array(helix(n).astype(np.float32), dtype=wp.vec3, device="cpu")
-    out = {"device": "cpu", "tubes": 1, "hubs": n, "spokes": S}
-    for key in ("world", "split"):
-        b = SurfaceBuilder([0, n], straight_rest(n), S, np.full(n, 0.01), device="cpu", kernel=key)
-        for _ in range(50):
-            b.compute(q)
-        samples = []
-        for _ in range(repeats):
-            t0 = time.perf_counter()
-            b.compute(q)
-            samples.append(time.perf_counter() - t0)
-        out["vertices"] = b.vertex_count
-        out[f"rebuild_{key}_median_us"] = 1e6 * statistics.median(samples)
-        out[f"rebuild_{key}_p10_us"] = 1e6 * float(np.percentile(samples, 10))
-        out[f"rebuild_{key}_p90_us"] = 1e6 * float(np.percentile(samples, 90))
-    out["calls"] = repeats
-    out["method"] = "median of per-call perf_counter times of SurfaceBuilder.compute (replayed graphs)"
-    return out
+    b = SurfaceBuilder([0, n], straight_rest(n), S, np.full(n, 0.01), device="cpu", kernel="world")
+    for _ in range(50):
+        b.compute(q)
+    samples = []
+    for _ in range(repeats):
+        t0 = time.perf_counter()
+        b.compute(q)
+        samples.append(time.perf_counter() - t0)
+    return {
+        "device": "cpu",
+        "tubes": 1,
+        "hubs": n,
+        "spokes": S,
+        "vertices": b.vertex_count,
+        "rebuild_world_median_us": 1e6 * statistics.median(samples),
+        "rebuild_world_p10_us": 1e6 * float(np.percentile(samples, 10)),
+        "rebuild_world_p90_us": 1e6 * float(np.percentile(samples, 90)),
+        "calls": repeats,
+        "method": "median of per-call perf_counter times of SurfaceBuilder.compute (replayed graphs)",
+    }
 
 
 def bench_cpu_batch(repeats: int) -> dict:
     W, n, S = 256, 32, 32
     q = wp.array(np.ascontiguousarray(helix(n, W)).astype(np.float32), dtype=wp.vec3, device="cpu")
-    fused = SurfaceBuilder([0, n], straight_rest(n), S, np.full(n, 0.01), world_count=W, device="cpu")
-    fused.compute(q)
-    t_fused = _median_s(lambda: fused.compute(q), repeats)
-    b = SurfaceBuilder([0, n], straight_rest(n), S, np.full(n, 0.01), world_count=W, device="cpu", kernel="split")
+    b = SurfaceBuilder([0, n], straight_rest(n), S, np.full(n, 0.01), world_count=W, device="cpu", kernel="world")
     for _ in range(2):
         b.compute(q)
-    t_all = _median_s(lambda: b.compute(q), repeats)
-    t_kernel = {name.removesuffix("_kernel"): _median_s(launch.launch, repeats) for name, launch in recorded_launches(b, q).items()}
+    t = _median_s(lambda: b.compute(q), repeats)
     vertices = W * n * S
     return {
         "device": "cpu",
@@ -109,13 +100,9 @@ def bench_cpu_batch(repeats: int) -> dict:
         "hubs": n,
         "spokes": S,
         "vertices": vertices,
-        "rebuild_world_median_ms": 1e3 * t_fused,
-        "ns_per_vertex_rebuild_world": 1e9 * t_fused / vertices,
-        "rebuild_split_median_ms": 1e3 * t_all,
-        **{f"{name}_kernel_median_ms": 1e3 * t for name, t in t_kernel.items()},
-        "vertices_per_s_rebuild_world": vertices / t_fused,
-        "ns_per_vertex_rebuild_split": 1e9 * t_all / vertices,
-        "ns_per_vertex_spoke_kernels": 1e9 * (t_kernel["spoke_points"] + t_kernel["spoke_points_general"]) / vertices,
+        "rebuild_world_median_ms": 1e3 * t,
+        "ns_per_vertex_rebuild_world": 1e9 * t / vertices,
+        "vertices_per_s_rebuild_world": vertices / t,
         "calls": repeats,
         "method": "median of per-call perf_counter times; Warp's CPU backend runs one thread",
     }
@@ -162,33 +149,15 @@ def bench_cuda(bandwidth_gbs: float, bandwidth_source: str, replays: int) -> dic
         "bandwidth_bound_vertices_per_s": bound,
     }
     measured = 0.01 * (1.0 + 0.2 * np.random.default_rng(0).random((n, S)))  # a measured shape
-    for case, kernel, lengths in (("block", "block", np.full(n, 0.01)), ("split", "split", np.full(n, 0.01)),
-                                  ("block_measured", "block", measured), ("split_measured", "split", measured)):  # fmt: skip
-        b = SurfaceBuilder([0, n], straight_rest(n), S, lengths, world_count=W, device=device, kernel=kernel)
+    for case, lengths in (("block", np.full(n, 0.01)), ("block_measured", measured)):
+        b = SurfaceBuilder([0, n], straight_rest(n), S, lengths, world_count=W, device=device, kernel="block")
         b.compute(q)  # compile, record
         b.compute(q)  # capture (warp_tube.replay)
         t_all = _time_graph(b._graphs._graphs[(q.ptr, q.shape, q.strides)][1], device, replays)
-        with wp.ScopedCapture(device) as cap_extent:
-            b._extent_fresh = False
-            b.extent()
-        t_extent = _time_graph(cap_extent.graph, device, replays)
         out[f"{case}_rebuild_s"] = t_all
         out[f"{case}_vertices_per_s_rebuild"] = vertices / t_all
         out[f"{case}_rebuild_fraction_of_bound"] = (vertices / t_all) / bound
         out[f"{case}_achieved_write_gbs"] = vertices * 24 / t_all / 1e9
-        out["extent_kernel_s"] = t_extent
-        if case == "split":
-            for name, launch in recorded_launches(b, q).items():
-                with wp.ScopedCapture(device) as cap:
-                    launch.launch()
-                out[f"split_{name.removesuffix('_kernel')}_kernel_s"] = _time_graph(cap.graph, device, replays)
-            with wp.ScopedCapture(device) as cap:  # the per-spoke pair: common rings, then the rest
-                for name in ("spoke_points_kernel", "spoke_points_general_kernel"):
-                    recorded_launches(b, q)[name].launch()
-            t_spokes = _time_graph(cap.graph, device, replays)
-            out["split_per_spoke_kernels_s"] = t_spokes
-            out["split_per_spoke_vertices_per_s"] = vertices / t_spokes
-            out["split_per_spoke_fraction_of_bound"] = (vertices / t_spokes) / bound
         del b
     p = wp.empty((W, n * S), dtype=wp.vec3, device=device)
     nrm = wp.empty((W, n * S), dtype=wp.vec3, device=device)

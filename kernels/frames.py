@@ -1,27 +1,29 @@
-"""Hub tangents and twist-free frames along batched centerlines (Warp).
+"""Hub tangents, least rotations and twist-free frames along batched centerlines (Warp).
 
-These functions and kernels follow the frame convention of :mod:`warp_tube.model.frames` (the NumPy
+These functions follow the frame convention of :mod:`warp_tube.model.frames` (the NumPy
 reference) exactly, in float32:
 
 - Tangent at a hub: the normalised sum of the unit vectors of its two edges (the bisector), the
   unit edge vector at a tube's two ends.
-- A frame is ``(t, r, s)`` with ``r`` the direction of spoke 0 and ``s = t x r``; the kernels write
-  ``t`` and ``r`` only (``s`` is one cross product away).
+- A frame is ``(t, r, s)`` with ``r`` the direction of spoke 0 and ``s = t x r``; the functions
+  write ``t`` and ``r`` only (``s`` is one cross product away).
 
 Two ways of carrying the spokes along a deformed centerline, both without rotation about the axis:
 
-``rotationMinimizing`` (default), :func:`rotation_minimizing_frames_kernel`
-    One thread per (world, tube) scans the tube's hubs in order. The first hub's normal is its rest
+``rotationMinimizing`` (default), :func:`tube_rotation_minimizing_frames`
+    A scan of the tube's hubs in order. The first hub's normal is its rest
     normal carried by the minimal rotation that takes the rest first tangent to the current first
     tangent; every later normal comes from its predecessor by the double reflection of Wang,
     Juttler, Zheng and Liu (ACM TOG 27(1), 2008): reflect ``(r_i, t_i)`` in the bisecting plane of
     ``x_i x_{i+1}``, then in the plane that takes the reflected tangent onto ``t_{i+1}``. The frames
     follow the deformed curve as a whole: the twist they accumulate is the curve's own geometric
     twist (for a helix, ``-torsion`` per unit length), fourth order accurate in the hub spacing
-    with exact tangents. Cost: a sequential loop of ``n`` steps per tube.
+    with exact tangents. Cost: a sequential loop of ``n`` steps per tube (the surface's block kernel
+    finds each step's two reflections in parallel, :func:`reflection_pair_a`,
+    :func:`reflection_pair_b`, and runs only their product, :func:`reflect_frame`, in order).
 
-``local`` (the paper's section 3.2, eq. 2), :func:`local_frames_kernel`
-    One thread per (world, hub). Each hub's spoke plane is carried from that hub's *rest* frame by
+``local`` (the paper's section 3.2, eq. 2), :func:`hub_local_frame`
+    One hub at a time. Each hub's spoke plane is carried from that hub's *rest* frame by
     the minimal rotation taking its rest tangent to its current tangent, independently of every
     other hub: the translation + in-plane rotation + out-of-plane rotation of the paper's lemma
     compose to exactly this least rotation. (The paper rotates the segment ``AB`` into the spoke;
@@ -42,7 +44,8 @@ shaped (1, n) or (world_count, n) are read at row ``w % rows``.
 import warp as wp
 
 ANTIPARALLEL_EPS = wp.constant(1.0e-6)
-"""``1 + a.b`` below which two unit vectors are taken as opposite (a half turn), float32."""
+"""``1 + a.b`` below which two unit vectors are taken as opposite (a half turn), float32; the NumPy
+reference (:func:`warp_tube.model.frames.rotate_minimal`) uses the same threshold."""
 
 
 @wp.func
@@ -88,8 +91,10 @@ def rotate_minimal(a: wp.vec3, b: wp.vec3, x: wp.vec3) -> wp.vec3:
     """Apply to ``x`` the least rotation taking unit vector ``a`` to unit vector ``b``.
 
     ``R x = x + k x x + k x (k x x) / (1 + a.b)`` with ``k = a x b``. For ``1 + a.b`` below
-    :data:`ANTIPARALLEL_EPS` (the reference uses 1e-12 in float64) the half turn about
-    :func:`least_aligned_normal` of ``a`` is taken, as the reference does.
+    :data:`ANTIPARALLEL_EPS` (a half turn, where the least rotation is not unique) the half turn
+    about :func:`least_aligned_normal` of ``a`` is taken, as the NumPy reference does. The one
+    least rotation of the kernels: surface frames, guard planes and the bending springs' Bishop
+    frames (:mod:`warp_tube.kernels.springs`).
     """
     c = wp.dot(a, b)
     if c < -1.0 + ANTIPARALLEL_EPS:
@@ -162,25 +167,6 @@ def tube_start_normal(rest_t: wp.vec3, rest_r: wp.vec3, t: wp.vec3) -> wp.vec3:
     return wp.normalize(r - wp.dot(r, t) * t)
 
 
-@wp.kernel(enable_backward=False)
-def hub_tangents_kernel(
-    # model:
-    node_offset: int,
-    tube_node_start: wp.array[wp.int32],
-    node_tube: wp.array[wp.int32],
-    # state in:
-    node_q: wp.array2d[wp.vec3],
-    # out:
-    hub_t_out: wp.array2d[wp.vec3],
-):
-    """Unit hub tangents [1], shape (world_count, node_count); one thread per (world, node)."""
-    w, i = wp.tid()
-    tube = node_tube[i]
-    first = node_offset + tube_node_start[tube]
-    last = node_offset + tube_node_start[tube + 1] - 1
-    hub_t_out[w, i] = hub_tangent(node_q, w, node_offset + i, first, last)
-
-
 @wp.func
 def tube_rotation_minimizing_frames(
     w: int,
@@ -193,7 +179,18 @@ def tube_rotation_minimizing_frames(
     hub_t_out: wp.array2d[wp.vec3],
     hub_r_out: wp.array2d[wp.vec3],
 ):
-    """The frames of tube ``tube`` of world ``w`` (arguments as :func:`rotation_minimizing_frames_kernel`)."""
+    """Double-reflection rotation-minimizing frames of tube ``tube`` of world ``w``.
+
+    Args:
+        node_offset: column of ``node_q`` holding this module's node 0.
+        tube_node_start: first node of each tube (relative to ``node_offset``), tube_count + 1.
+        node_rest_t: rest unit tangents [1], shape (1 or world_count, node_count).
+        node_rest_r: rest unit normals (spoke 0) [1], same shape; only each tube's first is read.
+        node_q: node positions [any length unit], shape (world_count, >= node_offset + node_count).
+        hub_t_out: unit tangents [1], shape (world_count, node_count); the tube's are written.
+        hub_r_out: unit normals (spoke 0) [1], shape (world_count, node_count); the tube's are
+            written.
+    """
     pw = w % node_rest_t.shape[0]
     start = tube_node_start[tube]
     end = tube_node_start[tube + 1]
@@ -215,34 +212,6 @@ def tube_rotation_minimizing_frames(
         t = t_next
 
 
-@wp.kernel(enable_backward=False, module="unique", module_options={"fast_math": True})
-def rotation_minimizing_frames_kernel(
-    # model:
-    node_offset: int,
-    tube_node_start: wp.array[wp.int32],
-    node_rest_t: wp.array2d[wp.vec3],
-    node_rest_r: wp.array2d[wp.vec3],
-    # state in:
-    node_q: wp.array2d[wp.vec3],
-    # out:
-    hub_t_out: wp.array2d[wp.vec3],
-    hub_r_out: wp.array2d[wp.vec3],
-):
-    """Double-reflection rotation-minimizing frames; one thread per (world, tube).
-
-    Args:
-        node_offset: column of ``node_q`` holding this module's node 0.
-        tube_node_start: first node of each tube (relative to ``node_offset``), tube_count + 1.
-        node_rest_t: rest unit tangents [1], shape (1 or world_count, node_count).
-        node_rest_r: rest unit normals (spoke 0) [1], same shape; only each tube's first is read.
-        node_q: node positions [any length unit], shape (world_count, >= node_offset + node_count).
-        hub_t_out: unit tangents [1], shape (world_count, node_count).
-        hub_r_out: unit normals (spoke 0) [1], shape (world_count, node_count).
-    """
-    w, tube = wp.tid()
-    tube_rotation_minimizing_frames(w, tube, node_offset, tube_node_start, node_rest_t, node_rest_r, node_q, hub_t_out, hub_r_out)
-
-
 @wp.func
 def hub_local_frame(
     w: int,
@@ -256,7 +225,10 @@ def hub_local_frame(
     hub_t_out: wp.array2d[wp.vec3],
     hub_r_out: wp.array2d[wp.vec3],
 ):
-    """The local frame of hub ``i`` of world ``w`` (arguments as :func:`local_frames_kernel`)."""
+    """The paper's local frame (eq. 2) of hub ``i`` of world ``w``: ``r_i = R(rest t_i -> t_i) rest r_i``
+    with ``R`` the least rotation, made orthonormal to ``t_i``. Arguments as
+    :func:`tube_rotation_minimizing_frames`, plus ``node_tube`` (the tube of each node); every
+    node's rest normal is read."""
     pw = w % node_rest_t.shape[0]
     tube = node_tube[i]
     first = node_offset + tube_node_start[tube]
@@ -265,27 +237,3 @@ def hub_local_frame(
     r = rotate_minimal(node_rest_t[pw, i], t, node_rest_r[pw, i])
     hub_t_out[w, i] = t
     hub_r_out[w, i] = wp.normalize(r - wp.dot(r, t) * t)
-
-
-@wp.kernel(enable_backward=False, module="unique", module_options={"fast_math": True})
-def local_frames_kernel(
-    # model:
-    node_offset: int,
-    tube_node_start: wp.array[wp.int32],
-    node_tube: wp.array[wp.int32],
-    node_rest_t: wp.array2d[wp.vec3],
-    node_rest_r: wp.array2d[wp.vec3],
-    # state in:
-    node_q: wp.array2d[wp.vec3],
-    # out:
-    hub_t_out: wp.array2d[wp.vec3],
-    hub_r_out: wp.array2d[wp.vec3],
-):
-    """The paper's local rotation (eq. 2), one thread per (world, hub).
-
-    ``r_i = R(rest t_i -> t_i) rest r_i`` with ``R`` the least rotation; arguments as
-    :func:`rotation_minimizing_frames_kernel` plus ``node_tube`` (the tube of each node), and every
-    node's rest normal is read.
-    """
-    w, i = wp.tid()
-    hub_local_frame(w, i, node_offset, tube_node_start, node_tube, node_rest_t, node_rest_r, node_q, hub_t_out, hub_r_out)

@@ -28,6 +28,7 @@ from typing import NamedTuple
 
 import warp as wp
 
+from .options import CUDA_OPTIONS
 from .springs import al_delta, bend_gradients, curvature_targets, frame_forces, node_delta, spring_force
 
 
@@ -94,10 +95,6 @@ def pack(struct_type, source):
     for name in struct_type.vars:
         setattr(out, name, getattr(source, name))
     return out
-
-
-#: Options of the per-node (CUDA path) kernels' modules: fast approximate division and square root.
-CUDA_OPTIONS = {"fast_math": True}
 
 
 class Features(NamedTuple):

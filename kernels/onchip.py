@@ -36,7 +36,8 @@ import functools
 
 import warp as wp
 
-from .integrate import CUDA_OPTIONS, Features
+from .integrate import Features
+from .options import CUDA_OPTIONS
 from .springs import bend_gradients, spring_force
 
 #: Features the on-chip kernel does not implement.

@@ -12,6 +12,8 @@ to node ``i + 1`` of the same tube. Units: m, kg, s, N.
 
 import warp as wp
 
+from .frames import rotate_minimal
+
 EPS = wp.constant(1.0e-12)
 
 
@@ -89,20 +91,6 @@ def bend_gradients(a: wp.vec3, b: wp.vec3, kb_target: wp.vec3, k: float):
 
 
 @wp.func
-def rotate_minimal(x: wp.vec3, a: wp.vec3, b: wp.vec3) -> wp.vec3:
-    """Rotate ``x`` by the least rotation taking unit vector ``a`` to unit vector ``b``.
-
-    Rodrigues with ``v = a x b``, ``c = a . b``: ``x + v x x + v x (v x x) / (1 + c)``. Near a half
-    turn (``c -> -1``) the least rotation is not unique; ``1 + c`` is floored so the result stays
-    finite.
-    """
-    v = wp.cross(a, b)
-    c = wp.dot(a, b)
-    vx = wp.cross(v, x)
-    return x + vx + wp.cross(v, vx) / wp.max(1.0 + c, 1.0e-6)
-
-
-@wp.func
 def curvature_targets(
     w: int,
     pw: int,
@@ -130,7 +118,7 @@ def curvature_targets(
     if wp.abs(t_rest[0]) > 0.6:
         u_rest = wp.vec3(0.0, 1.0, 0.0)
     u_rest = wp.normalize(u_rest - t_rest * wp.dot(u_rest, t_rest))
-    u = rotate_minimal(u_rest, t_rest, t)
+    u = rotate_minimal(t_rest, t, u_rest)
     node_kappa_target_out[w, start] = wp.vec3(0.0)
     node_kappa_target_out[w, end - 1] = wp.vec3(0.0)
     for j in range(start + 1, end - 1):
@@ -138,7 +126,7 @@ def curvature_targets(
         v = wp.cross(t, u)
         node_kappa_target_out[w, j] = t * c[0] + u * c[1] + v * c[2]
         t_next = wp.normalize(node_q[w, j + 1] - node_q[w, j])
-        u = rotate_minimal(u, t, t_next)
+        u = rotate_minimal(t, t_next, u)
         u = wp.normalize(u - t_next * wp.dot(u, t_next))
         t = t_next
 

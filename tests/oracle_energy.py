@@ -15,7 +15,8 @@ __all__ = ["potential_energy", "kinetic_energy", "total_energy"]
 
 def _kappa_targets(host: dict, q: np.ndarray) -> np.ndarray:
     """Rest curvature carried into the current shape (same construction as the kernel)."""
-    from warp_tube.model.tube import _first_edge_normal, _rotate_minimal
+    from warp_tube.model.frames import rotate_minimal
+    from warp_tube.model.tube import _first_edge_normal
 
     out = np.zeros_like(q)
     start = host["tube_node_start"]
@@ -29,13 +30,13 @@ def _kappa_targets(host: dict, q: np.ndarray) -> np.ndarray:
         t_rest /= np.linalg.norm(t_rest)
         tc = q[s + 1] - q[s]
         tc /= np.linalg.norm(tc)
-        u = _rotate_minimal(_first_edge_normal(t_rest), t_rest, tc)
+        u = rotate_minimal(t_rest, tc, _first_edge_normal(t_rest))
         for j in range(s + 1, e - 1):
             c = kr[j]
             out[j] = tc * c[0] + u * c[1] + np.cross(tc, u) * c[2]
             tn = q[j + 1] - q[j]
             tn /= np.linalg.norm(tn)
-            u = _rotate_minimal(u, tc, tn)
+            u = rotate_minimal(tc, tn, u)
             u -= tn * np.dot(u, tn)
             u /= np.linalg.norm(u)
             tc = tn

@@ -5,7 +5,6 @@ import pytest
 import warp as wp
 
 from warp_tube.model import frames as ref
-from warp_tube.kernels.frames import local_frames_kernel, rotation_minimizing_frames_kernel
 from warp_tube.surface.builder import SurfaceBuilder, rest_frames
 
 DEVICE = "cpu"
@@ -20,33 +19,15 @@ def smooth_curve(rng, n, scale=1.0):
     return x
 
 
-def run_kernel(mode, node_q, starts, rest_t, rest_r, node_offset=0):
-    W = node_q.shape[0]
-    N = rest_t.shape[1]
-    nq = wp.array(node_q.astype(np.float32), dtype=wp.vec3, device=DEVICE)
-    st = wp.array(np.asarray(starts, dtype=np.int32), dtype=wp.int32, device=DEVICE)
-    node_tube = wp.array(np.repeat(np.arange(len(starts) - 1), np.diff(starts)).astype(np.int32), device=DEVICE)
-    rt = wp.array(rest_t.astype(np.float32), dtype=wp.vec3, device=DEVICE)
-    rr = wp.array(rest_r.astype(np.float32), dtype=wp.vec3, device=DEVICE)
-    t_out = wp.zeros((W, N), dtype=wp.vec3, device=DEVICE)
-    r_out = wp.zeros((W, N), dtype=wp.vec3, device=DEVICE)
-    if mode == "rotationMinimizing":
-        wp.launch(
-            rotation_minimizing_frames_kernel,
-            dim=(W, len(starts) - 1),
-            inputs=[node_offset, st, rt, rr, nq],
-            outputs=[t_out, r_out],
-            device=DEVICE,
-        )
-    else:
-        wp.launch(
-            local_frames_kernel,
-            dim=(W, N),
-            inputs=[node_offset, st, node_tube, rt, rr, nq],
-            outputs=[t_out, r_out],
-            device=DEVICE,
-        )
-    return t_out.numpy().astype(np.float64), r_out.numpy().astype(np.float64)
+def rebuild_frames(mode, node_q, starts, rest, normals, node_offset=0):
+    """Hub frames ``(t, r)`` of one world, each (N, 3) float64, as the surface rebuild finds them
+    (:class:`SurfaceBuilder`, the world kernel, which calls the frame functions of
+    kernels/frames.py): hubs at columns ``node_offset + starts`` of ``node_q`` (columns, 3), rest
+    shape ``rest`` (N, 3) and each tube's reference normal ``normals`` (T, 3)."""
+    b = SurfaceBuilder(node_offset + np.asarray(starts), rest, 8, np.full(len(rest), 0.01), normals, frames=mode, device=DEVICE)
+    b.compute(wp.array(node_q[None].astype(np.float32), dtype=wp.vec3, device=DEVICE))
+    t, r, _ = b.frames_numpy()
+    return t, r
 
 
 def reference_frames(mode, x, rest_t, rest_r):
@@ -62,25 +43,30 @@ def reference_frames(mode, x, rest_t, rest_r):
 
 @pytest.mark.parametrize("mode", ["rotationMinimizing", "local"])
 def test_frames_match_numpy_reference(mode):
-    """Batch of 3 worlds x 2 tubes (40 + 25 hubs) after 5 columns of another prim's nodes."""
+    """3 variants (worlds) of 2 tubes (40 + 25 hubs) after 5 columns of another prim's nodes."""
     rng = np.random.default_rng(7)
     W, offset, counts = 3, 5, (40, 25)
     starts = np.concatenate([[0], np.cumsum(counts)])
     N = starts[-1]
     node_q = rng.normal(size=(W, offset + N, 3))
+    rest = np.empty((W, N, 3))
+    normals = np.empty((W, len(counts), 3))
     rest_t = np.empty((W, N, 3))
     rest_r = np.empty((W, N, 3))
     for w in range(W):
         for tube, n in enumerate(counts):
             a, b = starts[tube], starts[tube + 1]
-            rest = smooth_curve(rng, n)
-            rest_t[w, a:b], rest_r[w, a:b], _ = ref.rotation_minimizing_frames(rest, normal0=rng.normal(size=3))
+            rest[w, a:b] = smooth_curve(rng, n)
+            normals[w, tube] = rng.normal(size=3)
+            rest_t[w, a:b], rest_r[w, a:b], _ = ref.rotation_minimizing_frames(rest[w, a:b], normal0=normals[w, tube])
             node_q[w, offset + a : offset + b] = smooth_curve(rng, n)
-    # The kernel sees float32 positions: give the reference the same rounded inputs.
+    # The kernel sees float32 positions and rest frames: give the reference the same rounded inputs.
     node_q = node_q.astype(np.float32).astype(np.float64)
     rest_t = rest_t.astype(np.float32).astype(np.float64)
     rest_r = rest_r.astype(np.float32).astype(np.float64)
-    t_w, r_w = run_kernel(mode, node_q, starts, rest_t, rest_r, node_offset=offset)
+    frames = [rebuild_frames(mode, node_q[w], starts, rest[w], normals[w], node_offset=offset) for w in range(W)]
+    t_w = np.stack([t for t, _ in frames])
+    r_w = np.stack([r for _, r in frames])
     for w in range(W):
         for tube in range(len(counts)):
             a, b = starts[tube], starts[tube + 1]

@@ -293,7 +293,7 @@ def test_guard_cuts_inner_side_at_its_reach():
 
 def guarded_lengths_reference(x, t, r, lengths, topo, g):
     """Spoke lengths after the inner-bend guard, per ring vertex, evaluated directly in float64 from
-    the module docstring of kernels.surface (neighbour planes, virtual end rings blended in from
+    the module docstring of kernels.surface_guard (neighbour planes, virtual end rings blended in from
     0.9 to 1 of the reach to the centre of curvature's plane, that plane itself), for one tube."""
     n = len(x)
     S = topo.spokes
@@ -470,9 +470,10 @@ def test_cell_planes_leave_circular_arcs_as_the_centre_plane_cuts_them(n, angle,
 
 
 def _rebuilds_of_a_hard_case(frames, caps, measured, device, variants):
-    """Points, normals and extent of each rebuild variant ``(kernel, block shape, block split)`` on
+    """Points, normals and extent of each rebuild variant ``(kernel, block shape)`` on
     an arc at radius x curvature 1.5 and a hairpin with legs 1.3 radii apart (guard and cell planes
-    acting), two curves, three worlds."""
+    acting), two curves, three worlds. ``measured``: False for circular tubes, True for spoke
+    lengths varying around each ring, ``"per world"`` for such lengths differing per world."""
     rng = np.random.default_rng(5)
     n, S, W = 30, 7, 3
     u = hairpin(0.0065, 0.05, 0.004)[:n]
@@ -480,14 +481,15 @@ def _rebuilds_of_a_hard_case(frames, caps, measured, device, variants):
     lengths = 0.01 * (1.0 + 0.2 * rng.random((2 * n, S)))
     if not measured:
         lengths = np.full(2 * n, 0.01)
+    elif measured == "per world":
+        lengths = 0.01 * (1.0 + 0.2 * rng.random((W, 2 * n, S)))
     q = np.concatenate([arc(n, 0.01 / 1.5, 1.5 * np.pi), u + [0.0, 0.2, 0.0]])
     qw = np.repeat(q[None], W, axis=0)
     qw[1] += rng.normal(scale=1e-3, size=qw[1].shape)
     out = []
-    for kernel, shape, split in variants:
+    for kernel, shape in variants:
         b = SurfaceBuilder([0, n, 2 * n], rest, S, lengths, frames=frames, caps=caps, world_count=W, device=device, kernel=kernel)
         b.block_shape = shape or b.block_shape
-        b.block_split = split
         p, nrm = b.compute(wp.array(qw.astype(np.float32), dtype=wp.vec3, device=device))
         guarded = b._surface_length.numpy()
         assert np.any(guarded > 0.0), f"{kernel}: the guard did not act: the comparison would not cover it"
@@ -497,17 +499,16 @@ def _rebuilds_of_a_hard_case(frames, caps, measured, device, variants):
 
 @pytest.mark.parametrize("frames", ["rotationMinimizing", "local"])
 @pytest.mark.parametrize("caps", [False, True])
-@pytest.mark.parametrize("measured", [True, False])
-def test_world_block_and_split_kernels_agree(frames, caps, measured):
-    """The three ways a rebuild runs (a thread per world, the CPU's; a warp per world, the GPU's,
-    in one kernel or with its per-hub phases in a kernel of their own; the split kernels) give the
-    same points and normals bit for bit (same arithmetic in the same order), guard and cell
-    planes acting, with measured spoke lengths or circular ones (where the one-launch kernels
-    read a ring's length once unless the guard acts); the world kernel's extent is the exact
-    bounds of its points, and the extent kernel of the others finds the same. A curve of 60 hubs
-    takes the block kernel's frames two chunks of 32, the second tube starting inside the first."""
-    # The block kernel also with two and four worlds per block (W = 3: idle warps).
-    variants = [("split", None, True), ("world", None, True), ("block", (1, 0), False), ("block", (2, 4), True), ("block", (4, 0), False), ("block", (4, 0), True)]
+@pytest.mark.parametrize("measured", [True, False, "per world"])
+def test_world_and_block_kernels_agree(frames, caps, measured):
+    """The two ways a rebuild runs (a thread per world, the CPU's; a warp per world, the GPU's)
+    give the same points and normals bit for bit (same arithmetic in the same order), guard and
+    cell planes acting, with measured spoke lengths or circular ones (where the kernels read a
+    ring's length once unless the guard acts); the world kernel's extent is the exact bounds of
+    its points, and the block kernel finds the same. A curve of 60 hubs takes the block kernel's
+    frames two chunks of 32, the second tube starting inside the first."""
+    # The block kernel with one, two and four worlds per block (W = 3: idle warps).
+    variants = [("world", None), ("block", (1, 0)), ("block", (2, 4)), ("block", (4, 0))]
     out = _rebuilds_of_a_hard_case(frames, caps, measured, DEVICE, variants)
     p0, n0, _ = out[0]
     exact = np.stack([p0.min(axis=1), p0.max(axis=1)], axis=1)
@@ -516,15 +517,16 @@ def test_world_block_and_split_kernels_agree(frames, caps, measured):
         assert np.array_equal(e1, exact)
 
 
+@pytest.mark.gpu
 @pytest.mark.skipif(wp.get_cuda_device_count() == 0, reason="no CUDA device")
 @pytest.mark.parametrize("frames", ["rotationMinimizing", "local"])
-@pytest.mark.parametrize("measured", [True, False])
-def test_block_and_split_kernels_agree_on_cuda(frames, measured):
-    """On a GPU the block rebuild (one kernel or two) and the split kernels, all compiled with the
-    same fast-math options, give the same points and normals bit for bit, and the block kernel's
-    extent is the exact bounds of its points (the world kernel, the CPU's, is compiled without
-    them and is not compared here)."""
-    variants = [("split", None, True), ("block", (1, 0), False), ("block", (2, 4), True), ("block", (4, 0), False)]
+@pytest.mark.parametrize("measured", [True, False, "per world"])
+def test_world_and_block_kernels_agree_on_cuda(frames, measured):
+    """On a GPU the block rebuild (the default there, in three block shapes) and the world kernel
+    run on the GPU as its reference, both compiled with the same fast-math options, give the same
+    points and normals bit for bit, and the block kernel's extent is the exact bounds of its
+    points."""
+    variants = [("world", None), ("block", (1, 0)), ("block", (2, 4)), ("block", (4, 0))]
     out = _rebuilds_of_a_hard_case(frames, True, measured, "cuda:0", variants)
     p0, n0, _ = out[0]
     exact = np.stack([p0.min(axis=1), p0.max(axis=1)], axis=1)

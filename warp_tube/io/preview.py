@@ -3,7 +3,7 @@
 Each tile is one frame, rendered by an orthographic camera fitted to the bounding sphere of all
 shown frames (so motion between tiles is visible at one scale), looking down a fixed oblique
 direction with the stage's up axis up, with two-sided Lambert shading lit from the camera
-(:func:`~warp_tube.kernels.surface.shade_orthographic_kernel` against a ``wp.Mesh``).
+(:func:`~warp_tube.kernels.shading.shade_orthographic_kernel` against a ``wp.Mesh``).
 """
 
 from __future__ import annotations
@@ -14,7 +14,7 @@ import numpy as np
 import warp as wp
 
 from .export import open_output_stage, surface_at, surface_frames, surface_meshes
-from ..kernels.surface import shade_orthographic_kernel
+from ..kernels.shading import shade_orthographic_kernel
 from ..scene.spec import SceneError
 
 __all__ = ["preview"]

@@ -28,6 +28,7 @@ __all__ = [
     "initial_normal",
     "rotation_minimizing_frames",
     "minimal_rotation",
+    "rotate_minimal",
     "spoke_directions",
 ]
 
@@ -109,21 +110,41 @@ def rotation_minimizing_frames(
     return t, r, s
 
 
-def minimal_rotation(a: np.ndarray, b: np.ndarray) -> np.ndarray:
-    """Rotation matrix (3, 3) of least angle taking unit vector ``a`` to unit vector ``b``.
+ANTIPARALLEL_EPS = 1.0e-6
+"""``1 + a.b`` below which two unit vectors are taken as opposite (a half turn): the threshold of
+the kernels' ``rotate_minimal`` (float32), so that both take the half turn on the same inputs."""
 
-    For ``b = -a`` (a half turn, where the least rotation is not unique) the turn is taken about
-    :func:`initial_normal` of ``a``.
+
+def rotate_minimal(a: np.ndarray, b: np.ndarray, x: np.ndarray) -> np.ndarray:
+    """``x`` turned by the least rotation taking unit vector ``a`` to unit vector ``b``.
+
+    ``R x = x + k x x + k x (k x x) / (1 + a.b)`` with ``k = a x b`` (Rodrigues). Where
+    ``a.b < -1 + ANTIPARALLEL_EPS`` (a half turn, where the least rotation is not unique) the half
+    turn about :func:`initial_normal` of ``a`` is taken, as the kernels do
+    (:func:`warp_tube.kernels.frames.rotate_minimal`).
+
+    Args:
+        a, b: unit vectors, shape (3,).
+        x: vectors to turn, shape (3,) or (..., 3).
+
+    Returns:
+        The turned vectors, shaped as ``x``, float64.
     """
     a = np.asarray(a, dtype=np.float64)
     b = np.asarray(b, dtype=np.float64)
-    v = np.cross(a, b)
+    x = np.asarray(x, dtype=np.float64)
     c = float(np.dot(a, b))
-    if c < -1.0 + 1e-12:
+    if c < -1.0 + ANTIPARALLEL_EPS:
         k = initial_normal(a)
-        return 2.0 * np.outer(k, k) - np.eye(3)
-    vx = np.array([[0.0, -v[2], v[1]], [v[2], 0.0, -v[0]], [-v[1], v[0], 0.0]])
-    return np.eye(3) + vx + vx @ vx / (1.0 + c)
+        return 2.0 * (x @ k)[..., None] * k - x
+    v = np.cross(a, b)
+    vx = np.cross(v, x)
+    return x + vx + np.cross(v, vx) / (1.0 + c)
+
+
+def minimal_rotation(a: np.ndarray, b: np.ndarray) -> np.ndarray:
+    """Rotation matrix (3, 3) of :func:`rotate_minimal` from unit vector ``a`` to unit vector ``b``."""
+    return rotate_minimal(a, b, np.eye(3)).T
 
 
 def spoke_directions(r: np.ndarray, s: np.ndarray, spokes: int) -> np.ndarray:

@@ -29,6 +29,7 @@ import numpy as np
 import warp as wp
 
 from ..scene.spec import Scene
+from .frames import rotate_minimal
 
 __all__ = ["TubeModel", "TubeState", "TubeControl", "build_model", "rest_curvature_coordinates"]
 
@@ -38,13 +39,6 @@ def _first_edge_normal(t: np.ndarray) -> np.ndarray:
     u = np.array([0.0, 1.0, 0.0]) if abs(t[0]) > 0.6 else np.array([1.0, 0.0, 0.0])
     u = u - t * np.dot(u, t)
     return u / np.linalg.norm(u)
-
-
-def _rotate_minimal(x, a, b):
-    v = np.cross(a, b)
-    c = float(np.dot(a, b))
-    vx = np.cross(v, x)
-    return x + vx + np.cross(v, vx) / max(1.0 + c, 1e-6)
 
 
 def curvature_binormal(a: np.ndarray, b: np.ndarray) -> np.ndarray:
@@ -73,7 +67,7 @@ def rest_curvature_coordinates(points: np.ndarray) -> np.ndarray:
         v = np.cross(t, u)
         out[j] = [np.dot(kb, t), np.dot(kb, u), np.dot(kb, v)]
         t_next = (x[j + 1] - x[j]) / np.linalg.norm(x[j + 1] - x[j])
-        u = _rotate_minimal(u, t, t_next)
+        u = rotate_minimal(t, t_next, u)
         u = u - t_next * np.dot(u, t_next)
         u /= np.linalg.norm(u)
         t = t_next

@@ -1,38 +1,17 @@
-"""Host side of the hubs-and-spokes surface: allocation, rest frames and launch order.
+"""Host side of the hubs-and-spokes surface: allocation, rest frames and launch.
 
 :class:`SurfaceBuilder` serves one tube prim (one spoke count S; all its curves). It is built once
 from the rest centerline and the spoke lengths, allocates everything then, and at every output
-frame rebuilds the boundary from the deformed centerline, in one of three ways (``kernel``):
+frame rebuilds the boundary from the deformed centerline with one launch (``kernel``):
 
-- ``"world"`` (the CPU's default): one launch of
-  :func:`~warp_tube.kernels.surface.surface_world_kernel`, a thread per world, which also writes
-  the bounds of the points (the ``extent``);
-- ``"block"`` (the GPU's default): one launch of
-  :func:`~warp_tube.kernels.surface.make_surface_block_kernel`'s kernel, a warp per world going
-  through the same phases as the split kernels below, the extent included (or two, the per-hub
-  phases in a kernel of their own, with ``block_split``);
-- ``"split"``: six launches, each with a thread per tube, hub, ring or spoke:
+- ``"world"`` (the CPU's default): :func:`~warp_tube.kernels.surface_world.surface_world_kernel`,
+  a thread per world;
+- ``"block"`` (the GPU's default): :func:`~warp_tube.kernels.surface_block.make_surface_block_kernel`'s
+  kernel, a warp per world.
 
-  1. frames: :func:`~warp_tube.kernels.frames.rotation_minimizing_frames_kernel` (one thread per
-     (world, tube)) or :func:`~warp_tube.kernels.frames.local_frames_kernel` (one per (world, hub));
-  2. hubs: :func:`~warp_tube.kernels.surface.hub_guard_kernel`, one thread per (world, hub),
-     writing each hub's curvature, chords, guard planes, cell range (hubs of a fold back within
-     ``pi`` radii whose cell planes may limit its spokes) and free lengths once;
-  3. guard (skipped with the guard off): :func:`~warp_tube.kernels.surface.ring_guard_kernel`, one
-     thread per (world, ring), writing the guarded length of the spokes that a guard plane may
-     shorten (none on gentle bends);
-  4. ring info: :func:`~warp_tube.kernels.surface.ring_info_kernel`, one thread per (world, ring),
-     marking the rings the guard leaves alone on circular stretches (uniform rings);
-  5. spokes: :func:`~warp_tube.kernels.surface.spoke_points_kernel`, one thread per
-     (world, ring, spoke) with the spoke index fastest, writing the points and normals of uniform
-     rings with few registers;
-  6. the rest: :func:`~warp_tube.kernels.surface.spoke_points_general_kernel`, one thread per
-     (world, ring), for poles, measured shapes and guarded rings;
-
-  and :meth:`SurfaceBuilder.extent` adds
-  :func:`~warp_tube.kernels.surface.surface_extent_kernel` when the bounds are asked for.
-
-All three give the same points and normals, bit for bit (same functions, same order).
+Each does the whole rebuild (frames, the inner-bend guard, points, normals, and the bounds of the
+points, the ``extent``) with the same functions in the same order, so both give the same points
+and normals, bit for bit.
 
 Rest frames (tangent and spoke-0 normal of every hub at rest) follow :mod:`warp_tube.model.frames`
 in float64: the first hub's normal is the tube's reference normal (or the convention's default),
@@ -45,40 +24,22 @@ import numpy as np
 import warp as wp
 
 from ..model import frames as ref_frames
-from ..kernels.frames import local_frames_kernel, rotation_minimizing_frames_kernel
-from ..kernels.surface import (
-    BLOCK_HUBS,
-    BLOCK_VERTICES,
-    WORLD_LANES,
-    SurfaceArrays,
-    make_surface_block_kernel,
-    hub_guard_kernel,
-    ring_guard_kernel,
-    ring_info_kernel,
-    spoke_points_general_kernel,
-    spoke_points_kernel,
-    surface_extent_kernel,
-    surface_world_kernel,
-)
+from ..kernels.surface_arrays import SurfaceArrays
+from ..kernels.surface_block import WORLD_LANES, make_surface_block_kernel
+from ..kernels.surface_world import surface_world_kernel
 from ..replay import GraphCache, cpu_blocks
 from .topology import SurfaceTopology, build_topology
 
 __all__ = ["SurfaceBuilder", "FRAME_MODES", "DEFAULT_GUARD_REACH"]
 
 FRAME_MODES = ("rotationMinimizing", "local")
-SURFACE_KERNELS = ("world", "block", "split")
+SURFACE_KERNELS = ("world", "block")
 BLOCK_SHAPE = (2, 8)
-"""The block kernel's worlds per block and least resident blocks per multiprocessor (H100, 65,536
-worlds x 32 x 32, 2026-11-23: 1.10 ms against 1.10-1.25 ms for (1, 0), (2, 0), (4, 0), (4, 8)
-with circular tubes; with measured shapes (4, 8) is faster, 1.63 against 1.95 ms)."""
-HUB_BLOCK_SHAPE = (2, 0)
-"""Worlds per block and least resident blocks of the per-hub phases' kernel (``block_split``)."""
-BLOCK_SPLIT = False
-"""Whether the block rebuild runs its per-hub phases and its points as two kernels (H100, same
-case: slower for circular tubes, 1.19 against 1.10 ms; faster for measured shapes at a vertex
-block shape of (4, 8), 1.52 against 1.63 ms)."""
+"""The block kernel's worlds per block and least resident blocks per multiprocessor (the fastest
+of the shapes measured for circular tubes on an H100; see BENCHMARKS.md)."""
 DEFAULT_GUARD_REACH = 0.95
-"""Spoke ends stay within 95% of the way to a neighbouring ring's plane (see kernels.surface)."""
+"""Spoke ends stay within 95% of the way to a neighbouring ring's plane (see
+:mod:`warp_tube.kernels.surface_guard`)."""
 
 
 def rest_frames(
@@ -108,11 +69,6 @@ def rest_frames(
             ref = refs[tube]
         t[a:b], r[a:b], _ = ref_frames.rotation_minimizing_frames(x[a:b], normal0=ref)
     return t, r
-
-
-def _flat(a: wp.array) -> wp.array:
-    """A contiguous 2-d array seen as 1-d (the same memory; ``a`` must outlive it)."""
-    return wp.array(ptr=a.ptr, shape=(a.shape[0] * a.shape[1],), dtype=a.dtype, device=a.device)
 
 
 def uniform_hubs(lengths: np.ndarray) -> np.ndarray:
@@ -145,13 +101,10 @@ class SurfaceBuilder:
         world_count: worlds W of the batch (rows of ``node_q``).
         device: Warp device (default: Warp's default device).
         guard_reach: inner-bend guard fraction in (0, 1), 0 to turn it off (see
-            :mod:`warp_tube.kernels.surface`).
-        kernel: how a rebuild runs: ``"world"``, one launch, a thread per world
-            (:func:`~warp_tube.kernels.surface.surface_world_kernel`, the CPU's default);
-            ``"block"``, one launch, a warp per world
-            (:func:`~warp_tube.kernels.surface.make_surface_block_kernel`, the GPU's default);
-            ``"split"``, six launches (frames, hub data, guard, ring info, spokes of uniform rings,
-            the rest; thousands of threads each). All three give the same points and normals.
+            :mod:`warp_tube.kernels.surface_guard`).
+        kernel: how a rebuild runs: ``"world"``, a thread per world (the CPU's default), or
+            ``"block"``, a warp per world (the GPU's default; on the CPU it runs with Warp's
+            CPU blocks, slowly: for tests). Both give the same points and normals.
 
     All lengths share one unit L (the core passes metres); points come out in L.
     """
@@ -221,8 +174,6 @@ class SurfaceBuilder:
             raise ValueError(f"kernel must be one of {SURFACE_KERNELS}, got {kernel!r}")
         self.kernel = kernel
         self.block_shape = BLOCK_SHAPE  # worlds per block, least resident blocks (the block kernel)
-        self.hub_block_shape = HUB_BLOCK_SHAPE  # the same for the per-hub phases, when split off
-        self.block_split = BLOCK_SPLIT
 
         rest_t, rest_r = rest_frames(rest, local_starts, reference_normal)
         node_tube = np.repeat(np.arange(self.tube_count), np.diff(local_starts))
@@ -235,7 +186,6 @@ class SurfaceBuilder:
             self._spoke_length = wp.array(lengths.astype(np.float32), dtype=float)
             self._hub_reach = wp.array(lengths.max(axis=2).astype(np.float32), dtype=float)
             uniform = uniform_hubs(lengths.astype(np.float32))
-            self._circular = bool(uniform.all())
             self._hub_uniform = wp.array(uniform, dtype=wp.int32)
             self._ring_hub = wp.array(topo.ring_hub, dtype=wp.int32)
             self._ring_kind = wp.array(topo.ring_kind, dtype=wp.int32)
@@ -253,39 +203,28 @@ class SurfaceBuilder:
             self._hub_cell = wp.zeros((self.world_count, n_hubs), dtype=wp.vec2i)
             self._hub_free = wp.zeros((self.world_count, n_hubs), dtype=wp.vec2)
             self._surface_length = wp.zeros((self.world_count, topo.vertex_count), dtype=float)
-            if kernel == "split":  # the per-spoke kernel's packed tables and per-ring records
-                if topo.vertex_count >= 1 << 24:  # the packed ring table holds vertex indices as float32
-                    raise ValueError(f"{topo.vertex_count} surface vertices per world: at most {(1 << 24) - 1}")
-                self._ring_info = wp.zeros((self.world_count, len(topo.ring_hub)), dtype=wp.vec4)
-                geom = np.stack([topo.ring_cos, topo.ring_sin, topo.ring_hub, topo.ring_vertex], axis=1)
-                self._ring_geom = wp.array(geom.astype(np.float32), dtype=wp.vec4)  # indices < 2^24: exact
-                cs = np.stack([np.cos(phi), np.sin(phi)], axis=1)
-                self._spoke_cs = wp.array(cs.astype(np.float32), dtype=wp.vec2)
             self.points = wp.zeros((self.world_count, topo.vertex_count), dtype=wp.vec3)
             self.normals = wp.zeros((self.world_count, topo.vertex_count), dtype=wp.vec3)
             self._extent = wp.zeros((self.world_count, 2), dtype=wp.vec3)
-        if kernel != "split":
-            arrays = SurfaceArrays()  # the one-launch kernels' arguments but node_q, fixed for the builder's life
-            for name, value in (
-                ("node_offset", self.node_offset), ("spoke_count", self.spokes), ("guard_reach", self.guard_reach),
-                ("cell_radius", self._cell_radius), ("local_frames", int(self.frames == "local")),
-                ("tube_node_start", self._tube_node_start), ("node_tube", self._node_tube),
-                ("node_rest_t", self._rest_t), ("node_rest_r", self._rest_r), ("hub_reach", self._hub_reach),
-                ("ring_hub", self._ring_hub), ("ring_kind", self._ring_kind), ("ring_cos", self._ring_cos),
-                ("ring_sin", self._ring_sin), ("ring_vertex", self._ring_vertex), ("spoke_cos", self._spoke_cos),
-                ("spoke_sin", self._spoke_sin), ("spoke_length", self._spoke_length),
-                ("hub_uniform", self._hub_uniform), ("hub_t", self.hub_t),
-                ("hub_r", self.hub_r), ("hub_kappa", self._hub_kappa), ("hub_chord", self._hub_chord),
-                ("hub_plane", self._hub_plane), ("hub_cell", self._hub_cell), ("hub_free", self._hub_free),
-                ("surface_length", self._surface_length), ("surface_q_out", self.points),
-                ("surface_n_out", self.normals), ("extent_out", self._extent),
-            ):  # fmt: skip
-                setattr(arrays, name, value)
-            self._arrays = arrays
+        arrays = SurfaceArrays()  # the kernels' arguments but node_q, fixed for the builder's life
+        for name, value in (
+            ("node_offset", self.node_offset), ("spoke_count", self.spokes), ("guard_reach", self.guard_reach),
+            ("cell_radius", self._cell_radius), ("local_frames", int(self.frames == "local")),
+            ("tube_node_start", self._tube_node_start), ("node_tube", self._node_tube),
+            ("node_rest_t", self._rest_t), ("node_rest_r", self._rest_r), ("hub_reach", self._hub_reach),
+            ("ring_hub", self._ring_hub), ("ring_kind", self._ring_kind), ("ring_cos", self._ring_cos),
+            ("ring_sin", self._ring_sin), ("ring_vertex", self._ring_vertex), ("spoke_cos", self._spoke_cos),
+            ("spoke_sin", self._spoke_sin), ("spoke_length", self._spoke_length),
+            ("hub_uniform", self._hub_uniform), ("hub_t", self.hub_t),
+            ("hub_r", self.hub_r), ("hub_kappa", self._hub_kappa), ("hub_chord", self._hub_chord),
+            ("hub_plane", self._hub_plane), ("hub_cell", self._hub_cell), ("hub_free", self._hub_free),
+            ("surface_length", self._surface_length), ("surface_q_out", self.points),
+            ("surface_n_out", self.normals), ("extent_out", self._extent),
+        ):  # fmt: skip
+            setattr(arrays, name, value)
+        self._arrays = arrays
         self._launches: dict = {}
         self._graphs = GraphCache(self.device, size=4)
-        self._extent_launch = None
-        self._extent_fresh = False
 
     # -- topology ------------------------------------------------------------------------------
     @property
@@ -328,133 +267,15 @@ class SurfaceBuilder:
             launch = wp.launch(
                 surface_world_kernel, dim=self.world_count, inputs=[self._arrays, node_q], device=self.device, record_cmd=True
             )  # fmt: skip
-            return (launch,)
-        if self.kernel == "block":
-            if self.block_split:
-                parts = ((self.hub_block_shape, BLOCK_HUBS), (self.block_shape, BLOCK_VERTICES))
-            else:
-                parts = ((self.block_shape, BLOCK_HUBS | BLOCK_VERTICES),)
-            launches = []
-            for (worlds_per_block, min_blocks), phases in parts:
-                kernel = make_surface_block_kernel(worlds_per_block, min_blocks, phases)
-                blocks = -(-self.world_count // worlds_per_block)
-                with cpu_blocks():  # on the CPU a block's threads are fibers (opt-in)
-                    launches.append(wp.launch_tiled(
-                        kernel, dim=(blocks,), block_dim=WORLD_LANES * worlds_per_block, inputs=[self._arrays, node_q],
-                        device=self.device, record_cmd=True,
-                    ))  # fmt: skip
-            return tuple(launches)
-        dims_frames = (self.world_count, self.tube_count)
-        if self.frames == "rotationMinimizing":
-            frames = wp.launch(
-                rotation_minimizing_frames_kernel,
-                dim=dims_frames,
-                inputs=[self.node_offset, self._tube_node_start, self._rest_t, self._rest_r, node_q],
-                outputs=[self.hub_t, self.hub_r],
-                device=self.device,
-                record_cmd=True,
-            )
-        else:
-            frames = wp.launch(
-                local_frames_kernel,
-                dim=(self.world_count, self.hub_count),
-                inputs=[self.node_offset, self._tube_node_start, self._node_tube, self._rest_t, self._rest_r, node_q],
-                outputs=[self.hub_t, self.hub_r],
-                device=self.device,
-                record_cmd=True,
-            )
-        hubs = wp.launch(
-            hub_guard_kernel,
-            dim=(self.world_count, self.hub_count),
-            inputs=[
-                self.node_offset,
-                self.guard_reach,
-                self._cell_radius,
-                self._tube_node_start,
-                self._node_tube,
-                self._hub_reach,
-                node_q,
-                self.hub_t,
-            ],
-            outputs=[self._hub_kappa, self._hub_chord, self._hub_plane, self._hub_cell, self._hub_free],
-            device=self.device,
-            record_cmd=True,
-        )
-        topo = self.topology
-        dims_spokes = (self.world_count, len(topo.ring_hub), self.spokes)
-        launches = [frames, hubs]
-        if self.guard_reach > 0.0:
-            guard = wp.launch(
-                ring_guard_kernel,
-                dim=(self.world_count, len(topo.ring_hub)),
-                inputs=[
-                    self.node_offset,
-                    self.guard_reach,
-                    self._tube_node_start,
-                    self._node_tube,
-                    self._hub_reach,
-                    self._ring_hub,
-                    self._ring_kind,
-                    self._ring_cos,
-                    self._ring_sin,
-                    self._ring_vertex,
-                    self._spoke_cos,
-                    self._spoke_sin,
-                    self._spoke_length,
-                    node_q,
-                    self.hub_t,
-                    self.hub_r,
-                    self._hub_plane,
-                    self._hub_cell,
-                    self._hub_free,
-                ],
-                outputs=[self._surface_length],
-                device=self.device,
-                record_cmd=True,
-            )
-            launches.append(guard)
-        ring_info = wp.launch(
-            ring_info_kernel,
-            dim=(self.world_count, len(topo.ring_hub)),
-            inputs=[
-                self.guard_reach, self._tube_node_start, self._node_tube, self._ring_hub, self._ring_kind,
-                self._spoke_length, self._hub_uniform, self._hub_chord, self._hub_free,
-            ],
-            outputs=[self._ring_info],
-            device=self.device,
-            record_cmd=True,
-        )  # fmt: skip
-        rows = node_q.strides[0] // 12
-        flat_q = wp.array(ptr=node_q.ptr, shape=((node_q.shape[0] - 1) * rows + node_q.shape[1],), dtype=wp.vec3,
-                          device=self.device)  # fmt: skip
-        spokes = wp.launch(
-            spoke_points_kernel,
-            dim=dims_spokes,
-            inputs=[
-                self.node_offset, rows, self.hub_count, self.spokes, topo.vertex_count, self._ring_geom, self._spoke_cs,
-                _flat(self._ring_info), flat_q, _flat(self.hub_t), _flat(self.hub_r), _flat(self._hub_kappa),
-            ],
-            outputs=[_flat(self.points), _flat(self.normals)],
-            device=self.device,
-            record_cmd=True,
-        )  # fmt: skip
-        spokes.node_q = node_q  # the flat view does not hold the array
-        lanes = 1 if self._circular else self.spokes  # see spoke_points_general_kernel
-        general = wp.launch(
-            spoke_points_general_kernel,
-            dim=(self.world_count, len(topo.ring_hub), lanes),
-            inputs=[
-                self.node_offset, self.spokes, lanes, self.guard_reach, self._tube_node_start, self._node_tube,
-                self._ring_hub, self._ring_kind, self._ring_cos, self._ring_sin, self._ring_vertex, self._spoke_cos,
-                self._spoke_sin, self._spoke_length, self._hub_uniform, self._ring_info, node_q, self.hub_t,
-                self.hub_r, self._hub_kappa, self._hub_chord, self._hub_free, self._surface_length,
-            ],
-            outputs=[self.points, self.normals],
-            device=self.device,
-            record_cmd=True,
-        )  # fmt: skip
-        launches += [ring_info, spokes, general]
-        return tuple(launches)
+            return launch
+        worlds_per_block, min_blocks = self.block_shape
+        kernel = make_surface_block_kernel(worlds_per_block, min_blocks)
+        blocks = -(-self.world_count // worlds_per_block)
+        with cpu_blocks():  # on the CPU a block's threads are fibers (opt-in)
+            return wp.launch_tiled(
+                kernel, dim=(blocks,), block_dim=WORLD_LANES * worlds_per_block, inputs=[self._arrays, node_q],
+                device=self.device, record_cmd=True,
+            )  # fmt: skip
 
     def compute(self, node_q: wp.array) -> tuple[wp.array, wp.array]:
         """Rebuild the surface from hub positions; no allocation after the first call per array.
@@ -468,8 +289,8 @@ class SurfaceBuilder:
             points [L] and unit outward normals; overwritten by the next call.
         """
         key = (node_q.ptr, node_q.shape, node_q.strides)
-        launches = self._launches.get(key)
-        if launches is None:
+        launch = self._launches.get(key)
+        if launch is None:
             if node_q.dtype != wp.vec3 or node_q.ndim != 2:
                 raise ValueError(f"node_q must be a 2-d array of vec3, got {node_q.dtype} with {node_q.ndim} dims")
             if node_q.shape[0] != self.world_count or node_q.shape[1] < self.node_offset + self.hub_count:
@@ -484,29 +305,19 @@ class SurfaceBuilder:
             if len(self._launches) >= 4:  # solvers swap a few state arrays; keep the cache small
                 self._launches.clear()
                 self._graphs.clear()
-            launches = self._record(node_q)
-            self._launches[key] = launches
+            launch = self._record(node_q)
+            self._launches[key] = launch
         if self.kernel == "block" and self.device.is_cpu:
             with cpu_blocks():  # for tests only: no graph, fibers
-                for launch in launches:
-                    launch.launch()
+                launch.launch()
         else:
-            self._graphs.run(key, lambda: [launch.launch() for launch in launches], hold=(node_q,))
-        self._extent_fresh = self.kernel != "split"
+            self._graphs.run(key, launch.launch, hold=(node_q,))
         return self.points, self.normals
 
     def extent(self) -> wp.array:
         """Bounds of the points of the last :meth:`compute`: ``[min, max]`` corners [L] per world,
-        ``wp.array2d`` of ``wp.vec3`` shaped (world_count, 2), this builder's own array. The world
-        and block rebuilds write them as they go; the split one needs one more launch."""
-        if not self._extent_fresh:
-            if self._extent_launch is None:
-                self._extent_launch = wp.launch(
-                    surface_extent_kernel, dim=self.world_count, inputs=[self.points], outputs=[self._extent],
-                    device=self.device, record_cmd=True,
-                )  # fmt: skip
-            self._extent_launch.launch()
-            self._extent_fresh = True
+        ``wp.array2d`` of ``wp.vec3`` shaped (world_count, 2), this builder's own array (written by
+        the rebuild as it goes; zero before the first)."""
         return self._extent
 
     def points_numpy(self, world: int = 0) -> np.ndarray:

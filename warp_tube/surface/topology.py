@@ -21,7 +21,7 @@ Texture coordinates ``st`` are face-varying (one value per face corner), so the 
 around, ``v`` along: the rest arc length from the tube's first hub over the tube's rest length
 (0 .. 1 over the body; a cap continues below 0 / above 1 by its meridian arc length).
 
-The ring table (:class:`SurfaceTopology` ``ring_*`` arrays) tells the per-spoke kernel, for every
+The ring table (:class:`SurfaceTopology` ``ring_*`` arrays) tells the surface kernels, for every
 ring, its hub, the cosine and sine of its spokes' angle to the hub tangent, its kind (body, cap,
 pole) and its first vertex.
 """
@@ -33,11 +33,9 @@ from dataclasses import dataclass
 
 import numpy as np
 
-__all__ = ["RING_BODY", "RING_CAP", "RING_POLE", "SurfaceTopology", "cap_ring_count", "build_topology"]
+from ..kernels.surface_arrays import RING_BODY, RING_CAP, RING_POLE
 
-RING_BODY = 0
-RING_CAP = 1
-RING_POLE = 2
+__all__ = ["RING_BODY", "RING_CAP", "RING_POLE", "SurfaceTopology", "cap_ring_count", "build_topology"]
 
 
 def cap_ring_count(spokes: int) -> int:
