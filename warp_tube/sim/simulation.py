@@ -7,12 +7,18 @@ linearly between frames. The assistant line of a force is built (from the curren
 force starts or turns by more than :data:`AL_REBUILD_ANGLE` from the direction it was built with,
 and removed when the force becomes zero. It is offset along the force's part across the tube at
 its point, and not built while the force is within :data:`AL_MIN_ANGLE` of the tube's axis.
+
+Warnings about a run (contact, a switch of integrator, a forced time step beyond the stability
+bound) are logged once, with ``extra={"run_warning": True}`` so that a caller that prints them in a
+summary (the command line) can leave the log record out, and kept in :attr:`Simulation.warnings`.
 """
 
 from __future__ import annotations
 
 import logging
 import math
+import os
+import sys
 import time
 from dataclasses import dataclass, field
 
@@ -45,6 +51,19 @@ MAX_RETRY_FACTOR = 16
 AL_MIN_ANGLE = math.radians(15.0)
 #: a free point farther than this many tube lengths from its rest position is a blow-up.
 RUNAWAY_LENGTHS = 1.0e3
+#: CPU cost of one semi-implicit substep per centerline point [s] (benchmarks/bench_integrators.py,
+#: one unloaded core; implicit substeps cost IMPLICIT_COST_RATIO times more). Used for the up-front
+#: estimate of a long run only.
+CPU_SEMI_STEP_COST = 0.05e-6
+#: a run estimated to take longer than this [s] is announced with its estimate before it starts.
+LONG_RUN_SECONDS = 60.0
+#: environment variable that pauses a run at a known point, for the interrupt tests:
+#: "compile" (before the first frame, where kernels compile) or "frame:K" (after frame K is written).
+PAUSE_ENV = "WARP_TUBE_PAUSE_AT"
+
+
+#: ``extra`` of the log records of run warnings (see the module docstring).
+RUN_WARNING = {"run_warning": True}
 
 
 class NumericalError(RuntimeError):
@@ -53,7 +72,9 @@ class NumericalError(RuntimeError):
 
 def resolve_device(device=None) -> str:
     """``None`` -> the first CUDA device if there is one, else ``cpu``; checks a named device."""
-    wp.init()
+    from ..warp_setup import init_warp
+
+    init_warp()
     if device is None:
         return "cuda:0" if wp.get_cuda_device_count() > 0 else "cpu"
     name = str(device)
@@ -70,7 +91,14 @@ def resolve_device(device=None) -> str:
 
 @dataclass
 class RunSummary:
-    """What a run did (printed by the CLI)."""
+    """What a run did (printed by the CLI).
+
+    Times [s]: ``wall_time`` is the whole run; ``startup_time`` the part up to the end of the
+    first simulated frame, which includes compiling the kernels on first use, so the rate
+    (:attr:`steps_per_second`) is taken over the frames after it when there are any.
+    ``output`` is the complete output (None while the run has not completed); ``partial`` the file
+    holding the frames finished by a run that stopped early (None if none was finished).
+    """
 
     scene: str
     device: str
@@ -85,27 +113,53 @@ class RunSummary:
     stopped: str | None = None
     warnings: list = field(default_factory=list)
     stage_defaults: list = field(default_factory=list)
+    frames_simulated: int = 0
+    substeps_simulated: int = 0
+    startup_time: float = 0.0
+    startup_substeps: int = 0
+    partial: str | None = None
+    first_frame: int = 0
+    last_frame: int | None = None
 
     @property
     def steps_per_second(self) -> float:
-        return self.frames_simulated * self.substeps / self.wall_time if self.wall_time > 0 else float("nan")
+        """Substeps per second after the start-up (over the whole run if it was all start-up)."""
+        steps = self.substeps_simulated - self.startup_substeps
+        seconds = self.wall_time - self.startup_time
+        if steps <= 0 or seconds <= 0:
+            steps, seconds = self.substeps_simulated, self.wall_time
+        return steps / seconds if seconds > 0 else float("nan")
 
-    frames_simulated: int = 0
+    def frames_written_text(self) -> str:
+        """``frames 0-11 (12 frames)`` for the frames written, or ``no frame``."""
+        if self.frames == 0 or self.last_frame is None:
+            return "no frame"
+        if self.frames == 1:
+            return f"frame {self.last_frame} only"
+        return f"frames {self.first_frame}-{self.last_frame} ({self.frames} frames)"
 
     def text(self) -> str:
+        steady = self.substeps_simulated > self.startup_substeps and self.wall_time > self.startup_time
+        rate = f"{self.steps_per_second:,.0f} substeps/s"
+        if steady:
+            timing = f"{self.wall_time:.3f} s (start-up {self.startup_time:.3f} s: kernel compilation and frame 1; then {rate})"
+        else:
+            timing = f"{self.wall_time:.3f} s ({rate}, start-up and kernel compilation included)"
         lines = [
             f"scene        {self.scene}",
             f"device       {self.device}",
             f"frames       {self.frames} written ({self.frames_simulated} simulated)",
             f"integrator   {self.integrator}: {self.reason}",
             f"substeps     {self.substeps} per frame, dt = {self.dt:.3g} s",
-            f"wall time    {self.wall_time:.3f} s ({self.steps_per_second:,.0f} substeps/s)",
+            f"wall time    {timing}",
             f"largest displacement  {self.max_displacement:.4g} m",
         ]
         if self.stage_defaults:
             lines.append("stage        unauthored, USD fallback used: " + ", ".join(self.stage_defaults))
         if self.output:
             lines.append(f"output       {self.output}")
+        if self.partial:
+            lines.append(f"partial      {self.partial} ({self.frames_written_text()})")
         lines += [f"warning      {w}" for w in self.warnings]
         if self.stopped:
             lines.append(f"stopped      {self.stopped}")
@@ -185,7 +239,8 @@ class Simulation:
             if s.time_step is not None:
                 dt = min(s.time_step, self.frame_dt)
                 if dt > hc:
-                    log.warning("timeStep %.3g s exceeds the semi-implicit Euler stability bound %.3g s: expect a blow-up", dt, hc)
+                    log.warning("timeStep %.3g s exceeds the semi-implicit Euler stability bound %.3g s: expect a blow-up", dt, hc,
+                                extra=RUN_WARNING)  # fmt: skip
                     return "semiImplicitEuler", f"forced; timeStep {dt:.3g} s exceeds the stability bound {hc:.3g} s", dt
                 return "semiImplicitEuler", f"from the scene, timeStep {dt:.3g} s (bound {hc:.3g} s)", dt
             if not math.isfinite(hc):
@@ -226,16 +281,39 @@ class Simulation:
 
     # -- interactive control ---------------------------------------------------------------------
     def set_force(self, force, vector) -> None:
-        """Override a scene force from now on: ``force`` is its index or prim path; ``vector`` [N]."""
+        """Override a scene force from now on: ``force`` is its index or prim path; ``vector`` [N],
+        three finite numbers.
+
+        Raises:
+            KeyError: no force at that prim path. IndexError: no force with that index.
+            ValueError: ``vector`` is not three finite numbers (checked here, before any step).
+        """
         idx = self._force_index(force)
-        self._force_override[idx] = np.asarray(vector, dtype=np.float64).reshape(3)
+        try:
+            v = np.asarray(vector, dtype=np.float64)
+        except (TypeError, ValueError):
+            raise ValueError(f"set_force({force!r}): vector {vector!r}: expected three numbers [N]") from None
+        if v.shape not in ((3,), (1, 3)):
+            raise ValueError(f"set_force({force!r}): vector of shape {v.shape}: expected three numbers [N]")
+        if not np.isfinite(v).all():
+            raise ValueError(f"set_force({force!r}): vector {tuple(v.reshape(3).tolist())}: expected finite numbers [N]")
+        self._force_override[idx] = v.reshape(3)
 
     def set_pin_targets(self, tube, positions) -> None:
-        """Move a tube prim's pinned points: ``positions`` [stage units], shape (pinned, 3)."""
+        """Move a tube prim's pinned points: ``positions`` [stage units], shape (pinned, 3), finite.
+
+        Raises:
+            KeyError / IndexError: no such tube prim. ValueError: wrong shape or non-finite values.
+        """
         k = self._tube_index(tube)
-        p = np.asarray(positions, dtype=np.float64) * self.scene.stage.meters_per_unit
+        try:
+            p = np.asarray(positions, dtype=np.float64) * self.scene.stage.meters_per_unit
+        except (TypeError, ValueError):
+            raise ValueError(f"pin targets of {self.scene.tubes[k].path}: {positions!r}: expected numbers") from None
         if p.shape != (len(self.scene.tubes[k].pinned), 3):
             raise ValueError(f"pin targets of {self.scene.tubes[k].path}: shape {p.shape}, expected ({len(self.scene.tubes[k].pinned)}, 3)")
+        if not np.isfinite(p).all():
+            raise ValueError(f"pin targets of {self.scene.tubes[k].path}: non-finite values: expected finite positions")
         self._pin_override[k] = p
         self._moving_pins = True
 
@@ -245,7 +323,10 @@ class Simulation:
                 if f.path == force:
                     return k
             raise KeyError(f"no force at {force}")
-        return int(force)
+        k = int(force)
+        if not 0 <= k < len(self.scene.forces):
+            raise IndexError(f"force {k}: the scene has {len(self.scene.forces)} force(s)")
+        return k
 
     def _tube_index(self, tube) -> int:
         if isinstance(tube, str):
@@ -253,7 +334,15 @@ class Simulation:
                 if t.path == tube:
                     return k
             raise KeyError(f"no tube at {tube}")
-        return int(tube)
+        k = int(tube)
+        if not 0 <= k < len(self.scene.tubes):
+            raise IndexError(f"tube {k}: the scene has {len(self.scene.tubes)} tube prim(s)")
+        return k
+
+    def _warn(self, msg: str) -> None:
+        """A run warning: logged once (marked :data:`RUN_WARNING`) and kept in :attr:`warnings`."""
+        log.warning(msg, extra=RUN_WARNING)
+        self.warnings.append(msg)
 
     # -- stepping --------------------------------------------------------------------------------
     def _forces_at(self, t: float) -> np.ndarray:
@@ -395,8 +484,7 @@ class Simulation:
 
         msg = (f"frame {self.frame + 1}: semi-implicit Euler failed even at {MAX_RETRY_FACTOR}x the substeps "
                f"({problem.split(': ', 1)[-1]}); switched to implicit Euler")  # fmt: skip
-        log.warning(msg)
-        self.warnings.append(msg)
+        self._warn(msg)
         self.solver = ImplicitEulerSolver(self.model)
         self.integrator = "implicitEuler"
         self.reason += "; switched to implicitEuler after a blow-up"
@@ -430,8 +518,7 @@ class Simulation:
         name = lambda n: self._node_name(n)  # noqa: E731
         msg = (f"frame {self.frame}: {name(i)} and {name(j)} are {-gap:.3g} m closer than the sum of their "
                "radii (distant parts touch; contact is not modelled, so they pass through each other)")  # fmt: skip
-        log.warning(msg)
-        self.warnings.append(msg)
+        self._warn(msg)
         self._contact_reported = True
 
     def _node_name(self, node: int) -> str:
@@ -512,66 +599,157 @@ class Simulation:
 
     # -- whole runs ------------------------------------------------------------------------------
     def run(self, frames: int | None = None, output: str | None = None, progress=None, every: int = 1) -> RunSummary:
-        """Simulate ``frames`` output frames (default: the scene's) and write them to ``output``.
+        """Simulate from the current frame up to frame ``frames - 1`` and write the frames to ``output``.
+
+        Frames keep their numbers: frame k is at time code ``startTimeCode + k`` and frame 0 is
+        the rest state. A new Simulation is at frame 0, so ``run()`` writes frames 0 to the scene's
+        last one. After :meth:`step` calls (or an earlier run) it is at frame k > 0: ``run``
+        continues from there, writing the current state as frame k at its own time code, and the
+        output's startTimeCode is that of the first frame written. ``run(frames=48)`` after 10 steps
+        therefore simulates 37 more frames and writes frames 10 to 47.
+
+        The output is written under a temporary name and renamed over ``output`` only when the
+        run completes. If the run stops (numerical failure, interrupt, any exception) the frames
+        finished so far are saved to ``OUT.partial.usdc`` beside ``output``
+        (:func:`warp_tube.io.files.partial_path`), :attr:`last_summary` names it (``partial``, None if
+        no frame was finished), and a file already at ``output`` is left as it was.
 
         Args:
-            frames: number of frames, frame 0 (rest) included; default the scene's frame count.
-            output: path of the output stage, or None to write nothing.
-            progress: None, or True for a tqdm bar.
-            every: write every ``every``-th frame.
+            frames: frames from frame 0 (rest) to the last one to reach, default the scene's frame
+                count; must be more than the current frame.
+            output: path of the output stage (.usdc, .usda, .usd), or None to write nothing; never
+                the scene's own file.
+            progress: None, or True for a progress bar (and, for a first frame that takes long, a
+                status line while the kernels compile) on stderr.
+            every: write every ``every``-th frame (frame numbers divisible by it).
 
         Raises:
-            NumericalError: after writing the frames finished so far.
-            KeyboardInterrupt: after writing the frames finished so far.
+            SceneError: ``frames`` or ``every`` out of range, or an output that cannot be written.
+            NumericalError: after keeping the frames finished so far.
+            KeyboardInterrupt: after keeping the frames finished so far.
         """
         from ..io.writer import StageWriter
+        from ..progress import Phase
 
         info = self.scene.stage
-        frames = info.frame_count if frames is None else int(frames)
-        if frames < 1:
-            raise SceneError(f"frames {frames}: expected at least 1")
+        first = self.frame
+        end = info.frame_count if frames is None else int(frames)
+        if end < 1:
+            raise SceneError(f"frames {end}: expected at least 1")
+        if end <= first:
+            raise SceneError(f"frames {end}: this Simulation is already at frame {first}: expected more than {first}")
         if every < 1:
             raise SceneError(f"every {every}: expected at least 1")
-        writer = StageWriter(output, self.scene, self.surfaces) if output else None
+        written = [k for k in range(first, end) if k % every == 0]
+        writer = None
+        if output and not written:
+            raise SceneError(f"every {every}: none of frames {first} to {end - 1} is a multiple of it: nothing to write")
+        if output:
+            inputs = [self.scene.source] if self.scene.source and os.path.exists(self.scene.source) else []
+            start_tc = info.start_time_code + (written[0] if written else first)
+            writer = StageWriter(output, self.scene, self.surfaces, start_time_code=start_tc, inputs=inputs)
         summary = RunSummary(
             scene=self.scene.source, device=self.device, frames=0, substeps=self.substeps, dt=self.dt,
             integrator=self.integrator, reason=self.reason, wall_time=0.0, max_displacement=0.0,
-            output=writer.path if writer else None,
             stage_defaults=[k for k in ("metersPerUnit", "upAxis", "timeCodesPerSecond", "startTimeCode", "endTimeCode")
                             if k not in info.authored],
+            first_frame=written[0] if written else first,
         )  # fmt: skip
-        bar = None
-        if progress:
-            from tqdm import tqdm
-
-            bar = tqdm(total=frames - 1, unit="frame", desc="simulating", leave=False)
+        self.last_summary = summary
+        self._announce_long_run(end - 1 - first)
+        pause = os.environ.get(PAUSE_ENV, "")
+        bar = beat = None
+        startup = Phase("compiling kernels (first run only) and simulating frame 1", enabled=bool(progress), after=0.5)
+        startup.__enter__()
         t0 = time.perf_counter()
         try:
-            for k in range(frames):
-                if k > 0:
+            for k in range(first, end):
+                if k > first:
+                    steps_before = self.substeps
                     self.step()
                     summary.frames_simulated += 1
+                    summary.substeps_simulated += steps_before
                     summary.max_displacement = max(summary.max_displacement, self.max_displacement())
-                    if bar:
+                    if summary.frames_simulated == 1:
+                        summary.startup_time = time.perf_counter() - t0
+                        summary.startup_substeps = summary.substeps_simulated
+                        startup.__exit__(None, None, None)
+                        if progress and end - 1 - first > 1:
+                            bar, beat = self._progress_bar(end - 1 - first)
+                    elif bar is not None:
                         bar.update(1)
+                elif pause == "compile":
+                    _pause_for_tests(pause)
                 if writer and k % every == 0:
                     writer.write_frame(info.start_time_code + k, self.centerline_points(),
                                        self.surface() if self.surfaces is not None else None)  # fmt: skip
                     summary.frames += 1
-        except (NumericalError, KeyboardInterrupt) as e:
-            summary.stopped = str(e) or "interrupted"
+                    summary.last_frame = k
+                if pause == f"frame:{k}":
+                    _pause_for_tests(pause)
+        except BaseException as e:
+            summary.stopped = (str(e) or type(e).__name__) if not isinstance(e, KeyboardInterrupt) else "interrupted"
+            if writer:
+                summary.partial = writer.keep_partial()
             raise
+        else:
+            if writer:
+                summary.output = writer.close()
         finally:
             summary.wall_time = time.perf_counter() - t0
-            if bar:
+            startup.__exit__(None, None, None)
+            if beat is not None:
+                beat.__exit__(None, None, None)
+            if bar is not None:
                 bar.close()
-            if writer:
-                writer.close()
+            if writer and not writer.closed:
+                writer.abort()
+            summary.integrator, summary.reason = self.integrator, self.reason
+            summary.substeps, summary.dt = self.substeps, self.dt
             summary.warnings = list(self.warnings)
             if self.retried_frames:
                 summary.warnings.append(
-                    f"{self.retried_frames} frame(s) blew up at {self.substeps} substeps and were redone with up to "
-                    f"{self.max_retry_factor}x as many"
+                    f"{self.retried_frames} frame(s) blew up and were redone with up to {self.max_retry_factor}x the substeps"
                 )
-            self.last_summary = summary
         return summary
+
+    def _progress_bar(self, total: int):
+        """A tqdm bar over ``total`` frames, started after frame 1 (its rate and estimate leave the
+        start-up out), and a heartbeat that keeps its clock moving through long frames."""
+        from tqdm import tqdm
+
+        from ..progress import Heartbeat
+
+        bar = tqdm(total=total, initial=1, unit="frame", desc="simulating", leave=False, file=sys.stderr)
+        beat = Heartbeat(bar.refresh)
+        beat.__enter__()
+        return bar, beat
+
+    def estimated_seconds(self, frames: int) -> float:
+        """Rough time [s] to simulate ``frames`` frames: substeps x points x a per-point cost
+        (:data:`CPU_SEMI_STEP_COST`, x :data:`IMPLICIT_COST_RATIO` for implicit Euler). On CUDA,
+        where points run in parallel, 10 us per substep at the least."""
+        per_step = self.model.node_count * self.model.world_count * CPU_SEMI_STEP_COST
+        if self.integrator == "implicitEuler":
+            per_step *= IMPLICIT_COST_RATIO
+        if self.device != "cpu":
+            per_step = max(per_step / 1000.0, 10e-6)
+        return frames * self.substeps * per_step
+
+    def _announce_long_run(self, frames: int) -> None:
+        """Warn before a run that will take long, with the estimate and why."""
+        seconds = self.estimated_seconds(frames)
+        if seconds < LONG_RUN_SECONDS:
+            return
+        from ..progress import format_seconds
+
+        log.warning(
+            "this run will take about %s: %s frames x %s substeps a frame (%s) x %s points; --frames N runs fewer frames",
+            format_seconds(seconds), f"{frames:,}", f"{self.substeps:,}", self.reason, f"{self.model.node_count:,}",
+        )  # fmt: skip
+
+
+def _pause_for_tests(point: str) -> None:
+    """Stop at a known point of a run (:data:`PAUSE_ENV`) until interrupted (at most 120 s)."""
+    print(f"warp-tube: paused at {point} ({PAUSE_ENV})", file=sys.stderr, flush=True)
+    time.sleep(120.0)
