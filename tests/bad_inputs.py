@@ -19,7 +19,6 @@ import io
 import itertools
 import math
 import os
-import re
 import shutil
 import sys
 import tempfile
