@@ -18,6 +18,13 @@ from importlib import resources
 from .scene.spec import SceneError
 
 EXIT_OK, EXIT_INTERNAL, EXIT_INPUT, EXIT_NUMERICAL, EXIT_INTERRUPTED = 0, 1, 2, 3, 130
+#: model set-up time per centerline point [s] (build_model and the surface topology: 100,000 points
+#: take 48 s on a shared CPU core), for the up-front warning about a long build.
+BUILD_SECONDS_PER_POINT = 0.5e-3
+#: a build estimated to take longer than this [s] is announced.
+LONG_BUILD_SECONDS = 30.0
+
+log = logging.getLogger("warp_tube.cli")
 
 
 def default_scene_path() -> str:
@@ -76,7 +83,7 @@ def _cmd_run(a) -> int:
     from . import load_scene
     from .io.files import default_run_output, usd_layer_files
     from .io.writer import check_output_path
-    from .progress import Phase, stderr_is_terminal
+    from .progress import Phase, format_seconds, stderr_is_terminal
     from .scene.usd import open_stage
     from .sim.simulation import NumericalError, Simulation
 
@@ -93,6 +100,9 @@ def _cmd_run(a) -> int:
         scene = load_scene(scene_path)
         del held
     points = sum(len(t.points) for t in scene.tubes)
+    if points * BUILD_SECONDS_PER_POINT > LONG_BUILD_SECONDS:
+        log.warning("building the model of %s points will take about %s (set-up in Python, point by point)",
+                    f"{points:,}", format_seconds(points * BUILD_SECONDS_PER_POINT))  # fmt: skip
     _RUN_WARNINGS.summary_prints_them = True  # a summary is printed at the end, unless --quiet and done
     with Phase(f"building the model ({points:,} points)", enabled=tty):
         sim = Simulation(scene, device=a.device, surface=not a.no_surface)
