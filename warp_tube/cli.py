@@ -18,8 +18,8 @@ from importlib import resources
 from .scene.spec import SceneError
 
 EXIT_OK, EXIT_INTERNAL, EXIT_INPUT, EXIT_NUMERICAL, EXIT_INTERRUPTED = 0, 1, 2, 3, 130
-#: model set-up time per centerline point [s] (build_model and the surface topology: 100,000 points
-#: take 48 s on a shared CPU core), for the up-front warning about a long build.
+#: model set-up time per centerline point [s] (build_model and the surface topology, measured by
+#: benchmarks/bench_estimates.py: 0.4 ms on a busy CPU core), for the up-front warning of a long build.
 BUILD_SECONDS_PER_POINT = 0.5e-3
 #: a build estimated to take longer than this [s] is announced.
 LONG_BUILD_SECONDS = 30.0

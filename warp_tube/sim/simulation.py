@@ -52,10 +52,9 @@ AL_MIN_ANGLE = math.radians(15.0)
 #: a free point farther than this many tube lengths from its rest position is a blow-up.
 RUNAWAY_LENGTHS = 1.0e3
 #: CPU cost of one semi-implicit substep per centerline point [s], for the up-front estimate of a
-#: long run only (implicit substeps cost IMPLICIT_COST_RATIO times more): the default scene with
-#: E = 1e10 Pa takes 4.7 us a substep for its 21 points and their assistant line on a shared core;
-#: benchmarks/bench_integrators.py gives half that on an idle one.
-CPU_SEMI_STEP_COST = 0.1e-6
+#: long run only (implicit substeps cost IMPLICIT_COST_RATIO times more); benchmarks/bench_estimates.py
+#: measures it (0.18 us for the 21 points and assistant line of the default scene on a busy core).
+CPU_SEMI_STEP_COST = 0.15e-6
 #: a run estimated to take longer than this [s] is announced with its estimate before it starts.
 LONG_RUN_SECONDS = 60.0
 #: environment variable that pauses a run at a known point, for the interrupt tests:
