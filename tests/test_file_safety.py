@@ -218,7 +218,7 @@ def test_extract_writes_the_format_its_extension_names_with_the_umask(ext, tmp_c
     assert len(scene_.tubes) == 1
     # the one-line summary, without -v
     line = capsys.readouterr().out.strip()
-    assert line.startswith(str(out)) and "hubs x 16 spokes" in line and "ends open/open" in line and "surface within" in line
+    assert line.startswith(f"s{ext}: ") and "hubs x 16 spokes" in line and "ends open/open" in line and "surface within" in line
 
 
 def test_run_output_honours_the_umask(tmp_cwd):

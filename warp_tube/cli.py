@@ -197,10 +197,14 @@ _RUN_WARNINGS = _RunWarningFilter()
 
 
 class _PlainFormatter(logging.Formatter):
-    """``warp-tube: warning: message`` (the level in words, no logger name)."""
+    """``warp-tube: warning: message`` (the level in words, no logger name); on a terminal it first
+    clears the line, which may hold a status line or a progress bar."""
 
     def format(self, record):
-        return f"warp-tube: {record.levelname.lower()}: {record.getMessage()}"
+        from .progress import stderr_is_terminal
+
+        clear = "\r\033[K" if stderr_is_terminal() else ""
+        return f"{clear}warp-tube: {record.levelname.lower()}: {record.getMessage()}"
 
 
 def _configure_logging(verbose: bool):

@@ -32,10 +32,11 @@ class Extraction:
     fidelity: Fidelity | None
     output: str
     warnings: list = field(default_factory=list)
+    name: str = ""  # the output as the user gave it
 
     def summary(self) -> str:
         """One line: hubs, length, radius range, ends, branches, fit."""
-        return summary_line(self.tube, self.fidelity, self.output)
+        return summary_line(self.tube, self.fidelity, self.name or self.output)
 
 
 def extract_to_scene(mesh_path, output, *, hubs=None, spokes=16, scale=None, device=None, progress=None) -> Extraction:
@@ -62,6 +63,7 @@ def extract_to_scene(mesh_path, output, *, hubs=None, spokes=16, scale=None, dev
     """
     from ..warp_setup import init_warp
 
+    given = os.fspath(output)
     output = output_path(output, USD_EXTENSIONS, inputs=[mesh_path], what="scene")
     warnings = []
     big = size_warning(hubs, spokes)
@@ -89,4 +91,4 @@ def extract_to_scene(mesh_path, output, *, hubs=None, spokes=16, scale=None, dev
         write_scene(tube, output, meters_per_unit=1.0, inputs=[mesh_path])
     log.info("%s: %d hubs x %d spokes, %.4g m, %d side branches -> %s (%.2f s)", mesh_path, tube.hubs,
              tube.spokes, tube.length, len(tube.branches), output, tube.timings["total"])
-    return Extraction(tube, fid, output, warnings)
+    return Extraction(tube, fid, output, warnings, given)
