@@ -103,41 +103,41 @@ def _cmd_run(a) -> int:
     if points * BUILD_SECONDS_PER_POINT > LONG_BUILD_SECONDS:
         log.warning("building the model of %s points will take about %s (set-up in Python, point by point)",
                     f"{points:,}", format_seconds(points * BUILD_SECONDS_PER_POINT))  # fmt: skip
-    _RUN_WARNINGS.summary_prints_them = True  # a summary is printed at the end, unless --quiet and done
+    # Run warnings go into the summary; with --quiet (no summary unless the run stops) they are
+    # printed as they happen instead.
+    _RUN_WARNINGS.summary_prints_them = not a.quiet
     with Phase(f"building the model ({points:,} points)", enabled=tty):
         sim = Simulation(scene, device=a.device, surface=not a.no_surface)
     try:
         summary = sim.run(frames=a.frames, output=out, progress=tty, every=a.every)
     except NumericalError as e:
-        return _stopped(sim, out, f"{e}", EXIT_NUMERICAL)
+        return _stopped(sim, out, f"{e}", EXIT_NUMERICAL, a.quiet)
     except KeyboardInterrupt:
         s = sim.last_summary
         if s.frames == 0 and s.frames_simulated == 0:
             why = "interrupted during start-up (kernel compilation), before any frame was finished"
         else:
             why = f"interrupted while simulating frame {s.first_frame + s.frames_simulated + 1}"
-        return _stopped(sim, out, why, EXIT_INTERRUPTED)
+        return _stopped(sim, out, why, EXIT_INTERRUPTED, a.quiet)
     except SceneError:
         raise
     except OSError as e:
-        return _stopped(sim, out, f"cannot write {out}: {e.strerror or e}", EXIT_INPUT)
+        return _stopped(sim, out, f"cannot write {out}: {e.strerror or e}", EXIT_INPUT, a.quiet)
     except Exception as e:
         if a.verbose:
             traceback.print_exc()
         return _stopped(sim, out, f"internal error ({type(e).__name__}: {e}); run with -v for the traceback and "
-                                  "please report it", EXIT_INTERNAL)  # fmt: skip
-    if a.quiet:
-        for w in summary.warnings:
-            print(f"warp-tube: warning: {w}", file=sys.stderr)
-    else:
+                                  "please report it", EXIT_INTERNAL, a.quiet)  # fmt: skip
+    if not a.quiet:
         print(summary.text())
     return EXIT_OK
 
 
-def _stopped(sim, out: str, why: str, status: int) -> int:
-    """Print the summary of a run that stopped early and where its finished frames are."""
+def _stopped(sim, out: str, why: str, status: int, quiet: bool = False) -> int:
+    """Print why a run stopped early (after its summary, unless quiet) and where its frames are."""
     s = sim.last_summary
-    print(s.text(), file=sys.stderr)
+    if not quiet:
+        print(s.text(), file=sys.stderr)
     print(f"warp-tube: {why}", file=sys.stderr)
     kept = f"{s.frames_written_text()} kept in {s.partial}" if s.partial else "no frame was finished: nothing kept"
     left = f"{out} was left as it was" if os.path.exists(out) else f"{out} was not written"

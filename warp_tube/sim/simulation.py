@@ -10,7 +10,8 @@ its point, and not built while the force is within :data:`AL_MIN_ANGLE` of the t
 
 Warnings about a run (contact, a switch of integrator, a forced time step beyond the stability
 bound) are logged once, with ``extra={"run_warning": True}`` so that a caller that prints them in a
-summary (the command line) can leave the log record out, and kept in :attr:`Simulation.warnings`.
+summary (the command line) can leave the log record out, and kept in :attr:`Simulation.warnings`
+(a forced time step's in the integrator's reason instead).
 """
 
 from __future__ import annotations
