@@ -70,6 +70,10 @@ def test_blow_up_exits_3_and_keeps_the_finished_frames(tmp_cwd, capsys):
     assert main(["run", "stiff.usda", "-o", str(out)]) == 3
     err = capsys.readouterr().err
     assert "numerical failure at frame" in err and "/World/Tube" in err and "stability bound" in err
+    # The finished frames are in stiff.partial.usdc, named in the message; stiff.usdc is not written.
+    partial = tmp_cwd / "stiff.partial.usdc"
+    assert f"kept in {partial}" in err and not out.exists()
+    out = partial
     samples, st = centerline_samples(out, "/World/Tube")
     assert 1 <= len(samples) < 97 and st.GetEndTimeCode() == samples[-1]
     assert check_output_problems(out) == []

@@ -1,7 +1,9 @@
 """Command line: ``warp-tube run | check | extract | preview | export``.
 
-Exit status: 0 done; 2 invalid input or request (message, no traceback, nothing simulated, no
-output file); 3 numerical failure (the frames finished so far are kept); 130 interrupted.
+Exit status: 0 done; 1 internal error (a bug: the message says so, ``-v`` shows the traceback);
+2 invalid input or request (message, no traceback, nothing simulated, no output file) or an output
+that cannot be written; 3 numerical failure; 130 interrupted. A run that stops early keeps the
+frames finished so far in ``OUT.partial.usdc`` beside ``OUT`` and says so; ``OUT`` is left as it was.
 """
 
 from __future__ import annotations
@@ -10,11 +12,19 @@ import argparse
 import logging
 import os
 import sys
+import traceback
 from importlib import resources
 
 from .scene.spec import SceneError
 
-EXIT_OK, EXIT_INPUT, EXIT_NUMERICAL, EXIT_INTERRUPTED = 0, 2, 3, 130
+EXIT_OK, EXIT_INTERNAL, EXIT_INPUT, EXIT_NUMERICAL, EXIT_INTERRUPTED = 0, 1, 2, 3, 130
+#: model set-up time per centerline point [s] (build_model and the surface topology, measured by
+#: benchmarks/bench_estimates.py: 0.4 ms on a busy CPU core), for the up-front warning of a long build.
+BUILD_SECONDS_PER_POINT = 0.5e-3
+#: a build estimated to take longer than this [s] is announced.
+LONG_BUILD_SECONDS = 30.0
+
+log = logging.getLogger("warp_tube.cli")
 
 
 def default_scene_path() -> str:
@@ -36,7 +46,8 @@ def _parser() -> argparse.ArgumentParser:
 
     r = sub.add_parser("run", help="simulate a scene and write a time-sampled USD stage")
     r.add_argument("scene", nargs="?", help="scene .usda/.usdc (default: the embedded default scene)")
-    r.add_argument("-o", "--output", help="output stage (.usdc, .usda); default: the scene's name + .usdc here")
+    r.add_argument("-o", "--output", help="output stage (.usdc, .usda); default: <scene name>.out.usdc here "
+                   "(tube.usdc for the embedded scene)")
     r.add_argument("--device", help="cpu or cuda:N (default: CUDA when available)")
     r.add_argument("--frames", type=int, help="frames to write, frame 0 (rest) included")
     r.add_argument("--every", type=int, default=1, help="write every K-th frame")
@@ -48,7 +59,7 @@ def _parser() -> argparse.ArgumentParser:
 
     e = sub.add_parser("extract", help="extract a tube scene from a surface mesh (STL, PLY, OBJ)")
     e.add_argument("mesh")
-    e.add_argument("-o", "--output", required=True, help="scene .usda to write")
+    e.add_argument("-o", "--output", required=True, help="scene to write: .usda (text), .usdc or .usd (binary)")
     e.add_argument("--hubs", type=int, help="centerline points (default: from length and radius)")
     e.add_argument("--spokes", type=int, default=16, help="spokes per hub")
     e.add_argument("--scale", type=float, nargs="+", metavar="F", help="F, or FX FY FZ: mesh units to metres")
@@ -61,39 +72,77 @@ def _parser() -> argparse.ArgumentParser:
     x = sub.add_parser("export", help="export an output stage's Surface as OBJ or glTF binary")
     x.add_argument("stage")
     x.add_argument("--format", choices=("obj", "glb"), default="obj")
-    x.add_argument("-o", "--output", help="output file or folder (default: beside the stage)")
+    x.add_argument("-o", "--output", help="folder for the files, or one file with --frame (default: a folder "
+                   "<stage name>_<format> beside the stage; with --frame, the file beside the stage)")
     x.add_argument("--frame", type=float, help="only this time code")
+    x.add_argument("--force", action="store_true", help="replace existing files")
     return p
 
 
 def _cmd_run(a) -> int:
-    from .sim.simulation import NumericalError, Simulation
     from . import load_scene
+    from .io.files import default_run_output, usd_layer_files
     from .io.writer import check_output_path
+    from .progress import Phase, format_seconds, stderr_is_terminal
+    from .scene.usd import open_stage
+    from .sim.simulation import NumericalError, Simulation
 
     scene_path = a.scene or default_scene_path()
-    out = a.output or os.path.splitext(os.path.basename(a.scene or "tube"))[0] + ".usdc"
-    out = check_output_path(out)
     if a.frames is not None and a.frames < 1:
         raise SceneError(f"--frames {a.frames}: expected at least 1")
     if a.every < 1:
         raise SceneError(f"--every {a.every}: expected at least 1")
-    scene = load_scene(scene_path)
-    sim = Simulation(scene, device=a.device, surface=not a.no_surface)
-    tty = sys.stderr.isatty() and not a.quiet
+    tty = stderr_is_terminal() and not a.quiet
+    with Phase("reading the scene", enabled=tty):
+        held = open_stage(scene_path)  # held open while loading: its layers are read once
+        inputs = [scene_path, *usd_layer_files(held)]
+        out = check_output_path(a.output or default_run_output(a.scene), inputs)
+        scene = load_scene(scene_path)
+        del held
+    points = sum(len(t.points) for t in scene.tubes)
+    if points * BUILD_SECONDS_PER_POINT > LONG_BUILD_SECONDS:
+        log.warning("building the model of %s points will take about %s (set-up in Python, point by point)",
+                    f"{points:,}", format_seconds(points * BUILD_SECONDS_PER_POINT))  # fmt: skip
+    # Run warnings go into the summary; with --quiet (no summary unless the run stops) they are
+    # printed as they happen instead.
+    _RUN_WARNINGS.summary_prints_them = not a.quiet
+    with Phase(f"building the model ({points:,} points)", enabled=tty):
+        sim = Simulation(scene, device=a.device, surface=not a.no_surface)
     try:
         summary = sim.run(frames=a.frames, output=out, progress=tty, every=a.every)
     except NumericalError as e:
-        print(sim.last_summary.text(), file=sys.stderr)
-        print(f"warp-tube: {e}", file=sys.stderr)
-        return EXIT_NUMERICAL
+        return _stopped(sim, out, f"{e}", EXIT_NUMERICAL, a.quiet)
     except KeyboardInterrupt:
-        print(sim.last_summary.text(), file=sys.stderr)
-        print("warp-tube: interrupted; the frames finished so far are in the output", file=sys.stderr)
-        return EXIT_INTERRUPTED
+        s = sim.last_summary
+        if s.frames == 0 and s.frames_simulated == 0:
+            why = "interrupted during start-up (kernel compilation), before any frame was finished"
+        else:
+            why = f"interrupted while simulating frame {s.first_frame + s.frames_simulated + 1}"
+        return _stopped(sim, out, why, EXIT_INTERRUPTED, a.quiet)
+    except SceneError:
+        raise
+    except OSError as e:
+        return _stopped(sim, out, f"cannot write {out}: {e.strerror or e}", EXIT_INPUT, a.quiet)
+    except Exception as e:
+        if a.verbose:
+            traceback.print_exc()
+        return _stopped(sim, out, f"internal error ({type(e).__name__}: {e}); run with -v for the traceback and "
+                                  "please report it", EXIT_INTERNAL, a.quiet)  # fmt: skip
     if not a.quiet:
         print(summary.text())
     return EXIT_OK
+
+
+def _stopped(sim, out: str, why: str, status: int, quiet: bool = False) -> int:
+    """Print why a run stopped early (after its summary, unless quiet) and where its frames are."""
+    s = sim.last_summary
+    if not quiet:
+        print(s.text(), file=sys.stderr)
+    print(f"warp-tube: {why}", file=sys.stderr)
+    kept = f"{s.frames_written_text()} kept in {s.partial}" if s.partial else "no frame was finished: nothing kept"
+    left = f"{out} was left as it was" if os.path.exists(out) else f"{out} was not written"
+    print(f"warp-tube: {kept}; {left}", file=sys.stderr)
+    return status
 
 
 def _cmd_check(a) -> int:
@@ -108,45 +157,95 @@ def _cmd_check(a) -> int:
 
 def _cmd_extract(a) -> int:
     from .extract.command import extract_to_scene
+    from .progress import stderr_is_terminal
 
     if a.scale is not None and len(a.scale) not in (1, 3):
         raise SceneError(f"--scale takes 1 or 3 values, got {len(a.scale)}")
-    extract_to_scene(a.mesh, a.output, hubs=a.hubs, spokes=a.spokes, scale=a.scale)
+    done = extract_to_scene(a.mesh, a.output, hubs=a.hubs, spokes=a.spokes, scale=a.scale,
+                            progress=stderr_is_terminal())  # fmt: skip
+    print(done.summary())
     return EXIT_OK
 
 
 def _cmd_preview(a) -> int:
     from .io.preview import preview
 
-    preview(a.stage, a.output, frames=a.frames)
-    print(a.output)
+    if a.frames < 1:
+        raise SceneError(f"--frames {a.frames}: expected at least 1")
+    print(preview(a.stage, a.output, frames=a.frames))
     return EXIT_OK
 
 
 def _cmd_export(a) -> int:
     from .io.export import export
 
-    for path in export(a.stage, fmt=a.format, out=a.output, frame=a.frame) or []:
+    for path in export(a.stage, fmt=a.format, out=a.output, frame=a.frame, overwrite=a.force):
         print(path)
     return EXIT_OK
 
 
+class _RunWarningFilter(logging.Filter):
+    """Leaves out the log records of run warnings while the run's summary prints them."""
+
+    summary_prints_them = False
+
+    def filter(self, record):
+        return not (self.summary_prints_them and getattr(record, "run_warning", False))
+
+
+_RUN_WARNINGS = _RunWarningFilter()
+
+
+class _PlainFormatter(logging.Formatter):
+    """``warp-tube: warning: message`` (the level in words, no logger name); on a terminal it first
+    clears the line, which may hold a status line or a progress bar."""
+
+    def format(self, record):
+        from .progress import stderr_is_terminal
+
+        clear = "\r\033[K" if stderr_is_terminal() else ""
+        return f"{clear}warp-tube: {record.levelname.lower()}: {record.getMessage()}"
+
+
+def _configure_logging(verbose: bool):
+    root = logging.getLogger()
+    for h in list(root.handlers):
+        if getattr(h, "_warp_tube", False):
+            root.removeHandler(h)
+    handler = logging.StreamHandler(sys.stderr)
+    handler._warp_tube = True
+    handler.addFilter(_RUN_WARNINGS)
+    if verbose:
+        handler.setFormatter(logging.Formatter("%(levelname)s %(name)s: %(message)s"))
+    else:
+        handler.setFormatter(_PlainFormatter())
+    root.addHandler(handler)
+    root.setLevel(logging.INFO if verbose else logging.WARNING)
+
+
 def main(argv=None) -> int:
     """Entry point of the ``warp-tube`` console script; returns the exit status."""
-    args = _parser().parse_args(argv)
-    import warp as wp
+    from .warp_setup import set_verbose
 
-    wp.config.log_level = wp.LOG_INFO if args.verbose else wp.LOG_WARNING
-    logging.basicConfig(level=logging.INFO if args.verbose else logging.WARNING, format="%(levelname)s %(name)s: %(message)s")
+    args = _parser().parse_args(argv)
+    set_verbose(args.verbose)
+    _configure_logging(args.verbose)
+    _RUN_WARNINGS.summary_prints_them = False
+    handler = {"run": _cmd_run, "check": _cmd_check, "extract": _cmd_extract, "preview": _cmd_preview, "export": _cmd_export}
     try:
-        handler = {"run": _cmd_run, "check": _cmd_check, "extract": _cmd_extract, "preview": _cmd_preview, "export": _cmd_export}
         return handler[args.command](args)
     except SceneError as e:
         print(f"warp-tube: {e}", file=sys.stderr)
         return EXIT_INPUT
     except KeyboardInterrupt:
-        print("warp-tube: interrupted", file=sys.stderr)
+        print("warp-tube: interrupted; nothing was written", file=sys.stderr)
         return EXIT_INTERRUPTED
+    except Exception as e:
+        if args.verbose:
+            traceback.print_exc()
+        print(f"warp-tube: internal error ({type(e).__name__}: {e}); run with -v for the traceback and please report it",
+              file=sys.stderr)  # fmt: skip
+        return EXIT_INTERNAL
 
 
 if __name__ == "__main__":

@@ -15,7 +15,8 @@ from dataclasses import dataclass
 
 from ..scene.spec import SceneError, SimulationSettings
 
-__all__ = ["IntegratorChoice", "choose_integrator", "implicit_substeps", "SAFETY", "IMPLICIT_DT", "IMPLICIT_COST_RATIO"]
+__all__ = ["IntegratorChoice", "choose_integrator", "implicit_substeps", "SAFETY", "IMPLICIT_DT", "IMPLICIT_COST_RATIO",
+           "RUN_WARNING"]
 
 log = logging.getLogger(__name__)
 
@@ -26,6 +27,8 @@ SAFETY = 0.5
 IMPLICIT_DT = 1.0 / 240.0
 #: cost of an implicit substep over a semi-implicit one, per node (benchmarks/bench_integrators.py).
 IMPLICIT_COST_RATIO = 16.0
+#: ``extra`` of the log records of run warnings (:mod:`warp_tube.sim.simulation` explains them).
+RUN_WARNING = {"run_warning": True}
 
 
 @dataclass(frozen=True)
@@ -72,7 +75,8 @@ def choose_integrator(settings: SimulationSettings, critical_dt: float, frame_dt
         if s.time_step is not None:
             dt = min(s.time_step, frame_dt)
             if dt > hc:
-                log.warning("timeStep %.3g s exceeds the semi-implicit Euler stability bound %.3g s: expect a blow-up", dt, hc)
+                log.warning("timeStep %.3g s exceeds the semi-implicit Euler stability bound %.3g s: expect a blow-up", dt, hc,
+                            extra=RUN_WARNING)  # fmt: skip
                 return IntegratorChoice("semiImplicitEuler", f"forced; timeStep {dt:.3g} s exceeds the stability bound {hc:.3g} s", dt)
             return IntegratorChoice("semiImplicitEuler", f"from the scene, timeStep {dt:.3g} s (bound {hc:.3g} s)", dt)
         if not math.isfinite(hc):

@@ -3,37 +3,92 @@
 from __future__ import annotations
 
 import logging
+import os
+from dataclasses import dataclass, field
 
-from .pipeline import ExtractedTube, extract_centerline
-from .usd import write_scene
+from ..io.files import USD_EXTENSIONS, output_path
+from ..progress import Phase
+from .fidelity import Fidelity, surface_fidelity
 from .mesh_io import load_mesh
+from .pipeline import ExtractedTube, extract_centerline
+from .tube_check import size_warning, summary_line, tube_warnings
+from .usd import write_scene
 
-__all__ = ["extract_to_scene"]
+__all__ = ["extract_to_scene", "Extraction", "FIDELITY_MAX_POINTS"]
 
 log = logging.getLogger(__name__)
 
+#: the fit is measured only while the rebuilt surface has at most this many points (hubs x spokes):
+#: beyond, building its query structure costs more than the extraction.
+FIDELITY_MAX_POINTS = 2_000_000
 
-def extract_to_scene(mesh_path, output, *, hubs=None, spokes=16, scale=None, device=None) -> ExtractedTube:
+
+@dataclass
+class Extraction:
+    """What ``extract`` did: the tube (metres), its fit (None if not measured), the scene written,
+    the warnings given."""
+
+    tube: ExtractedTube
+    fidelity: Fidelity | None
+    output: str
+    warnings: list = field(default_factory=list)
+    name: str = ""  # the output as the user gave it
+
+    def summary(self) -> str:
+        """One line: hubs, length, radius range, ends, branches, fit."""
+        return summary_line(self.tube, self.fidelity, self.name or self.output)
+
+
+def extract_to_scene(mesh_path, output, *, hubs=None, spokes=16, scale=None, device=None, progress=None) -> Extraction:
     """Extract the tube in a mesh file and write a simulation scene for it.
 
     Args:
         mesh_path: STL, PLY, OBJ, ... file.
-        output: scene ``.usda`` to write (see :func:`warp_tube.extract.usd.write_scene`).
+        output: scene to write, ``.usda`` (text), ``.usdc`` or ``.usd`` (binary); never the mesh
+            itself; replaced only by a complete scene (see :func:`warp_tube.extract.usd.write_scene`).
         hubs: hubs N (default automatic, see :func:`warp_tube.extract.pipeline.extract_centerline`).
         spokes: spokes per hub S.
         scale: None, one factor or (fx, fy, fz): metres per mesh unit along each axis (e.g.
             0.000832031 0.000832031 0.001 for CT voxel indices of 0.83 x 0.83 x 1 mm). Without it
             the mesh is taken to be in metres. The scene is written in metres (metersPerUnit 1).
+        device: Warp device for the queries.
+        progress: status lines for the long phases on stderr (default: when it is a terminal).
+
+    Returns:
+        The :class:`Extraction`. Warnings (a shape that does not look like a tube, a fit that
+        could not be measured, a very large ``hubs``) are logged and listed in it.
 
     Raises:
         SceneError: unreadable or unusable mesh, or an output that cannot be written.
     """
+    from ..warp_setup import init_warp
+
+    given = os.fspath(output)
+    output = output_path(output, USD_EXTENSIONS, inputs=[mesh_path], what="scene")
+    warnings = []
+    big = size_warning(hubs, spokes)
+    if big:
+        log.warning(big)
+        warnings.append(big)
+    init_warp()
     factors = (1.0, 1.0, 1.0) if scale is None else scale
-    mesh = load_mesh(mesh_path, factors)
-    tube = extract_centerline(mesh, hubs=hubs, spokes=spokes, device=device, source=str(mesh_path))
+    name = os.path.basename(os.fspath(mesh_path))
+    with Phase(f"reading {name}", enabled=progress):
+        mesh = load_mesh(mesh_path, factors)
+    with Phase(f"extracting the centerline of {name} ({len(mesh.faces):,} faces)", enabled=progress):
+        tube = extract_centerline(mesh, hubs=hubs, spokes=spokes, device=device, source=str(mesh_path))
+    fid = None
+    if tube.hubs * tube.spokes <= FIDELITY_MAX_POINTS:
+        with Phase("measuring how well the hubs and spokes rebuild the mesh", enabled=progress):
+            fid = surface_fidelity(tube, mesh)
+    found = tube_warnings(tube, fid, automatic_hubs=hubs is None)
     if tube.length > 20.0:
-        log.warning("%s: the tube is %.3g m long: is the mesh in mm or voxels? Pass --scale", mesh_path, tube.length)
-    write_scene(tube, output, meters_per_unit=1.0)
+        found.append(f"the tube is {tube.length:.3g} m long: is the mesh in mm or voxels? Pass --scale")
+    for w in found:
+        log.warning("%s: %s", mesh_path, w)
+    warnings += found
+    with Phase(f"writing {os.path.basename(output)}", enabled=progress):
+        write_scene(tube, output, meters_per_unit=1.0, inputs=[mesh_path])
     log.info("%s: %d hubs x %d spokes, %.4g m, %d side branches -> %s (%.2f s)", mesh_path, tube.hubs,
              tube.spokes, tube.length, len(tube.branches), output, tube.timings["total"])
-    return tube
+    return Extraction(tube, fid, output, warnings, given)

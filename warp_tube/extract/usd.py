@@ -22,10 +22,10 @@ import logging
 import math
 import os
 import re
-import tempfile
 
 import numpy as np
 
+from ..io.files import USD_EXTENSIONS, output_path, write_atomically
 from .pipeline import ExtractedTube, extract_centerline
 from ..model.frames import rotation_minimizing_frames
 from .mesh_io import load_usd_mesh
@@ -82,12 +82,14 @@ def write_scene(
     name: str | None = None,
     up_axis: str = "Y",
     end_time_code: int = 96,
+    inputs=(),
 ) -> str:
     """Write a simulation scene for an extracted tube (DESIGN scene contract).
 
     Args:
         extracted: the tube; its lengths are stage units.
-        path_usda: output file (``.usda``; replaced when complete).
+        path_usda: output file: ``.usda`` (text), ``.usdc`` (binary) or ``.usd`` (binary); written
+            under a temporary name and renamed when complete, with the umask's permissions.
         meters_per_unit: metres per stage unit (1.0 for a mesh in metres, 0.001 for mm).
         density: [kg/m^3].
         youngs_modulus: [Pa].
@@ -99,6 +101,7 @@ def write_scene(
         name: tube prim name (default from :attr:`ExtractedTube.source`).
         up_axis: "Y" or "Z".
         end_time_code: last frame (24 per second).
+        inputs: files the scene must not be written over (the mesh it was extracted from).
 
     Returns:
         The tube prim's path.
@@ -108,14 +111,11 @@ def write_scene(
     """
     from pxr import Gf, Sdf, Usd, UsdGeom, Vt
 
-    path_usda = os.fspath(path_usda)
     if not (math.isfinite(meters_per_unit) and meters_per_unit > 0.0):
         raise SceneError(f"meters_per_unit {meters_per_unit!r}: expected a positive finite number")
     if up_axis not in ("Y", "Z"):
         raise SceneError(f"up_axis {up_axis!r}: expected 'Y' or 'Z'")
-    folder = os.path.dirname(os.path.abspath(path_usda))
-    if not os.path.isdir(folder):
-        raise SceneError(f"{path_usda}: cannot write: no folder {folder}")
+    path_usda = output_path(path_usda, USD_EXTENSIONS, inputs=inputs, what="scene")
     TubeParams(density=density, youngs_modulus=youngs_modulus, damping=damping)  # validates
     tube_name = prim_name(name or extracted.source)
     n, spokes = extracted.spoke_lengths.shape
@@ -182,17 +182,12 @@ def write_scene(
             attr.Set(Gf.Vec3f(*(scale * f).astype(float)), tc)
         force.CreateAttribute("warptube:assistantLine", Sdf.ValueTypeNames.Bool).Set(True)
 
-    fd, tmp = tempfile.mkstemp(suffix=".usda", dir=folder)
-    os.close(fd)
-    try:
+    def export(tmp: str):
+        # The temporary name keeps the target's extension, so usd-core writes the format it names.
         if not stage.GetRootLayer().Export(tmp):
             raise SceneError(f"{path_usda}: cannot write")
-        os.replace(tmp, path_usda)
-    except OSError as e:
-        raise SceneError(f"{path_usda}: cannot write ({e.strerror})") from None
-    finally:
-        if os.path.exists(tmp):
-            os.remove(tmp)
+
+    write_atomically(path_usda, export)
     return str(curves.GetPath())
 
 
@@ -237,8 +232,16 @@ def tube_from_mesh_prim(file: str, prim, info: StageInfo) -> TubeSpec:
         raise SceneError(f"{where}.warptube:density: missing: expected a float or double [kg/m^3] (required)")
     if frames is not None and str(frames) not in FRAME_MODES:
         raise SceneError(f"{where}.warptube:frames: found {frames!r}: expected one of {', '.join(FRAME_MODES)}")
+    from ..warp_setup import init_warp
+    from .fidelity import surface_fidelity
+    from .tube_check import tube_warnings
+
+    init_warp()
     mesh = load_usd_mesh(prim, source=where)
     tube = extract_centerline(mesh, hubs=None if hubs is None else int(hubs), spokes=spokes, source=where)
+    fid = surface_fidelity(tube, mesh) if tube.hubs * tube.spokes <= 2_000_000 else None
+    for w in tube_warnings(tube, fid, automatic_hubs=hubs is None, units="stage units"):
+        log.warning("%s: %s", where, w)
     mpu = info.meters_per_unit
     n = tube.hubs
     k_anchor = float(vals["anchorStiffness"] or 0.0)

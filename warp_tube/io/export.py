@@ -10,6 +10,12 @@ time-sampled ``points``) and writes, through trimesh, one file per frame (or one
 
 Texture coordinates are not exported (the stage's ``st`` are face-varying; both formats would need
 the seam vertices split).
+
+Where files go: with ``out`` a folder (or no ``out``), files ``<stage name>.<frame>.<fmt>``; with no
+``out`` that folder is ``<stage name>_<fmt>/`` beside the stage (one new folder, never the current
+folder), or, for one ``frame``, the file goes beside the stage. No file is replaced unless
+``overwrite`` is given (``--force``): the names are checked before anything is written, and each
+file is written under a temporary name and renamed when complete.
 """
 
 from __future__ import annotations
@@ -26,19 +32,11 @@ FORMATS = ("obj", "glb")
 
 
 def open_output_stage(usd_path):
-    """Open an output stage; :class:`~warp_tube.scene.spec.SceneError` naming the file if it cannot."""
-    from pxr import Usd
+    """Open an output stage; :class:`~warp_tube.scene.spec.SceneError` naming the file and what is
+    wrong if it cannot (:func:`warp_tube.scene.usd.open_stage`)."""
+    from ..scene.usd import open_stage
 
-    path = Path(usd_path)
-    if not path.is_file():
-        raise SceneError(f"{path}: no such file")
-    try:
-        stage = Usd.Stage.Open(str(path))
-    except Exception as exc:  # pxr raises Tf.ErrorException with the parser's message
-        raise SceneError(f"{path}: cannot be read as a USD stage: {exc}") from None
-    if stage is None:
-        raise SceneError(f"{path}: cannot be read as a USD stage")
-    return stage
+    return open_stage(str(usd_path))
 
 
 def surface_meshes(stage, usd_path="") -> list:
@@ -104,26 +102,32 @@ def _frame_name(time: float) -> str:
     return f"{int(round(time)):04d}" if float(time).is_integer() else f"{time:09.3f}".replace(".", "_")
 
 
-def export(usd_path, fmt: str = "obj", out=None, frame=None) -> list[Path]:
+def export(usd_path, fmt: str = "obj", out=None, frame=None, overwrite: bool = False) -> list[Path]:
     """Write the Surface meshes of an output stage, one file per frame.
 
     Args:
         usd_path: output stage (``.usdc``/``.usda``) written by ``warp-tube run``.
         fmt: "obj" or "glb".
-        out: folder for the files (created if needed); default: the stage's folder. Files are named
-            ``<stage stem>.<frame>.<fmt>`` (frame as a 4-digit time code). With ``frame`` given, ``out``
-            may also be the file name itself (ending in ``.obj``/``.glb``).
+        out: folder for the files (created if needed), named ``<stage stem>.<frame>.<fmt>`` (frame
+            as a 4-digit time code); default ``<stage stem>_<fmt>/`` beside the stage. With ``frame``
+            given (or a stage of one frame), ``out`` may also be the file name itself (ending in
+            ``.obj``/``.glb``); with ``frame`` and no ``out`` the file goes beside the stage.
         frame: the time code to export; default: every time sample.
+        overwrite: replace existing files (otherwise an existing file is an error, before any
+            file is written).
 
     Returns:
         The paths written, in frame order.
 
     Raises:
-        SceneError: missing or unreadable file, no Surface mesh, an unknown format, or a frame the
-            stage has no sample for.
+        SceneError: missing or unreadable file, no Surface mesh, an unknown format, a frame the
+            stage has no sample for, an ``out`` naming one file for several frames, or files that
+            exist (without ``overwrite``).
     """
     import trimesh
     from pxr import UsdGeom
+
+    from .files import refuse_existing, same_file, write_atomically
 
     if fmt not in FORMATS:
         raise SceneError(f"unknown export format {fmt!r}; expected one of {FORMATS}")
@@ -138,9 +142,34 @@ def export(usd_path, fmt: str = "obj", out=None, frame=None) -> list[Path]:
     elif not times:
         times = [stage.GetStartTimeCode()]
 
-    single_file = out is not None and frame is not None and Path(out).suffix.lower() == f".{fmt}"
-    folder = Path(out).parent if single_file else Path(out) if out is not None else usd_path.parent
-    folder.mkdir(parents=True, exist_ok=True)
+    names_file = out is not None and Path(out).suffix.lower() in tuple(f".{f}" for f in FORMATS)
+    if names_file and Path(out).suffix.lower() != f".{fmt}":
+        raise SceneError(f"{out}: extension {Path(out).suffix}: expected .{fmt} for --format {fmt}")
+    if names_file and len(times) > 1:
+        raise SceneError(
+            f"{out}: names one file, but {usd_path} has {len(times)} frames: pass --frame T, or give a folder"
+        )
+    if names_file:
+        paths = [Path(out)]
+    else:
+        if out is not None:
+            folder = Path(out)
+        elif frame is not None:
+            folder = usd_path.parent
+        else:
+            folder = usd_path.parent / f"{usd_path.stem}_{fmt}"
+        if folder.exists() and not folder.is_dir():
+            raise SceneError(f"{folder}: exists and is not a folder")
+        paths = [folder / f"{usd_path.stem}.{_frame_name(t)}.{fmt}" for t in times]
+    for p in paths:
+        if same_file(p, usd_path):
+            raise SceneError(f"{p}: is the input stage: refusing to write over it")
+    if not overwrite:
+        refuse_existing(paths)
+    if not paths[0].parent.is_dir():
+        if not paths[0].parent.parent.is_dir():
+            raise SceneError(f"{paths[0].parent}: cannot create the folder: {paths[0].parent.parent} does not exist")
+        paths[0].parent.mkdir(exist_ok=True)
 
     to_gltf = np.eye(3)
     scale = 1.0
@@ -150,21 +179,20 @@ def export(usd_path, fmt: str = "obj", out=None, frame=None) -> list[Path]:
             to_gltf = np.array([[1.0, 0.0, 0.0], [0.0, 0.0, -1.0], [0.0, 1.0, 0.0]])  # rows: x->x, y->-z, z->y
 
     written = []
-    for time in times:
+    for time, path in zip(times, paths):
         parts = []
         for mesh in meshes:
             verts, faces, normals = surface_at(mesh, time)
             verts = scale * verts @ to_gltf
             normals = None if normals is None else normals @ to_gltf
             parts.append((str(mesh.GetPath()), trimesh.Trimesh(verts, faces, vertex_normals=normals, process=False)))
-        path = Path(out) if single_file else folder / f"{usd_path.stem}.{_frame_name(time)}.{fmt}"
         if fmt == "obj":
             merged = trimesh.util.concatenate([m for _, m in parts]) if len(parts) > 1 else parts[0][1]
-            merged.export(path, file_type="obj", include_normals=True)
+            write_atomically(path, lambda tmp: merged.export(tmp, file_type="obj", include_normals=True))
         else:
             scene = trimesh.Scene()
             for name, m in parts:
                 scene.add_geometry(m, node_name=name, geom_name=name)
-            scene.export(path, file_type="glb")
+            write_atomically(path, lambda tmp: scene.export(tmp, file_type="glb"))
         written.append(path)
     return written

@@ -35,7 +35,8 @@ def preview(usd_path, png_path, frames: int = 4, size: int = 320, device=None) -
 
     Args:
         usd_path: output stage written by ``warp-tube run``.
-        png_path: the PNG to write (its folder is created if needed).
+        png_path: the PNG to write (``.png``, in an existing folder); an existing file is replaced
+            only by a complete image, and never the stage itself.
         frames: tiles (frames shown), >= 1; fewer if the stage has fewer samples.
         size: tile width and height [pixels].
         device: Warp device for the ray caster (default: Warp's default).
@@ -44,14 +45,22 @@ def preview(usd_path, png_path, frames: int = 4, size: int = 320, device=None) -
         The PNG path.
 
     Raises:
-        SceneError: missing or unreadable stage, no Surface mesh, or frames < 1.
+        SceneError: missing or unreadable stage, no Surface mesh, frames < 1, or a PNG path that
+            cannot be written.
     """
     from PIL import Image
     from pxr import UsdGeom
 
+    from ..warp_setup import init_warp
+    from .files import output_path, write_atomically
+
     if frames < 1:
         raise SceneError(f"preview needs at least one frame, got {frames}")
+    if not 1 <= size <= 8192:
+        raise SceneError(f"preview tile size {size}: expected 1 to 8192 pixels")
+    png_path = Path(output_path(png_path, (".png",), inputs=[usd_path], what="PNG"))
     usd_path = Path(usd_path)
+    init_warp()
     stage = open_output_stage(usd_path)
     meshes = surface_meshes(stage, usd_path)
     times = surface_frames(meshes) or [stage.GetStartTimeCode()]
@@ -100,7 +109,5 @@ def preview(usd_path, png_path, frames: int = 4, size: int = 320, device=None) -
         shade = image.numpy()[..., None].astype(np.float64)
         tile = np.where(shade < 0.0, BACKGROUND, TISSUE * np.clip(shade, 0.0, 1.0))
         sheet[:, k * size : (k + 1) * size] = np.clip(np.round(tile), 0, 255).astype(np.uint8)
-    png_path = Path(png_path)
-    png_path.parent.mkdir(parents=True, exist_ok=True)
-    Image.fromarray(sheet).save(png_path)
+    write_atomically(png_path, lambda tmp: Image.fromarray(sheet).save(tmp, format="PNG"))
     return png_path

@@ -5,8 +5,11 @@ For each tube prim at path P the stage holds an ``Xform`` at P with ``P/Centerli
 ``primvars:st``; ``points``, ``normals`` and ``extent`` time-sampled). Samples are written straight
 into the layer, which no stage has open after the prims are defined (``Sdf.Layer.SetTimeSample`` of
 ``Vt.Vec3fArray`` values: about 1 us less per sample than through an open stage). The layer is
-saved under a temporary name beside the target and renamed over it only when
-:meth:`StageWriter.close` runs, so an existing file is replaced only by a complete one; on failure or interrupt the caller still closes, keeping the frames written so far.
+saved under a hidden temporary name beside the target (:func:`warp_tube.io.files.temp_path`) and
+renamed over it only by :meth:`StageWriter.close`, so an existing file is replaced only by a complete
+one. A run that stops early calls :meth:`StageWriter.keep_partial` instead: the frames written so far
+go to ``OUT.partial.usdc`` beside the target (:func:`warp_tube.io.files.partial_path`), and the
+target is left as it was.
 """
 
 from __future__ import annotations
@@ -16,7 +19,8 @@ import os
 
 import numpy as np
 
-from ..scene.spec import Scene, SceneError
+from ..scene.spec import Scene
+from .files import USD_EXTENSIONS, output_path, partial_path, temp_path
 
 __all__ = ["StageWriter", "check_output_path", "points_extent", "vec3f_array"]
 
@@ -87,20 +91,10 @@ def points_extent(points: np.ndarray) -> np.ndarray:
     return np.stack([np.min(lo, axis=0), np.max(hi, axis=0)])
 
 
-def check_output_path(path: str) -> str:
-    """Validate an output path before any simulation; returns it absolute."""
-    path = os.path.abspath(os.fspath(path))
-    ext = os.path.splitext(path)[1].lower()
-    if ext not in (".usdc", ".usda", ".usd"):
-        raise SceneError(f"{path}: output extension {ext or '(none)'}: expected .usdc, .usda or .usd")
-    folder = os.path.dirname(path)
-    if not os.path.isdir(folder):
-        raise SceneError(f"{path}: folder {folder} does not exist")
-    if not os.access(folder, os.W_OK):
-        raise SceneError(f"{path}: folder {folder} is not writable")
-    if os.path.isdir(path):
-        raise SceneError(f"{path}: is a folder, expected a file name")
-    return path
+def check_output_path(path, inputs=()) -> str:
+    """Validate an output stage path before any simulation (extension .usdc/.usda/.usd, writable
+    folder, not one of ``inputs``); returns it absolute. See :func:`warp_tube.io.files.output_path`."""
+    return output_path(path, USD_EXTENSIONS, inputs=inputs)
 
 
 class StageWriter:
@@ -111,16 +105,22 @@ class StageWriter:
         scene: the scene (stage metadata, tube prim paths, curve counts).
         surfaces: per tube prim, ``None`` or an object with ``face_vertex_counts``,
             ``face_vertex_indices`` (NumPy int arrays) and ``st`` ((K, 2) float), ``st_interpolation``.
+        start_time_code: the stage's startTimeCode (default the scene's; a run continued from a
+            later frame starts its stage there).
+        inputs: files the output must not be (the scene and its layers).
+
+    Raises:
+        SceneError: the path cannot be written or is one of ``inputs``.
     """
 
-    def __init__(self, path: str, scene: Scene, surfaces=None):
+    def __init__(self, path: str, scene: Scene, surfaces=None, *, start_time_code=None, inputs=()):
         from pxr import Sdf, Usd, UsdGeom, Vt
 
-        self.path = check_output_path(path)
-        folder, name = os.path.split(self.path)
-        stem, ext = os.path.splitext(name)
-        self.tmp = os.path.join(folder, f".{stem}.partial-{os.getpid()}{ext}")
+        self.path = check_output_path(path, inputs)
+        self.tmp = temp_path(self.path)
+        self.partial = partial_path(self.path)
         info = scene.stage
+        start = info.start_time_code if start_time_code is None else float(start_time_code)
         self.info = info
         self.mpu = info.meters_per_unit
         # The layer is ours; a stage on it only while the prims are defined. Time samples then go
@@ -132,8 +132,8 @@ class StageWriter:
         UsdGeom.SetStageUpAxis(st, UsdGeom.Tokens.z if info.up_axis.upper() == "Z" else UsdGeom.Tokens.y)
         st.SetTimeCodesPerSecond(info.time_codes_per_second)
         st.SetFramesPerSecond(info.frames_per_second)
-        st.SetStartTimeCode(info.start_time_code)
-        st.SetEndTimeCode(info.start_time_code)
+        st.SetStartTimeCode(start)
+        st.SetEndTimeCode(start)
         surfaces = surfaces or [None] * len(scene.tubes)
         self.tubes = []
         for spec, surf in zip(scene.tubes, surfaces):
@@ -171,7 +171,8 @@ class StageWriter:
         st.SetDefaultPrim(st.GetPrimAtPath(root))
         del st
         self.frames_written = 0
-        self.last_time = info.start_time_code
+        self.first_time = None
+        self.last_time = start
         self.closed = False
 
     def write_frame(self, time_code: float, centerlines, surfaces=None):
@@ -197,25 +198,54 @@ class StageWriter:
                 put(n_path, t, vec3f_array(sn))
                 put(e_path, t, vec3f_array(ext))
         self.frames_written += 1
+        if self.first_time is None:
+            self.first_time = time_code
         self.last_time = time_code
 
     def close(self) -> str:
-        """Finish the stage: endTimeCode = last frame written, save, rename over the target."""
+        """Finish the stage: endTimeCode = last frame written, save, rename over the target.
+
+        Returns:
+            The output path.
+        """
         if self.closed:
             return self.path
-        self.layer.endTimeCode = self.last_time
-        self.layer.Save()
-        self.closed = True
-        del self.layer
-        os.replace(self.tmp, self.path)
+        self._save_to(self.path)
         return self.path
 
+    def keep_partial(self) -> str | None:
+        """Save the frames written so far to :attr:`partial` (``OUT.partial.usdc``), a valid stage
+        ending at the last of them, and leave the target alone.
+
+        Returns:
+            The partial file's path, or None when no frame was written (nothing is kept then).
+        """
+        if self.closed:
+            return None
+        if self.frames_written == 0:
+            self.abort()
+            return None
+        self._save_to(self.partial)
+        return self.partial
+
+    def _save_to(self, final: str):
+        try:
+            self.layer.endTimeCode = self.last_time
+            self.layer.Save()
+            self.closed = True
+            del self.layer
+            os.replace(self.tmp, final)
+        except BaseException:
+            self.abort()
+            raise
+
     def abort(self):
-        """Drop the partial stage without touching the target."""
+        """Drop the stage being written without touching the target."""
         if not self.closed:
             self.closed = True
-            del self.layer  # out of usd-core's registry, so a new writer may create the same file
-            try:
-                os.remove(self.tmp)
-            except FileNotFoundError:
-                pass
+            if hasattr(self, "layer"):
+                del self.layer  # out of usd-core's registry, so a new writer may create the same file
+        try:
+            os.remove(self.tmp)
+        except FileNotFoundError:
+            pass

@@ -13,6 +13,7 @@ from __future__ import annotations
 import logging
 import math
 import os
+import re
 
 import numpy as np
 
@@ -30,7 +31,7 @@ from .spec import (
 
 log = logging.getLogger(__name__)
 
-__all__ = ["load_scene", "open_stage", "save_scene"]
+__all__ = ["load_scene", "open_stage", "save_scene", "usd_error_in_user_terms"]
 
 SETTINGS_ATTRS = ("warptube:timeStep", "warptube:integrator", "warptube:gravity")
 REAL = ("float", "double", "half")
@@ -44,21 +45,85 @@ TUBE_ATTRS = {
 
 
 def open_stage(path: str):
-    """Open a USD stage, turning every failure into a :class:`SceneError` naming the file."""
+    """Open a USD stage, turning every failure into a :class:`SceneError` naming the file and saying
+    what is wrong in the user's terms (the line and column of a syntax error; a file that is not
+    USD; a damaged binary file; a sublayer, reference or payload that cannot be opened).
+
+    usd-core's own C++ diagnostics, written to stderr, are caught (see
+    :mod:`warp_tube.native_output`) and not shown.
+    """
     from pxr import Tf, Usd
 
+    from ..native_output import native_stderr
+
+    path = os.fspath(path)
     if not os.path.exists(path):
         raise SceneError(f"{path}: no such file")
     if os.path.isdir(path):
         raise SceneError(f"{path}: is a folder, expected a USD file (.usda, .usdc, .usd)")
-    try:
-        stage = Usd.Stage.Open(path, Usd.Stage.LoadAll)
-    except Tf.ErrorException as e:
-        msg = str(e).strip().splitlines()
-        raise SceneError(f"{path}: not a readable USD stage ({msg[-1] if msg else 'parse error'})") from None
+    if not os.access(path, os.R_OK):
+        raise SceneError(f"{path}: cannot be read (permission denied)")
+    stage = None
+    problem = None
+    with native_stderr():
+        try:
+            stage = Usd.Stage.Open(path, Usd.Stage.LoadAll)
+        except Tf.ErrorException as e:
+            problem = usd_error_in_user_terms(path, str(e))
+    if problem is not None:
+        raise SceneError(f"{path}: {problem}")
     if stage is None:
         raise SceneError(f"{path}: not a readable USD stage")
+    errors = [str(e) for e in stage.GetCompositionErrors()] if hasattr(stage, "GetCompositionErrors") else []
+    if errors:
+        more = f" (and {len(errors) - 1} more)" if len(errors) > 1 else ""
+        raise SceneError(f"{path}: {_composition_error_in_user_terms(errors[0])}{more}")
     return stage
+
+
+_TF_MESSAGE = re.compile(r"Error in '[^']*' at line \d+ in file [^:]* : '(.*?)'\s*(?=\n\s*Error in|\Z)", re.S)
+_SYNTAX = re.compile(r"^.*?:(\d+):(\d+):\s*(.*)$", re.S)
+
+
+def usd_error_in_user_terms(path: str, text: str) -> str:
+    """What usd-core's error text ``text`` for opening ``path`` means, without C++ locations."""
+    messages = [m.strip() for m in _TF_MESSAGE.findall(text)] or [text.strip()]
+    for m in messages:
+        hit = _SYNTAX.match(m)
+        if hit:
+            line, col, what = hit.groups()
+            what = re.sub(r"parse error matching \S*pegtl::internal::eof", "unexpected end of file (an unclosed bracket?)", what)
+            what = re.sub(r"pxrInternal_\w+?__pxrReserved__:*|\S*pegtl::\S*", "", what).strip()
+            return f"USD syntax error at line {line}, column {col}: {what}"
+    try:
+        with open(path, "rb") as f:
+            head = f.read(16)
+    except OSError as e:
+        return f"cannot be read ({e.strerror})"
+    if not head:
+        return "empty file: expected a USD stage (a .usda text file starts with '#usda 1.0')"
+    if head.startswith(b"PXR-USDC"):
+        crate = [m for m in messages if "crate" in m.lower() or "bootstrap" in m.lower()]
+        return f"damaged or truncated binary USD (.usdc) file ({(crate or messages)[0]})"
+    if head.startswith(b"#usda"):
+        return f"not a valid USD text file ({messages[0]})"
+    if head.startswith(b"PK"):
+        return f"not a readable USD package (.usdz) ({messages[0]})"
+    printable = all(32 <= b < 127 or b in (9, 10, 13) for b in head)
+    shown = repr(head.decode("ascii").splitlines()[0]) if printable else f"the bytes {head[:8].hex(' ')}"
+    return (f"not a USD file: it starts with {shown}; a USD text file starts with '#usda 1.0' and a binary "
+            "one with 'PXR-USDC'")  # fmt: skip
+
+
+def _composition_error_in_user_terms(message: str) -> str:
+    """A composition error (missing sublayer, reference or payload) as a short sentence."""
+    hit = re.search(r"Could not (?:open|load) (?:asset|sublayer) @([^@]*)@", message)
+    if not hit:
+        return f"cannot be composed: {message}"
+    what = "sublayer" if "sublayer" in message else "payload" if "payload" in message else "reference"
+    where = re.search(r"@[^@]*@<([^>]*)>", message)
+    at = f" (at {where.group(1)})" if where else ""
+    return f"cannot open the {what} {hit.group(1)}{at}: no such file or not a USD file"
 
 
 class _Reader:
@@ -237,16 +302,18 @@ def _read_tube(file: str, prim, info: StageInfo, frame_times) -> TubeSpec:
     rn = r.vec3("warptube:referenceNormal")
     if rn is not None and np.linalg.norm(rn) == 0.0:
         r.fail("warptube:referenceNormal", rn, "a non-zero direction")
+    # The reader's errors name file, prim and attribute already; TubeParams' own checks do not.
+    values = dict(
+        density=r.real("warptube:density", required=True, positive=True),
+        youngs_modulus=E, stretch_stiffness=EA, bend_stiffness=EI,
+        damping=r.real("warptube:damping", 0.0, minimum=0.0),
+        spring_damping=r.real("warptube:springDamping", 0.0, minimum=0.0),
+        anchor_stiffness=r.real("warptube:anchorStiffness", 0.0, minimum=0.0),
+        spokes=spokes, frames=r.token("warptube:frames", FRAME_MODES, "rotationMinimizing"),
+        caps=r.boolean("warptube:caps", False), reference_normal=rn,
+    )  # fmt: skip
     try:
-        params = TubeParams(
-            density=r.real("warptube:density", required=True, positive=True),
-            youngs_modulus=E, stretch_stiffness=EA, bend_stiffness=EI,
-            damping=r.real("warptube:damping", 0.0, minimum=0.0),
-            spring_damping=r.real("warptube:springDamping", 0.0, minimum=0.0),
-            anchor_stiffness=r.real("warptube:anchorStiffness", 0.0, minimum=0.0),
-            spokes=spokes, frames=r.token("warptube:frames", FRAME_MODES, "rotationMinimizing"),
-            caps=r.boolean("warptube:caps", False), reference_normal=rn,
-        )  # fmt: skip
+        params = TubeParams(**values)
     except SceneError as e:
         raise SceneError(f"{file}: {prim.GetPath()}: {e}") from None
     if params.density > 1e6 or (E is not None and E > 1e13):

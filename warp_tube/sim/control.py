@@ -53,16 +53,39 @@ class FrameControl:
 
     # -- interactive control ---------------------------------------------------------------------
     def set_force(self, force, vector) -> None:
-        """Override a scene force from now on: ``force`` is its index or prim path; ``vector`` [N]."""
+        """Override a scene force from now on: ``force`` is its index or prim path; ``vector`` [N],
+        three finite numbers.
+
+        Raises:
+            KeyError: no force at that prim path. IndexError: no force with that index.
+            ValueError: ``vector`` is not three finite numbers (checked here, before any step).
+        """
         idx = self.force_index(force)
-        self._force_override[idx] = np.asarray(vector, dtype=np.float64).reshape(3)
+        try:
+            v = np.asarray(vector, dtype=np.float64)
+        except (TypeError, ValueError):
+            raise ValueError(f"set_force({force!r}): vector {vector!r}: expected three numbers [N]") from None
+        if v.shape not in ((3,), (1, 3)):
+            raise ValueError(f"set_force({force!r}): vector of shape {v.shape}: expected three numbers [N]")
+        if not np.isfinite(v).all():
+            raise ValueError(f"set_force({force!r}): vector {tuple(v.reshape(3).tolist())}: expected finite numbers [N]")
+        self._force_override[idx] = v.reshape(3)
 
     def set_pin_targets(self, tube, positions) -> None:
-        """Move a tube prim's pinned points: ``positions`` [stage units], shape (pinned, 3)."""
+        """Move a tube prim's pinned points: ``positions`` [stage units], shape (pinned, 3), finite.
+
+        Raises:
+            KeyError / IndexError: no such tube prim. ValueError: wrong shape or non-finite values.
+        """
         k = self.tube_index(tube)
-        p = np.asarray(positions, dtype=np.float64) * self.scene.stage.meters_per_unit
+        try:
+            p = np.asarray(positions, dtype=np.float64) * self.scene.stage.meters_per_unit
+        except (TypeError, ValueError):
+            raise ValueError(f"pin targets of {self.scene.tubes[k].path}: {positions!r}: expected numbers") from None
         if p.shape != (len(self.scene.tubes[k].pinned), 3):
             raise ValueError(f"pin targets of {self.scene.tubes[k].path}: shape {p.shape}, expected ({len(self.scene.tubes[k].pinned)}, 3)")
+        if not np.isfinite(p).all():
+            raise ValueError(f"pin targets of {self.scene.tubes[k].path}: non-finite values: expected finite positions")
         self._pin_override[k] = p
 
     def force_index(self, force) -> int:
@@ -72,7 +95,10 @@ class FrameControl:
                 if f.path == force:
                     return k
             raise KeyError(f"no force at {force}")
-        return int(force)
+        k = int(force)
+        if not 0 <= k < len(self.scene.forces):
+            raise IndexError(f"force {k}: the scene has {len(self.scene.forces)} force(s)")
+        return k
 
     def tube_index(self, tube) -> int:
         """Index of a tube prim given by index or prim path."""
@@ -81,7 +107,10 @@ class FrameControl:
                 if t.path == tube:
                     return k
             raise KeyError(f"no tube at {tube}")
-        return int(tube)
+        k = int(tube)
+        if not 0 <= k < len(self.scene.tubes):
+            raise IndexError(f"tube {k}: the scene has {len(self.scene.tubes)} tube prim(s)")
+        return k
 
     # -- per frame -------------------------------------------------------------------------------
     def forces_at(self, t: float) -> np.ndarray:

@@ -6,12 +6,19 @@ checks of each frame are :mod:`warp_tube.sim.checks`.
 
 Time: output frame ``k`` is at time code ``startTimeCode + k`` (time ``k / timeCodesPerSecond``
 [s]); frame 0 is the rest state. Each frame is advanced by ``substeps`` substeps of ``dt`` [s].
+
+Warnings about a run (contact, a switch of integrator, a forced time step beyond the stability
+bound) are logged once, with ``extra={"run_warning": True}`` so that a caller that prints them in a
+summary (the command line) can leave the log record out, and kept in :attr:`Simulation.warnings`
+(a forced time step's in the integrator's reason instead).
 """
 
 from __future__ import annotations
 
 import logging
 import math
+import os
+import sys
 import time
 from dataclasses import dataclass, field
 
@@ -19,7 +26,7 @@ import numpy as np
 import warp as wp
 
 from ..centerline.explicit import SemiImplicitEulerSolver
-from ..centerline.policy import choose_integrator, implicit_substeps
+from ..centerline.policy import IMPLICIT_COST_RATIO, RUN_WARNING, choose_integrator, implicit_substeps
 from ..centerline.stability import critical_time_step
 from ..model.tube import build_model
 from ..scene.spec import Scene, SceneError
@@ -33,6 +40,17 @@ __all__ = ["Simulation", "NumericalError", "RunSummary", "resolve_device"]
 
 #: the largest substep multiplier ``auto`` tries for a frame that blew up.
 MAX_RETRY_FACTOR = 16
+#: CPU cost of one semi-implicit substep per centerline point [s], for the up-front estimate of a
+#: long run only (implicit substeps cost IMPLICIT_COST_RATIO times more); benchmarks/bench_estimates.py
+#: measures it (0.18 us for the 21 points and assistant line of the default scene on a busy core).
+CPU_SEMI_STEP_COST = 0.15e-6
+#: a run estimated to take longer than this [s] is announced with its estimate before it starts.
+LONG_RUN_SECONDS = 60.0
+#: environment variable that pauses a run at a known point, for the interrupt tests:
+#: "compile" (before the first frame, where kernels compile) or "frame:K" (after frame K is written).
+PAUSE_ENV = "WARP_TUBE_PAUSE_AT"
+
+
 
 
 class NumericalError(RuntimeError):
@@ -41,7 +59,9 @@ class NumericalError(RuntimeError):
 
 def resolve_device(device=None) -> str:
     """``None`` -> the first CUDA device if there is one, else ``cpu``; checks a named device."""
-    wp.init()
+    from ..warp_setup import init_warp
+
+    init_warp()
     if device is None:
         return "cuda:0" if wp.get_cuda_device_count() > 0 else "cpu"
     name = str(device)
@@ -58,7 +78,14 @@ def resolve_device(device=None) -> str:
 
 @dataclass
 class RunSummary:
-    """What a run did (printed by the CLI)."""
+    """What a run did (printed by the CLI).
+
+    Times [s]: ``wall_time`` is the whole run; ``startup_time`` the part up to the end of the
+    first simulated frame, which includes compiling the kernels on first use, so the rate
+    (:attr:`steps_per_second`) is taken over the frames after it when there are any.
+    ``output`` is the complete output (None while the run has not completed); ``partial`` the file
+    holding the frames finished by a run that stopped early (None if none was finished).
+    """
 
     scene: str
     device: str
@@ -73,27 +100,53 @@ class RunSummary:
     stopped: str | None = None
     warnings: list = field(default_factory=list)
     stage_defaults: list = field(default_factory=list)
+    frames_simulated: int = 0
+    substeps_simulated: int = 0
+    startup_time: float = 0.0
+    startup_substeps: int = 0
+    partial: str | None = None
+    first_frame: int = 0
+    last_frame: int | None = None
 
     @property
     def steps_per_second(self) -> float:
-        return self.frames_simulated * self.substeps / self.wall_time if self.wall_time > 0 else float("nan")
+        """Substeps per second after the start-up (over the whole run if it was all start-up)."""
+        steps = self.substeps_simulated - self.startup_substeps
+        seconds = self.wall_time - self.startup_time
+        if steps <= 0 or seconds <= 0:
+            steps, seconds = self.substeps_simulated, self.wall_time
+        return steps / seconds if seconds > 0 else float("nan")
 
-    frames_simulated: int = 0
+    def frames_written_text(self) -> str:
+        """``frames 0-11 (12 frames)`` for the frames written, or ``no frame``."""
+        if self.frames == 0 or self.last_frame is None:
+            return "no frame"
+        if self.frames == 1:
+            return f"frame {self.last_frame} only"
+        return f"frames {self.first_frame}-{self.last_frame} ({self.frames} frames)"
 
     def text(self) -> str:
+        steady = self.substeps_simulated > self.startup_substeps and self.wall_time > self.startup_time
+        rate = f"{self.steps_per_second:,.0f} substeps/s"
+        if steady:
+            timing = f"{self.wall_time:.3f} s (start-up {self.startup_time:.3f} s: kernel compilation and frame 1; then {rate})"
+        else:
+            timing = f"{self.wall_time:.3f} s ({rate}, start-up and kernel compilation included)"
         lines = [
             f"scene        {self.scene}",
             f"device       {self.device}",
             f"frames       {self.frames} written ({self.frames_simulated} simulated)",
             f"integrator   {self.integrator}: {self.reason}",
             f"substeps     {self.substeps} per frame, dt = {self.dt:.3g} s",
-            f"wall time    {self.wall_time:.3f} s ({self.steps_per_second:,.0f} substeps/s)",
+            f"wall time    {timing}",
             f"largest displacement  {self.max_displacement:.4g} m",
         ]
         if self.stage_defaults:
             lines.append("stage        unauthored, USD fallback used: " + ", ".join(self.stage_defaults))
         if self.output:
             lines.append(f"output       {self.output}")
+        if self.partial:
+            lines.append(f"partial      {self.partial} ({self.frames_written_text()})")
         lines += [f"warning      {w}" for w in self.warnings]
         if self.stopped:
             lines.append(f"stopped      {self.stopped}")
@@ -175,6 +228,11 @@ class Simulation:
         """Move a tube prim's pinned points: ``positions`` [stage units], shape (pinned, 3)."""
         self.controls.set_pin_targets(tube, positions)
 
+    def _warn(self, msg: str) -> None:
+        """A run warning: logged once (marked :data:`RUN_WARNING`) and kept in :attr:`warnings`."""
+        log.warning(msg, extra=RUN_WARNING)
+        self.warnings.append(msg)
+
     # -- stepping --------------------------------------------------------------------------------
     def step(self) -> None:
         """Advance one output frame (``substeps`` substeps).
@@ -225,8 +283,7 @@ class Simulation:
 
         msg = (f"frame {self.frame + 1}: semi-implicit Euler failed even at {MAX_RETRY_FACTOR}x the substeps "
                f"({problem.split(': ', 1)[-1]}); switched to implicit Euler")  # fmt: skip
-        log.warning(msg)
-        self.warnings.append(msg)
+        self._warn(msg)
         self.solver = ImplicitEulerSolver(self.model)
         self.integrator = "implicitEuler"
         self.reason += "; switched to implicitEuler after a blow-up"
@@ -256,8 +313,7 @@ class Simulation:
         name = lambda n: self._node_name(n)  # noqa: E731
         msg = (f"frame {self.frame}: {name(i)} and {name(j)} are {-gap:.3g} m closer than the sum of their "
                "radii (distant parts touch; contact is not modelled, so they pass through each other)")  # fmt: skip
-        log.warning(msg)
-        self.warnings.append(msg)
+        self._warn(msg)
         self._contact_reported = True
 
     def _node_name(self, node: int) -> str:
@@ -300,66 +356,157 @@ class Simulation:
 
     # -- whole runs ------------------------------------------------------------------------------
     def run(self, frames: int | None = None, output: str | None = None, progress=None, every: int = 1) -> RunSummary:
-        """Simulate ``frames`` output frames (default: the scene's) and write them to ``output``.
+        """Simulate from the current frame up to frame ``frames - 1`` and write the frames to ``output``.
+
+        Frames keep their numbers: frame k is at time code ``startTimeCode + k`` and frame 0 is
+        the rest state. A new Simulation is at frame 0, so ``run()`` writes frames 0 to the scene's
+        last one. After :meth:`step` calls (or an earlier run) it is at frame k > 0: ``run``
+        continues from there, writing the current state as frame k at its own time code, and the
+        output's startTimeCode is that of the first frame written. ``run(frames=48)`` after 10 steps
+        therefore simulates 37 more frames and writes frames 10 to 47.
+
+        The output is written under a temporary name and renamed over ``output`` only when the
+        run completes. If the run stops (numerical failure, interrupt, any exception) the frames
+        finished so far are saved to ``OUT.partial.usdc`` beside ``output``
+        (:func:`warp_tube.io.files.partial_path`), :attr:`last_summary` names it (``partial``, None if
+        no frame was finished), and a file already at ``output`` is left as it was.
 
         Args:
-            frames: number of frames, frame 0 (rest) included; default the scene's frame count.
-            output: path of the output stage, or None to write nothing.
-            progress: None, or True for a tqdm bar.
-            every: write every ``every``-th frame.
+            frames: frames from frame 0 (rest) to the last one to reach, default the scene's frame
+                count; must be more than the current frame.
+            output: path of the output stage (.usdc, .usda, .usd), or None to write nothing; never
+                the scene's own file.
+            progress: None, or True for a progress bar (and, for a first frame that takes long, a
+                status line while the kernels compile) on stderr.
+            every: write every ``every``-th frame (frame numbers divisible by it).
 
         Raises:
-            NumericalError: after writing the frames finished so far.
-            KeyboardInterrupt: after writing the frames finished so far.
+            SceneError: ``frames`` or ``every`` out of range, or an output that cannot be written.
+            NumericalError: after keeping the frames finished so far.
+            KeyboardInterrupt: after keeping the frames finished so far.
         """
         from ..io.writer import StageWriter
+        from ..progress import Phase
 
         info = self.scene.stage
-        frames = info.frame_count if frames is None else int(frames)
-        if frames < 1:
-            raise SceneError(f"frames {frames}: expected at least 1")
+        first = self.frame
+        end = info.frame_count if frames is None else int(frames)
+        if end < 1:
+            raise SceneError(f"frames {end}: expected at least 1")
+        if end <= first:
+            raise SceneError(f"frames {end}: this Simulation is already at frame {first}: expected more than {first}")
         if every < 1:
             raise SceneError(f"every {every}: expected at least 1")
-        writer = StageWriter(output, self.scene, self.surfaces) if output else None
+        written = [k for k in range(first, end) if k % every == 0]
+        writer = None
+        if output and not written:
+            raise SceneError(f"every {every}: none of frames {first} to {end - 1} is a multiple of it: nothing to write")
+        if output:
+            inputs = [self.scene.source] if self.scene.source and os.path.exists(self.scene.source) else []
+            start_tc = info.start_time_code + (written[0] if written else first)
+            writer = StageWriter(output, self.scene, self.surfaces, start_time_code=start_tc, inputs=inputs)
         summary = RunSummary(
             scene=self.scene.source, device=self.device, frames=0, substeps=self.substeps, dt=self.dt,
             integrator=self.integrator, reason=self.reason, wall_time=0.0, max_displacement=0.0,
-            output=writer.path if writer else None,
             stage_defaults=[k for k in ("metersPerUnit", "upAxis", "timeCodesPerSecond", "startTimeCode", "endTimeCode")
                             if k not in info.authored],
+            first_frame=written[0] if written else first,
         )  # fmt: skip
-        bar = None
-        if progress:
-            from tqdm import tqdm
-
-            bar = tqdm(total=frames - 1, unit="frame", desc="simulating", leave=False)
+        self.last_summary = summary
+        self._announce_long_run(end - 1 - first)
+        pause = os.environ.get(PAUSE_ENV, "")
+        bar = beat = None
+        startup = Phase("compiling kernels (first run only) and simulating frame 1", enabled=bool(progress), after=0.5)
+        startup.__enter__()
         t0 = time.perf_counter()
         try:
-            for k in range(frames):
-                if k > 0:
+            for k in range(first, end):
+                if k > first:
+                    steps_before = self.substeps
                     self.step()
                     summary.frames_simulated += 1
+                    summary.substeps_simulated += steps_before
                     summary.max_displacement = max(summary.max_displacement, self.max_displacement())
-                    if bar:
+                    if summary.frames_simulated == 1:
+                        summary.startup_time = time.perf_counter() - t0
+                        summary.startup_substeps = summary.substeps_simulated
+                        startup.__exit__(None, None, None)
+                        if progress and end - 1 - first > 1:
+                            bar, beat = self._progress_bar(end - 1 - first)
+                    elif bar is not None:
                         bar.update(1)
+                elif pause == "compile":
+                    _pause_for_tests(pause)
                 if writer and k % every == 0:
                     writer.write_frame(info.start_time_code + k, self.centerline_points(),
                                        self.surface() if self.surfaces is not None else None)  # fmt: skip
                     summary.frames += 1
-        except (NumericalError, KeyboardInterrupt) as e:
-            summary.stopped = str(e) or "interrupted"
+                    summary.last_frame = k
+                if pause == f"frame:{k}":
+                    _pause_for_tests(pause)
+        except BaseException as e:
+            summary.stopped = (str(e) or type(e).__name__) if not isinstance(e, KeyboardInterrupt) else "interrupted"
+            if writer:
+                summary.partial = writer.keep_partial()
             raise
+        else:
+            if writer:
+                summary.output = writer.close()
         finally:
             summary.wall_time = time.perf_counter() - t0
-            if bar:
+            startup.__exit__(None, None, None)
+            if beat is not None:
+                beat.__exit__(None, None, None)
+            if bar is not None:
                 bar.close()
-            if writer:
-                writer.close()
+            if writer and not writer.closed:
+                writer.abort()
+            summary.integrator, summary.reason = self.integrator, self.reason
+            summary.substeps, summary.dt = self.substeps, self.dt
             summary.warnings = list(self.warnings)
             if self.retried_frames:
                 summary.warnings.append(
-                    f"{self.retried_frames} frame(s) blew up at {self.substeps} substeps and were redone with up to "
-                    f"{self.max_retry_factor}x as many"
+                    f"{self.retried_frames} frame(s) blew up and were redone with up to {self.max_retry_factor}x the substeps"
                 )
-            self.last_summary = summary
         return summary
+
+    def _progress_bar(self, total: int):
+        """A tqdm bar over ``total`` frames, started after frame 1 (its rate and estimate leave the
+        start-up out), and a heartbeat that keeps its clock moving through long frames."""
+        from tqdm import tqdm
+
+        from ..progress import Heartbeat
+
+        bar = tqdm(total=total, initial=1, unit="frame", desc="simulating", leave=False, file=sys.stderr)
+        beat = Heartbeat(bar.refresh)
+        beat.__enter__()
+        return bar, beat
+
+    def estimated_seconds(self, frames: int) -> float:
+        """Rough time [s] to simulate ``frames`` frames: substeps x points x a per-point cost
+        (:data:`CPU_SEMI_STEP_COST`, x :data:`IMPLICIT_COST_RATIO` for implicit Euler). On CUDA,
+        where points run in parallel, 10 us per substep at the least."""
+        per_step = self.model.node_count * self.model.world_count * CPU_SEMI_STEP_COST
+        if self.integrator == "implicitEuler":
+            per_step *= IMPLICIT_COST_RATIO
+        if self.device != "cpu":
+            per_step = max(per_step / 1000.0, 10e-6)
+        return frames * self.substeps * per_step
+
+    def _announce_long_run(self, frames: int) -> None:
+        """Warn before a run that will take long, with the estimate and why."""
+        seconds = self.estimated_seconds(frames)
+        if seconds < LONG_RUN_SECONDS:
+            return
+        from ..progress import format_seconds
+
+        log.warning(
+            "this run will take about %s: %s frames x %s substeps a frame (%s) x %s points; --frames N runs fewer frames",
+            format_seconds(seconds), f"{frames:,}", f"{self.substeps:,}", self.reason, f"{self.model.node_count:,}",
+        )  # fmt: skip
+
+
+def _pause_for_tests(point: str) -> None:
+    """Stop at a known point of a run (:data:`PAUSE_ENV`) until interrupted (at most 120 s)."""
+    print(f"warp-tube: paused at {point} ({PAUSE_ENV})", file=sys.stderr, flush=True)
+    time.sleep(120.0)

@@ -1,0 +1,74 @@
+"""The costs behind the up-front warnings of a long model build and a long run, measured.
+
+- model set-up per centerline point: ``Simulation(scene)`` (build_model and the surface topology)
+  of straight tubes of N points, against ``warp_tube.cli.BUILD_SECONDS_PER_POINT``;
+- a semi-implicit substep per point on the CPU: the default scene made stiff (E = 1e10 Pa, tens of
+  thousands of substeps a frame), frames after the first (kernels compiled), against
+  ``warp_tube.sim.simulation.CPU_SEMI_STEP_COST``.
+
+Prints medians of ``--repeat`` runs. Usage: ``.venv/bin/python benchmarks/bench_estimates.py``.
+"""
+
+from __future__ import annotations
+
+import argparse
+import pathlib
+import statistics
+import time
+
+import numpy as np
+import warp as wp
+
+import warp_tube
+from warp_tube.cli import BUILD_SECONDS_PER_POINT
+from warp_tube.scene.spec import Scene, SimulationSettings, StageInfo, TubeParams, TubeSpec
+from warp_tube.sim.simulation import CPU_SEMI_STEP_COST, Simulation
+
+ROOT = pathlib.Path(__file__).resolve().parents[1]
+
+
+def straight_scene(n: int) -> Scene:
+    x = np.zeros((n, 3))
+    x[:, 0] = np.arange(n) * 1e-3
+    tube = TubeSpec("/World/Tube", x, [n], np.full(n, 1e-3), TubeParams(density=1050.0, youngs_modulus=1e5), pinned=[0, 1])
+    info = StageInfo(meters_per_unit=1.0, up_axis="Y", time_codes_per_second=24.0, frames_per_second=24.0,
+                     start_time_code=0.0, end_time_code=2.0)  # fmt: skip
+    return Scene(tubes=[tube], forces=[], settings=SimulationSettings(), stage=info, source="<straight>")
+
+
+def main():
+    p = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    p.add_argument("--points", type=int, nargs="+", default=[5_000, 20_000])
+    p.add_argument("--repeat", type=int, default=3)
+    a = p.parse_args()
+    wp.config.log_level = wp.LOG_WARNING
+    for n in a.points:
+        scene = straight_scene(n)
+        times = []
+        for _ in range(a.repeat):
+            t0 = time.perf_counter()
+            Simulation(scene, device="cpu")
+            times.append(time.perf_counter() - t0)
+        per = statistics.median(times) / n
+        print(f"set-up, {n:,} points: median {statistics.median(times):.2f} s, {per * 1e3:.3f} ms a point "
+              f"(estimate uses {BUILD_SECONDS_PER_POINT * 1e3:.3f})")  # fmt: skip
+
+    text = (ROOT / "scenes" / "default.usda").read_text().replace("youngsModulus = 100000", "youngsModulus = 1e10")
+    path = pathlib.Path("/tmp") / "warp_tube_bench_stiff.usda"
+    path.write_text(text)
+    sim = Simulation(warp_tube.load_scene(str(path)), device="cpu", surface=False)
+    sim.step()  # compiles the kernels
+    times = []
+    for _ in range(a.repeat):
+        t0 = time.perf_counter()
+        sim.step()
+        times.append(time.perf_counter() - t0)
+    per_step = statistics.median(times) / sim.substeps
+    per_point = per_step / sim.model.node_count
+    print(f"stiff default scene: {sim.substeps:,} substeps a frame, median frame {statistics.median(times):.3f} s, "
+          f"{per_step * 1e6:.2f} us a substep, {per_point * 1e9:.0f} ns a point and substep "
+          f"({sim.model.node_count} points; estimate uses {CPU_SEMI_STEP_COST * 1e9:.0f})")  # fmt: skip
+
+
+if __name__ == "__main__":
+    main()

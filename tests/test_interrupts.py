@@ -1,0 +1,97 @@
+"""Ctrl-C (SIGINT) on `warp-tube run`, in a subprocess: during the kernel compile and mid-run.
+
+The run is stopped at a known point by ``WARP_TUBE_PAUSE_AT`` (it prints a line and sleeps there),
+so the signal arrives where the test says, not where the scheduler happens to be. A third test
+interrupts a real compile: an empty kernel cache, and the signal sent as soon as Warp reports its
+first compiled module (a second one is compiling then). In every case: exit status 130, the existing
+output byte for byte as it was, no temporary file left, and the finished frames, if any, in a valid
+``OUT.partial.usdc`` that the message names.
+"""
+
+import os
+import signal
+import subprocess
+import sys
+
+import pytest
+from pxr import Usd, UsdGeom
+
+from warp_tube.sim.simulation import PAUSE_ENV
+
+from .bad_inputs import KEEP, scene
+from .conftest import ROOT, check_output_problems, needs_shared
+
+TIMEOUT = 300  # s: a whole compile on a loaded CPU fits well within this
+
+
+def interrupt_when(folder, marker: str, *, env=None, args=(), stream="stderr"):
+    """Start `warp-tube run scene.usda -o keep.usdc`, send SIGINT once ``marker`` appears on
+    ``stream``; returns (exit status, stdout, stderr)."""
+    cmd = [sys.executable, "-m", "warp_tube", *args, "run", "scene.usda", "-o", "keep.usdc"]
+    full_env = dict(os.environ, PYTHONPATH=str(ROOT), **(env or {}))
+    p = subprocess.Popen(cmd, cwd=folder, env=full_env, stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True)
+    watched = p.stderr if stream == "stderr" else p.stdout
+    seen = []
+    try:
+        for line in watched:
+            seen.append(line)
+            if marker in line:
+                p.send_signal(signal.SIGINT)
+                break
+        out, err = p.communicate(timeout=TIMEOUT)
+    finally:
+        if p.poll() is None:
+            p.kill()
+    seen = "".join(seen)
+    return p.returncode, (seen + out if stream == "stdout" else out), (seen + err if stream == "stderr" else err)
+
+
+@pytest.fixture
+def folder(tmp_path):
+    (tmp_path / "scene.usda").write_text(scene(("endTimeCode = 2", "endTimeCode = 12")))
+    (tmp_path / "keep.usdc").write_bytes(KEEP)
+    return tmp_path
+
+
+def leftovers(folder):
+    return sorted(p.name for p in folder.iterdir() if p.name not in ("scene.usda", "keep.usdc", "keep.partial.usdc"))
+
+
+def test_interrupt_during_compile_keeps_the_output_and_writes_nothing(folder):
+    rc, _, err = interrupt_when(folder, "paused at compile", env={PAUSE_ENV: "compile"})
+    assert rc == 130, err
+    assert "before any frame was finished" in err and "nothing kept" in err and "keep.usdc was left as it was" in err
+    assert (folder / "keep.usdc").read_bytes() == KEEP
+    assert not (folder / "keep.partial.usdc").exists() and leftovers(folder) == []
+    assert "Traceback" not in err
+
+
+@needs_shared
+def test_interrupt_mid_run_keeps_the_output_and_the_finished_frames(folder):
+    rc, _, err = interrupt_when(folder, "paused at frame:4", env={PAUSE_ENV: "frame:4"})
+    assert rc == 130, err
+    partial = folder / "keep.partial.usdc"
+    assert f"frames 0-4 (5 frames) kept in {partial}" in err and "keep.usdc was left as it was" in err
+    assert (folder / "keep.usdc").read_bytes() == KEEP and leftovers(folder) == []
+    st = Usd.Stage.Open(str(partial))
+    times = UsdGeom.BasisCurves(st.GetPrimAtPath("/World/Tube/Centerline")).GetPointsAttr().GetTimeSamples()
+    assert list(times) == [0.0, 1.0, 2.0, 3.0, 4.0] and st.GetEndTimeCode() == 4.0
+    assert check_output_problems(partial) == []
+    assert "Traceback" not in err
+
+
+def test_interrupt_of_a_real_kernel_compile(folder, tmp_path_factory):
+    # -v makes Warp print "Module ... (compiled)" after each module it compiles; with an empty cache
+    # the next module is compiling when the first line appears.
+    cache = tmp_path_factory.mktemp("empty_kernel_cache")
+    rc, out, err = interrupt_when(folder, "(compiled)", env={"WARP_CACHE_PATH": str(cache)}, args=("-v",), stream="stdout")
+    assert "(compiled)" in out, "no kernel was compiled: the cache was not empty"
+    assert rc == 130, err
+    assert (folder / "keep.usdc").read_bytes() == KEEP and leftovers(folder) == []
+    partial = folder / "keep.partial.usdc"
+    if partial.exists():  # frames finished before the signal landed are kept, in a valid stage
+        assert f"kept in {partial}" in err
+        assert Usd.Stage.Open(str(partial)) is not None
+    else:
+        assert "nothing" in err
+    assert "Traceback" not in err

@@ -1,0 +1,104 @@
+"""Does an extracted tube look like a tube? Warnings, in the user's terms, for inputs that do not.
+
+Extraction finds a centerline in any closed or open surface, so a blob (a sphere), a mesh with too
+few vertices to measure the fit, or a broken mesh still gives hubs and spokes. These checks look at
+the result and say what is suspicious and what to do:
+
+- *not elongated*: the centerline is shorter than :data:`MIN_LENGTH_DIAMETERS` mean diameters;
+- *fit not measurable*: no mesh vertex lies away from the ends (e.g. a plain cylinder, whose only
+  vertices are its two end rings), so the automatic hub count could not converge;
+- *over-resolved*: the automatic hub count went past :data:`MAX_HUBS_PER_RADIUS` hubs per mean
+  radius (it stops at its limit when the surface cannot be matched);
+- *poor fit*: the rebuilt surface lies farther from the mesh than :data:`POOR_FIT` (mean, 95th
+  percentile, as fractions of the mean radius);
+- *missed spokes*: more than :data:`MISSED_FRACTION` of the spoke rays hit nothing.
+"""
+
+from __future__ import annotations
+
+import math
+
+__all__ = ["tube_warnings", "summary_line", "size_warning"]
+
+MIN_LENGTH_DIAMETERS = 2.0
+MAX_HUBS_PER_RADIUS = 10.0
+POOR_FIT = (0.10, 0.30)
+MISSED_FRACTION = 0.10
+#: ``--hubs`` above this gets a warning with the size of what will be written.
+LARGE_HUBS = 20_000
+#: characters per spoke length and per hub written to a .usda scene (measured on written scenes).
+USDA_CHARS_PER_SPOKE = 13
+USDA_CHARS_PER_HUB = 60
+
+
+def tube_warnings(tube, fidelity=None, automatic_hubs: bool = True, units: str = "m") -> list[str]:
+    """Warnings about an extracted tube (see the module docstring); empty when it looks fine.
+
+    Args:
+        tube: the :class:`~warp_tube.extract.pipeline.ExtractedTube` (lengths in its mesh units).
+        fidelity: its :class:`~warp_tube.extract.fidelity.Fidelity`, or None if not measured.
+        automatic_hubs: the hub count was chosen by the extraction (no ``--hubs``).
+        units: the name of the tube's length unit, for the messages.
+    """
+    out = []
+    r = float(tube.radius.mean())
+    length = tube.length
+    if r > 0 and length < MIN_LENGTH_DIAMETERS * 2.0 * r:
+        out.append(
+            f"does not look like a tube: its centerline is {length:.3g} {units} long and {2 * r:.3g} {units} across (length "
+            f"{length / (2 * r):.1f} x its diameter); the hubs-and-spokes model is for elongated shapes"
+        )
+    if fidelity is not None and fidelity.counted == 0:
+        out.append(
+            "the fit of the rebuilt surface could not be measured: no mesh vertex lies away from the tube's ends "
+            "(a mesh with vertices only at its end rings, such as a plain cylinder, has none); subdivide the mesh "
+            "along its length or pass --hubs N"
+        )
+    per_radius = (tube.hubs - 1) * r / length if length > 0 else math.inf
+    if automatic_hubs and per_radius > MAX_HUBS_PER_RADIUS:
+        out.append(
+            f"{tube.hubs} hubs for a tube {length:.3g} {units} long and {r:.3g} {units} in radius ({per_radius:.0f} per radius, where "
+            f"one or two suffice): the surface could not be matched with fewer; check the mesh, or pass --hubs "
+            f"{max(8, round(length / r) + 1)}"
+        )
+    if fidelity is not None and fidelity.counted > 0 and (fidelity.mean > POOR_FIT[0] or fidelity.p95 > POOR_FIT[1]):
+        out.append(
+            f"the rebuilt surface lies {fidelity.mean:.0%} (mean) and {fidelity.p95:.0%} (95th percentile) of the "
+            "radius from the mesh: the mesh may not be a single tube"
+        )
+    rays = tube.hubs * tube.spokes
+    if rays and tube.missed_spokes > MISSED_FRACTION * rays:
+        out.append(
+            f"{tube.missed_spokes} of {rays} spoke rays ({tube.missed_spokes / rays:.0%}) hit no wall and were "
+            "filled in from neighbouring hubs: the mesh has large openings or is not a tube"
+        )
+    return out
+
+
+def size_warning(hubs: int, spokes: int) -> str | None:
+    """A warning for ``--hubs`` so large that extraction and the written scene get big, or None."""
+    if hubs is None or hubs <= LARGE_HUBS:
+        return None
+    mb = (hubs * spokes * USDA_CHARS_PER_SPOKE + hubs * USDA_CHARS_PER_HUB) / 1e6
+    return (
+        f"--hubs {hubs:,}: {hubs * spokes:,} spokes to cast and write (a .usda scene of about {mb:,.0f} MB); "
+        "this takes minutes and the scene will simulate slowly. Without --hubs the hub count follows the "
+        "tube's length and radius"
+    )
+
+
+def summary_line(tube, fidelity, output: str, units: str = "m") -> str:
+    """One line about an extraction: hubs, length, radius range, ends, branches, fit."""
+    ends = "/".join(e.kind for e in tube.ends)
+    fit = "fit not measured"
+    if fidelity is not None:
+        fit = (
+            f"surface within {fidelity.mean:.1%} (mean) / {fidelity.p95:.1%} (95th percentile) of the radius"
+            if fidelity.counted
+            else "fit not measurable"
+        )
+    return (
+        f"{output}: {tube.hubs} hubs x {tube.spokes} spokes, {tube.length:.4g} {units} long, radius "
+        f"{tube.radius.min():.3g}-{tube.radius.max():.3g} {units}, ends {ends}, {len(tube.branches)} side "
+        f"branch(es) left out, {fit}"
+    )
