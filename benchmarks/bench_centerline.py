@@ -35,7 +35,7 @@ wp.config.log_level = wp.LOG_WARNING  # stdout carries the JSON only: no banner,
 from warp_tube.model.tube import build_model
 from warp_tube.bench.references import cantilever_frequency, elastica_tip
 from warp_tube.scene.spec import ForceSpec, Scene, StageInfo, TubeParams, TubeSpec
-from warp_tube.sim.simulation import Simulation
+from warp_tube import Simulation
 from warp_tube.centerline.explicit import SemiImplicitEulerSolver
 from warp_tube.centerline.stability import critical_time_step
 

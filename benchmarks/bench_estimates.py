@@ -22,7 +22,8 @@ import warp as wp
 import warp_tube
 from warp_tube.cli import BUILD_SECONDS_PER_POINT
 from warp_tube.scene.spec import Scene, SimulationSettings, StageInfo, TubeParams, TubeSpec
-from warp_tube.sim.simulation import CPU_SEMI_STEP_COST, Simulation
+from warp_tube import Simulation
+from warp_tube.sim.simulation import CPU_SEMI_STEP_COST
 
 ROOT = pathlib.Path(__file__).resolve().parents[1]
 

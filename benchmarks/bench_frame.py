@@ -17,7 +17,7 @@ half the stability bound).
 Timed, medians of ``--reps`` calls after a warm-up, side by side in one run:
 
 - ``substeps_us``: the solver's frame (all substeps: one launch on the CPU, replayed from its
-  captured graph, :mod:`warp_tube.replay`);
+  captured graph, :mod:`warp_tube.runtime.replay`);
 - ``surface_us``: one surface rebuild (``SurfaceBuilder.compute``, replayed the same way);
 - ``frame_us``: both, back to back, as the issue's "one 60 fps frame" counts it;
 - ``simulation_step_us``: ``Simulation.step`` (the frame plus its host-side checks: finite,
@@ -43,7 +43,7 @@ import warp as wp
 wp.config.log_level = wp.LOG_WARNING  # stdout carries the JSON only: no banner, no module messages
 
 from warp_tube.scene.spec import ForceSpec, Scene, SimulationSettings, StageInfo, TubeParams, TubeSpec
-from warp_tube.sim.simulation import Simulation
+from warp_tube import Simulation
 
 HUBS, SPOKES, RADIUS, LENGTH = 20, 9, 0.015, 0.4
 

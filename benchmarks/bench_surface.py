@@ -152,7 +152,7 @@ def bench_cuda(bandwidth_gbs: float, bandwidth_source: str, replays: int) -> dic
     for case, lengths in (("block", np.full(n, 0.01)), ("block_measured", measured)):
         b = SurfaceBuilder([0, n], straight_rest(n), S, lengths, world_count=W, device=device, kernel="block")
         b.compute(q)  # compile, record
-        b.compute(q)  # capture (warp_tube.replay)
+        b.compute(q)  # capture (warp_tube.runtime.replay)
         t_all = _time_graph(b._graphs._graphs[(q.ptr, q.shape, q.strides)][1], device, replays)
         out[f"{case}_rebuild_s"] = t_all
         out[f"{case}_vertices_per_s_rebuild"] = vertices / t_all

@@ -399,7 +399,7 @@ def _message(stderr: str, stdout: str) -> str:
 def run_case(case: Case, fixtures: Path, work: Path) -> Result:
     """Run one case in ``work`` (a fresh copy of ``fixtures``)."""
     from warp_tube.cli import main
-    from warp_tube.native_output import native_stderr
+    from warp_tube.runtime.native_output import native_stderr
 
     shutil.copytree(fixtures, work, symlinks=True)
     for name, content in case.files.items():

@@ -14,12 +14,12 @@ import sys
 ROOT = pathlib.Path(__file__).resolve().parents[1]
 
 #: stages in data-flow order; a module may import only from its own stage or earlier ones.
-#: ``kernels`` and ``replay`` (graph capture, used by the centerline and the surface) come first;
+#: ``kernels`` and ``runtime`` (quiet Warp start-up, graph capture, progress lines) come first;
 #: ``centerline`` and ``surface`` are siblings; ``extract`` reads meshes into scenes; ``bench``,
 #: ``batch`` and ``cli`` sit on top.
 STAGES = {
     "kernels": 0,
-    "replay": 0,
+    "runtime": 0,
     "scene": 1,
     "model": 2,
     "centerline": 3,

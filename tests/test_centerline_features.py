@@ -4,7 +4,7 @@ import numpy as np
 import pytest
 
 from warp_tube.scene.spec import ForceSpec, Scene, StageInfo, TubeParams, TubeSpec
-from warp_tube.sim.simulation import Simulation
+from warp_tube import Simulation
 
 FPS = 24.0
 

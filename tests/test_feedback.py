@@ -14,8 +14,9 @@ import warp_tube
 from warp_tube.cli import main
 from warp_tube.extract.command import extract_to_scene
 from warp_tube.extract.tube_check import LARGE_HUBS, size_warning
-from warp_tube.progress import Phase, format_seconds
-from warp_tube.sim.simulation import LONG_RUN_SECONDS, RunSummary, Simulation
+from warp_tube.runtime.progress import Phase, format_seconds
+from warp_tube import Simulation
+from warp_tube.sim.simulation import LONG_RUN_SECONDS, RunSummary
 
 from .bad_inputs import _plain_cylinder, _sphere, scene, tube_mesh
 from .conftest import ROOT, SCENES

@@ -11,9 +11,9 @@ from pxr import Sdf, Usd, UsdGeom
 
 import warp_tube
 from warp_tube.cli import main
-from warp_tube.io.files import default_run_output, output_path, partial_path, same_file, temp_path, write_atomically
+from warp_tube.scene.files import default_run_output, output_path, partial_path, same_file, temp_path, write_atomically
 from warp_tube.scene.spec import SceneError
-from warp_tube.sim.simulation import Simulation
+from warp_tube import Simulation
 
 from .bad_inputs import FORCED_BLOWUP, KEEP, scene, tube_mesh
 from .conftest import SCENES, check_output_problems, needs_shared

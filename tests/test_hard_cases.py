@@ -8,7 +8,7 @@ from .oracle_energy import total_energy
 from warp_tube.model.tube import build_model
 from warp_tube.bench.references import elastica_tip
 from warp_tube.scene.spec import ForceSpec, Scene, SceneError, SimulationSettings, StageInfo, TubeParams, TubeSpec
-from warp_tube.sim.simulation import Simulation
+from warp_tube import Simulation
 from warp_tube.centerline.explicit import SemiImplicitEulerSolver
 from warp_tube.centerline.stability import critical_time_step
 

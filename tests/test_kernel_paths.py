@@ -6,7 +6,7 @@ import pytest
 import warp as wp
 
 from warp_tube.scene.spec import ForceSpec, Scene, SimulationSettings, StageInfo, TubeParams, TubeSpec
-from warp_tube.sim.simulation import Simulation
+from warp_tube import Simulation
 from warp_tube.centerline.explicit import SemiImplicitEulerSolver
 
 

@@ -1,11 +1,11 @@
-"""Captured frames (:mod:`warp_tube.replay`) give exactly what the launches give when run directly."""
+"""Captured frames (:mod:`warp_tube.runtime.replay`) give exactly what the launches give when run directly."""
 
 import numpy as np
 import pytest
 import warp as wp
 
-from warp_tube.replay import GraphCache, can_capture
-from warp_tube.sim.simulation import Simulation
+from warp_tube.runtime.replay import GraphCache, can_capture
+from warp_tube import Simulation
 from warp_tube.centerline.explicit import SemiImplicitEulerSolver
 
 from .test_kernel_paths import all_features_scene

@@ -540,7 +540,7 @@ def test_no_local_self_intersection_in_the_example_scenes(name):
     """Each scene of scenes/ simulated to its end: at a quarter, half, three quarters and the end,
     no two triangles of one tube whose rings lie less than pi r apart along its centerline cross
     (exhaustive, as for the arcs above; r the curve's mean radius, curves of one prim never paired)."""
-    from warp_tube.sim.simulation import Simulation
+    from warp_tube import Simulation
     from warp_tube.scene.usd import load_scene
 
     from .conftest import SCENES

@@ -36,6 +36,7 @@ def load_scene(path):
 
 def __getattr__(name):
     if name == "Simulation":
+        from . import io  # noqa: F401 (registers the USD writer with the frame loop)
         from .sim.simulation import Simulation
 
         return Simulation

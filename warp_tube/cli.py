@@ -81,9 +81,9 @@ def _parser() -> argparse.ArgumentParser:
 
 def _cmd_run(a) -> int:
     from . import load_scene
-    from .io.files import default_run_output, usd_layer_files
+    from .scene.files import default_run_output, usd_layer_files
     from .io.writer import check_output_path
-    from .progress import Phase, format_seconds, stderr_is_terminal
+    from .runtime.progress import Phase, format_seconds, stderr_is_terminal
     from .scene.usd import open_stage
     from .sim.simulation import NumericalError, Simulation
 
@@ -157,7 +157,7 @@ def _cmd_check(a) -> int:
 
 def _cmd_extract(a) -> int:
     from .extract.command import extract_to_scene
-    from .progress import stderr_is_terminal
+    from .runtime.progress import stderr_is_terminal
 
     if a.scale is not None and len(a.scale) not in (1, 3):
         raise SceneError(f"--scale takes 1 or 3 values, got {len(a.scale)}")
@@ -201,7 +201,7 @@ class _PlainFormatter(logging.Formatter):
     clears the line, which may hold a status line or a progress bar."""
 
     def format(self, record):
-        from .progress import stderr_is_terminal
+        from .runtime.progress import stderr_is_terminal
 
         clear = "\r\033[K" if stderr_is_terminal() else ""
         return f"{clear}warp-tube: {record.levelname.lower()}: {record.getMessage()}"
@@ -225,7 +225,7 @@ def _configure_logging(verbose: bool):
 
 def main(argv=None) -> int:
     """Entry point of the ``warp-tube`` console script; returns the exit status."""
-    from .warp_setup import set_verbose
+    from .runtime.warp_setup import set_verbose
 
     args = _parser().parse_args(argv)
     set_verbose(args.verbose)

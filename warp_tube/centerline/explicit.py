@@ -4,7 +4,7 @@
 ``solver.integrate(state_in, state_out, control, dt, substeps)`` advances a whole frame. On the
 CPU a frame is a single launch of the per-tube substep kernel; on CUDA it is ``substeps``
 per-node launches. Either way a frame's launches are captured once into a graph and replayed
-(:mod:`warp_tube.replay`; on the CPU through Warp's recorded-operation replay). With ``onchip=True`` a frame is one
+(:mod:`warp_tube.runtime.replay`; on the CPU through Warp's recorded-operation replay). With ``onchip=True`` a frame is one
 launch of the on-chip kernel (:mod:`warp_tube.kernels.onchip`): a block per group of whole tubes
 keeps their state in registers and shared memory over all the substeps.
 """
@@ -24,7 +24,7 @@ from warp_tube.kernels.onchip import MAX_BLOCK_DIM, UNSUPPORTED, make_onchip_ker
 ONCHIP_BLOCK_DIM = 128
 
 from ..model.tube import TubeControl, TubeModel, TubeState
-from ..replay import GraphCache, cpu_blocks
+from ..runtime.replay import GraphCache, cpu_blocks
 
 __all__ = ["SemiImplicitEulerSolver"]
 
@@ -178,7 +178,7 @@ class SemiImplicitEulerSolver:
 
         ``state_in`` is left unchanged; pins move linearly from ``control.pin_q_start`` to
         ``control.pin_q_end`` over the interval. The launches of a frame are captured once per
-        (states, control, dt, substeps) and replayed (:mod:`warp_tube.replay`).
+        (states, control, dt, substeps) and replayed (:mod:`warp_tube.runtime.replay`).
         """
         dt, substeps = float(dt), int(substeps)
         if self.onchip:

@@ -6,8 +6,8 @@ import logging
 import os
 from dataclasses import dataclass, field
 
-from ..io.files import USD_EXTENSIONS, output_path
-from ..progress import Phase
+from ..scene.files import USD_EXTENSIONS, output_path
+from ..runtime.progress import Phase
 from .fidelity import Fidelity, surface_fidelity
 from .mesh_io import load_mesh
 from .pipeline import ExtractedTube, extract_centerline
@@ -61,7 +61,7 @@ def extract_to_scene(mesh_path, output, *, hubs=None, spokes=16, scale=None, dev
     Raises:
         SceneError: unreadable or unusable mesh, or an output that cannot be written.
     """
-    from ..warp_setup import init_warp
+    from ..runtime.warp_setup import init_warp
 
     given = os.fspath(output)
     output = output_path(output, USD_EXTENSIONS, inputs=[mesh_path], what="scene")

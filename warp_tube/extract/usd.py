@@ -25,7 +25,7 @@ import re
 
 import numpy as np
 
-from ..io.files import USD_EXTENSIONS, output_path, write_atomically
+from ..scene.files import USD_EXTENSIONS, output_path, write_atomically
 from .pipeline import ExtractedTube, extract_centerline
 from ..model.frames import rotation_minimizing_frames
 from .mesh_io import load_usd_mesh
@@ -232,7 +232,7 @@ def tube_from_mesh_prim(file: str, prim, info: StageInfo) -> TubeSpec:
         raise SceneError(f"{where}.warptube:density: missing: expected a float or double [kg/m^3] (required)")
     if frames is not None and str(frames) not in FRAME_MODES:
         raise SceneError(f"{where}.warptube:frames: found {frames!r}: expected one of {', '.join(FRAME_MODES)}")
-    from ..warp_setup import init_warp
+    from ..runtime.warp_setup import init_warp
     from .fidelity import surface_fidelity
     from .tube_check import tube_warnings
 

@@ -127,7 +127,7 @@ def export(usd_path, fmt: str = "obj", out=None, frame=None, overwrite: bool = F
     import trimesh
     from pxr import UsdGeom
 
-    from .files import refuse_existing, same_file, write_atomically
+    from ..scene.files import refuse_existing, same_file, write_atomically
 
     if fmt not in FORMATS:
         raise SceneError(f"unknown export format {fmt!r}; expected one of {FORMATS}")

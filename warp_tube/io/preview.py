@@ -51,8 +51,8 @@ def preview(usd_path, png_path, frames: int = 4, size: int = 320, device=None) -
     from PIL import Image
     from pxr import UsdGeom
 
-    from ..warp_setup import init_warp
-    from .files import output_path, write_atomically
+    from ..runtime.warp_setup import init_warp
+    from ..scene.files import output_path, write_atomically
 
     if frames < 1:
         raise SceneError(f"preview needs at least one frame, got {frames}")

@@ -5,10 +5,10 @@ For each tube prim at path P the stage holds an ``Xform`` at P with ``P/Centerli
 ``primvars:st``; ``points``, ``normals`` and ``extent`` time-sampled). Samples are written straight
 into the layer, which no stage has open after the prims are defined (``Sdf.Layer.SetTimeSample`` of
 ``Vt.Vec3fArray`` values: about 1 us less per sample than through an open stage). The layer is
-saved under a hidden temporary name beside the target (:func:`warp_tube.io.files.temp_path`) and
+saved under a hidden temporary name beside the target (:func:`warp_tube.scene.files.temp_path`) and
 renamed over it only by :meth:`StageWriter.close`, so an existing file is replaced only by a complete
 one. A run that stops early calls :meth:`StageWriter.keep_partial` instead: the frames written so far
-go to ``OUT.partial.usdc`` beside the target (:func:`warp_tube.io.files.partial_path`), and the
+go to ``OUT.partial.usdc`` beside the target (:func:`warp_tube.scene.files.partial_path`), and the
 target is left as it was.
 """
 
@@ -20,7 +20,7 @@ import os
 import numpy as np
 
 from ..scene.spec import Scene
-from .files import USD_EXTENSIONS, output_path, partial_path, temp_path
+from ..scene.files import USD_EXTENSIONS, output_path, partial_path, temp_path
 
 __all__ = ["StageWriter", "check_output_path", "points_extent", "vec3f_array"]
 
@@ -93,7 +93,7 @@ def points_extent(points: np.ndarray) -> np.ndarray:
 
 def check_output_path(path, inputs=()) -> str:
     """Validate an output stage path before any simulation (extension .usdc/.usda/.usd, writable
-    folder, not one of ``inputs``); returns it absolute. See :func:`warp_tube.io.files.output_path`."""
+    folder, not one of ``inputs``); returns it absolute. See :func:`warp_tube.scene.files.output_path`."""
     return output_path(path, USD_EXTENSIONS, inputs=inputs)
 
 

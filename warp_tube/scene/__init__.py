@@ -1,5 +1,5 @@
-"""Stage 1, the scene: frozen dataclasses in SI units (:mod:`.spec`) and USD reading and writing
-(:mod:`.usd`)."""
+"""Stage 1, the scene: frozen dataclasses in SI units (:mod:`.spec`), USD reading and writing
+(:mod:`.usd`), and the file safety every later stage writes through (:mod:`.files`)."""
 
 from .spec import ForceSpec, Scene, SceneError, SimulationSettings, StageInfo, TubeParams, TubeSpec
 

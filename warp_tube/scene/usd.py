@@ -50,11 +50,11 @@ def open_stage(path: str):
     USD; a damaged binary file; a sublayer, reference or payload that cannot be opened).
 
     usd-core's own C++ diagnostics, written to stderr, are caught (see
-    :mod:`warp_tube.native_output`) and not shown.
+    :mod:`warp_tube.runtime.native_output`) and not shown.
     """
     from pxr import Tf, Usd
 
-    from ..native_output import native_stderr
+    from ..runtime.native_output import native_stderr
 
     path = os.fspath(path)
     if not os.path.exists(path):

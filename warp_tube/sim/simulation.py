@@ -32,6 +32,7 @@ from ..model.tube import build_model
 from ..scene.spec import Scene, SceneError
 from .checks import FrameChecks
 from .control import FrameControl
+from .output import open_writer
 from .proximity import ContactMonitor
 
 log = logging.getLogger(__name__)
@@ -59,7 +60,7 @@ class NumericalError(RuntimeError):
 
 def resolve_device(device=None) -> str:
     """``None`` -> the first CUDA device if there is one, else ``cpu``; checks a named device."""
-    from ..warp_setup import init_warp
+    from ..runtime.warp_setup import init_warp
 
     init_warp()
     if device is None:
@@ -368,7 +369,7 @@ class Simulation:
         The output is written under a temporary name and renamed over ``output`` only when the
         run completes. If the run stops (numerical failure, interrupt, any exception) the frames
         finished so far are saved to ``OUT.partial.usdc`` beside ``output``
-        (:func:`warp_tube.io.files.partial_path`), :attr:`last_summary` names it (``partial``, None if
+        (:func:`warp_tube.scene.files.partial_path`), :attr:`last_summary` names it (``partial``, None if
         no frame was finished), and a file already at ``output`` is left as it was.
 
         Args:
@@ -385,8 +386,7 @@ class Simulation:
             NumericalError: after keeping the frames finished so far.
             KeyboardInterrupt: after keeping the frames finished so far.
         """
-        from ..io.writer import StageWriter
-        from ..progress import Phase
+        from ..runtime.progress import Phase
 
         info = self.scene.stage
         first = self.frame
@@ -404,7 +404,7 @@ class Simulation:
         if output:
             inputs = [self.scene.source] if self.scene.source and os.path.exists(self.scene.source) else []
             start_tc = info.start_time_code + (written[0] if written else first)
-            writer = StageWriter(output, self.scene, self.surfaces, start_time_code=start_tc, inputs=inputs)
+            writer = open_writer(output, self.scene, self.surfaces, start_time_code=start_tc, inputs=inputs)
         summary = RunSummary(
             scene=self.scene.source, device=self.device, frames=0, substeps=self.substeps, dt=self.dt,
             integrator=self.integrator, reason=self.reason, wall_time=0.0, max_displacement=0.0,
@@ -475,7 +475,7 @@ class Simulation:
         start-up out), and a heartbeat that keeps its clock moving through long frames."""
         from tqdm import tqdm
 
-        from ..progress import Heartbeat
+        from ..runtime.progress import Heartbeat
 
         bar = tqdm(total=total, initial=1, unit="frame", desc="simulating", leave=False, file=sys.stderr)
         beat = Heartbeat(bar.refresh)
@@ -498,7 +498,7 @@ class Simulation:
         seconds = self.estimated_seconds(frames)
         if seconds < LONG_RUN_SECONDS:
             return
-        from ..progress import format_seconds
+        from ..runtime.progress import format_seconds
 
         log.warning(
             "this run will take about %s: %s frames x %s substeps a frame (%s) x %s points; --frames N runs fewer frames",

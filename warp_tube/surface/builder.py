@@ -27,7 +27,7 @@ from ..model import frames as ref_frames
 from ..kernels.surface_arrays import SurfaceArrays
 from ..kernels.surface_block import WORLD_LANES, make_surface_block_kernel
 from ..kernels.surface_world import surface_world_kernel
-from ..replay import GraphCache, cpu_blocks
+from ..runtime.replay import GraphCache, cpu_blocks
 from .topology import SurfaceTopology, build_topology
 
 __all__ = ["SurfaceBuilder", "FRAME_MODES", "DEFAULT_GUARD_REACH"]

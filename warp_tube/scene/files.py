@@ -1,4 +1,4 @@
-"""File safety shared by every command that writes: no input is written over, an existing output
+"""File safety shared by every stage that writes (scenes, extraction, outputs, exports): no input is written over, an existing output
 is replaced only by a complete one, and unfinished work is kept under a name that says so.
 
 - :func:`output_path` checks an output path before any work: extension, folder, not a folder,
@@ -19,7 +19,7 @@ from __future__ import annotations
 import os
 from collections.abc import Callable, Iterable
 
-from ..scene.spec import SceneError
+from .spec import SceneError
 
 __all__ = [
     "USD_EXTENSIONS",
