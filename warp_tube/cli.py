@@ -1,4 +1,4 @@
-"""Command line: ``warp-tube run | check | extract | preview | export``.
+"""Command line: ``warp-tube run | check | extract | preview | export | batch``.
 
 Exit status: 0 done; 2 invalid input or request (message, no traceback, nothing simulated, no
 output file); 3 numerical failure (the frames finished so far are kept); 130 interrupted.
@@ -63,6 +63,10 @@ def _parser() -> argparse.ArgumentParser:
     x.add_argument("--format", choices=("obj", "glb"), default="obj")
     x.add_argument("-o", "--output", help="output file or folder (default: beside the stage)")
     x.add_argument("--frame", type=float, help="only this time code")
+
+    from .batch.command import add_parser as add_batch_parser
+
+    add_batch_parser(sub)
     return p
 
 
@@ -131,6 +135,12 @@ def _cmd_export(a) -> int:
     return EXIT_OK
 
 
+def _cmd_batch(a) -> int:
+    from .batch.command import run
+
+    return run(a)
+
+
 def main(argv=None) -> int:
     """Entry point of the ``warp-tube`` console script; returns the exit status."""
     args = _parser().parse_args(argv)
@@ -139,7 +149,8 @@ def main(argv=None) -> int:
     wp.config.log_level = wp.LOG_INFO if args.verbose else wp.LOG_WARNING
     logging.basicConfig(level=logging.INFO if args.verbose else logging.WARNING, format="%(levelname)s %(name)s: %(message)s")
     try:
-        handler = {"run": _cmd_run, "check": _cmd_check, "extract": _cmd_extract, "preview": _cmd_preview, "export": _cmd_export}
+        handler = {"run": _cmd_run, "check": _cmd_check, "extract": _cmd_extract, "preview": _cmd_preview, "export": _cmd_export,
+                   "batch": _cmd_batch}
         return handler[args.command](args)
     except SceneError as e:
         print(f"warp-tube: {e}", file=sys.stderr)
