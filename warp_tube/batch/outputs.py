@@ -291,7 +291,7 @@ def write_grid_root(spec: OutputSpec, stage_info, chunk_layers: list[str], names
     grid = UsdGeom.Xform.Define(st, "/Grid").GetPrim()
     st.SetDefaultPrim(grid)
     del st
-    layer.GetPrimAtPath("/Grid").primOrder = list(names)
+    layer.GetPrimAtPath("/Grid").nameChildrenOrder = list(names)
     layer.subLayerPaths = list(chunk_layers)
     layer.Save()
     del layer

@@ -326,8 +326,7 @@ def run_batch(scene: str, out_dir: str, table: str | None = None, *, variant_set
     bar.close_reading()
     first = variants.variants[0].scene
     n_frames = first.stage.frame_count if frames is None else int(frames)
-    cache: dict = {}
-    choices = [run_choice(v.scene, cache) for v in variants.variants]
+    choices = _run_choices(variants)
     keys = [group_key(v.scene, c, surface) for v, c in zip(variants.variants, choices)]
     journal = Journal(out_dir)
     if chunk is None:
@@ -397,6 +396,26 @@ def run_batch(scene: str, out_dir: str, table: str | None = None, *, variant_set
     _tally(result, records, variants)
     result.wall_s = time.perf_counter() - t_start
     return result
+
+
+def _run_choices(variants) -> list:
+    """Each variant's integrator and substeps alone; a variant whose settings no integrator takes
+    (e.g. implicit Euler with an assistant line) is a bad row, reported with the others."""
+    from .variants import MAX_PROBLEMS
+
+    cache: dict = {}
+    out, problems = [], []
+    for v in variants.variants:
+        try:
+            out.append(run_choice(v.scene, cache))
+        except SceneError as e:
+            where = variants.table.where(v.row) if variants.table is not None and v.row is not None else v.name
+            chosen = ", ".join(f"{a.label} = {c}" for a, c in zip(variants.axes, v.selection))
+            problems.append(f"{where}{' with ' + chosen if chosen else ''}: {e}")
+    if problems:
+        more = f"\n  ... and {len(problems) - MAX_PROBLEMS} more" if len(problems) > MAX_PROBLEMS else ""
+        raise SceneError(f"{len(problems)} problem(s) in the variants; nothing was run:\n  " + "\n  ".join(problems[:MAX_PROBLEMS]) + more)
+    return out
 
 
 def _json_row(row: dict, output: str) -> dict:
