@@ -208,6 +208,10 @@ def test_interrupt_and_resume_end_with_the_same_files(tmp_path):
     assert names == sorted(p.name for p in part.iterdir())
     for n in names:
         assert filecmp.cmp(whole / n, part / n, shallow=False), n
+    # resuming a finished batch does nothing
+    again = run_batch(str(DEFAULT), str(part), str(table), frames=5, writers=1, resume=True)
+    assert (again.resumed, again.ok) == (6, 6)
+    assert sorted(p.name for p in part.iterdir()) == names
 
 
 def test_resume_refuses_other_options(tmp_path):
@@ -408,3 +412,25 @@ def test_several_prims_and_curves_per_variant(tmp_path):
     assert run_batch(str(scene), str(out), str(table), frames=6, writers=0).ok == 3
     assert _alone_equal(tmp_path, scene, {"/World/B.warptube:youngsModulus": 1e5, "/World/PushA.warptube:force": Gf.Vec3f(0.01, 0.03, 0)},
                         out / "variant_00002.usdc", 6)  # fmt: skip
+
+
+def test_run_choices_are_what_simulation_chooses():
+    """The batch groups variants by the integrator and substeps each gets alone: the same as
+    Simulation's own choice, for scenes of several layouts and stiffnesses at once."""
+    import dataclasses
+
+    from warp_tube import load_scene
+    from warp_tube.batch.plan import run_choices
+    from warp_tube.sim.simulation import Simulation
+
+    scenes = []
+    for name in ("default.usda", "intestine.usda", "cantilever.usda"):
+        base = load_scene(SCENES / name)
+        for e in (2e4, 1e5, 5e6):
+            t = base.tubes[0]
+            scenes.append(dataclasses.replace(base, tubes=(dataclasses.replace(t, params=dataclasses.replace(t.params, youngs_modulus=e)),)
+                                              + base.tubes[1:]))  # fmt: skip
+    choices = run_choices(scenes)
+    for s, c in zip(scenes, choices):
+        sim = Simulation(s, device="cpu", surface=False)
+        assert (c.integrator, c.substeps, c.reason) == (sim.integrator, sim.substeps, sim.reason)

@@ -27,11 +27,7 @@ import numpy as np
 
 from ..scene.spec import Scene
 
-__all__ = ["Chunk", "RunChoice", "run_choice", "group_key", "plan_chunks", "DEFAULT_CHUNK"]
-
-#: variants per chunk unless asked otherwise
-DEFAULT_CHUNK = 1024
-
+__all__ = ["Chunk", "RunChoice", "run_choice", "run_choices", "group_key", "plan_chunks"]
 
 @dataclass(frozen=True)
 class RunChoice:
@@ -60,34 +56,69 @@ def _tube_key(t) -> tuple:
             t.anchors.tobytes())  # fmt: skip
 
 
-def run_choice(scene: Scene, cache: dict | None = None) -> RunChoice:
-    """The integrator and substeps ``Simulation(scene)`` chooses, without building a Simulation.
+def run_choices(scenes: list[Scene], block: int = 1024) -> list[RunChoice]:
+    """The integrator and substeps ``Simulation(scene)`` chooses for each scene alone.
 
-    The policy is ``Simulation._choose_integrator`` itself, applied to the scene's model (built on
-    the CPU, host arrays only used) and stability bound, so the batch cannot drift from it.
+    The policy is ``Simulation._choose_integrator`` itself, applied to each scene's stability
+    bound (``critical_time_step`` of its own nodes), so the batch cannot drift from it. Scenes of
+    one node layout are discretised together, ``block`` at a time (``build_model`` of a scene
+    holding them all, on the CPU; its host arrays sliced per scene), and scenes whose tubes agree
+    in everything the bound depends on share one answer.
     """
+    out: list = [None] * len(scenes)
+    first_of: dict = {}  # content key -> index of the first scene with it
+    layouts: dict = {}
+    for i, s in enumerate(scenes):
+        key = (tuple(_tube_key(t) for t in s.tubes), tuple(f.assistant_line for f in s.forces), s.settings, s.stage.frame_dt)
+        if key in first_of:
+            continue
+        first_of[key] = i
+        layout = (tuple(tuple(t.curve_counts.tolist()) for t in s.tubes), key[1])
+        layouts.setdefault(layout, []).append(i)
+    for members in layouts.values():
+        for b in range(0, len(members), block):
+            idx = members[b : b + block]
+            for i, choice in zip(idx, _choices_of([scenes[i] for i in idx])):
+                out[i] = choice
+    for i, s in enumerate(scenes):
+        if out[i] is None:
+            key = (tuple(_tube_key(t) for t in s.tubes), tuple(f.assistant_line for f in s.forces), s.settings, s.stage.frame_dt)
+            out[i] = out[first_of[key]]
+    return out
+
+
+def _choices_of(scenes: list[Scene]) -> list[RunChoice]:
+    """run_choices for scenes of one node layout, discretised in one build."""
     from ..centerline.stability import critical_time_step
     from ..model.tube import build_model
     from ..sim.simulation import Simulation
+    from .worlds import combined_scene
 
-    key = (tuple(_tube_key(t) for t in scene.tubes), tuple(f.assistant_line for f in scene.forces), scene.settings,
-           scene.stage.frame_dt)  # fmt: skip
-    if cache is not None and key in cache:
-        return cache[key]
-    model = build_model(scene, world_count=1, device="cpu")
-    spring_damping = max((t.params.spring_damping for t in scene.tubes), default=0.0)
-    probe = types.SimpleNamespace(
-        scene=scene, model=model, frame_dt=scene.stage.frame_dt,
-        critical_dt=critical_time_step(model.host, model.features.assistant_line, spring_damping),
-    )  # fmt: skip
-    integrator, reason, dt = Simulation._choose_integrator(probe)
-    substeps = max(1, math.ceil(scene.stage.frame_dt / dt - 1e-9))
-    seg = model.host["seg_rest_length"]
-    choice = RunChoice(integrator, reason, substeps, scene.stage.frame_dt / substeps,
-                       float(seg[seg > 0].min()) if (seg > 0).any() else 0.0)  # fmt: skip
-    if cache is not None:
-        cache[key] = choice
-    return choice
+    flat = build_model(combined_scene(scenes), world_count=1, device="cpu")
+    h = flat.host
+    n = len(h["node_mass"]) // len(scenes)
+    curves = (len(h["tube_node_start"]) - 1) // len(scenes)  # T + 1 entries: T curves per scene, and the end
+    out = []
+    for k, scene in enumerate(scenes):
+        nodes = slice(k * n, (k + 1) * n)
+        own = {name: h[name][nodes] for name in ("seg_ke", "seg_rest_length", "node_bend_k", "node_anchor_k", "node_inv_mass")}
+        own["tube_node_start"] = h["tube_node_start"][k * curves : (k + 1) * curves + 1] - k * n
+        spring_damping = max((t.params.spring_damping for t in scene.tubes), default=0.0)
+        probe = types.SimpleNamespace(
+            scene=scene, model=flat, frame_dt=scene.stage.frame_dt,
+            critical_dt=critical_time_step(own, flat.features.assistant_line, spring_damping),
+        )  # fmt: skip
+        integrator, reason, dt = Simulation._choose_integrator(probe)
+        substeps = max(1, math.ceil(scene.stage.frame_dt / dt - 1e-9))
+        seg = own["seg_rest_length"]
+        out.append(RunChoice(integrator, reason, substeps, scene.stage.frame_dt / substeps,
+                             float(seg[seg > 0].min()) if (seg > 0).any() else 0.0))  # fmt: skip
+    return out
+
+
+def run_choice(scene: Scene) -> RunChoice:
+    """:func:`run_choices` of one scene."""
+    return run_choices([scene])[0]
 
 
 def mean_spoke_length(t) -> float:

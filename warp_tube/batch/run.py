@@ -22,6 +22,7 @@ interrupted batch keeps them and ``--resume`` goes on from there.
 from __future__ import annotations
 
 import concurrent.futures as cf
+import dataclasses
 import math
 import multiprocessing
 import os
@@ -47,7 +48,7 @@ from .outputs import (
     write_grid_root,
     write_summary,
 )
-from .plan import plan_chunks, group_key, run_choice
+from .plan import group_key, plan_chunks, run_choice, run_choices
 
 __all__ = ["run_batch", "BatchResult", "BatchInterrupted", "DEFAULT_CHUNK_CPU", "DEFAULT_CHUNK_CUDA"]
 
@@ -165,6 +166,36 @@ def _dask_task(payload):
     for task in _with_rows(tasks, run.rows, run.arrays):
         outputs += write(task)
     return run.rows, outputs, run.timings, t1 - t0, time.perf_counter() - t1
+
+
+class _Writers:
+    """The writer pool: processes for USD layouts (usd-core holds the GIL while it writes),
+    threads for arrays (``os.pwrite`` and NumPy copies release it); started before the variants
+    are read, so the processes are up by the time the first chunk is simulated."""
+
+    def __init__(self, layout: str, count: int):
+        self.count = count
+        self.processes = layout != "arrays"
+        self.pool = None
+        if count == 0:
+            return
+        if self.processes:
+            ctx = multiprocessing.get_context("spawn")
+            self.pool = cf.ProcessPoolExecutor(count, mp_context=ctx, initializer=_ignore_sigint)
+            for _ in range(count):  # start them now (one new process per waiting task)
+                self.pool.submit(_warm_writer)
+        else:
+            self.pool = cf.ThreadPoolExecutor(count, thread_name_prefix="batch-writer")
+
+    def shutdown(self):
+        if self.pool is not None:
+            self.pool.shutdown(wait=True, cancel_futures=True)
+
+
+def _warm_writer():
+    from pxr import Sdf, Usd, UsdGeom, Vt  # noqa: F401
+
+    from ..io import writer  # noqa: F401
 
 
 def _timed_write(task: WriteTask):
@@ -301,8 +332,6 @@ def run_batch(scene: str, out_dir: str, table: str | None = None, *, variant_set
         BatchInterrupted: interrupted; the finished chunks are kept.
     """
     from .table import read_table
-    from .variants import prepare_variants
-    from ..extract.usd import tube_from_mesh_prim
 
     t_start = time.perf_counter()
     out_dir = os.path.abspath(os.fspath(out_dir))
@@ -320,13 +349,24 @@ def run_batch(scene: str, out_dir: str, table: str | None = None, *, variant_set
     _check_out_dir(out_dir, resume)
     devices = _devices(device, workers, scheduler)
     tab = read_table(table) if table is not None else None
+    sims = 0 if scheduler else len(devices)
+    writer_pool = _Writers(layout, 0 if scheduler else _writer_count(writers, sims))
+    try:
+        return _run_batch(scene, out_dir, table, tab, devices, writer_pool, t_start, variant_sets=variant_sets,
+                          layout=layout, every=every, frames=frames, surface=surface, device=device, chunk=chunk,
+                          scheduler=scheduler, resume=resume, progress=progress, on_chunk=on_chunk)  # fmt: skip
+    finally:
+        writer_pool.shutdown()
+
+
+def _run_batch(scene, out_dir, table, tab, devices, writer_pool, t_start, *, variant_sets, layout, every, frames, surface,
+               device, chunk, scheduler, resume, progress, on_chunk) -> BatchResult:  # fmt: skip
 
     bar = _Progress(progress)
-    variants = prepare_variants(scene, tab, variant_sets, extract=tube_from_mesh_prim, progress=bar.reading)
+    variants, choices = _prepare(scene, tab, variant_sets, bar)
     bar.close_reading()
     first = variants.variants[0].scene
     n_frames = first.stage.frame_count if frames is None else int(frames)
-    choices = _run_choices(variants)
     keys = [group_key(v.scene, c, surface) for v, c in zip(variants.variants, choices)]
     journal = Journal(out_dir)
     if chunk is None:
@@ -350,6 +390,8 @@ def run_batch(scene: str, out_dir: str, table: str | None = None, *, variant_set
     spec = _output_spec(variants, layout, out_dir, journal.dir, surface, time_codes)
     result.prepare_s = time.perf_counter() - t_start
 
+    if resume and not journal.exists():  # the batch there finished: nothing to do
+        return _finished(out_dir, result, t_start)
     os.makedirs(out_dir, exist_ok=True)
     done = journal.begin(signature, resume)
     _remove_stray_partials(out_dir)
@@ -374,7 +416,7 @@ def run_batch(scene: str, out_dir: str, table: str | None = None, *, variant_set
             on_chunk(chunk_id)
 
     context = dict(variants=variants, plan=plan, choices=choices, frames=n_frames, every=every, surface=surface,
-                   spec=spec, writers=writers, device=device, scheduler=scheduler, bar=bar, finish=finish)  # fmt: skip
+                   spec=spec, writers=writer_pool, device=device, scheduler=scheduler, bar=bar, finish=finish)  # fmt: skip
     try:
         if not todo:
             pass
@@ -398,24 +440,106 @@ def run_batch(scene: str, out_dir: str, table: str | None = None, *, variant_set
     return result
 
 
+#: tables of at least this many rows per process are read by several processes
+PREPARE_ROWS_PER_PROCESS = 2048
+#: at most this many processes read a table
+PREPARE_PROCESSES = 16
+
+
+def _extract(file, prim, info):
+    """The extraction hook for Mesh tubes, imported only when a scene has one."""
+    from ..extract.usd import tube_from_mesh_prim
+
+    return tube_from_mesh_prim(file, prim, info)
+
+
+def _prepare_part(scene: str, table, variant_sets):
+    """Read part of a table's variants and their run choices (in a worker process)."""
+    import warp as wp
+
+    from .variants import collect_variants
+
+    wp.config.log_level = wp.LOG_WARNING
+    wp.config.quiet = True
+    variants, problems = collect_variants(scene, table, variant_sets, extract=_extract)
+    if problems:
+        return variants, problems, None
+    try:
+        return variants, [], _run_choices(variants)
+    except SceneError as e:
+        return variants, [(table.first_row, str(e))], None
+
+
+def _prepare(scene: str, table, variant_sets, bar):
+    """Every variant and its run choice, read by one process or, for a large table, several
+    (each opening the scene and reading a part of the rows); all problems reported together."""
+    from .variants import Variants, name_width, prepare_variants, raise_problems
+
+    rows = len(table.rows) if table is not None else 1
+    parts = min(PREPARE_PROCESSES, os.cpu_count() or 1, rows // PREPARE_ROWS_PER_PROCESS)
+    if parts < 2:
+        variants = prepare_variants(scene, table, variant_sets, extract=_extract, progress=bar.reading)
+        return variants, _run_choices(variants)
+    from ..scene.usd import open_stage
+
+    open_stage(scene)  # a missing or unreadable scene: one message, before any process starts
+    bounds = np.linspace(0, rows, parts + 1).round().astype(int)
+    ctx = multiprocessing.get_context("spawn")
+    with cf.ProcessPoolExecutor(parts, mp_context=ctx, initializer=_ignore_sigint) as ex:
+        futures = [ex.submit(_prepare_part, scene, table.part(a, b), variant_sets) for a, b in zip(bounds[:-1], bounds[1:])]
+        results = []
+        for f in futures:
+            results.append(f.result())
+            bar.reading(sum(len(r[0].variants) for r in results))
+    raise_problems([p for _, probs, _ in results for p in probs])
+    width = name_width(sum(len(r[0].variants) for r in results))
+    merged, choices = [], []
+    for part, _, part_choices in results:
+        merged += [dataclasses.replace(v, name=f"variant_{v.index:0{width}d}") for v in part.variants]
+        choices += part_choices
+    first = results[0][0]
+    return Variants(scene_path=scene, table=table, axes=first.axes, variants=tuple(merged)), choices
+
+
 def _run_choices(variants) -> list:
     """Each variant's integrator and substeps alone; a variant whose settings no integrator takes
     (e.g. implicit Euler with an assistant line) is a bad row, reported with the others."""
     from .variants import MAX_PROBLEMS
 
-    cache: dict = {}
-    out, problems = [], []
+    scenes = [v.scene for v in variants.variants]
+    try:
+        return run_choices(scenes)
+    except SceneError:
+        pass
+    problems = []  # find which variants: one at a time
     for v in variants.variants:
         try:
-            out.append(run_choice(v.scene, cache))
+            run_choice(v.scene)
         except SceneError as e:
             where = variants.table.where(v.row) if variants.table is not None and v.row is not None else v.name
             chosen = ", ".join(f"{a.label} = {c}" for a, c in zip(variants.axes, v.selection))
             problems.append(f"{where}{' with ' + chosen if chosen else ''}: {e}")
-    if problems:
-        more = f"\n  ... and {len(problems) - MAX_PROBLEMS} more" if len(problems) > MAX_PROBLEMS else ""
-        raise SceneError(f"{len(problems)} problem(s) in the variants; nothing was run:\n  " + "\n  ".join(problems[:MAX_PROBLEMS]) + more)
-    return out
+            if len(problems) > MAX_PROBLEMS:
+                break
+    more = "\n  ... and more" if len(problems) > MAX_PROBLEMS else ""
+    raise SceneError(f"problem(s) in the variants; nothing was run:\n  " + "\n  ".join(problems[:MAX_PROBLEMS]) + more)
+
+
+def _finished(out_dir: str, result: BatchResult, t_start: float) -> BatchResult:
+    """The result of resuming a batch that had finished: its summary, read back."""
+    import csv
+
+    path = os.path.join(out_dir, "summary.csv")
+    if not os.path.exists(path):
+        raise SceneError(f"{out_dir}: no unfinished batch (.batch) and no summary.csv: nothing to resume")
+    with open(path, newline="", encoding="utf-8") as f:
+        rows = list(csv.DictReader(f))
+    result.resumed = len(rows)
+    result.ok = sum(r["status"] == "ok" for r in rows)
+    result.failed = len(rows) - result.ok
+    result.failures = [(r["name"], r["reason"]) for r in rows if r["status"] != "ok"]
+    result.wall_s = time.perf_counter() - t_start
+    return result
 
 
 def _json_row(row: dict, output: str) -> dict:
@@ -481,8 +605,8 @@ def _run_here(todo, device, context, result) -> None:
 
     wp.config.log_level = wp.LOG_WARNING
     device = resolve_device(device)
-    writers = _writer_count(context["writers"], 1)
-    pool = cf.ProcessPoolExecutor(writers, mp_context=multiprocessing.get_context("spawn"), initializer=_ignore_sigint) if writers else None
+    writers: _Writers = context["writers"]
+    pool = writers.pool
     buffers = None
     pending: dict = {}  # chunk id -> (futures, rows, paths, t_submitted)
     bar = context["bar"]
@@ -508,7 +632,7 @@ def _run_here(todo, device, context, result) -> None:
             scenes = [context["variants"].variants[i].scene for i in chunk.indices]
             choice = context["choices"][chunk.indices[0]]
             allocate = None
-            if pool is not None:
+            if pool is not None and writers.processes:  # the writers read the arrays from files
                 if buffers is None:
                     shapes = chunk_shapes(scenes, context["frames"], context["every"], context["surface"], context["spec"].vertices)
                     buffers = _buffer_folder(sum(4 * math.prod(s) for s in shapes.values()), context["spec"].work_dir)
@@ -518,26 +642,32 @@ def _run_here(todo, device, context, result) -> None:
                                  allocate=allocate, progress=bar.frames)  # fmt: skip
             t_sim += time.perf_counter() - t0
             _add_timings(result, run.timings)
-            tasks = _write_tasks(chunk, context, writers or 1)
+            tasks = _write_tasks(chunk, context, max(writers.count, 1))
             if pool is None:
                 t0 = time.perf_counter()
                 outputs = []
                 for task in _with_rows(tasks, run.rows, run.arrays):
                     outputs += write(task)
                 result.write_s += time.perf_counter() - t0
+                result.write_wait_s += time.perf_counter() - t0  # written here: the simulation waits
                 context["finish"](chunk.id, run.rows, outputs)
                 continue
-            for a in run.arrays.values():
-                a.flush()
-            paths = [a.filename for a in run.arrays.values()]
-            arrays = {name: a.filename for name, a in run.arrays.items()}
+            if writers.processes:
+                for a in run.arrays.values():
+                    a.flush()
+                paths = [a.filename for a in run.arrays.values()]
+                arrays = {name: a.filename for name, a in run.arrays.items()}
+            else:
+                paths, arrays = [], run.arrays
             del run.arrays
             futures = [pool.submit(_timed_write, t) for t in _with_rows(tasks, run.rows, arrays)]
             pending[chunk.id] = (futures, run.rows, paths)
             settle(block=False)
+            t0 = time.perf_counter()
             while len(pending) >= 2:  # at most two chunks wait for writers
                 cf.wait([f for fs, _, _ in pending.values() for f in fs], return_when=cf.FIRST_COMPLETED)
                 settle(block=False)
+            result.write_wait_s += time.perf_counter() - t0
         result.simulate_s += t_sim
         t0 = time.perf_counter()
         settle(block=True)
@@ -549,8 +679,6 @@ def _run_here(todo, device, context, result) -> None:
         finally:
             raise
     finally:
-        if pool is not None:
-            pool.shutdown(wait=True, cancel_futures=True)
         if buffers is not None:
             shutil.rmtree(buffers, ignore_errors=True)
 
@@ -561,9 +689,12 @@ def _run_pooled(todo, devices, context, result) -> None:
     queue = ctx.Manager().Queue()
     for d in devices:
         queue.put(d)
-    writers = max(1, _writer_count(context["writers"], len(devices)))
+    writers: _Writers = context["writers"]
+    own = None
+    if writers.pool is None:  # the simulating processes hand their arrays over: someone writes them
+        own = writers = _Writers(context["spec"].layout, 1)
+    pool = writers.pool
     sims = cf.ProcessPoolExecutor(len(devices), mp_context=ctx, initializer=_init_sim_worker, initargs=(queue,))
-    pool = cf.ProcessPoolExecutor(writers, mp_context=ctx, initializer=_ignore_sigint)
     first = [context["variants"].variants[i].scene for i in todo[0].indices]
     shapes = chunk_shapes(first, context["frames"], context["every"], context["surface"], context["spec"].vertices)
     buffers = _buffer_folder(sum(4 * math.prod(s) for s in shapes.values()) * len(devices), context["spec"].work_dir)
@@ -590,7 +721,7 @@ def _run_pooled(todo, devices, context, result) -> None:
                 rows, paths, timings = fut.result()
                 _add_timings(result, timings)
                 bar.frames(len(c.indices) * max(context["frames"] - 1, 1))
-                tasks = _with_rows(_write_tasks(c, context, max(1, writers // len(devices))), rows, paths)
+                tasks = _with_rows(_write_tasks(c, context, max(1, writers.count // len(devices))), rows, paths)
                 writing[c.id] = ([pool.submit(_timed_write, t) for t in tasks], rows, list(paths.values()))
             for cid in [cid for cid, (fs, _, _) in writing.items() if all(f.done() for f in fs)]:
                 fs, rows, paths = writing.pop(cid)
@@ -605,13 +736,24 @@ def _run_pooled(todo, devices, context, result) -> None:
             submit_sim()
         result.simulate_s += result.timings["build_s"] + sum(result.timings[k] for k in TIMERS if k != "build_s")
     except KeyboardInterrupt:
+        # Stop simulating at once; the chunks already simulated are written to the end and kept.
         queue_chunks.clear()
         for f in simulating:
             f.cancel()
-        raise
+        for proc in list(getattr(sims, "_processes", {}).values()):
+            proc.terminate()
+        try:
+            for cid, (fs, rows, paths) in list(writing.items()):
+                outputs = []
+                for f in fs:
+                    outputs += f.result()[0]
+                context["finish"](cid, rows, outputs)
+        finally:
+            raise
     finally:
         sims.shutdown(wait=True, cancel_futures=True)
-        pool.shutdown(wait=True, cancel_futures=True)
+        if own is not None:
+            own.shutdown()
         shutil.rmtree(buffers, ignore_errors=True)
         result.write_wait_s += 0.0 if not result.simulate_s else max(0.0, time.perf_counter() - t0 - result.simulate_s / len(devices))
 

@@ -54,17 +54,23 @@ class Table:
         columns: the columns, in file order.
         rows: the cells of each row (strings, one per column).
         lines: the line in the file where each row starts (1 = the header).
+        first_row: the number of ``rows[0]`` in the file (a part of a table, :meth:`part`).
     """
 
     path: str
     columns: tuple[Column, ...]
     rows: tuple[tuple[str, ...], ...]
     lines: tuple[int, ...]
+    first_row: int = 0
 
     def where(self, row: int, column: Column | None = None) -> str:
-        """``TABLE: row R (line L)[, column C]`` for messages."""
-        out = f"{self.path}: row {row} (line {self.lines[row]})"
+        """``TABLE: row R (line L)[, column C]`` for messages (``row`` counts from ``first_row``)."""
+        out = f"{self.path}: row {row} (line {self.lines[row - self.first_row]})"
         return out + (f", column {column.header}" if column is not None else "")
+
+    def part(self, start: int, stop: int) -> "Table":
+        """Rows ``start`` to ``stop`` (of this table's rows) as a table of their own."""
+        return Table(self.path, self.columns, self.rows[start:stop], self.lines[start:stop], self.first_row + start)
 
     @property
     def folder(self) -> str:

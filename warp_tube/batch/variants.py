@@ -21,7 +21,8 @@ from ..scene.spec import Scene, SceneError
 from .table import Table
 from .values import CONTRACT_TYPES, parse_value
 
-__all__ = ["VariantSetAxis", "Variant", "Variants", "find_variant_sets", "select_variant_sets", "prepare_variants"]
+__all__ = ["VariantSetAxis", "Variant", "Variants", "find_variant_sets", "select_variant_sets", "prepare_variants",
+           "collect_variants", "raise_problems"]
 
 #: at most this many problems are listed in one message
 MAX_PROBLEMS = 10
@@ -128,6 +129,11 @@ def select_variant_sets(axes: list[VariantSetAxis], spec: str, scene_path: str) 
     return out
 
 
+def name_width(count: int) -> int:
+    """Digits of the variants' names (``variant_00000``): at least 5."""
+    return max(5, len(str(count - 1)))
+
+
 def _usd_value(value, type_name: str):
     """A parsed cell as ``UsdAttribute.Set`` takes it for ``type_name``."""
     if not isinstance(value, np.ndarray):
@@ -168,6 +174,26 @@ def prepare_variants(scene_path: str, table: Table | None = None, variant_sets: 
                      progress=None) -> Variants:  # fmt: skip
     """Read every variant of a batch, checking everything before anything runs.
 
+    Args, Raises: as :func:`collect_variants`, which this runs and whose problems it raises.
+    """
+    variants, problems = collect_variants(scene_path, table, variant_sets, extract, progress)
+    raise_problems(problems)
+    return variants
+
+
+def raise_problems(problems: list) -> None:
+    """Raise one SceneError listing ``problems`` ((row, message) pairs) in row order, if any."""
+    if problems:
+        problems = sorted(problems, key=lambda p: p[0])
+        head = [msg for _, msg in problems[:MAX_PROBLEMS]]
+        more = f"\n  ... and {len(problems) - MAX_PROBLEMS} more" if len(problems) > MAX_PROBLEMS else ""
+        raise SceneError(f"{len(problems)} problem(s) in the variants; nothing was run:\n  " + "\n  ".join(head) + more)
+
+
+def collect_variants(scene_path: str, table: Table | None = None, variant_sets: str | None = None, extract=None,
+                     progress=None) -> tuple[Variants, list]:  # fmt: skip
+    """Read every variant of a batch (or of a part of its table), collecting the problems.
+
     Args:
         scene_path: the scene file.
         table: the variants table, or None (then ``variant_sets`` alone makes the variants).
@@ -175,9 +201,12 @@ def prepare_variants(scene_path: str, table: Table | None = None, variant_sets: 
         extract: the extraction hook for ``Mesh`` tubes (as :func:`warp_tube.scene.usd.load_scene`).
         progress: None, or a callable taking the number of variants read so far.
 
+    Returns:
+        The variants (None where a variant has a problem) and the problems, (row or -1, message)
+        pairs, each message naming the row (and line), the column and the problem.
+
     Raises:
-        SceneError: the scene is invalid, or cells / variants are; the message lists up to
-            :data:`MAX_PROBLEMS` of them, each naming the row (and line), the column and the problem.
+        SceneError: the scene itself is invalid, or the request is (``variant_sets``, no table).
     """
     from pxr import Usd
 
@@ -191,7 +220,8 @@ def prepare_variants(scene_path: str, table: Table | None = None, variant_sets: 
     axes = select_variant_sets(find_variant_sets(stage), variant_sets, scene_path) if variant_sets else []
     combos = list(itertools.product(*[a.choices for a in axes]))
     n_rows = len(table.rows) if table is not None else 1
-    width = max(5, len(str(n_rows * len(combos) - 1)))
+    total_rows = (table.first_row + n_rows) if table is not None else 1
+    width = name_width(total_rows * len(combos))
     stage.SetEditTarget(Usd.EditTarget(stage.GetSessionLayer()))
     out: list = [None] * (n_rows * len(combos))
     problems: list[tuple[int, str]] = []  # (row or -1, message)
@@ -219,11 +249,12 @@ def prepare_variants(scene_path: str, table: Table | None = None, variant_sets: 
             continue
         changed = sorted({col.prim for col in table.columns})
         seen_rows: dict = {}
-        for r, cells in enumerate(table.rows):
-            index = r * len(combos) + c
+        for r, cells in enumerate(table.rows, start=table.first_row):
+            here = (r - table.first_row) * len(combos) + c  # in this (part of the) table
+            index = r * len(combos) + c  # in the batch
             name = f"variant_{index:0{width}d}"
             if cells in seen_rows:  # the same values as an earlier row: the same scene
-                out[index] = Variant(index, name, r, cells, combo, seen_rows[cells])
+                out[here] = Variant(index, name, r, cells, combo, seen_rows[cells])
                 done += 1
                 continue
             values, ok = [], True
@@ -253,15 +284,10 @@ def prepare_variants(scene_path: str, table: Table | None = None, variant_sets: 
                 problems.append((r, f"{table.where(r, col)}{' with ' + chosen if chosen else ''}: {msg}"))
                 continue
             seen_rows[cells] = scene
-            out[index] = Variant(index, name, r, cells, combo, scene)
+            out[here] = Variant(index, name, r, cells, combo, scene)
             done += 1
             if progress is not None:
                 progress(done)
         if len(problems) > 10 * MAX_PROBLEMS:
             break
-    if problems:
-        problems.sort(key=lambda p: p[0])
-        head = [msg for _, msg in problems[:MAX_PROBLEMS]]
-        more = f"\n  ... and {len(problems) - MAX_PROBLEMS} more" if len(problems) > MAX_PROBLEMS else ""
-        raise SceneError(f"{len(problems)} problem(s) in the variants; nothing was run:\n  " + "\n  ".join(head) + more)
-    return Variants(scene_path=scene_path, table=table, axes=tuple(axes), variants=tuple(out))
+    return Variants(scene_path=scene_path, table=table, axes=tuple(axes), variants=tuple(out)), problems
