@@ -5,7 +5,6 @@ from __future__ import annotations
 
 import filecmp
 import os
-import shutil
 
 import numpy as np
 import pytest
@@ -434,3 +433,23 @@ def test_run_choices_are_what_simulation_chooses():
     for s, c in zip(scenes, choices):
         sim = Simulation(s, device="cpu", surface=False)
         assert (c.integrator, c.substeps, c.reason) == (sim.integrator, sim.substeps, sim.reason)
+
+
+def test_a_large_table_read_by_several_processes(sweep, tmp_path, monkeypatch, capsys):
+    """Reading split over processes (as for a large table on a many-core host) gives the same
+    batch, and problems from every part, in row order."""
+    import warp_tube.batch.prepare as prepare
+
+    monkeypatch.setattr(prepare, "PREPARE_ROWS_PER_PROCESS", 2)
+    monkeypatch.setattr(prepare.os, "cpu_count", lambda: 2)
+    d, files_out, _, _ = sweep
+    out = tmp_path / "split"
+    assert run_batch(str(DEFAULT), str(out), str(d / "table.csv"), frames=FRAMES, writers=0).ok == 5
+    for k in range(5):
+        assert filecmp.cmp(files_out / f"variant_{k:05d}.usdc", out / f"variant_{k:05d}.usdc", shallow=False)
+    assert filecmp.cmp(files_out / "summary.csv", out / "summary.csv", shallow=False)
+    table = write_table(tmp_path / "bad.csv", [E], [("1e5",), ("x",), ("1e5",), ("2e5",), ("-1",)])
+    status = cli(["batch", str(DEFAULT), "--variants", str(table), "-o", str(tmp_path / "bad"), "--frames", "2"])
+    err = capsys.readouterr().err
+    assert status == 2 and "2 problem(s)" in err
+    assert err.index("row 1 (line 3)") < err.index("row 4 (line 6)")

@@ -92,7 +92,7 @@ def simulate_chunk(scenes: list[Scene], choice: RunChoice, device: str, frames: 
     t0 = time.perf_counter()
     worlds = build_worlds(scenes, device, surface)
     m = worlds.model
-    W, N = m.world_count, m.node_count
+    W = m.world_count
     solver = ImplicitEulerSolver(m) if choice.integrator == "implicitEuler" else SemiImplicitEulerSolver(m)
     state, nxt, control = initial_state(worlds)
     stage = scenes[0].stage
@@ -147,7 +147,7 @@ def simulate_chunk(scenes: list[Scene], choice: RunChoice, device: str, frames: 
                 progress(W)
         if k % every == 0:
             t = time.perf_counter()
-            arrays["centerline"][f_out] = q / mpu
+            np.divide(q, mpu, out=arrays["centerline"][f_out])  # as Simulation.centerline_points
             if surface:
                 t_copy = _surface_frame(worlds, state, arrays, f_out, mpu, device, timings)
             else:
@@ -187,9 +187,9 @@ def _surface_frame(worlds, state, arrays, f_out, mpu, device, timings) -> float:
         pts, nrm, ext = pts.numpy(), nrm.numpy(), ext.numpy()
         t2 = time.perf_counter()
         v0, v1 = worlds.vertex_start[p], worlds.vertex_start[p + 1]
-        arrays["points"][f_out, :, v0:v1] = pts / mpu
+        np.divide(pts, mpu, out=arrays["points"][f_out, :, v0:v1])  # as Simulation.surface
         arrays["normals"][f_out, :, v0:v1] = nrm
-        arrays["extent"][f_out, :, p] = ext / mpu
+        np.divide(ext, mpu, out=arrays["extent"][f_out, :, p])
         timings["kernels_s"] += t1 - t
         timings["readback_s"] += t2 - t1
         spent += t2 - t

@@ -136,20 +136,24 @@ def surface_topology(t):
     return _topologies[key]
 
 
-def _frame_parts(scene: Scene, arrays: dict, f: int, p: int, surface: bool):
-    """One frame of one variant as StageWriter.write_frame takes it: per prim centerline points,
-    and per prim (points, normals, extent) or None."""
-    cl, parts = [], [] if surface else None
-    s = v = 0
-    for k, t in enumerate(scene.tubes):
+def _ranges(scene: Scene, surface: bool):
+    """Per tube prim, its slice of a variant's centerline points and (surface) of its vertices."""
+    out, s, v = [], 0, 0
+    for t in scene.tubes:
         n = len(t.points)
-        cl.append(arrays["centerline"][f, p, s : s + n])
-        s += n
-        if surface:
-            nv = surface_topology(t).vertex_count
-            parts.append((arrays["points"][f, p, v : v + nv], arrays["normals"][f, p, v : v + nv], arrays["extent"][f, p, k]))
-            v += nv
-    return cl, parts
+        nv = surface_topology(t).vertex_count if surface else 0
+        out.append((slice(s, s + n), slice(v, v + nv)))
+        s, v = s + n, v + nv
+    return out
+
+
+def _frame_parts(ranges, arrays: dict, f: int, p: int, surface: bool):
+    """One frame of one variant as StageWriter.write_frame takes it: per prim centerline points,
+    and per prim (points, normals, extent) or None; ``ranges`` from :func:`_ranges`."""
+    cl = [arrays["centerline"][f, p, c] for c, _ in ranges]
+    if not surface:
+        return cl, None
+    return cl, [(arrays["points"][f, p, v], arrays["normals"][f, p, v], arrays["extent"][f, p, k]) for k, (_, v) in enumerate(ranges)]
 
 
 def _write_files(task: WriteTask, arrays: dict) -> list[str]:
@@ -160,9 +164,10 @@ def _write_files(task: WriteTask, arrays: dict) -> list[str]:
         rel = f"{name}.usdc" if row["status"] == "ok" else f"{name}.partial.usdc"
         topo = [surface_topology(t) for t in scene.tubes] if spec.surface else None
         w = StageWriter(os.path.join(spec.out_dir, rel), scene, topo)
+        ranges = _ranges(scene, spec.surface)
         try:
             for f in range(row["frames"]):
-                cl, parts = _frame_parts(scene, arrays, f, p, spec.surface)
+                cl, parts = _frame_parts(ranges, arrays, f, p, spec.surface)
                 w.write_frame(spec.time_codes[f], cl, parts)
             w.close()
         except BaseException:
@@ -180,8 +185,7 @@ def prepare_arrays(spec: OutputSpec, resume: bool) -> None:
     for name, n, on in (("centerline", spec.points, True), ("surface", spec.vertices, spec.surface)):
         path = os.path.join(spec.work_dir, f"{name}.npy")
         if on and not (resume and os.path.exists(path)):
-            arr = open_memmap(path, mode="w+", dtype=np.float32, shape=(spec.variants, F, n, 3))  # sparse until written
-            del arr
+            open_memmap(path, mode="w+", dtype=np.float32, shape=(spec.variants, F, n, 3)).flush()  # sparse until written
 
 
 def _write_arrays(task: WriteTask, arrays: dict) -> list[str]:
@@ -258,10 +262,11 @@ def _write_grid(task: WriteTask, arrays: dict) -> list[str]:
             op.default = Gf.Vec3d(*grid_offset(spec, index))
             order = Sdf.AttributeSpec(prim, "xformOpOrder", Sdf.ValueTypeNames.TokenArray, Sdf.VariabilityUniform)
             order.default = Vt.TokenArray(["xformOp:translate"])
+        ranges = [_ranges(scene, spec.surface) for (_, _, scene), _, _ in keep]
         for f in range(len(spec.time_codes)):
             cls, parts = [], [] if spec.surface else None
-            for (index, name, scene), p, _ in keep:
-                c, s = _frame_parts(scene, arrays, f, p, spec.surface)
+            for ((index, name, scene), p, _), r in zip(keep, ranges):
+                c, s = _frame_parts(r, arrays, f, p, spec.surface)
                 cls += c
                 if spec.surface:
                     parts += s

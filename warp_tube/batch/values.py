@@ -23,8 +23,6 @@ import re
 
 import numpy as np
 
-from ..scene.spec import SceneError
-
 __all__ = ["parse_value", "CONTRACT_TYPES"]
 
 REALS = ("double", "float", "half", "timecode")
