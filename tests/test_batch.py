@@ -453,3 +453,32 @@ def test_a_large_table_read_by_several_processes(sweep, tmp_path, monkeypatch, c
     err = capsys.readouterr().err
     assert status == 2 and "2 problem(s)" in err
     assert err.index("row 1 (line 3)") < err.index("row 4 (line 6)")
+
+
+def test_ctrl_c_keeps_finished_variants_and_resume_completes(tmp_path):
+    """A real SIGINT to the command: exit status 130, finished variants kept, --resume completes
+    the batch with the same files as an uninterrupted one."""
+    import signal
+    import subprocess
+    import sys
+    import time
+
+    table = write_table(tmp_path / "t.csv", [E, FORCE], [(str(80000 + 3000 * k), f"(0, {0.01 + 0.001 * k}, 0)") for k in range(12)])
+    args = ["batch", str(DEFAULT), "--variants", str(table), "--frames", "15", "--chunk", "1", "--quiet"]
+    cut = tmp_path / "cut"
+    proc = subprocess.Popen([sys.executable, "-m", "warp_tube", *args, "-o", str(cut)], stderr=subprocess.PIPE, text=True,
+                            preexec_fn=lambda: signal.signal(signal.SIGINT, signal.SIG_DFL))  # fmt: skip
+    deadline = time.time() + 300
+    while not (cut / "variant_00001.usdc").exists() and proc.poll() is None and time.time() < deadline:
+        time.sleep(0.05)
+    proc.send_signal(signal.SIGINT)
+    err = proc.communicate(timeout=300)[1]
+    assert proc.returncode == 130, err
+    assert "--resume goes on" in err and (cut / ".batch").is_dir()
+    assert cli([*args, "-o", str(cut), "--resume"]) == 0
+    whole = tmp_path / "whole"
+    assert cli([*args, "-o", str(whole)]) == 0
+    names = sorted(p.name for p in whole.iterdir())
+    assert names == sorted(p.name for p in cut.iterdir())
+    for n in names:
+        assert filecmp.cmp(whole / n, cut / n, shallow=False), n

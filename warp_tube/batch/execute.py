@@ -194,7 +194,6 @@ def run_here(todo, device, context, result) -> None:
             context["finish"](cid, rows, outputs)
 
     try:
-        t_sim = 0.0
         for chunk in todo:
             scenes = [context["variants"].variants[i].scene for i in chunk.indices]
             choice = context["choices"][chunk.indices[0]]
@@ -207,7 +206,7 @@ def run_here(todo, device, context, result) -> None:
             t0 = time.perf_counter()
             run = simulate_chunk(scenes, choice, device, context["frames"], context["every"], context["surface"],
                                  allocate=allocate, progress=bar.frames)  # fmt: skip
-            t_sim += time.perf_counter() - t0
+            result.simulate_s += time.perf_counter() - t0
             _add_timings(result, run.timings)
             tasks = _write_tasks(chunk, context, max(writers.count, 1))
             if pool is None:
@@ -235,7 +234,6 @@ def run_here(todo, device, context, result) -> None:
                 cf.wait([f for fs, _, _ in pending.values() for f in fs], return_when=cf.FIRST_COMPLETED)
                 settle(block=False)
             result.write_wait_s += time.perf_counter() - t0
-        result.simulate_s += t_sim
         t0 = time.perf_counter()
         settle(block=True)
         result.write_wait_s += time.perf_counter() - t0
