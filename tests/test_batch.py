@@ -482,3 +482,15 @@ def test_ctrl_c_keeps_finished_variants_and_resume_completes(tmp_path):
     assert names == sorted(p.name for p in cut.iterdir())
     for n in names:
         assert filecmp.cmp(whole / n, cut / n, shallow=False), n
+
+
+def test_a_scene_warning_is_given_once_not_per_variant(tmp_path, caplog):
+    from warp_tube.batch.table import read_table
+    from warp_tube.batch.variants import prepare_variants
+
+    table = write_table(tmp_path / "t.csv", [E, "/World/Push.warptube:point"], [(str(9e4 + k), "1") for k in range(4)])
+    with caplog.at_level("WARNING", logger="warp_tube.scene.usd"):
+        variants = prepare_variants(str(DEFAULT), read_table(str(table)))
+    assert len(variants) == 4
+    pinned = [r for r in caplog.records if "is pinned" in r.getMessage()]
+    assert len(pinned) == 1  # point 1 is pinned in all four: one warning

@@ -12,7 +12,9 @@ reported together, each naming the row, the column and what is wrong.
 
 from __future__ import annotations
 
+import contextlib
 import itertools
+import logging
 from dataclasses import dataclass
 
 import numpy as np
@@ -190,6 +192,31 @@ def raise_problems(problems: list) -> None:
         raise SceneError(f"{len(problems)} problem(s) in the variants; nothing was run:\n  " + "\n  ".join(head) + more)
 
 
+class _Once(logging.Filter):
+    """Lets each distinct message through once (the same warning for every variant is one)."""
+
+    def __init__(self):
+        super().__init__()
+        self.seen = set()
+
+    def filter(self, record) -> bool:
+        message = record.getMessage()
+        if message in self.seen:
+            return False
+        self.seen.add(message)
+        return True
+
+
+@contextlib.contextmanager
+def _warn_once(name: str):
+    logger, once = logging.getLogger(name), _Once()
+    logger.addFilter(once)
+    try:
+        yield
+    finally:
+        logger.removeFilter(once)
+
+
 def collect_variants(scene_path: str, table: Table | None = None, variant_sets: str | None = None, extract=None,
                      progress=None) -> tuple[Variants, list]:  # fmt: skip
     """Read every variant of a batch (or of a part of its table), collecting the problems.
@@ -208,6 +235,11 @@ def collect_variants(scene_path: str, table: Table | None = None, variant_sets: 
     Raises:
         SceneError: the scene itself is invalid, or the request is (``variant_sets``, no table).
     """
+    with _warn_once("warp_tube.scene.usd"):  # a scene's warning, once, not once per variant
+        return _collect(scene_path, table, variant_sets, extract, progress)
+
+
+def _collect(scene_path, table, variant_sets, extract, progress):
     from pxr import Usd
 
     from ..scene.usd import SceneReader, open_stage
