@@ -52,6 +52,8 @@ def main():
     tmp = tempfile.mkdtemp(prefix="bench-batch-gpus-")
     try:
         scene, table = write_scene(tmp), write_table(tmp, a.variants)
+        for w in (1, None):  # warm-up, untimed: each GPU's kernels compiled or loaded before the runs
+            run_batch(scene, os.path.join(tmp, f"warm{w}"), write_table(tmp, 4, "warm.csv"), frames=2, workers=w, chunk=1)
         for layout in a.layouts.split(","):
             runs = {}
             for label, workers in (("one_gpu", 1), ("all_gpus", None)):
