@@ -1,4 +1,4 @@
-"""Command line: ``warp-tube run | check | extract | preview | export``.
+"""Command line: ``warp-tube run | check | extract | preview | export | batch``.
 
 Exit status: 0 done; 1 internal error (a bug: the message says so, ``-v`` shows the traceback);
 2 invalid input or request (message, no traceback, nothing simulated, no output file) or an output
@@ -76,6 +76,10 @@ def _parser() -> argparse.ArgumentParser:
                    "<stage name>_<format> beside the stage; with --frame, the file beside the stage)")
     x.add_argument("--frame", type=float, help="only this time code")
     x.add_argument("--force", action="store_true", help="replace existing files")
+
+    from .batch.command import add_parser as add_batch_parser
+
+    add_batch_parser(sub)
     return p
 
 
@@ -184,6 +188,12 @@ def _cmd_export(a) -> int:
     return EXIT_OK
 
 
+def _cmd_batch(a) -> int:
+    from .batch.command import run
+
+    return run(a)
+
+
 class _RunWarningFilter(logging.Filter):
     """Leaves out the log records of run warnings while the run's summary prints them."""
 
@@ -231,7 +241,8 @@ def main(argv=None) -> int:
     set_verbose(args.verbose)
     _configure_logging(args.verbose)
     _RUN_WARNINGS.summary_prints_them = False
-    handler = {"run": _cmd_run, "check": _cmd_check, "extract": _cmd_extract, "preview": _cmd_preview, "export": _cmd_export}
+    handler = {"run": _cmd_run, "check": _cmd_check, "extract": _cmd_extract, "preview": _cmd_preview, "export": _cmd_export,
+               "batch": _cmd_batch}
     try:
         return handler[args.command](args)
     except SceneError as e:

@@ -29,6 +29,7 @@ __all__ = [
     "rotation_minimizing_frames",
     "minimal_rotation",
     "rotate_minimal",
+    "least_rotation_quaternions",
     "spoke_directions",
 ]
 
@@ -140,6 +141,33 @@ def rotate_minimal(a: np.ndarray, b: np.ndarray, x: np.ndarray) -> np.ndarray:
     v = np.cross(a, b)
     vx = np.cross(v, x)
     return x + vx + np.cross(v, vx) / (1.0 + c)
+
+
+def least_rotation_quaternions(a, b):
+    """The least rotations taking unit vectors ``a`` to unit vectors ``b``, many at once, as unit
+    quaternions ``(w, x, y, z)``: :func:`rotate_minimal`'s rotation, half turns included.
+
+    Args:
+        a, b: unit vectors as component tuples ``(x, y, z)``, each an array of one shape.
+
+    Returns:
+        ``(w, x, y, z)``, each an array of that shape: ``(1 + a.b, a x b)`` normalised, or
+        ``(0, k)`` with ``k`` the :func:`initial_normal` of ``a`` where ``a.b < -1 + ANTIPARALLEL_EPS``.
+    """
+    ax, ay, az = (np.asarray(c, dtype=np.float64) for c in a)
+    bx, by, bz = (np.asarray(c, dtype=np.float64) for c in b)
+    w = 1.0 + ax * bx + ay * by + az * bz
+    x, y, z = ay * bz - az * by, az * bx - ax * bz, ax * by - ay * bx
+    half = w < ANTIPARALLEL_EPS
+    if half.any():
+        # initial_normal(a): the world axis least aligned with a, made perpendicular to it
+        axis = np.argmin(np.stack([np.abs(ax), np.abs(ay), np.abs(az)]), axis=0)
+        ex, ey, ez = (axis == 0).astype(float), (axis == 1).astype(float), (axis == 2).astype(float)
+        d = ex * ax + ey * ay + ez * az
+        kx, ky, kz = ex - d * ax, ey - d * ay, ez - d * az
+        w, x, y, z = np.where(half, 0.0, w), np.where(half, kx, x), np.where(half, ky, y), np.where(half, kz, z)
+    n = np.sqrt(w * w + x * x + y * y + z * z)
+    return w / n, x / n, y / n, z / n
 
 
 def minimal_rotation(a: np.ndarray, b: np.ndarray) -> np.ndarray:

@@ -29,9 +29,9 @@ import numpy as np
 import warp as wp
 
 from ..scene.spec import Scene
-from .frames import rotate_minimal
+from .frames import least_rotation_quaternions, rotate_minimal
 
-__all__ = ["TubeModel", "TubeState", "TubeControl", "build_model", "rest_curvature_coordinates"]
+__all__ = ["TubeModel", "TubeState", "TubeControl", "build_model", "rest_curvature_coordinates", "rest_curvature_of_curves"]
 
 
 def _first_edge_normal(t: np.ndarray) -> np.ndarray:
@@ -49,28 +49,156 @@ def curvature_binormal(a: np.ndarray, b: np.ndarray) -> np.ndarray:
     return 2.0 * np.cross(a, b) / den
 
 
+# The vectorised rest-frame code below works on vectors held as their three component arrays
+# (x, y, z), each shaped like the batch: component-wise arithmetic on contiguous arrays.
+
+
+def _dot(a, b):
+    return a[0] * b[0] + a[1] * b[1] + a[2] * b[2]
+
+
+def _cross(a, b):
+    return (a[1] * b[2] - a[2] * b[1], a[2] * b[0] - a[0] * b[2], a[0] * b[1] - a[1] * b[0])
+
+
+def _scaled(a, k):
+    return (a[0] * k, a[1] * k, a[2] * k)
+
+
+def _quat_mul(a, b):
+    """Hamilton product ``a b`` of quaternions given as component tuples ``(w, x, y, z)``."""
+    aw, ax, ay, az = a
+    bw, bx, by, bz = b
+    return (
+        aw * bw - ax * bx - ay * by - az * bz,
+        aw * bx + ax * bw + ay * bz - az * by,
+        aw * by - ax * bz + ay * bw + az * bx,
+        aw * bz + ax * by - ay * bx + az * bw,
+    )
+
+
+def _quat_unit(q):
+    k = 1.0 / np.sqrt(q[0] * q[0] + q[1] * q[1] + q[2] * q[2] + q[3] * q[3])
+    return (q[0] * k, q[1] * k, q[2] * k, q[3] * k)
+
+
+#: runs of at most this many rotations are composed one after another; longer runs in blocks
+_SCAN_RUN = 64
+
+
+def _identity_quat(shape):
+    return (np.ones(shape), np.zeros(shape), np.zeros(shape), np.zeros(shape))
+
+
+def _cumulative_rotations(q):
+    """Running products ``q_k ... q_1 q_0`` of unit quaternions along the first axis.
+
+    Args:
+        q: component tuple ``(w, x, y, z)``, each shaped (m, ...), C-contiguous.
+
+    Short runs are multiplied one after another (vectorised over the trailing axes, a contiguous
+    row per step); a long run is cut into about ``sqrt(m)`` blocks of about ``sqrt(m)`` rotations,
+    every block's running product found that way at once, the blocks' totals composed the same
+    way (recursively), and each block's products multiplied by the total of the blocks before it:
+    O(m) work in O(sqrt(m)) NumPy calls. Products are renormalised so that rounding does not let
+    them drift off unit length.
+    """
+    m = q[0].shape[0]
+    if m <= _SCAN_RUN:
+        out = tuple(np.empty_like(c) for c in q)
+        acc = tuple(c[0] for c in q)
+        for c, v in zip(out, acc):
+            c[0] = v
+        for k in range(1, m):
+            acc = _quat_unit(_quat_mul(tuple(c[k] for c in q), acc))
+            for c, v in zip(out, acc):
+                c[k] = v
+        return out
+    trail = q[0].shape[1:]
+    run = int(np.ceil(np.sqrt(m)))
+    blocks = -(-m // run)
+    pad = _identity_quat((blocks * run - m,) + trail)  # rotations that do nothing
+    # (run, blocks, ...): step k of every block is one contiguous row.
+    qb = tuple(np.ascontiguousarray(np.concatenate([c, p]).reshape((blocks, run) + trail).swapaxes(0, 1))
+               for c, p in zip(q, pad))  # fmt: skip
+    inner = _cumulative_rotations(qb)  # running products inside each block
+    totals = _cumulative_rotations(tuple(np.ascontiguousarray(c[-1]) for c in inner))  # through each block's end
+    before = tuple(np.concatenate([i, c[:-1]]) for i, c in zip(_identity_quat((1,) + trail), totals))
+    out = _quat_unit(_quat_mul(inner, before))
+    return tuple(np.ascontiguousarray(c.swapaxes(0, 1)).reshape((blocks * run,) + trail)[:m] for c in out)
+
+
 def rest_curvature_coordinates(points: np.ndarray) -> np.ndarray:
-    """Rest curvature binormals of one tube in its rest Bishop frames, shape (n, 3).
+    """Rest curvature binormals of tubes in their rest Bishop frames, shape (..., n, 3).
+
+    Args:
+        points: rest positions [m] of one tube, shape (n, 3), or of several tubes of n points
+            each, shape (..., n, 3).
 
     Row ``j`` holds the components of ``kb_j`` along (tangent, u, v) of edge ``j - 1``'s frame; the
-    first frame uses the fixed perpendicular of :func:`_first_edge_normal`. Rows 0 and n-1 are 0.
+    first frame uses the fixed perpendicular of :func:`_first_edge_normal`, and each later frame is
+    the previous one carried by the least rotation between consecutive edges (parallel transport).
+    Rows 0 and n-1 are 0. The transports are composed as quaternion products (a blocked running
+    product, :func:`_cumulative_rotations`), so a tube costs O(n) array work and O(sqrt(n)) NumPy
+    calls, and many tubes of equal length cost the same number of calls as one.
     """
     x = np.asarray(points, dtype=np.float64)
-    n = len(x)
-    out = np.zeros((n, 3))
+    n = x.shape[-2]
+    out = np.zeros(x.shape)
     if n < 3:
         return out
-    t = (x[1] - x[0]) / np.linalg.norm(x[1] - x[0])
-    u = _first_edge_normal(t)
-    for j in range(1, n - 1):
-        kb = curvature_binormal(x[j] - x[j - 1], x[j + 1] - x[j])
-        v = np.cross(t, u)
-        out[j] = [np.dot(kb, t), np.dot(kb, u), np.dot(kb, v)]
-        t_next = (x[j + 1] - x[j]) / np.linalg.norm(x[j + 1] - x[j])
-        u = rotate_minimal(t, t_next, u)
-        u = u - t_next * np.dot(u, t_next)
-        u /= np.linalg.norm(u)
-        t = t_next
+    # Components with the point axis first, each (n, ...) and contiguous.
+    xc = tuple(np.ascontiguousarray(np.moveaxis(x[..., k], -1, 0)) for k in range(3))
+    e = tuple(c[1:] - c[:-1] for c in xc)  # edges, (n - 1, ...)
+    t = _scaled(e, 1.0 / np.sqrt(_dot(e, e)))
+    # First frame: the fixed perpendicular of _first_edge_normal, for every tube at once.
+    t0 = tuple(c[0] for c in t)
+    pick_y = np.abs(t0[0]) > 0.6
+    u0 = (np.where(pick_y, 0.0, 1.0), np.where(pick_y, 1.0, 0.0), np.zeros_like(t0[0]))
+    d = _dot(u0, t0)
+    u0 = tuple(uc - tc * d for uc, tc in zip(u0, t0))
+    u0 = _scaled(u0, 1.0 / np.sqrt(_dot(u0, u0)))
+    m = n - 2  # frames of edges 0 .. n - 3 serve rows 1 .. n - 2
+    u = tuple(np.empty((m,) + x.shape[:-2]) for _ in range(3))
+    for c, v in zip(u, u0):
+        c[0] = v
+    if m > 1:
+        # Least rotation from edge k to edge k + 1 as a unit quaternion.
+        q = least_rotation_quaternions(tuple(c[: m - 1] for c in t), tuple(c[1:m] for c in t))
+        w, *r = _cumulative_rotations(q)  # edge 0 -> edge j + 1, (m - 1, ...) each
+        ru = _cross(r, u0)
+        rru = _cross(r, ru)
+        uk = tuple(uc + 2.0 * (w * a1 + a2) for uc, a1, a2 in zip(u0, ru, rru))
+        tk = tuple(c[1:m] for c in t)
+        d = _dot(uk, tk)
+        uk = tuple(uc - tc * d for uc, tc in zip(uk, tk))
+        uk = _scaled(uk, 1.0 / np.sqrt(_dot(uk, uk)))
+        for c, v in zip(u, uk):
+            c[1:] = v
+    tf = tuple(c[:m] for c in t)  # tangent of edge j - 1 for rows j = 1 .. n - 2
+    v = _cross(tf, u)
+    ea = tuple(c[:-1] for c in e)
+    eb = tuple(c[1:] for c in e)
+    # curvature_binormal(ea, eb), in components
+    la, lb = np.sqrt(_dot(ea, ea)), np.sqrt(_dot(eb, eb))
+    den = np.maximum(la * lb + _dot(ea, eb), 1e-6 * la * lb + 1e-12)
+    kb = _scaled(_cross(ea, eb), 2.0 / den)
+    for k, frame in enumerate((tf, u, v)):
+        out[..., 1:-1, k] = np.moveaxis(_dot(kb, frame), 0, -1)
+    return out
+
+
+def rest_curvature_of_curves(curves) -> list[np.ndarray]:
+    """:func:`rest_curvature_coordinates` of each polyline in ``curves`` (a sequence of (n_i, 3)
+    arrays [m]), as a list in the same order; curves of one length are done in one call."""
+    out = [None] * len(curves)
+    by_length: dict[int, list[int]] = {}
+    for i, c in enumerate(curves):
+        by_length.setdefault(len(c), []).append(i)
+    for idx in by_length.values():
+        kap = rest_curvature_coordinates(np.stack([curves[i] for i in idx]))
+        for i, k in zip(idx, kap):
+            out[i] = k
     return out
 
 
@@ -203,6 +331,8 @@ def build_model(scene: Scene, world_count: int = 1, device=None) -> TubeModel:
     prim_node_start = []
     curved = False
     t_index = 0
+    curve_kappa = iter(rest_curvature_of_curves(
+        [spec.points[c0 : c0 + cn] for spec in scene.tubes for c0, cn in zip(spec.curve_starts, spec.curve_counts)]))  # fmt: skip
     for spec in scene.tubes:
         prim_node_start.append(tube_start[-1])
         p = spec.params
@@ -237,7 +367,7 @@ def build_model(scene: Scene, world_count: int = 1, device=None) -> TubeModel:
             ke.append(np.append(k_ax, 0.0))
             kd.append(np.append(k_ax * p.spring_damping, 0.0))
             bend_k.append(bk)
-            kap = rest_curvature_coordinates(x)
+            kap = next(curve_kappa)
             if float(np.abs(kap).max()) > 1e-6:
                 curved = True
             kappa.append(kap)

@@ -31,7 +31,7 @@ from .spec import (
 
 log = logging.getLogger(__name__)
 
-__all__ = ["load_scene", "open_stage", "save_scene", "usd_error_in_user_terms"]
+__all__ = ["load_scene", "open_stage", "save_scene", "usd_error_in_user_terms", "SceneReader"]
 
 SETTINGS_ATTRS = ("warptube:timeStep", "warptube:integrator", "warptube:gravity")
 REAL = ("float", "double", "half")
@@ -411,44 +411,119 @@ def load_scene(path: str, extract=None) -> Scene:
     Raises:
         SceneError: the first problem found, naming file, prim, attribute, found and expected.
     """
-    from pxr import UsdGeom
-
     path = os.fspath(path)
-    stage = open_stage(path)
-    info = _stage_info(stage)
-    frame_times = [info.start_time_code + k for k in range(info.frame_count)]
-    tubes, settings_prims, force_prims, mesh_prims = [], [], [], []
-    for prim in stage.Traverse():
-        names = [a.GetName() for a in prim.GetAttributes() if a.GetName().startswith("warptube:")]
-        if prim.GetRelationship("warptube:target"):
-            force_prims.append(prim)
-        elif any(n in SETTINGS_ATTRS for n in names):
-            settings_prims.append(prim)
-        elif prim.IsA(UsdGeom.BasisCurves) and names:
-            tubes.append(prim)
-        elif prim.IsA(UsdGeom.Mesh) and "warptube:extract" in names:
-            if _Reader(path, prim).boolean("warptube:extract", False):
-                mesh_prims.append(prim)
-        elif names:
-            log.info("%s: %s carries warptube: attributes but is not a tube, force or settings prim: ignored", path, prim.GetPath())
-    if len(settings_prims) > 1:
-        raise SceneError(
-            f"{path}: {len(settings_prims)} simulation settings prims "
-            f"({', '.join(str(p.GetPath()) for p in settings_prims)}): expected at most one prim carrying "
-            "warptube:timeStep, warptube:integrator or warptube:gravity"
-        )
-    settings = _read_settings(path, settings_prims[0]) if settings_prims else SimulationSettings()
-    specs = [_read_tube(path, p, info, frame_times) for p in tubes]
-    if mesh_prims:
-        if extract is None:
+    return SceneReader(open_stage(path), path, extract).read()
+
+
+class SceneReader:
+    """Reads a :class:`Scene` from an open stage, and again after some prims' attributes change.
+
+    :func:`load_scene` reads a file once with it; a caller that edits the stage between reads
+    (the batch command overrides attributes in the stage's session layer) names the prims it
+    changed, and only what depends on them is read again.
+
+    Args:
+        stage: the open ``Usd.Stage``.
+        path: the file named in messages.
+        extract: as for :func:`load_scene`.
+    """
+
+    def __init__(self, stage, path: str, extract=None):
+        self.stage = stage
+        self.path = path
+        self.extract = extract
+        self._last = None  # what the last read found: prims by kind, their specs
+
+    def read(self, changed=None) -> Scene:
+        """The scene as the stage now composes it.
+
+        Args:
+            changed: None to read every prim (needed after anything but attribute values changed,
+                e.g. a variant selection), or the paths of the prims whose attribute values
+                changed since the last read: the tubes at or below them, the forces among them or
+                on those tubes and the settings prim if among them are read again, the rest kept.
+                A changed prim that is none of these nor an ancestor of one means a full read.
+
+        Raises:
+            SceneError: the first problem found, naming file, prim, attribute, found and expected.
+        """
+        if changed is not None and self._last is not None:
+            partial = self._read_changed({str(c) for c in changed})
+            if partial is not None:
+                return partial
+        return self._read_all()
+
+    def _read_all(self) -> Scene:
+        from pxr import UsdGeom
+
+        stage, path, extract = self.stage, self.path, self.extract
+        self._last = None
+        info = _stage_info(stage)
+        frame_times = [info.start_time_code + k for k in range(info.frame_count)]
+        tubes, settings_prims, force_prims, mesh_prims = [], [], [], []
+        for prim in stage.Traverse():
+            names = [a.GetName() for a in prim.GetAttributes() if a.GetName().startswith("warptube:")]
+            if prim.GetRelationship("warptube:target"):
+                force_prims.append(prim)
+            elif any(n in SETTINGS_ATTRS for n in names):
+                settings_prims.append(prim)
+            elif prim.IsA(UsdGeom.BasisCurves) and names:
+                tubes.append(prim)
+            elif prim.IsA(UsdGeom.Mesh) and "warptube:extract" in names:
+                if _Reader(path, prim).boolean("warptube:extract", False):
+                    mesh_prims.append(prim)
+            elif names:
+                log.info("%s: %s carries warptube: attributes but is not a tube, force or settings prim: ignored", path, prim.GetPath())
+        if len(settings_prims) > 1:
             raise SceneError(
-                f"{path}: {mesh_prims[0].GetPath()}: a Mesh with warptube:extract = true needs centerline "
-                "extraction: load the scene with warp_tube.load_scene"
+                f"{path}: {len(settings_prims)} simulation settings prims "
+                f"({', '.join(str(p.GetPath()) for p in settings_prims)}): expected at most one prim carrying "
+                "warptube:timeStep, warptube:integrator or warptube:gravity"
             )
-        specs += [extract(path, p, info) for p in mesh_prims]
-    by_path = {s.path: k for k, s in enumerate(specs)}
-    forces = tuple(_read_force(path, p, by_path, specs, info) for p in force_prims)
-    return Scene(tubes=tuple(specs), forces=forces, settings=settings, stage=info, source=path)
+        settings = _read_settings(path, settings_prims[0]) if settings_prims else SimulationSettings()
+        specs = [_read_tube(path, p, info, frame_times) for p in tubes]
+        if mesh_prims:
+            if extract is None:
+                raise SceneError(
+                    f"{path}: {mesh_prims[0].GetPath()}: a Mesh with warptube:extract = true needs centerline "
+                    "extraction: load the scene with warp_tube.load_scene"
+                )
+            specs += [extract(path, p, info) for p in mesh_prims]
+        by_path = {s.path: k for k, s in enumerate(specs)}
+        forces = tuple(_read_force(path, p, by_path, specs, info) for p in force_prims)
+        scene = Scene(tubes=tuple(specs), forces=forces, settings=settings, stage=info, source=path)
+        self._last = dict(info=info, frame_times=frame_times, tube_prims=tubes + mesh_prims, n_curves=len(tubes),
+                          settings_prims=settings_prims, force_prims=force_prims, scene=scene)  # fmt: skip
+        return scene
+
+    def _read_changed(self, changed: set) -> Scene | None:
+        last, path = self._last, self.path
+        below = lambda p: any(p == c or p.startswith(c.rstrip("/") + "/") for c in changed)  # noqa: E731
+        known = [str(p.GetPath()) for p in last["tube_prims"] + last["force_prims"] + last["settings_prims"]]
+        for c in changed:
+            if not any(k == c or k.startswith(c.rstrip("/") + "/") for k in known):
+                return None  # a prim the last read did not use: it may have become one
+        scene = last["scene"]
+        specs = list(scene.tubes)
+        redo = set()
+        for k, prim in enumerate(last["tube_prims"]):
+            if below(str(prim.GetPath())):
+                if k < last["n_curves"]:
+                    specs[k] = _read_tube(path, prim, last["info"], last["frame_times"])
+                else:
+                    specs[k] = self.extract(path, prim, last["info"])
+                redo.add(k)
+        by_path = {s.path: k for k, s in enumerate(specs)}
+        forces = list(scene.forces)
+        for k, prim in enumerate(last["force_prims"]):
+            if below(str(prim.GetPath())) or forces[k].tube in redo:
+                forces[k] = _read_force(path, prim, by_path, specs, last["info"])
+        settings = scene.settings
+        if last["settings_prims"] and below(str(last["settings_prims"][0].GetPath())):
+            settings = _read_settings(path, last["settings_prims"][0])
+        scene = Scene(tubes=tuple(specs), forces=tuple(forces), settings=settings, stage=last["info"], source=path)
+        last["scene"] = scene
+        return scene
 
 
 def save_scene(scene: Scene, path: str) -> None:

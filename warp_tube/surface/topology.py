@@ -52,7 +52,7 @@ class SurfaceTopology:
         caps: whether the tube ends are closed by caps.
         hub_count: hubs of all tubes, N.
         vertex_count: vertices, V = N S (+ per tube 2 ((K - 1) S + 1) with caps).
-        face_vertex_counts: int32 (F,), all 3.
+        face_vertex_counts: int32 (F,), all 3 (read-only).
         face_vertex_indices: int32 (3 F,).
         st: float32 (3 F, 2), face-varying texture coordinates (u around, v along).
         st_interpolation: "faceVarying".
@@ -86,33 +86,93 @@ class SurfaceTopology:
         return self.face_vertex_indices.reshape(-1, 3)
 
 
-def _strip(a0: int, b0: int, va: float, vb: float, spokes: int, forward: bool):
-    """Triangles and face-varying st joining ring ``a0`` to ring ``b0`` (``b`` further along)."""
-    j = np.arange(spokes)
-    j1 = (j + 1) % spokes
-    a, b, c, d = a0 + j, a0 + j1, b0 + j, b0 + j1
-    ua, ub = j / spokes, (j + 1) / spokes
-    pa, pb, pc, pd = (np.stack([u, np.full(spokes, v)], -1) for u, v in ((ua, va), (ub, va), (ua, vb), (ub, vb)))
-    if forward:
-        tri = np.stack([np.stack([a, b, d], -1), np.stack([a, d, c], -1)], 1)
-        st = np.stack([np.stack([pa, pb, pd], 1), np.stack([pa, pd, pc], 1)], 1)
+def _strip_pattern(spokes: int, forward: bool):
+    """One strip of ``2 S`` triangles joining ring ``a`` to ring ``b`` (``b`` further along), per
+    corner: whether it is on ring ``b``, its spoke, and its ``u`` around; each shaped (2 S, 3).
+    Triangles ``2 j`` and ``2 j + 1`` join spokes ``j`` and ``j + 1`` (mod S), counter-clockwise
+    seen from outside when ``forward``."""
+    j = np.arange(spokes)[:, None, None]
+    # corners a = (ring a, j), b = (ring a, j + 1), c = (ring b, j), d = (ring b, j + 1)
+    on_b = np.array([[0, 0, 1], [0, 1, 1]] if forward else [[0, 1, 0], [0, 1, 1]], dtype=bool)
+    next_spoke = np.array([[0, 1, 1], [0, 1, 0]] if forward else [[0, 1, 1], [0, 0, 1]], dtype=bool)
+    spoke = np.where(next_spoke, (j + 1) % spokes, j)
+    u = np.where(next_spoke, (j + 1) / spokes, j / spokes)
+    shape = (2 * spokes, 3)
+    return np.broadcast_to(on_b, (spokes, 2, 3)).reshape(shape), spoke.reshape(shape), u.reshape(shape)
+
+
+def _strips_into(tri_out, st_out, ring_a, ring_b, va, vb, spokes: int, forward: bool):
+    """Write M strips: triangles into ``tri_out`` (M, 2 S, 3) int32 and face-varying st into
+    ``st_out`` (M, 2 S, 3, 2) float32; strip ``m`` joins the ring whose first vertex is
+    ``ring_a[m]`` (``v = va[m]``) to ``ring_b[m]`` (``v = vb[m]``)."""
+    on_b, spoke, u = _strip_pattern(spokes, forward)
+    ring_a = np.asarray(ring_a, dtype=np.int64)
+    step = np.asarray(ring_b, dtype=np.int64) - ring_a
+    if len(step) and np.all(step == step[0]):  # one pass: ring b is a fixed number of vertices on
+        np.add(ring_a.astype(np.int32)[:, None, None], (spoke + on_b * step[0]).astype(np.int32)[None], out=tri_out)
     else:
-        tri = np.stack([np.stack([a, d, b], -1), np.stack([a, c, d], -1)], 1)
-        st = np.stack([np.stack([pa, pd, pb], 1), np.stack([pa, pc, pd], 1)], 1)
-    return tri.reshape(-1, 3), st.reshape(-1, 3, 2)
+        np.add(ring_a.astype(np.int32)[:, None, None], spoke.astype(np.int32)[None], out=tri_out)
+        np.add(tri_out, step.astype(np.int32)[:, None, None], out=tri_out, where=on_b[None])
+    # st of a strip is [1, va, vb] times a fixed (3, 2 S * 3 * 2) pattern: its u, and 0/1 picking
+    # va or vb for each corner's v. Every corner gets one term and exact zeros, so the product is
+    # exactly (u, va or vb) in float32; one matrix product writes it all.
+    pattern = np.zeros((3, 2 * spokes, 3, 2), dtype=np.float32)
+    pattern[0, ..., 0] = u
+    pattern[1, ..., 1] = ~on_b
+    pattern[2, ..., 1] = on_b
+    coef = np.empty((len(ring_a), 3), dtype=np.float32)
+    coef[:, 0] = 1.0
+    coef[:, 1] = np.asarray(va, dtype=np.float64)
+    coef[:, 2] = np.asarray(vb, dtype=np.float64)
+    np.matmul(coef, pattern.reshape(3, -1), out=st_out.reshape(len(ring_a), -1))
 
 
-def _fan(a0: int, pole: int, va: float, vp: float, spokes: int, forward: bool):
-    """Triangles and face-varying st joining ring ``a0`` to a pole vertex further along."""
+def _fans_into(tri_out, st_out, ring_a, pole, va, vp, spokes: int, forward: bool):
+    """Write M fans: triangles into ``tri_out`` (M, S, 3) int32 and st into ``st_out``
+    (M, S, 3, 2) float32; fan ``m`` joins ring ``ring_a[m]`` (``v = va[m]``) to the pole vertex
+    ``pole[m]`` (``v = vp[m]``), triangle ``j`` joining spokes ``j`` and ``j + 1`` (mod S)."""
     j = np.arange(spokes)
-    a, b = a0 + j, a0 + (j + 1) % spokes
-    p = np.full(spokes, pole)
-    pa = np.stack([j / spokes, np.full(spokes, va)], -1)
-    pb = np.stack([(j + 1) / spokes, np.full(spokes, va)], -1)
-    pp = np.stack([(j + 0.5) / spokes, np.full(spokes, vp)], -1)
-    if forward:
-        return np.stack([a, b, p], -1), np.stack([pa, pb, pp], 1)
-    return np.stack([a, p, b], -1), np.stack([pa, pp, pb], 1)
+    # corners: a = spoke j, b = spoke j + 1, p = the pole; st u of p is (j + 0.5) / S
+    order = (0, 1, 2) if forward else (0, 2, 1)
+    spoke = np.stack([j, (j + 1) % spokes, np.zeros_like(j)], -1)[:, order]
+    u = np.stack([j / spokes, (j + 1) / spokes, (j + 0.5) / spokes], -1)[:, order]
+    is_pole = np.broadcast_to(np.array([False, False, True])[list(order)], (spokes, 3))
+    np.add(np.asarray(ring_a, dtype=np.int32)[:, None, None], spoke.astype(np.int32)[None], out=tri_out)
+    np.copyto(tri_out, np.asarray(pole, dtype=np.int32)[:, None, None], where=is_pole[None])
+    pattern = np.zeros((3, spokes, 3, 2), dtype=np.float32)  # as in _strips_into: [1, va, vp] x pattern
+    pattern[0, ..., 0] = u
+    pattern[1, ..., 1] = ~is_pole
+    pattern[2, ..., 1] = is_pole
+    coef = np.empty((len(tri_out), 3), dtype=np.float32)
+    coef[:, 0] = 1.0
+    coef[:, 1] = np.asarray(va, dtype=np.float64)
+    coef[:, 2] = np.asarray(vp, dtype=np.float64)
+    out = np.matmul(coef, pattern.reshape(3, -1))
+    st_out[...] = out.reshape(st_out.shape)
+
+
+def _arc_fractions(rest_q, starts: np.ndarray):
+    """Per hub, the rest arc length from its tube's first hub over the tube's rest length, (N,),
+    and the tubes' rest lengths (T,) (1 where a tube has none); uniform in the hub index without
+    ``rest_q``. Each tube's arc is its own running sum, as one tube alone would have it."""
+    n_hubs = int(starts[-1])
+    counts = np.diff(starts)
+    if rest_q is not None:
+        seg = np.linalg.norm(np.diff(np.asarray(rest_q, dtype=np.float64), axis=0), axis=1)
+    else:
+        seg = np.ones(max(n_hubs - 1, 0))
+    v_hub = np.empty(n_hubs)
+    tube_len = np.empty(len(counts))
+    for n in np.unique(counts):  # tubes of one length at a time: a (tubes, n - 1) running sum
+        tubes = np.flatnonzero(counts == n)
+        hubs = starts[tubes][:, None] + np.arange(n)[None]
+        arc = np.zeros((len(tubes), n))
+        np.cumsum(seg[hubs[:, :-1]], axis=1, out=arc[:, 1:])
+        total = arc[:, -1]
+        total = np.where(total > 0, total, 1.0)
+        tube_len[tubes] = total
+        v_hub[hubs] = arc / total[:, None]
+    return v_hub, tube_len
 
 
 def build_topology(
@@ -123,7 +183,7 @@ def build_topology(
     rest_q: np.ndarray | None = None,
     cap_radius: np.ndarray | None = None,
 ) -> SurfaceTopology:
-    """Build the topology and ring table of one tube prim.
+    """Build the topology and ring table of one tube prim, with array operations over all hubs.
 
     Args:
         tube_node_start: first hub of each tube, int (T + 1,), starting at 0, increasing, each tube
@@ -147,70 +207,74 @@ def build_topology(
     n_hubs = int(starts[-1])
     n_tubes = len(starts) - 1
     K = cap_ring_count(S) if caps else 0
+    v_hub, tube_len = _arc_fractions(rest_q, starts)
 
-    # v along each tube: rest arc length over the tube's rest length.
-    v_hub = np.empty(n_hubs)
-    tube_len = np.empty(n_tubes)
-    for tube in range(n_tubes):
-        a, b = starts[tube], starts[tube + 1]
-        if rest_q is not None:
-            seg = np.linalg.norm(np.diff(np.asarray(rest_q, dtype=np.float64)[a:b], axis=0), axis=1)
-        else:
-            seg = np.ones(b - a - 1)
-        arc = np.concatenate([[0.0], np.cumsum(seg)])
-        tube_len[tube] = arc[-1] if arc[-1] > 0 else 1.0
-        v_hub[a:b] = arc / tube_len[tube]
-
+    # Body: a strip from every hub but a tube's last to the next hub, tubes and hubs in order;
+    # with caps, after all the strips, every end's K - 1 strips and fan (ends in order: tube 0
+    # start, tube 0 end, tube 1 start, ...), each growing outwards from its end hub. Written
+    # straight into the final arrays.
+    last = np.zeros(n_hubs, dtype=bool)
+    last[starts[1:] - 1] = True
+    seg_hub = np.flatnonzero(~last)
+    n_body = len(seg_hub) * 2 * S
+    per_end_tris = (2 * K - 1) * S if caps else 0
+    n_faces = n_body + 2 * n_tubes * per_end_tris
+    tri = np.empty((n_faces, 3), dtype=np.int32)
+    st = np.empty((n_faces, 3, 2), dtype=np.float32)
+    M = len(seg_hub)
+    _strips_into(tri[:n_body].reshape(M, 2 * S, 3), st[:n_body].reshape(M, 2 * S, 3, 2), seg_hub * S,
+                 (seg_hub + 1) * S, v_hub[seg_hub], v_hub[seg_hub + 1], S, True)  # fmt: skip
     ring_hub = [np.arange(n_hubs)]
     ring_kind = [np.full(n_hubs, RING_BODY)]
     ring_cos = [np.zeros(n_hubs)]
     ring_sin = [np.ones(n_hubs)]
     ring_vertex = [np.arange(n_hubs) * S]
-    tris, sts = [], []
-    next_vertex = n_hubs * S
+    vertex_count = n_hubs * S
 
-    for tube in range(n_tubes):
-        a, b = int(starts[tube]), int(starts[tube + 1])
-        for i in range(a, b - 1):
-            tri, st = _strip(i * S, (i + 1) * S, v_hub[i], v_hub[i + 1], S, True)
-            tris.append(tri)
-            sts.append(st)
-    for tube in range(n_tubes):
-        if not caps:
-            break
-        a, b = int(starts[tube]), int(starts[tube + 1])
-        for end, hub, sign in ((0, a, -1.0), (1, b - 1, 1.0)):
-            radius = cap_radius[tube, end] if cap_radius is not None else 0.1 * tube_len[tube]
-            dv = 0.5 * math.pi * radius / tube_len[tube] / K
-            forward = sign > 0
-            prev_ring, prev_v = hub * S, v_hub[hub]
-            for k in range(1, K + 1):
-                beta = 0.5 * math.pi * (1.0 - k / K)
-                v = v_hub[hub] + sign * k * dv
-                ring_hub.append([hub])
-                ring_cos.append([sign * math.cos(beta)])
-                ring_sin.append([math.sin(beta) if k < K else 0.0])
-                ring_vertex.append([next_vertex])
-                if k < K:
-                    ring_kind.append([RING_CAP])
-                    tri, st = _strip(prev_ring, next_vertex, prev_v, v, S, forward)
-                    prev_ring, prev_v = next_vertex, v
-                    next_vertex += S
-                else:
-                    ring_kind.append([RING_POLE])
-                    tri, st = _fan(prev_ring, next_vertex, prev_v, v, S, forward)
-                    next_vertex += 1
-                tris.append(tri)
-                sts.append(st)
+    if caps:
+        # Each end adds K - 1 rings of S vertices and a pole.
+        hub = np.stack([starts[:-1], starts[1:] - 1], axis=1)  # (T, 2)
+        sign = np.array([-1.0, 1.0])
+        radius = np.asarray(cap_radius, dtype=np.float64) if cap_radius is not None else 0.1 * tube_len[:, None] * np.ones(2)
+        dv = 0.5 * math.pi * radius / tube_len[:, None] / K  # (T, 2)
+        k = np.arange(1, K + 1)
+        beta = [0.5 * math.pi * (1.0 - kk / K) for kk in k]
+        cos_b = np.array([math.cos(b) for b in beta])
+        sin_b = np.array([math.sin(b) if kk < K else 0.0 for kk, b in zip(k, beta)])
+        per_end = (K - 1) * S + 1
+        base = vertex_count + per_end * np.arange(2 * n_tubes).reshape(n_tubes, 2)  # first cap vertex
+        ring_first = base[:, :, None] + (k[None, None] - 1) * S  # (T, 2, K); k = K: the pole
+        v = v_hub[hub][:, :, None] + (sign[None, :, None] * k[None, None]) * dv[:, :, None]  # (T, 2, K)
+        prev_ring = np.concatenate([(hub * S)[:, :, None], ring_first[:, :, :-1]], axis=2)
+        prev_v = np.concatenate([v_hub[hub][:, :, None], v[:, :, :-1]], axis=2)
+        ring_hub.append(np.broadcast_to(hub[:, :, None], (n_tubes, 2, K)).reshape(-1))
+        ring_cos.append((sign[None, :, None] * cos_b[None, None]).repeat(n_tubes, axis=0).reshape(-1))
+        ring_sin.append(np.broadcast_to(sin_b, (n_tubes, 2, K)).reshape(-1))
+        ring_vertex.append(ring_first.reshape(-1))
+        ring_kind.append(np.broadcast_to(np.where(k < K, RING_CAP, RING_POLE), (n_tubes, 2, K)).reshape(-1))
+        cap_tri = tri[n_body:].reshape(n_tubes, 2, per_end_tris, 3)
+        cap_st = st[n_body:].reshape(n_tubes, 2, per_end_tris, 3, 2)
+        n_strip = 2 * (K - 1) * S
+        for end in (0, 1):
+            forward = end == 1
+            flat = lambda a: a[:, end, : K - 1].reshape(-1)  # noqa: E731
+            strip_tri = np.empty((n_tubes * (K - 1), 2 * S, 3), dtype=np.int32)
+            strip_st = np.empty((n_tubes * (K - 1), 2 * S, 3, 2), dtype=np.float32)
+            _strips_into(strip_tri, strip_st, flat(prev_ring), flat(ring_first), flat(prev_v), flat(v), S, forward)
+            cap_tri[:, end, :n_strip] = strip_tri.reshape(n_tubes, n_strip, 3)
+            cap_st[:, end, :n_strip] = strip_st.reshape(n_tubes, n_strip, 3, 2)
+            _fans_into(cap_tri[:, end, n_strip:], cap_st[:, end, n_strip:], prev_ring[:, end, -1], ring_first[:, end, -1],
+                       prev_v[:, end, -1], v[:, end, -1], S, forward)  # fmt: skip
+        vertex_count += 2 * n_tubes * per_end
 
-    faces = np.concatenate(tris).astype(np.int32)
-    st = np.concatenate(sts).reshape(-1, 2).astype(np.float32)
+    faces = tri
+    st = st.reshape(-1, 2)
     return SurfaceTopology(
         spokes=S,
         caps=bool(caps),
         hub_count=n_hubs,
-        vertex_count=next_vertex,
-        face_vertex_counts=np.full(len(faces), 3, dtype=np.int32),
+        vertex_count=vertex_count,
+        face_vertex_counts=np.broadcast_to(np.int32(3), (len(faces),)),  # all 3: a read-only view, no memory
         face_vertex_indices=faces.reshape(-1),
         st=st,
         st_interpolation="faceVarying",

@@ -1,0 +1,496 @@
+"""warp-tube batch on the CPU: variant k of a batch against the same variant run alone with
+``warp-tube run``, layouts, failures, resume, bad tables, and a local Dask cluster."""
+
+from __future__ import annotations
+
+import filecmp
+import os
+
+import numpy as np
+import pytest
+
+from tests.conftest import SCENES, check_output_problems, needs_shared
+from warp_tube.batch import BatchInterrupted, run_batch
+from warp_tube.cli import main as cli
+
+DEFAULT = SCENES / "default.usda"
+FRAMES = 8
+E = "/World/Tube.warptube:youngsModulus"
+FORCE = "/World/Push.warptube:force"
+WIDTHS = "/World/Tube.widths"
+
+
+def write_table(path, header, rows):
+    lines = [",".join(header)] + [",".join(f'"{c}"' if "," in c else c for c in row) for row in rows]
+    path.write_text("\n".join(lines) + "\n")
+    return path
+
+
+def variant_scene(tmp_path, name, overrides: dict, selection: dict | None = None):
+    """The scene with ``overrides`` ({"/Prim.attr": value}) authored in place of the scene's own
+    values and time samples, as a user would edit it by hand; a file ``warp-tube run`` reads."""
+    from pxr import Sdf, Usd
+
+    path = tmp_path / f"{name}.usda"
+    Sdf.Layer.FindOrOpen(str(DEFAULT)).Export(str(path))
+    stage = Usd.Stage.Open(str(path))
+    for (prim, set_name), choice in (selection or {}).items():
+        stage.GetPrimAtPath(prim).GetVariantSet(set_name).SetVariantSelection(choice)
+    for target, value in overrides.items():
+        prim, attr = target.rsplit(".", 1)
+        a = stage.GetPrimAtPath(prim).GetAttribute(attr)
+        a.Clear()
+        a.Set(value)
+    stage.GetRootLayer().Save()
+    return path
+
+
+def stage_samples(path):
+    """Every time-sampled point array of an output stage: {attribute path: (times, arrays)}."""
+    from pxr import Usd
+
+    stage = Usd.Stage.Open(str(path))
+    out = {}
+    for prim in stage.Traverse():
+        for a in prim.GetAttributes():
+            times = a.GetTimeSamples()
+            if times:
+                out[str(a.GetPath())] = (times, [np.asarray(a.Get(t), dtype=np.float64) for t in times])
+    return out
+
+
+@pytest.fixture(scope="module")
+def sweep(tmp_path_factory):
+    """A batch of five variants of the default scene (stiffness, push, widths), files layout."""
+    from pxr import Gf
+
+    d = tmp_path_factory.mktemp("sweep")
+    rows = [("100000", "(0, 0.02, 0)", "[2]"), ("100000", "(0, 0.03, 0.01)", "[2]"), ("250000", "(0, 0.02, 0)", "[2]"),
+            ("100000", "(0.01, 0, 0.02)", "[2.5]"), ("60000", "(0, -0.02, 0)", "[2]")]  # fmt: skip
+    table = write_table(d / "table.csv", [E, FORCE, WIDTHS], rows)
+    out = d / "out"
+    result = run_batch(str(DEFAULT), str(out), str(table), frames=FRAMES, writers=0)
+    values = [{E: float(e), FORCE: Gf.Vec3f(*eval(f)), WIDTHS: [float(w.strip("[]"))]} for e, f, w in rows]
+    return d, out, result, values
+
+
+def test_batch_variant_equals_the_variant_run_alone(sweep, tmp_path):
+    d, out, result, values = sweep
+    assert (result.ok, result.failed, result.variants) == (5, 0, 5)
+    assert result.groups >= 3  # widths 2.5 and the stiff variant's substeps make groups of their own
+    for k in (1, 3, 4):
+        scene = variant_scene(tmp_path, f"v{k}", values[k])
+        alone = tmp_path / f"alone{k}.usdc"
+        assert cli(["run", str(scene), "-o", str(alone), "--frames", str(FRAMES), "--quiet"]) == 0
+        a, b = stage_samples(alone), stage_samples(out / f"variant_{k:05d}.usdc")
+        assert a.keys() == b.keys() and len(a) == 4  # Centerline points, Surface points, normals, extent
+        for name in a:
+            assert a[name][0] == b[name][0]
+            # Each world runs the same kernels on the same float32 inputs as the run alone (the
+            # control's float64 arithmetic included), so the samples agree to float32 round-off:
+            # 1e-6 of the tube's 20-unit length is ~16 float32 ulps of its largest coordinate.
+            # (On the CPU they are identical, and so are the files.)
+            assert max(np.abs(x - y).max() for x, y in zip(a[name][1], b[name][1])) <= 2e-5, name
+        assert filecmp.cmp(alone, out / f"variant_{k:05d}.usdc", shallow=False)
+
+
+@needs_shared
+def test_batch_files_pass_the_output_checker(sweep):
+    _, out, _, _ = sweep
+    assert check_output_problems(out / "variant_00002.usdc", DEFAULT, require_surface=True) == []
+
+
+def test_summary_has_a_row_per_variant_with_its_parameters(sweep):
+    import csv
+
+    _, out, _, values = sweep
+    rows = list(csv.DictReader(open(out / "summary.csv")))
+    assert [r["name"] for r in rows] == [f"variant_{k:05d}" for k in range(5)]
+    assert [float(r[E]) for r in rows] == [v[E] for v in values]
+    assert all(r["status"] == "ok" and r["output"] == f"{r['name']}.usdc" for r in rows)
+    # The pushes do work and the tube moves: displacement and work are positive, the stiffer tube
+    # (variant 2, 2.5x the modulus of variant 0 under the same push) moves less.
+    disp = [float(r["max_displacement_m"]) for r in rows]
+    assert all(x > 0 for x in disp) and disp[2] < disp[0]
+    assert all(float(r["work_J"]) > 0 for r in rows)
+    assert not os.path.exists(out / ".batch")
+
+
+def test_arrays_and_grid_layouts_hold_the_same_frames(sweep, tmp_path):
+    d, files_out, _, _ = sweep
+    table = d / "table.csv"
+    arr = tmp_path / "arrays"
+    run_batch(str(DEFAULT), str(arr), str(table), frames=FRAMES, layout="arrays", surface=True, writers=0)
+    cl = np.load(arr / "centerline.npy", mmap_mode="r")
+    surf = np.load(arr / "surface.npy", mmap_mode="r")
+    assert cl.shape == (5, FRAMES, 21, 3) and cl.dtype == np.float32
+    assert surf.shape[:2] == (5, FRAMES)
+    for k in (0, 3):
+        s = stage_samples(files_out / f"variant_{k:05d}.usdc")
+        # the same float32 values, copied: exact
+        assert np.array_equal(cl[k], np.stack(s["/World/Tube/Centerline.points"][1]).astype(np.float32))
+        assert np.array_equal(surf[k], np.stack(s["/World/Tube/Surface.points"][1]).astype(np.float32))
+    grid = tmp_path / "grid"
+    run_batch(str(DEFAULT), str(grid), str(table), frames=FRAMES, layout="grid", every=2, writers=0)
+    from pxr import Usd, UsdGeom
+
+    stage = Usd.Stage.Open(str(grid / "grid.usda"))
+    kids = [p.GetName() for p in stage.GetPrimAtPath("/Grid").GetChildren()]
+    assert kids == [f"variant_{k:05d}" for k in range(5)]
+    pts = stage.GetAttributeAtPath("/Grid/variant_00003/World/Tube/Centerline.points")
+    assert list(pts.GetTimeSamples()) == [0.0, 2.0, 4.0, 6.0]
+    s = stage_samples(files_out / "variant_00003.usdc")["/World/Tube/Centerline.points"][1]
+    assert np.array_equal(np.asarray(pts.Get(4.0)), s[4].astype(np.float32))
+    m = UsdGeom.Xformable(stage.GetPrimAtPath("/Grid/variant_00003")).ComputeLocalToWorldTransform(0.0)
+    offsets = [UsdGeom.Xformable(stage.GetPrimAtPath(f"/Grid/{n}")).ComputeLocalToWorldTransform(0.0).ExtractTranslation()
+               for n in kids]  # fmt: skip
+    # side by side: no two variants at the same place, none further than the grid's extent
+    assert len({tuple(o) for o in offsets}) == 5
+    assert m.ExtractTranslation()[1] == 0.0  # the grid lies across the up axis (Y)
+
+
+def test_failed_variant_is_marked_and_the_others_go_on(tmp_path):
+    # One forced substep for all: stable for the soft tubes, beyond the stiff one's bound (its
+    # bound shrinks as 1/sqrt(E)), so that world blows up while the others run on.
+    table = write_table(tmp_path / "t.csv", [E, "/World/Simulation.warptube:integrator", "/World/Simulation.warptube:timeStep"],
+                        [("100000", "semiImplicitEuler", "0.0002"), ("50000000", "semiImplicitEuler", "0.0002"),
+                         ("80000", "semiImplicitEuler", "0.0002")])  # fmt: skip
+    out = tmp_path / "out"
+    status = cli(["batch", str(DEFAULT), "--variants", str(table), "-o", str(out), "--frames", "6", "--writers", "0", "--quiet"])
+    assert status == 3
+    import csv
+
+    rows = list(csv.DictReader(open(out / "summary.csv")))
+    assert [r["status"] for r in rows] == ["ok", "failed", "ok"]
+    assert "numerical failure at frame" in rows[1]["reason"] and rows[1]["output"] == "variant_00001.partial.usdc"
+    assert int(rows[1]["frames"]) < 6 and int(rows[0]["frames"]) == 6
+    assert sorted(p.name for p in out.iterdir()) == ["summary.csv", "variant_00000.usdc", "variant_00001.partial.usdc",
+                                                     "variant_00002.usdc"]  # fmt: skip
+    # the ones that ran on are what they are alone
+    scene = variant_scene(tmp_path, "v2", {E: 80000.0, "/World/Simulation.warptube:integrator": "semiImplicitEuler"})
+    from pxr import Sdf, Usd
+
+    st = Usd.Stage.Open(str(scene))
+    st.GetPrimAtPath("/World/Simulation").CreateAttribute("warptube:timeStep", Sdf.ValueTypeNames.Double).Set(0.0002)
+    st.GetRootLayer().Save()
+    alone = tmp_path / "alone.usdc"
+    assert cli(["run", str(scene), "-o", str(alone), "--frames", "6", "--quiet"]) == 0
+    assert filecmp.cmp(alone, out / "variant_00002.usdc", shallow=False)
+
+
+def test_interrupt_and_resume_end_with_the_same_files(tmp_path):
+    table = write_table(tmp_path / "t.csv", [E, FORCE],
+                        [(str(80000 + 10000 * k), f"(0, {0.01 + 0.002 * k}, 0)") for k in range(6)])  # fmt: skip
+    whole = tmp_path / "whole"
+    run_batch(str(DEFAULT), str(whole), str(table), frames=5, chunk=2, writers=1)
+
+    part = tmp_path / "part"
+    seen = []
+
+    def stop_after_first(chunk_id):
+        seen.append(chunk_id)
+        raise KeyboardInterrupt
+
+    with pytest.raises(BatchInterrupted) as e:
+        run_batch(str(DEFAULT), str(part), str(table), frames=5, chunk=2, writers=1, on_chunk=stop_after_first)
+    assert e.value.result.pending == 4
+    assert (part / ".batch").is_dir() and not (part / "summary.csv").exists()
+    # the finished chunk's variants are complete files
+    kept = sorted(p.name for p in part.glob("variant_*.usdc"))
+    assert {f"variant_{i:05d}.usdc" for i in (0, 1)} <= set(kept)
+    # without --resume the folder is refused; with it the batch goes on
+    with pytest.raises(Exception, match="--resume continues"):
+        run_batch(str(DEFAULT), str(part), str(table), frames=5, chunk=2, writers=1)
+    result = run_batch(str(DEFAULT), str(part), str(table), frames=5, writers=1, resume=True)
+    assert result.resumed == 2 and result.ok == 6
+    names = sorted(p.name for p in whole.iterdir())
+    assert names == sorted(p.name for p in part.iterdir())
+    for n in names:
+        assert filecmp.cmp(whole / n, part / n, shallow=False), n
+    # resuming a finished batch does nothing
+    again = run_batch(str(DEFAULT), str(part), str(table), frames=5, writers=1, resume=True)
+    assert (again.resumed, again.ok) == (6, 6)
+    assert sorted(p.name for p in part.iterdir()) == names
+
+
+def test_resume_refuses_other_options(tmp_path):
+    table = write_table(tmp_path / "t.csv", [E], [("100000",), ("90000",)])
+    out = tmp_path / "out"
+    with pytest.raises(BatchInterrupted):
+        run_batch(str(DEFAULT), str(out), str(table), frames=3, chunk=1, writers=0,
+                  on_chunk=lambda c: (_ for _ in ()).throw(KeyboardInterrupt()))  # fmt: skip
+    status = cli(["batch", str(DEFAULT), "--variants", str(table), "-o", str(out), "--frames", "4", "--resume", "--quiet"])
+    assert status == 2
+
+
+def _bad(tmp_path, capsys, header, rows, *extra, files=None):
+    for name, data in (files or {}).items():
+        np.save(tmp_path / name, data)
+    table = write_table(tmp_path / "bad.csv", header, rows)
+    out = tmp_path / "out"
+    status = cli(["batch", str(DEFAULT), "--variants", str(table), "-o", str(out), "--frames", "2", *extra])
+    err = capsys.readouterr().err
+    assert status == 2, err
+    assert not out.exists()  # nothing was run, nothing written
+    assert "Traceback" not in err
+    return err
+
+
+def test_bad_header_and_rows(tmp_path, capsys):
+    err = _bad(tmp_path, capsys, ["World/Tube.warptube:youngsModulus"], [("1",)])
+    assert "line 1, column 1" in err and "PRIM_PATH.ATTRIBUTE" in err
+    err = _bad(tmp_path, capsys, [E, FORCE], [("1e5", "(0, 1, 0)"), ("1e5",)])
+    assert "row 1 (line 3): 1 cells for 2 columns" in err
+    err = _bad(tmp_path, capsys, [E, E], [("1e5", "2e5")])
+    assert "both set /World/Tube.warptube:youngsModulus" in err
+
+
+def test_bad_columns(tmp_path, capsys):
+    err = _bad(tmp_path, capsys, ["/World/Nope.warptube:density"], [("1000",)])
+    assert "column /World/Nope.warptube:density: no prim /World/Nope" in err
+    err = _bad(tmp_path, capsys, ["/World/Tube.warptube:colour"], [("1",)])
+    assert "has no attribute warptube:colour" in err
+
+
+def test_bad_values_name_row_and_column(tmp_path, capsys):
+    err = _bad(tmp_path, capsys, [E, FORCE], [("1e5", "(0, 1, 0)"), ("soft", "(0, 1, 0)"), ("1e5", "(0, 1)")])
+    assert "row 1 (line 3), column /World/Tube.warptube:youngsModulus: found 'soft': expected a number" in err
+    assert "row 2 (line 4), column /World/Push.warptube:force: found '(0, 1)': 2 number(s): expected 3 numbers" in err
+    assert "2 problem(s)" in err
+    # a value of the right type that the scene contract refuses: the reader's message, with row and column
+    err = _bad(tmp_path, capsys, ["/World/Tube.warptube:density"], [("1050",), ("-3",)])
+    assert "row 1 (line 3), column /World/Tube.warptube:density" in err and "expected a number > 0" in err
+    err = _bad(tmp_path, capsys, ["/World/Push.warptube:point"], [("40",)])
+    assert "row 0 (line 2), column /World/Push.warptube:point" in err and "0..20" in err
+
+
+def test_bad_files_and_settings(tmp_path, capsys):
+    err = _bad(tmp_path, capsys, ["@/World/Tube.points"], [("missing.npy",)])
+    assert "column @/World/Tube.points" in err and "no such file" in err
+    err = _bad(tmp_path, capsys, ["@/World/Tube.points"], [("p.npy",)], files={"p.npy": np.zeros((21, 2))})
+    assert "shape (21, 2)" in err
+    # a points array of another length than curveVertexCounts says: the reader refuses it
+    err = _bad(tmp_path, capsys, ["/World/Tube.points"], [("@p.npy",)], files={"p.npy": np.zeros((5, 3))})
+    assert "row 0 (line 2)" in err and "curveVertexCounts" in err
+    # implicit Euler cannot take the push's assistant line: a bad row, before anything runs
+    err = _bad(tmp_path, capsys, ["/World/Simulation.warptube:integrator"], [("auto",), ("implicitEuler",)])
+    assert "row 1 (line 3)" in err and "assistantLine" in err
+
+
+def test_bad_requests(tmp_path, capsys):
+    table = write_table(tmp_path / "t.csv", [E], [("1e5",)])
+    for args, expect in ((["--variant-sets", "shape"], "no such variantSet"), (["--every", "0"], "--every 0"),
+                         (["--layout", "arrays", "--no-surface"], "--no-surface: only with"),
+                         (["--surface-arrays"], "--surface-arrays: only with --layout arrays")):  # fmt: skip
+        status = cli(["batch", str(DEFAULT), "--variants", str(table), "-o", str(tmp_path / "o"), *args])
+        assert status == 2 and expect in capsys.readouterr().err
+    assert cli(["batch", str(DEFAULT), "-o", str(tmp_path / "o")]) == 2
+    assert "nothing to vary" in capsys.readouterr().err
+    assert not (tmp_path / "o").exists()
+
+
+def test_points_from_files_and_variant_sets(tmp_path):
+    """A file column gives each variant its own rest shape; a scene's variantSet crossed with the
+    table gives rows x variants, row-major; each equals its variant run alone."""
+    from pxr import Sdf, Usd
+
+    scene = tmp_path / "sets.usda"
+    Sdf.Layer.FindOrOpen(str(DEFAULT)).Export(str(scene))
+    st = Usd.Stage.Open(str(scene))
+    vset = st.GetPrimAtPath("/World/Tube").GetVariantSets().AddVariantSet("stiffness")
+    for name, e in (("soft", 6e4), ("stiff", 3e5)):
+        vset.AddVariant(name)
+        vset.SetVariantSelection(name)
+        with vset.GetVariantEditContext():
+            st.GetPrimAtPath("/World/Tube").GetAttribute("warptube:youngsModulus").Set(e)
+    vset.SetVariantSelection("soft")
+    st.GetRootLayer().Save()
+    x = np.linspace(0, 20, 21)
+    np.save(tmp_path / "bent.npy", np.stack([x, 0.02 * (x - 10) ** 2 - 2, 0 * x], 1))
+    table = write_table(tmp_path / "t.csv", ["@/World/Tube.points"], [("bent.npy",), ("straight.csv",)])
+    np.savetxt(tmp_path / "straight.csv", np.stack([x, 0 * x, 0 * x], 1), delimiter=",")
+    out = tmp_path / "out"
+    result = run_batch(str(scene), str(out), str(table), variant_sets="all", frames=5, writers=0)
+    assert result.variants == 4 and result.ok == 4
+    import csv
+
+    rows = list(csv.DictReader(open(out / "summary.csv")))
+    assert [(r["@/World/Tube.points"], r["/World/Tube{stiffness}"]) for r in rows] == [
+        ("bent.npy", "soft"), ("bent.npy", "stiff"), ("straight.csv", "soft"), ("straight.csv", "stiff")]
+    # variant 1: the bent shape, the stiff selection, alone
+    alone_scene = tmp_path / "alone.usda"
+    Sdf.Layer.FindOrOpen(str(scene)).Export(str(alone_scene))
+    st = Usd.Stage.Open(str(alone_scene))
+    st.GetPrimAtPath("/World/Tube").GetVariantSet("stiffness").SetVariantSelection("stiff")
+    from pxr import Vt
+
+    st.GetPrimAtPath("/World/Tube").GetAttribute("points").Set(Vt.Vec3fArray.FromNumpy(np.load(tmp_path / "bent.npy").astype(np.float32)))
+    st.GetRootLayer().Save()
+    alone = tmp_path / "alone.usdc"
+    assert cli(["run", str(alone_scene), "-o", str(alone), "--frames", "5", "--quiet"]) == 0
+    assert filecmp.cmp(alone, out / "variant_00001.usdc", shallow=False)
+
+
+def test_cpu_worker_processes_match_one_process(sweep, tmp_path):
+    d, files_out, _, _ = sweep
+    out = tmp_path / "w2"
+    result = run_batch(str(DEFAULT), str(out), str(d / "table.csv"), frames=FRAMES, device="cpu", workers=2, chunk=2, writers=1)
+    assert result.devices == ["cpu", "cpu"] and result.ok == 5
+    for k in range(5):
+        # same kernels, same inputs, another process: the same bytes
+        assert filecmp.cmp(files_out / f"variant_{k:05d}.usdc", out / f"variant_{k:05d}.usdc", shallow=False)
+
+
+def test_local_dask_cluster_of_two_workers_matches_one_process(sweep, tmp_path):
+    distributed = pytest.importorskip("distributed")
+    d, _, _, _ = sweep
+    one = tmp_path / "one"
+    run_batch(str(DEFAULT), str(one), str(d / "table.csv"), frames=FRAMES, layout="arrays", surface=True, writers=0)
+    with distributed.LocalCluster(n_workers=2, threads_per_worker=1, processes=True, dashboard_address=None) as cluster:
+        out = tmp_path / "dask"
+        result = run_batch(str(DEFAULT), str(out), str(d / "table.csv"), frames=FRAMES, layout="arrays", surface=True,
+                           chunk=1, scheduler=cluster.scheduler_address)  # fmt: skip
+        with distributed.Client(cluster.scheduler_address) as client:
+            workers_used = len(client.scheduler_info()["workers"])
+    assert result.ok == 5 and workers_used == 2 and result.devices[0].startswith("dask")
+    for name in ("centerline.npy", "surface.npy"):
+        # the same CPU kernels on the same inputs in other processes: identical arrays
+        assert np.array_equal(np.load(one / name), np.load(out / name), equal_nan=True), name
+    assert filecmp.cmp(one / "summary.csv", out / "summary.csv", shallow=False)
+
+
+def _alone_equal(tmp_path, base_scene, overrides: dict, batch_file, frames: int):
+    """Run the scene with ``overrides`` alone and compare its output with ``batch_file``, byte for byte."""
+    from pxr import Sdf, Usd
+
+    path = tmp_path / "alone_scene.usda"
+    Sdf.Layer.FindOrOpen(str(base_scene)).Export(str(path))
+    stage = Usd.Stage.Open(str(path))
+    for target, value in overrides.items():
+        prim, attr = target.rsplit(".", 1)
+        a = stage.GetPrimAtPath(prim).GetAttribute(attr)
+        a.Clear()
+        a.Set(value)
+    stage.GetRootLayer().Save()
+    alone = tmp_path / "alone.usdc"
+    assert cli(["run", str(path), "-o", str(alone), "--frames", str(frames), "--quiet"]) == 0
+    return filecmp.cmp(alone, batch_file, shallow=False)
+
+
+def test_every_feature_of_the_intestine_scene_per_world(tmp_path):
+    """Curved rest shape, gravity, anchors, a time-sampled push with its assistant line, caps:
+    per-world materials and anchors give each world what its variant gets alone."""
+    scene = SCENES / "intestine.usda"
+    header = ["/World/Bowel.warptube:anchorStiffness", "/World/Bowel.warptube:damping", "/World/Bowel.warptube:density"]
+    table = write_table(tmp_path / "t.csv", header, [("60", "8", "1050"), ("120", "4", "1050"), ("30", "8", "900")])
+    out = tmp_path / "out"
+    result = run_batch(str(scene), str(out), str(table), frames=6, writers=0)
+    assert result.ok == 3
+    assert _alone_equal(tmp_path, scene, {header[0]: 120.0, header[1]: 4.0, header[2]: 1050.0}, out / "variant_00001.usdc", 6)
+
+
+def test_several_prims_and_curves_per_variant(tmp_path):
+    from warp_tube.scene.spec import ForceSpec, Scene, StageInfo, TubeParams, TubeSpec
+    from warp_tube.scene.usd import save_scene
+
+    x = np.linspace(0.0, 0.2, 12)
+    line = np.stack([x, 0 * x, 0 * x], 1)
+    a = TubeSpec("/World/A", np.concatenate([line, line + [0, 0.1, 0]]), [12, 12], np.full(24, 0.01),
+                 TubeParams(density=1000.0, youngs_modulus=2e5, damping=3.0, spokes=8), pinned=[0, 1, 12, 13])  # fmt: skip
+    b = TubeSpec("/World/B", line + [0, 0, 0.1], [12], np.full(12, 0.008), TubeParams(density=1100.0, youngs_modulus=1e5, spokes=6, caps=True),
+                 pinned=[0])  # fmt: skip
+    pushes = (ForceSpec("/World/PushA", 0, 20, [0.0, 0.1], [[0, 0, 0], [0, 0.05, 0]]), ForceSpec("/World/PushB", 1, 11, [0.0], [[0, 0, 0.03]], False))
+    scene = tmp_path / "two.usda"
+    save_scene(Scene((a, b), pushes, stage=StageInfo(meters_per_unit=1.0, time_codes_per_second=30, frames_per_second=30,
+                                                     end_time_code=10)), str(scene))  # fmt: skip
+    table = write_table(tmp_path / "t.csv", ["/World/B.warptube:youngsModulus", "/World/PushA.warptube:force"],
+                        [("100000", "(0, 0.05, 0)"), ("300000", "(0, 0.02, 0.04)"), ("100000", "(0.01, 0.03, 0)")])  # fmt: skip
+    out = tmp_path / "out"
+    from pxr import Gf
+
+    assert run_batch(str(scene), str(out), str(table), frames=6, writers=0).ok == 3
+    assert _alone_equal(tmp_path, scene, {"/World/B.warptube:youngsModulus": 1e5, "/World/PushA.warptube:force": Gf.Vec3f(0.01, 0.03, 0)},
+                        out / "variant_00002.usdc", 6)  # fmt: skip
+
+
+def test_run_choices_are_what_simulation_chooses():
+    """The batch groups variants by the integrator and substeps each gets alone: the same as
+    Simulation's own choice, for scenes of several layouts and stiffnesses at once."""
+    import dataclasses
+
+    from warp_tube import load_scene
+    from warp_tube.batch.plan import run_choices
+    from warp_tube.sim.simulation import Simulation
+
+    scenes = []
+    for name in ("default.usda", "intestine.usda", "cantilever.usda"):
+        base = load_scene(SCENES / name)
+        for e in (2e4, 1e5, 5e6):
+            t = base.tubes[0]
+            scenes.append(dataclasses.replace(base, tubes=(dataclasses.replace(t, params=dataclasses.replace(t.params, youngs_modulus=e)),)
+                                              + base.tubes[1:]))  # fmt: skip
+    choices = run_choices(scenes)
+    for s, c in zip(scenes, choices):
+        sim = Simulation(s, device="cpu", surface=False)
+        assert (c.integrator, c.substeps, c.reason) == (sim.integrator, sim.substeps, sim.reason)
+
+
+def test_a_large_table_read_by_several_processes(sweep, tmp_path, monkeypatch, capsys):
+    """Reading split over processes (as for a large table on a many-core host) gives the same
+    batch, and problems from every part, in row order."""
+    import warp_tube.batch.prepare as prepare
+
+    monkeypatch.setattr(prepare, "PREPARE_ROWS_PER_PROCESS", 2)
+    monkeypatch.setattr(prepare.os, "cpu_count", lambda: 2)
+    d, files_out, _, _ = sweep
+    out = tmp_path / "split"
+    assert run_batch(str(DEFAULT), str(out), str(d / "table.csv"), frames=FRAMES, writers=0).ok == 5
+    for k in range(5):
+        assert filecmp.cmp(files_out / f"variant_{k:05d}.usdc", out / f"variant_{k:05d}.usdc", shallow=False)
+    assert filecmp.cmp(files_out / "summary.csv", out / "summary.csv", shallow=False)
+    table = write_table(tmp_path / "bad.csv", [E], [("1e5",), ("x",), ("1e5",), ("2e5",), ("-1",)])
+    status = cli(["batch", str(DEFAULT), "--variants", str(table), "-o", str(tmp_path / "bad"), "--frames", "2"])
+    err = capsys.readouterr().err
+    assert status == 2 and "2 problem(s)" in err
+    assert err.index("row 1 (line 3)") < err.index("row 4 (line 6)")
+
+
+def test_ctrl_c_keeps_finished_variants_and_resume_completes(tmp_path):
+    """A real SIGINT to the command: exit status 130, finished variants kept, --resume completes
+    the batch with the same files as an uninterrupted one."""
+    import signal
+    import subprocess
+    import sys
+    import time
+
+    table = write_table(tmp_path / "t.csv", [E, FORCE], [(str(80000 + 3000 * k), f"(0, {0.01 + 0.001 * k}, 0)") for k in range(12)])
+    args = ["batch", str(DEFAULT), "--variants", str(table), "--frames", "15", "--chunk", "1", "--quiet"]
+    cut = tmp_path / "cut"
+    proc = subprocess.Popen([sys.executable, "-m", "warp_tube", *args, "-o", str(cut)], stderr=subprocess.PIPE, text=True,
+                            preexec_fn=lambda: signal.signal(signal.SIGINT, signal.SIG_DFL))  # fmt: skip
+    deadline = time.time() + 300
+    while not (cut / "variant_00001.usdc").exists() and proc.poll() is None and time.time() < deadline:
+        time.sleep(0.05)
+    proc.send_signal(signal.SIGINT)
+    err = proc.communicate(timeout=300)[1]
+    assert proc.returncode == 130, err
+    assert "--resume goes on" in err and (cut / ".batch").is_dir()
+    assert cli([*args, "-o", str(cut), "--resume"]) == 0
+    whole = tmp_path / "whole"
+    assert cli([*args, "-o", str(whole)]) == 0
+    names = sorted(p.name for p in whole.iterdir())
+    assert names == sorted(p.name for p in cut.iterdir())
+    for n in names:
+        assert filecmp.cmp(whole / n, cut / n, shallow=False), n
+
+
+def test_a_scene_warning_is_given_once_not_per_variant(tmp_path, caplog):
+    from warp_tube.batch.table import read_table
+    from warp_tube.batch.variants import prepare_variants
+
+    table = write_table(tmp_path / "t.csv", [E, "/World/Push.warptube:point"], [(str(9e4 + k), "1") for k in range(4)])
+    with caplog.at_level("WARNING", logger="warp_tube.scene.usd"):
+        variants = prepare_variants(str(DEFAULT), read_table(str(table)))
+    assert len(variants) == 4
+    pinned = [r for r in caplog.records if "is pinned" in r.getMessage()]
+    assert len(pinned) == 1  # point 1 is pinned in all four: one warning

@@ -1,0 +1,58 @@
+"""The ``warp-tube batch`` command line: its arguments and what it prints."""
+
+from __future__ import annotations
+
+import sys
+
+__all__ = ["add_parser", "run"]
+
+
+def add_parser(sub) -> None:
+    """Add the ``batch`` subcommand to the ``warp-tube`` subparsers ``sub``."""
+    b = sub.add_parser("batch", help="simulate many variants of a scene (a table of overrides, variantSets)")
+    b.add_argument("scene", help="scene .usda/.usdc")
+    b.add_argument("--variants", metavar="TABLE", help="CSV: a PRIM_PATH.ATTRIBUTE column per override, a row per variant")
+    b.add_argument("--variant-sets", metavar="SETS", help="cross with the scene's variantSets: all, or SET,/PRIM{SET},...")
+    b.add_argument("-o", "--output", required=True, metavar="DIR", help="batch folder (created)")
+    b.add_argument("--layout", choices=("files", "grid", "arrays"), default="files",
+                   help="files: DIR/variant_00000.usdc ...; grid: one stage, side by side; arrays: centerline.npy")  # fmt: skip
+    b.add_argument("--every", type=int, default=1, help="write every K-th frame")
+    b.add_argument("--frames", type=int, help="frames per variant, frame 0 (rest) included")
+    b.add_argument("--no-surface", action="store_true", help="files, grid: write the Centerline only")
+    b.add_argument("--surface-arrays", action="store_true", help="arrays: also write surface.npy")
+    b.add_argument("--device", help="cpu or cuda:N (default: every GPU, else the CPU)")
+    b.add_argument("--workers", type=int, help="CPU: N processes; CUDA: the first N GPUs (default: 1 / all)")
+    b.add_argument("--writers", type=int, help="writer processes (default: the cores left over; 0: none)")
+    b.add_argument("--chunk", type=int, help="variants per chunk (default 1024 on the CPU, 4096 on a GPU)")
+    b.add_argument("--scheduler", metavar="ADDRESS", help="run the chunks on this Dask distributed scheduler")
+    b.add_argument("--resume", action="store_true", help="go on with the unfinished batch in DIR")
+    b.add_argument("--quiet", action="store_true", help="no progress bars, no summary")
+
+
+def run(a) -> int:
+    """Run the parsed ``batch`` command; returns the exit status."""
+    from ..scene.spec import SceneError
+    from .run import BatchInterrupted, run_batch
+
+    if a.surface_arrays and a.layout != "arrays":
+        raise SceneError("--surface-arrays: only with --layout arrays (files and grid write the Surface unless --no-surface)")
+    if a.no_surface and a.layout == "arrays":
+        raise SceneError("--no-surface: only with --layout files or grid (arrays write surface.npy with --surface-arrays)")
+    surface = a.surface_arrays if a.layout == "arrays" else not a.no_surface
+    tty = sys.stderr.isatty() and not a.quiet
+    try:
+        result = run_batch(
+            a.scene, a.output, a.variants, variant_sets=a.variant_sets, layout=a.layout, every=a.every,
+            frames=a.frames, surface=surface, device=a.device, workers=a.workers, writers=a.writers, chunk=a.chunk,
+            scheduler=a.scheduler, resume=a.resume, progress=tty,
+        )  # fmt: skip
+    except BatchInterrupted as e:
+        print(e.result.text(), file=sys.stderr)
+        print("warp-tube: interrupted; the finished variants are kept: --resume goes on", file=sys.stderr)
+        return 130
+    except OSError as e:
+        print(f"warp-tube: batch: {e}", file=sys.stderr)
+        return 2
+    if not a.quiet:
+        print(result.text())
+    return 3 if result.failed else 0

@@ -1,0 +1,189 @@
+"""Per-world control of a batch: each world's point forces, moving pins and assistant lines.
+
+The same rules as ``Simulation``'s control (see :mod:`warp_tube.sim.simulation`), applied to every
+world at once with its own variant's data: forces are evaluated at the middle of each frame
+(linear between samples, held outside them, as ``ForceSpec.at``) and held over it; time-sampled
+pins move linearly between frames; a force's assistant line is built from the world's current
+shape when the force starts or turns by more than ``AL_REBUILD_ANGLE``, removed when it becomes
+zero, and not built within ``AL_MIN_ANGLE`` of the tube's axis. Worlds marked dead (a variant that
+failed) get no forces, so their state stays finite while the others go on.
+"""
+
+from __future__ import annotations
+
+import math
+
+import numpy as np
+
+from ..sim.control import AL_MIN_ANGLE, AL_REBUILD_ANGLE
+from .worlds import Worlds
+
+__all__ = ["WorldControl", "interpolate"]
+
+
+def interpolate(t: float, times: np.ndarray, values: np.ndarray) -> np.ndarray:
+    """``np.interp`` of every row at ``t``: ``times`` (K,) increasing [s], ``values`` (R, K, 3)
+    [N]; returns (R, 3). The same arithmetic as ``np.interp`` (held before the first and after
+    the last sample; ``slope * (t - t_j) + v_j`` between), for every row in one pass."""
+    K = len(times)
+    if K == 1 or t <= times[0]:
+        return values[:, 0].copy()
+    if t >= times[-1]:
+        return values[:, -1].copy()
+    j = int(np.searchsorted(times, t, side="right")) - 1
+    if times[j] == t:
+        return values[:, j].copy()
+    slope = (values[:, j + 1] - values[:, j]) / (times[j + 1] - times[j])
+    out = slope * (t - times[j]) + values[:, j]
+    bad = np.isnan(out)
+    if bad.any():  # as np.interp: try from the other end of the interval
+        other = slope * (t - times[j + 1]) + values[:, j + 1]
+        out = np.where(bad, other, out)
+    return out
+
+
+class WorldControl:
+    """Fills a batch's ``TubeControl`` (and assistant-line state) frame by frame.
+
+    Args:
+        worlds: the batch's worlds.
+        control: its ``TubeControl``.
+        frame_dt: time between output frames [s].
+    """
+
+    def __init__(self, worlds: Worlds, control, frame_dt: float):
+        m = worlds.model
+        self.worlds, self.control, self.frame_dt = worlds, control, frame_dt
+        W = m.world_count
+        h = m.host  # the topology, shared by every world
+        self.force_node = np.asarray(h["force_node"], dtype=np.int64)
+        order = np.asarray(h["force_order"], dtype=np.int64)
+        # Per model force: worlds grouped by their sample times, with their values.
+        self._forces = []
+        for a, k in enumerate(order):
+            groups: dict = {}
+            for w, s in enumerate(worlds.scenes):
+                f = s.forces[k]
+                groups.setdefault(f.times.tobytes(), (f.times, [], []))
+                groups[f.times.tobytes()][1].append(w)
+                groups[f.times.tobytes()][2].append(f.values)
+            self._forces.append([(times, np.asarray(ws), np.stack(vals)) for times, ws, vals in groups.values()])
+        self.dead = np.zeros(W, dtype=bool)
+        self.uses_al = np.asarray(h["force_uses_al"], dtype=bool)
+        self._al_dir = np.zeros((W, m.force_count, 3))
+        self._al_active = np.zeros((W, max(m.force_count, 1)), dtype=np.int32)
+        # Moving pins: per world its pinned points' track, (W, frames, pinned, 3) [m], per prim.
+        self._pins = []
+        for k, t in enumerate(worlds.scenes[0].tubes):
+            if t.pin_track is not None:
+                track = np.stack([s.tubes[k].pin_track for s in worlds.scenes])
+                self._pins.append((worlds.prim_start[k] + t.pinned, track))
+        self.f_ext = None  # the last frame's applied forces at the force nodes, float32 (W, F, 3) [N]
+
+    @property
+    def moving_pins(self) -> bool:
+        return bool(self._pins)
+
+    def forces_at(self, t: float) -> np.ndarray:
+        """Each world's model forces at time ``t`` [s], (W, F, 3) [N]; 0 in dead worlds."""
+        W = self.worlds.world_count
+        out = np.zeros((W, len(self._forces), 3))
+        for a, groups in enumerate(self._forces):
+            for times, ws, values in groups:
+                out[ws, a] = interpolate(t, times, values)
+        out[self.dead] = 0.0
+        return out
+
+    def update(self, frame: int, state) -> None:
+        """Set the control for advancing output frame ``frame`` to ``frame + 1`` from ``state``."""
+        m, c = self.worlds.model, self.control
+        W, N = m.world_count, m.node_count
+        if m.force_count:
+            f = self.forces_at((frame + 0.5) * self.frame_dt)
+            fe = np.zeros((W, N, 3))
+            for a, node in enumerate(self.force_node):  # in force order, as np.add.at sums them
+                fe[:, node] += f[:, a]
+            c.node_f_ext.assign(fe)
+            self.f_ext = fe[:, self.force_node].astype(np.float32)
+            if m.features.assistant_line:
+                self._update_assistant_lines(f, state)
+        if self._pins:
+            q0 = c.pin_q_end.numpy()
+            q1 = q0.copy()
+            for nodes, track in self._pins:
+                q1[:, nodes] = track[:, min(frame + 1, track.shape[1] - 1)]
+            c.pin_q_start.assign(q0)
+            c.pin_q_end.assign(q1)
+
+    def _update_assistant_lines(self, f: np.ndarray, state) -> None:
+        m, c, h = self.worlds.model, self.control, self.worlds.model.host
+        active = self._al_active
+        changed = False
+        loaded = None
+        cos_rebuild, sin_min = math.cos(AL_REBUILD_ANGLE), math.sin(AL_MIN_ANGLE)
+        for a in range(m.force_count):
+            if not self.uses_al[a]:
+                continue
+            mag = np.linalg.norm(f[:, a], axis=-1)
+            zero = mag == 0.0
+            drop = zero & (active[:, a] != 0)
+            if drop.any():
+                active[drop, a] = 0
+                changed = True
+            d = f[:, a] / np.where(zero, 1.0, mag)[:, None]
+            keep = (active[:, a] != 0) & (np.sum(d * self._al_dir[:, a], axis=-1) >= cos_rebuild)
+            build = ~zero & ~keep
+            if not build.any():
+                continue
+            if loaded is None:
+                loaded = self._load(state)
+            state_q, state_qd, al_q, al_qd, lens = loaded
+            t = h["force_tube"][a]
+            s, e = h["tube_node_start"][t], h["tube_node_start"][t + 1]
+            k = h["force_node"][a]
+            ws = np.flatnonzero(build)
+            tangent = state_q[ws, min(k + 1, e - 1)] - state_q[ws, max(k - 1, s)]
+            tangent = tangent / np.maximum(np.linalg.norm(tangent, axis=-1), 1e-30)[:, None]
+            dw = d[ws]
+            across = dw - np.sum(dw * tangent, axis=-1)[:, None] * tangent
+            self._al_dir[ws, a] = dw
+            norm_across = np.linalg.norm(across, axis=-1)
+            axial = norm_across < sin_min
+            off_axis = ws[axial & (active[ws, a] != 0)]
+            if len(off_axis):
+                active[off_axis, a] = 0
+                changed = True
+            ws, across, norm_across = ws[~axial], across[~axial], norm_across[~axial]
+            if not len(ws):
+                continue
+            offset_dir = across / norm_across[:, None]
+            p0 = h["al_start"][a]
+            sl = slice(p0, p0 + e - s)
+            off = self.worlds.host["node_radius"][ws, s:e, None] * offset_dir[:, None, :]
+            x = state_q[ws, s:e]
+            xp = x + off
+            al_q[ws, sl] = xp
+            al_qd[ws, sl] = state_qd[ws, s:e]
+            lens["al_link_length"][ws, sl] = np.linalg.norm(xp - x, axis=-1)
+            lens["al_chord_length"][ws, p0 : p0 + e - s - 1] = np.linalg.norm(xp[:, 1:] - xp[:, :-1], axis=-1)
+            lens["al_fwd_length"][ws, p0 : p0 + e - s - 1] = np.linalg.norm(x[:, 1:] - xp[:, :-1], axis=-1)
+            lens["al_bwd_length"][ws, p0 + 1 : p0 + e - s] = np.linalg.norm(x[:, :-1] - xp[:, 1:], axis=-1)
+            active[ws, a] = 1
+            changed = True
+        if loaded is not None:
+            _, _, al_q, al_qd, lens = loaded
+            hi = al_q.astype(np.float32)
+            state.al_q.assign(hi)
+            state.al_q_lo.assign((al_q - hi).astype(np.float32))
+            state.al_qd.assign(al_qd)
+            for n, v in lens.items():
+                getattr(c, n).assign(v)
+        if changed:
+            c.al_active.assign(active)
+
+    def _load(self, state):
+        """The state and assistant-line arrays on the host: positions in float64 (compensated)."""
+        c = self.control
+        state_q = state.node_q.numpy().astype(np.float64) + state.node_q_lo.numpy()
+        lens = {n: getattr(c, n).numpy() for n in ("al_link_length", "al_chord_length", "al_fwd_length", "al_bwd_length")}
+        return state_q, state.node_qd.numpy(), state.al_q.numpy().astype(np.float64), state.al_qd.numpy(), lens

@@ -1,0 +1,259 @@
+"""Simulating one chunk: its variants as worlds of one model, frame by frame, into arrays.
+
+:func:`simulate_chunk` advances every world with the solver and substeps each variant alone would
+get (the chunk's :class:`~warp_tube.batch.plan.RunChoice`), applies each world's control, checks
+each world after every frame, and copies the output frames (``k % every == 0``) into arrays the
+writers read. A world that fails a check is dropped from the batch at once (no forces, its state
+reset so it stays finite) and, once the others are done, run alone through ``Simulation`` exactly
+as ``warp-tube run`` would run it, with its retries: its frames come from that run, and if that
+fails too the variant is failed with ``Simulation``'s own message, its frames after the failure
+NaN.
+
+Output arrays (stage units, float32), for ``F`` written frames and ``W`` worlds:
+
+- ``centerline``: (F, W, N, 3), all tube prims' points of a world in prim and curve order;
+- ``points``, ``normals``: (F, W, V, 3), all prims' surface vertices of a world in prim order;
+- ``extent``: (F, W, prims, 2, 3), each prim's surface bounds ``[min, max]``.
+"""
+
+from __future__ import annotations
+
+import time
+from dataclasses import dataclass, field
+
+import numpy as np
+import warp as wp
+
+from ..scene.spec import Scene
+from .checks import WorldChecks, work_of
+from .control import WorldControl
+from .plan import RunChoice
+from .worlds import build_worlds, initial_state
+
+__all__ = ["ChunkRun", "simulate_chunk", "output_frames", "chunk_shapes"]
+
+TIMERS = ("build_s", "kernels_s", "readback_s", "control_s", "checks_s", "copy_s", "rerun_s")
+
+
+def output_frames(frames: int, every: int) -> list[int]:
+    """The frames written: 0, every, 2 every, ... below ``frames``."""
+    return list(range(0, frames, every))
+
+
+def chunk_shapes(scenes: list[Scene], frames: int, every: int, surface: bool, vertex_count: int | None) -> dict:
+    """Shapes of a chunk's output arrays (see the module docstring)."""
+    F, W = len(output_frames(frames, every)), len(scenes)
+    N = sum(len(t.points) for t in scenes[0].tubes)
+    out = {"centerline": (F, W, N, 3)}
+    if surface:
+        out.update(points=(F, W, vertex_count, 3), normals=(F, W, vertex_count, 3),
+                   extent=(F, W, len(scenes[0].tubes), 2, 3))  # fmt: skip
+    return out
+
+
+@dataclass
+class ChunkRun:
+    """What simulating a chunk gave.
+
+    Attributes:
+        arrays: the output arrays by name (see the module docstring).
+        rows: per variant (chunk order) its summary fields: status ("ok" or "failed"), reason,
+            frames (written), frames_simulated, integrator, substeps, rerun (run alone),
+            max_displacement_m, tip (the first tube's last point at the end, stage units, (3,)),
+            kinetic_energy_J (at the end), work_J (of the forces and gravity, in all).
+        timings: seconds spent building, in the kernels, copying back, in control and checks,
+            copying into the arrays and rerunning failed variants alone.
+    """
+
+    arrays: dict
+    rows: list
+    timings: dict = field(default_factory=lambda: dict.fromkeys(TIMERS, 0.0))
+
+
+def simulate_chunk(scenes: list[Scene], choice: RunChoice, device: str, frames: int, every: int, surface: bool,
+                   allocate=None, progress=None) -> ChunkRun:  # fmt: skip
+    """Simulate ``scenes`` (one group) as worlds and return their output frames.
+
+    Args:
+        scenes: the chunk's variants (one topology, see :mod:`warp_tube.batch.plan`).
+        choice: the integrator and substeps each of them gets alone.
+        device: Warp device name.
+        frames: frames to simulate, frame 0 (rest) included.
+        every: write every ``every``-th frame.
+        surface: compute the surface of the written frames.
+        allocate: callable ``{name: shape} -> {name: float32 array}`` for the output arrays
+            (default: in memory).
+        progress: callable taking a number of variant-frames just simulated, or None.
+    """
+    from ..centerline.explicit import SemiImplicitEulerSolver
+    from ..centerline.implicit import ImplicitEulerSolver
+
+    timings = dict.fromkeys(TIMERS, 0.0)
+    t0 = time.perf_counter()
+    worlds = build_worlds(scenes, device, surface)
+    m = worlds.model
+    W = m.world_count
+    solver = ImplicitEulerSolver(m) if choice.integrator == "implicitEuler" else SemiImplicitEulerSolver(m)
+    state, nxt, control = initial_state(worlds)
+    stage = scenes[0].stage
+    frame_dt, mpu = stage.frame_dt, stage.meters_per_unit
+    wc = WorldControl(worlds, control, frame_dt)
+    checks = WorldChecks(worlds, scenes[0].settings.gravity, wc.moving_pins)
+    shapes = chunk_shapes(scenes, frames, every, surface, int(worlds.vertex_start[-1]) if surface else None)
+    arrays = (allocate or _in_memory)(shapes)
+    timings["build_s"] += time.perf_counter() - t0
+
+    alive = np.ones(W, dtype=bool)
+    failed: dict[int, str] = {}
+    frames_simulated = np.zeros(W, dtype=np.int64)
+    frames_written = np.zeros(W, dtype=np.int64)
+    max_disp = np.zeros(W)
+    rest32 = checks.rest32
+    q = rest32
+    qd = np.zeros_like(rest32)
+    n, dt = choice.substeps, frame_dt / choice.substeps
+    f_out = 0
+    for k in range(frames):
+        if k > 0:
+            t = time.perf_counter()
+            wc.update(k - 1, state)
+            t1 = time.perf_counter()
+            solver.integrate(state, nxt, control, dt, n)
+            wp.synchronize_device(device)
+            t2 = time.perf_counter()
+            q_new, qd = nxt.node_q.numpy(), nxt.node_qd.numpy()
+            t3 = time.perf_counter()
+            fw = checks.frame_work(q, q_new, wc.f_ext)
+            problems = checks.check(k - 1, q_new, qd, checks.work + fw, alive)
+            checks.work += fw
+            state, nxt = nxt, state
+            q = q_new
+            if problems:
+                for w, msg in problems.items():
+                    alive[w] = False
+                    failed[w] = msg
+                wc.dead[~alive] = True
+                q = _reset_worlds(state, q, rest32, worlds.rest_q(), ~alive)
+                qd[~alive] = 0.0
+            disp = np.linalg.norm(q - worlds.rest_q(), axis=-1).max(axis=1)
+            max_disp = np.where(alive, np.maximum(max_disp, disp), max_disp)
+            frames_simulated[alive] += 1
+            t4 = time.perf_counter()
+            timings["control_s"] += t1 - t
+            timings["kernels_s"] += t2 - t1
+            timings["readback_s"] += t3 - t2
+            timings["checks_s"] += t4 - t3
+            if progress is not None:
+                progress(W)
+        if k % every == 0:
+            t = time.perf_counter()
+            np.divide(q, mpu, out=arrays["centerline"][f_out])  # as Simulation.centerline_points
+            if surface:
+                t_copy = _surface_frame(worlds, state, arrays, f_out, mpu, device, timings)
+            else:
+                t_copy = 0.0
+            frames_written[alive] += 1
+            f_out += 1
+            timings["copy_s"] += time.perf_counter() - t - t_copy
+    ke = checks.kinetic_energy(qd)
+    first_tip = int(np.cumsum(scenes[0].tubes[0].curve_counts)[0]) - 1
+    rows = []
+    for w in range(W):
+        rows.append(dict(status="ok", reason="", frames=int(frames_written[w]), frames_simulated=int(frames_simulated[w]),
+                         integrator=choice.integrator, substeps=choice.substeps, rerun=False,
+                         max_displacement_m=float(max_disp[w]), tip=(q[w, first_tip] / mpu).astype(np.float64),
+                         kinetic_energy_J=float(ke[w]), work_J=float(checks.work[w])))  # fmt: skip
+    t = time.perf_counter()
+    for w in sorted(failed):
+        rows[w] = _run_alone(scenes[w], w, device, frames, every, surface, arrays, first_tip)
+    timings["rerun_s"] += time.perf_counter() - t
+    return ChunkRun(arrays=arrays, rows=rows, timings=timings)
+
+
+def _in_memory(shapes: dict) -> dict:
+    return {name: np.empty(shape, dtype=np.float32) for name, shape in shapes.items()}
+
+
+def _surface_frame(worlds, state, arrays, f_out, mpu, device, timings) -> float:
+    """Rebuild every prim's surface into frame ``f_out`` of the arrays; returns the time spent in
+    the kernels and copying back (counted there, not as copying into the arrays)."""
+    spent = 0.0
+    for p, b in enumerate(worlds.surfaces):
+        t = time.perf_counter()
+        pts, nrm = b.compute(state.node_q)
+        ext = b.extent()
+        wp.synchronize_device(device)
+        t1 = time.perf_counter()
+        pts, nrm, ext = pts.numpy(), nrm.numpy(), ext.numpy()
+        t2 = time.perf_counter()
+        v0, v1 = worlds.vertex_start[p], worlds.vertex_start[p + 1]
+        np.divide(pts, mpu, out=arrays["points"][f_out, :, v0:v1])  # as Simulation.surface
+        arrays["normals"][f_out, :, v0:v1] = nrm
+        np.divide(ext, mpu, out=arrays["extent"][f_out, :, p])
+        timings["kernels_s"] += t1 - t
+        timings["readback_s"] += t2 - t1
+        spent += t2 - t
+    return spent
+
+
+def _reset_worlds(state, q, rest32, rest, dead):
+    """Put dead worlds back at rest with no velocity (so they stay finite); returns the positions."""
+    q = q.copy()
+    q[dead] = rest32[dead]
+    lo = state.node_q_lo.numpy()
+    lo[dead] = (rest[dead] - rest32[dead]).astype(np.float32)
+    qd = state.node_qd.numpy()
+    qd[dead] = 0.0
+    state.node_q.assign(q)
+    state.node_q_lo.assign(lo)
+    state.node_qd.assign(qd)
+    al = state.al_qd.numpy()
+    al[dead] = 0.0
+    state.al_qd.assign(al)
+    return q
+
+
+def _run_alone(scene: Scene, w: int, device: str, frames: int, every: int, surface: bool, arrays: dict, tip: int) -> dict:
+    """Run variant ``scene`` alone as ``warp-tube run`` does, into world ``w`` of the arrays."""
+    from ..sim.simulation import NumericalError, Simulation
+
+    sim = Simulation(scene, device=device, surface=surface)
+    h = sim.model.host
+    mpu = scene.stage.meters_per_unit
+    free_mass = (h["node_mass"] * (h["node_inv_mass"] > 0))[None]
+    force_node = np.asarray(h["force_node"], dtype=np.int64)
+    g = scene.settings.gravity
+    work, max_disp, simulated, written, reason = 0.0, 0.0, 0, 0, ""
+    q = sim.state.node_q.numpy()
+    f_out = 0
+    for k in range(frames):
+        if k > 0:
+            try:
+                sim.step()
+            except NumericalError as e:
+                reason = str(e)
+                break
+            q_new = sim.state.node_q.numpy()
+            f_ext = sim.control.node_f_ext.numpy()[:, force_node] if len(force_node) else None
+            work += float(work_of(force_node, f_ext, q, q_new, free_mass, g)[0])
+            q = q_new
+            simulated += 1
+            max_disp = max(max_disp, sim.max_displacement())
+        if k % every == 0:
+            arrays["centerline"][f_out, w] = np.concatenate(sim.centerline_points())
+            if surface:
+                parts = sim.surface()
+                arrays["points"][f_out, w] = np.concatenate([p for p, _, _ in parts])
+                arrays["normals"][f_out, w] = np.concatenate([nrm for _, nrm, _ in parts])
+                arrays["extent"][f_out, w] = np.stack([e for _, _, e in parts])
+            written += 1
+            f_out += 1
+    for a in arrays.values():
+        a[f_out:, w] = np.nan
+    qd = sim.state.node_qd.numpy()
+    ke = 0.5 * float(np.einsum("wn,wnk,wnk->", free_mass, qd, qd, dtype=np.float64))
+    note = f"failed a check among the worlds; ran alone ({sim.retried_frames} frame(s) redone with more substeps)"
+    return dict(status="failed" if reason else "ok", reason=reason or note, frames=written,
+                frames_simulated=simulated, integrator=sim.integrator, substeps=sim.substeps, rerun=True,
+                max_displacement_m=float(max_disp), tip=(q[0, tip] / mpu).astype(np.float64), kinetic_energy_J=ke,
+                work_J=work)  # fmt: skip

@@ -1,0 +1,362 @@
+"""Where a batch's chunks run, and the writers that write them.
+
+- :func:`run_here`: one device, in this process; a pool of writers (:class:`Writers`) writes each
+  chunk while the next one is simulated;
+- :func:`run_pooled`: one worker process per device (the GPUs of a host, or N CPU processes), each
+  simulating chunks into memory-mapped arrays that the writers read;
+- :func:`run_dask`: each chunk a task of a Dask distributed cluster, simulating and writing there.
+
+Each calls ``context["finish"](chunk_id, rows, outputs)`` when a chunk's outputs are complete, and
+adds its timings to the batch's result.
+"""
+
+from __future__ import annotations
+
+import concurrent.futures as cf
+import math
+import multiprocessing
+import os
+import shutil
+import signal
+import tempfile
+import time
+
+import numpy as np
+
+from ..scene.spec import SceneError
+from .engine import TIMERS, chunk_shapes, simulate_chunk
+from .outputs import WriteTask, write
+
+__all__ = ["Writers", "writer_count", "run_here", "run_pooled", "run_dask", "ignore_sigint"]
+
+
+def ignore_sigint():
+    """Worker processes leave Ctrl-C to the batch, which stops them in order."""
+    signal.signal(signal.SIGINT, signal.SIG_IGN)
+
+
+_worker_device = None
+
+
+def _init_sim_worker(devices):
+    global _worker_device
+    ignore_sigint()
+    _worker_device = devices.get()
+
+
+def _sim_task(payload):
+    """A worker process simulates one chunk into memory-mapped arrays in the buffer folder."""
+    import warp as wp
+
+    wp.config.log_level = wp.LOG_WARNING
+    scenes, choice, frames, every, surface, buffer_dir, chunk = payload
+    run = simulate_chunk(scenes, choice, _worker_device, frames, every, surface, allocate=_file_allocator(buffer_dir, chunk))
+    paths = {name: a.filename for name, a in run.arrays.items()}
+    for a in run.arrays.values():
+        a.flush()
+    return run.rows, paths, run.timings
+
+
+def _dask_task(payload):
+    """A Dask task: simulate one chunk on the worker's device and write its outputs."""
+    import warp as wp
+
+    from ..sim.simulation import resolve_device
+
+    wp.config.log_level = wp.LOG_WARNING
+    scenes, choice, frames, every, surface, device, tasks = payload
+    t0 = time.perf_counter()
+    run = simulate_chunk(scenes, choice, resolve_device(device), frames, every, surface)
+    t1 = time.perf_counter()
+    outputs = []
+    for task in _with_rows(tasks, run.rows, run.arrays):
+        outputs += write(task)
+    return run.rows, outputs, run.timings, t1 - t0, time.perf_counter() - t1
+
+
+class Writers:
+    """The writer pool: processes for USD layouts (usd-core holds the GIL while it writes),
+    threads for arrays (``os.pwrite`` and NumPy copies release it); started before the variants
+    are read, so the processes are up by the time the first chunk is simulated."""
+
+    def __init__(self, layout: str, count: int):
+        self.count = count
+        self.processes = layout != "arrays"
+        self.pool = None
+        if count == 0:
+            return
+        if self.processes:
+            ctx = multiprocessing.get_context("spawn")
+            self.pool = cf.ProcessPoolExecutor(count, mp_context=ctx, initializer=ignore_sigint)
+            for _ in range(count):  # start them now (one new process per waiting task)
+                self.pool.submit(_warm_writer)
+        else:
+            self.pool = cf.ThreadPoolExecutor(count, thread_name_prefix="batch-writer")
+
+    def shutdown(self):
+        if self.pool is not None:
+            self.pool.shutdown(wait=True, cancel_futures=True)
+
+
+def _warm_writer():
+    """Import what writing needs, so that the first chunk does not wait for it."""
+    import importlib
+
+    for name in ("pxr.Sdf", "pxr.Usd", "pxr.UsdGeom", "pxr.Vt", "warp_tube.io.writer"):
+        importlib.import_module(name)
+
+
+def _timed_write(task: WriteTask):
+    t0 = time.perf_counter()
+    out = write(task)
+    return out, time.perf_counter() - t0
+
+
+def _file_allocator(folder: str, chunk: int):
+    from numpy.lib.format import open_memmap
+
+    def allocate(shapes: dict) -> dict:
+        return {name: open_memmap(os.path.join(folder, f"chunk_{chunk:05d}.{name}.npy"), mode="w+", dtype=np.float32, shape=shape)
+                for name, shape in shapes.items()}  # fmt: skip
+
+    return allocate
+
+
+def _with_rows(tasks: list[WriteTask], rows: list, arrays: dict) -> list[WriteTask]:
+    """Fill the write tasks of a chunk with the simulation's rows and arrays."""
+    out = []
+    for t in tasks:
+        out.append(WriteTask(spec=t.spec, chunk=t.chunk, variants=t.variants, positions=t.positions,
+                             rows=tuple(rows[p] for p in t.positions), arrays=arrays))  # fmt: skip
+    return out
+
+
+def _buffer_folder(chunk_bytes: int, work_dir: str) -> str:
+    """A folder for chunks' arrays between simulation and writing: /dev/shm when it has room for
+    a few chunks (memory), else the batch's working folder."""
+    shm = "/dev/shm"
+    try:
+        st = os.statvfs(shm)
+        if os.access(shm, os.W_OK) and st.f_bavail * st.f_frsize > 4 * chunk_bytes:
+            return tempfile.mkdtemp(prefix="warp-tube-batch-", dir=shm)
+    except OSError:
+        pass
+    return tempfile.mkdtemp(prefix="buffers-", dir=work_dir)
+
+
+def _write_tasks(chunk, context, parts: int) -> list[WriteTask]:
+    """A chunk's variants split into ``parts`` write tasks (the grid: one), rows filled in later."""
+    variants, spec = context["variants"].variants, context["spec"]
+    idx = list(chunk.indices)
+    parts = 1 if spec.layout == "grid" else max(1, min(parts, len(idx)))
+    bounds = np.linspace(0, len(idx), parts + 1).round().astype(int)
+    out = []
+    for a, b in zip(bounds[:-1], bounds[1:]):
+        if b > a:
+            vs = tuple((i, variants[i].name, variants[i].scene) for i in idx[a:b])
+            out.append(WriteTask(spec=spec, chunk=chunk.id, variants=vs, positions=tuple(range(a, b)), rows=(), arrays={}))
+    return out
+
+
+def writer_count(writers, sims: int) -> int:
+    if writers is not None:
+        return writers
+    return max(1, min(32, (os.cpu_count() or 2) - sims))
+
+
+def run_here(todo, device, context, result) -> None:
+    """Simulate the chunks in this process while a pool of writer processes writes them."""
+    import warp as wp
+
+    from ..sim.simulation import resolve_device
+
+    wp.config.log_level = wp.LOG_WARNING
+    device = resolve_device(device)
+    writers: Writers = context["writers"]
+    pool = writers.pool
+    buffers = None
+    pending: dict = {}  # chunk id -> (futures, rows, paths, t_submitted)
+    bar = context["bar"]
+
+    def settle(block: bool):
+        for cid in list(pending):
+            futures, rows, paths = pending[cid]
+            if not block and not all(f.done() for f in futures):
+                continue
+            outputs = []
+            for f in futures:
+                out, spent = f.result()
+                outputs += out
+                result.write_s += spent
+            del pending[cid]
+            for p in paths:
+                os.remove(p)
+            context["finish"](cid, rows, outputs)
+
+    try:
+        for chunk in todo:
+            scenes = [context["variants"].variants[i].scene for i in chunk.indices]
+            choice = context["choices"][chunk.indices[0]]
+            allocate = None
+            if pool is not None and writers.processes:  # the writers read the arrays from files
+                if buffers is None:
+                    shapes = chunk_shapes(scenes, context["frames"], context["every"], context["surface"], context["spec"].vertices)
+                    buffers = _buffer_folder(sum(4 * math.prod(s) for s in shapes.values()), context["spec"].work_dir)
+                allocate = _file_allocator(buffers, chunk.id)
+            t0 = time.perf_counter()
+            run = simulate_chunk(scenes, choice, device, context["frames"], context["every"], context["surface"],
+                                 allocate=allocate, progress=bar.frames)  # fmt: skip
+            result.simulate_s += time.perf_counter() - t0
+            _add_timings(result, run.timings)
+            tasks = _write_tasks(chunk, context, max(writers.count, 1))
+            if pool is None:
+                t0 = time.perf_counter()
+                outputs = []
+                for task in _with_rows(tasks, run.rows, run.arrays):
+                    outputs += write(task)
+                result.write_s += time.perf_counter() - t0
+                result.write_wait_s += time.perf_counter() - t0  # written here: the simulation waits
+                context["finish"](chunk.id, run.rows, outputs)
+                continue
+            if writers.processes:
+                for a in run.arrays.values():
+                    a.flush()
+                paths = [a.filename for a in run.arrays.values()]
+                arrays = {name: a.filename for name, a in run.arrays.items()}
+            else:
+                paths, arrays = [], run.arrays
+            del run.arrays
+            futures = [pool.submit(_timed_write, t) for t in _with_rows(tasks, run.rows, arrays)]
+            pending[chunk.id] = (futures, run.rows, paths)
+            settle(block=False)
+            t0 = time.perf_counter()
+            while len(pending) >= 2:  # at most two chunks wait for writers
+                cf.wait([f for fs, _, _ in pending.values() for f in fs], return_when=cf.FIRST_COMPLETED)
+                settle(block=False)
+            result.write_wait_s += time.perf_counter() - t0
+        t0 = time.perf_counter()
+        settle(block=True)
+        result.write_wait_s += time.perf_counter() - t0
+    except KeyboardInterrupt:
+        # Keep what is complete: the chunks already simulated are written to the end.
+        try:
+            settle(block=True)
+        finally:
+            raise
+    finally:
+        if buffers is not None:
+            shutil.rmtree(buffers, ignore_errors=True)
+
+
+def run_pooled(todo, devices, context, result) -> None:
+    """One worker process per device simulates chunks; a pool of writer processes writes them."""
+    ctx = multiprocessing.get_context("spawn")
+    queue = ctx.Manager().Queue()
+    for d in devices:
+        queue.put(d)
+    writers: Writers = context["writers"]
+    own = None
+    if writers.pool is None:  # the simulating processes hand their arrays over: someone writes them
+        own = writers = Writers(context["spec"].layout, 1)
+    pool = writers.pool
+    sims = cf.ProcessPoolExecutor(len(devices), mp_context=ctx, initializer=_init_sim_worker, initargs=(queue,))
+    first = [context["variants"].variants[i].scene for i in todo[0].indices]
+    shapes = chunk_shapes(first, context["frames"], context["every"], context["surface"], context["spec"].vertices)
+    buffers = _buffer_folder(sum(4 * math.prod(s) for s in shapes.values()) * len(devices), context["spec"].work_dir)
+    queue_chunks = list(todo)
+    simulating: dict = {}  # future -> chunk
+    writing: dict = {}  # chunk id -> (futures, rows, paths)
+    bar = context["bar"]
+    t0 = time.perf_counter()
+
+    def submit_sim():
+        while queue_chunks and len(simulating) + len(writing) < 2 * len(devices):
+            c = queue_chunks.pop(0)
+            scenes = [context["variants"].variants[i].scene for i in c.indices]
+            payload = (scenes, context["choices"][c.indices[0]], context["frames"], context["every"], context["surface"], buffers, c.id)
+            simulating[sims.submit(_sim_task, payload)] = c
+
+    try:
+        submit_sim()
+        while simulating or writing:
+            waiting = list(simulating) + [f for fs, _, _ in writing.values() for f in fs]
+            cf.wait(waiting, return_when=cf.FIRST_COMPLETED)
+            for fut in [f for f in simulating if f.done()]:
+                c = simulating.pop(fut)
+                rows, paths, timings = fut.result()
+                _add_timings(result, timings)
+                bar.frames(len(c.indices) * max(context["frames"] - 1, 1))
+                tasks = _with_rows(_write_tasks(c, context, max(1, writers.count // len(devices))), rows, paths)
+                writing[c.id] = ([pool.submit(_timed_write, t) for t in tasks], rows, list(paths.values()))
+            for cid in [cid for cid, (fs, _, _) in writing.items() if all(f.done() for f in fs)]:
+                fs, rows, paths = writing.pop(cid)
+                outputs = []
+                for f in fs:
+                    out, spent = f.result()
+                    outputs += out
+                    result.write_s += spent
+                for p in paths:
+                    os.remove(p)
+                context["finish"](cid, rows, outputs)
+            submit_sim()
+        result.simulate_s += result.timings["build_s"] + sum(result.timings[k] for k in TIMERS if k != "build_s")
+    except KeyboardInterrupt:
+        # Stop simulating at once; the chunks already simulated are written to the end and kept.
+        queue_chunks.clear()
+        for f in simulating:
+            f.cancel()
+        for proc in list(getattr(sims, "_processes", {}).values()):
+            proc.terminate()
+        try:
+            for cid, (fs, rows, paths) in list(writing.items()):
+                outputs = []
+                for f in fs:
+                    outputs += f.result()[0]
+                context["finish"](cid, rows, outputs)
+        finally:
+            raise
+    finally:
+        sims.shutdown(wait=True, cancel_futures=True)
+        if own is not None:
+            own.shutdown()
+        shutil.rmtree(buffers, ignore_errors=True)
+        result.write_wait_s += 0.0 if not result.simulate_s else max(0.0, time.perf_counter() - t0 - result.simulate_s / len(devices))
+
+
+def run_dask(todo, context, result) -> None:
+    """Each chunk a task of the Dask cluster at ``scheduler``, simulating and writing there."""
+    try:
+        from distributed import Client, as_completed
+    except ImportError:
+        raise SceneError("--scheduler needs Dask distributed: pip install 'warp-tube[dask]'") from None
+    try:
+        client = Client(context["scheduler"], timeout="20s")
+    except (OSError, TimeoutError) as e:
+        raise SceneError(f"--scheduler {context['scheduler']}: cannot reach the Dask scheduler ({e})") from None
+    bar = context["bar"]
+    futures = {}
+    try:
+        for c in todo:
+            scenes = [context["variants"].variants[i].scene for i in c.indices]
+            tasks = _write_tasks(c, context, 1)
+            payload = (scenes, context["choices"][c.indices[0]], context["frames"], context["every"], context["surface"],
+                       context["device"], tasks)  # fmt: skip
+            futures[client.submit(_dask_task, payload, pure=False)] = c
+        for fut in as_completed(list(futures)):
+            c = futures[fut]
+            rows, outputs, timings, sim_s, write_s = fut.result()
+            _add_timings(result, timings)
+            result.simulate_s += sim_s
+            result.write_s += write_s
+            bar.frames(len(c.indices) * max(context["frames"] - 1, 1))
+            context["finish"](c.id, rows, outputs)
+    except KeyboardInterrupt:
+        client.cancel(list(futures))
+        raise
+    finally:
+        client.close()
+
+
+def _add_timings(result, timings: dict) -> None:
+    for k, v in timings.items():
+        result.timings[k] = result.timings.get(k, 0.0) + v

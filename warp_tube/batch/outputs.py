@@ -1,0 +1,330 @@
+"""Writing a batch's results: variant files, a grid stage or NumPy arrays, and the summary.
+
+Layouts (``DIR`` is the batch's output folder):
+
+- ``files``: ``DIR/variant_00000.usdc`` ... in batch order, each written by the same
+  :class:`~warp_tube.io.writer.StageWriter` as ``warp-tube run`` (same layout, same samples); a
+  variant that failed keeps the frames finished before the failure in
+  ``DIR/variant_00007.partial.usdc``.
+- ``grid``: ``DIR/grid.usda``, one stage with the variants side by side, ``/Grid/variant_00000``
+  (translated on a square grid in the ground plane) holding the variant's prims under their own
+  paths; it sublayers ``DIR/grid/chunk_00000.usdc`` ..., one layer per chunk (written in
+  parallel). Failed variants are left out.
+- ``arrays``: ``DIR/centerline.npy``, float32, (variants, frames, points, 3) [stage units],
+  memory-mappable (``np.load(..., mmap_mode="r")``); with ``--surface-arrays`` also
+  ``DIR/surface.npy``, (variants, frames, vertices, 3); a variant with fewer points or vertices
+  than the largest is padded with NaN, and frames a failed variant did not reach are NaN.
+  ``DIR/arrays.json`` says what the axes are.
+
+Always ``DIR/summary.csv``: one row per variant (batch order) with its parameters, status,
+largest displacement, final tip, energy and output.
+
+Writers run in other processes (a pool), reading a chunk's arrays from memory-mapped files, so
+the simulation goes on while USD writes; every file appears under its name only when complete.
+"""
+
+from __future__ import annotations
+
+import csv
+import dataclasses
+import io
+import json
+import math
+import os
+from dataclasses import dataclass
+
+import numpy as np
+
+from ..scene.spec import Scene
+
+__all__ = ["OutputSpec", "WriteTask", "write", "surface_topology", "grid_offset", "write_summary", "SUMMARY_FIELDS",
+           "prepare_arrays", "finish_arrays", "write_grid_root", "LAYOUTS"]  # fmt: skip
+
+LAYOUTS = ("files", "grid", "arrays")
+#: summary.csv columns after the variant's parameters
+SUMMARY_FIELDS = ("status", "max_displacement_m", "tip_x", "tip_y", "tip_z", "kinetic_energy_J", "work_J", "frames",
+                  "frames_simulated", "integrator", "substeps", "output", "reason")  # fmt: skip
+
+
+@dataclass(frozen=True)
+class OutputSpec:
+    """Where and how a batch writes.
+
+    Attributes:
+        layout: "files", "grid" or "arrays".
+        out_dir: the batch folder.
+        surface: write the Surface (files, grid) or ``surface.npy`` (arrays).
+        time_codes: time code of each written frame.
+        variants: number of variants in the batch.
+        points: the most centerline points of a variant (arrays: the points axis).
+        vertices: the most surface vertices of a variant (arrays: the vertices axis).
+        work_dir: the batch's working folder (partial arrays, grid chunk layers).
+        grid_cell: distance between neighbouring variants in the grid [stage units].
+        grid_columns: variants per grid row.
+        up_axis: "Y" or "Z" (the grid lies across it).
+    """
+
+    layout: str
+    out_dir: str
+    surface: bool
+    time_codes: tuple
+    variants: int
+    points: int = 0
+    vertices: int = 0
+    work_dir: str = ""
+    grid_cell: float = 1.0
+    grid_columns: int = 1
+    up_axis: str = "Y"
+
+
+@dataclass(frozen=True)
+class WriteTask:
+    """Write some variants of one chunk.
+
+    Attributes:
+        spec: the batch's output spec.
+        chunk: the chunk's id.
+        variants: the variants (batch index, name, scene), in chunk order.
+        positions: each variant's place in the chunk's arrays (the world).
+        rows: each variant's summary fields from the simulation (status, frames written...).
+        arrays: the chunk's arrays by name, or the paths of ``.npy`` files holding them.
+    """
+
+    spec: OutputSpec
+    chunk: int
+    variants: tuple
+    positions: tuple
+    rows: tuple
+    arrays: dict
+
+
+def _open(arrays: dict) -> dict:
+    return {k: (np.load(v, mmap_mode="r") if isinstance(v, str) else v) for k, v in arrays.items()}
+
+
+def write(task: WriteTask) -> list[str]:
+    """Run a write task; returns each variant's output (relative to the batch folder, '' if none)."""
+    arrays = _open(task.arrays)
+    layout = task.spec.layout
+    if layout == "files":
+        return _write_files(task, arrays)
+    if layout == "arrays":
+        return _write_arrays(task, arrays)
+    return _write_grid(task, arrays)
+
+
+_topologies: dict = {}
+
+
+def surface_topology(t):
+    """The surface topology of tube prim ``t`` (a TubeSpec), as ``SurfaceBuilder`` builds it for a
+    run (rest points for ``st``, cap radii from the mean spoke length at the end hubs)."""
+    from ..surface.topology import build_topology
+
+    S = t.params.spokes
+    lengths = t.spoke_lengths if t.spoke_lengths is not None else np.repeat(t.radius[:, None], S, axis=1)
+    key = (t.points.tobytes(), lengths.tobytes(), S, t.params.caps, t.curve_counts.tobytes())
+    if key not in _topologies:
+        if len(_topologies) > 4096:
+            _topologies.clear()
+        starts = np.concatenate([[0], np.cumsum(t.curve_counts)])
+        cap_radius = None
+        if t.params.caps:
+            mean = lengths.mean(axis=1)
+            cap_radius = np.stack([mean[starts[:-1]], mean[starts[1:] - 1]], axis=1)
+        _topologies[key] = build_topology(starts, S, caps=t.params.caps, rest_q=t.points, cap_radius=cap_radius)
+    return _topologies[key]
+
+
+def _ranges(scene: Scene, surface: bool):
+    """Per tube prim, its slice of a variant's centerline points and (surface) of its vertices."""
+    out, s, v = [], 0, 0
+    for t in scene.tubes:
+        n = len(t.points)
+        nv = surface_topology(t).vertex_count if surface else 0
+        out.append((slice(s, s + n), slice(v, v + nv)))
+        s, v = s + n, v + nv
+    return out
+
+
+def _frame_parts(ranges, arrays: dict, f: int, p: int, surface: bool):
+    """One frame of one variant as StageWriter.write_frame takes it: per prim centerline points,
+    and per prim (points, normals, extent) or None; ``ranges`` from :func:`_ranges`."""
+    cl = [arrays["centerline"][f, p, c] for c, _ in ranges]
+    if not surface:
+        return cl, None
+    return cl, [(arrays["points"][f, p, v], arrays["normals"][f, p, v], arrays["extent"][f, p, k]) for k, (_, v) in enumerate(ranges)]
+
+
+def _write_files(task: WriteTask, arrays: dict) -> list[str]:
+    from ..io.writer import StageWriter
+
+    spec, out = task.spec, []
+    for (index, name, scene), p, row in zip(task.variants, task.positions, task.rows):
+        rel = f"{name}.usdc" if row["status"] == "ok" else f"{name}.partial.usdc"
+        topo = [surface_topology(t) for t in scene.tubes] if spec.surface else None
+        w = StageWriter(os.path.join(spec.out_dir, rel), scene, topo)
+        ranges = _ranges(scene, spec.surface)
+        try:
+            for f in range(row["frames"]):
+                cl, parts = _frame_parts(ranges, arrays, f, p, spec.surface)
+                w.write_frame(spec.time_codes[f], cl, parts)
+            w.close()
+        except BaseException:
+            w.abort()
+            raise
+        out.append(rel)
+    return out
+
+
+def prepare_arrays(spec: OutputSpec, resume: bool) -> None:
+    """Create (or, resuming, keep) the partial arrays in the working folder, full size."""
+    from numpy.lib.format import open_memmap
+
+    F = len(spec.time_codes)
+    for name, n, on in (("centerline", spec.points, True), ("surface", spec.vertices, spec.surface)):
+        path = os.path.join(spec.work_dir, f"{name}.npy")
+        if on and not (resume and os.path.exists(path)):
+            open_memmap(path, mode="w+", dtype=np.float32, shape=(spec.variants, F, n, 3)).flush()  # sparse until written
+
+
+def _write_arrays(task: WriteTask, arrays: dict) -> list[str]:
+    spec, F = task.spec, len(task.spec.time_codes)
+    targets = [("centerline", "centerline", spec.points)]
+    if spec.surface:
+        targets.append(("surface", "points", spec.vertices))
+    for name, source, n in targets:
+        path = os.path.join(spec.work_dir, f"{name}.npy")
+        offset = np.load(path, mmap_mode="r").offset
+        fd = os.open(path, os.O_WRONLY)
+        try:
+            block = np.empty((F, n, 3), dtype=np.float32)
+            for (index, _, _), p in zip(task.variants, task.positions):
+                data = arrays[source][:, p]
+                block[:, : data.shape[1]] = data
+                block[:, data.shape[1] :] = np.nan
+                buf = block.tobytes()
+                written = os.pwrite(fd, buf, offset + index * len(buf))
+                if written != len(buf):
+                    raise OSError(f"{path}: short write ({written} of {len(buf)} bytes)")
+        finally:
+            os.close(fd)
+    return ["centerline.npy" + (" surface.npy" if spec.surface else "")] * len(task.variants)
+
+
+def finish_arrays(spec: OutputSpec, order: list[int], names: list[str], point_counts: list[int],
+                  vertex_counts: list[int]) -> None:  # fmt: skip
+    """Move the complete arrays into the batch folder and describe them in ``arrays.json``."""
+    meta = {
+        "centerline.npy": "float32 (variants, frames, points, 3): centerline points [stage units], prims and curves "
+                          "in scene order; NaN past a variant's points and in frames a failed variant did not reach",
+        "variants": names, "points": point_counts, "time_codes": list(spec.time_codes),
+    }  # fmt: skip
+    if spec.surface:
+        meta["surface.npy"] = ("float32 (variants, frames, vertices, 3): surface vertices [stage units], hub-major as in "
+                               "the USD Surface; NaN past a variant's vertices")  # fmt: skip
+        meta["vertices"] = vertex_counts
+    _atomic_text(os.path.join(spec.out_dir, "arrays.json"), json.dumps(meta, indent=1))
+    for name, on in (("centerline", True), ("surface", spec.surface)):
+        if on:
+            os.replace(os.path.join(spec.work_dir, f"{name}.npy"), os.path.join(spec.out_dir, f"{name}.npy"))
+
+
+def grid_offset(spec: OutputSpec, index: int) -> tuple[float, float, float]:
+    """Where variant ``index`` sits in the grid [stage units]: rows and columns across the up axis."""
+    row, col = divmod(index, spec.grid_columns)
+    a, b = col * spec.grid_cell, row * spec.grid_cell
+    return (a, 0.0, b) if spec.up_axis.upper() == "Y" else (a, b, 0.0)
+
+
+def _write_grid(task: WriteTask, arrays: dict) -> list[str]:
+    from pxr import Gf, Sdf, Vt
+
+    from ..io.writer import StageWriter
+
+    spec = task.spec
+    keep = [(v, p, r) for v, p, r in zip(task.variants, task.positions, task.rows) if r["status"] == "ok"]
+    rel = f"grid/chunk_{task.chunk:05d}.usdc"
+    if not keep:
+        return [""] * len(task.variants)
+    tubes, topo = [], []
+    for (index, name, scene), _, _ in keep:
+        for t in scene.tubes:
+            tubes.append(dataclasses.replace(t, path=f"/Grid/{name}{t.path}", pin_track=None))
+            topo.append(surface_topology(t))
+    first = keep[0][0][2]
+    grid_scene = Scene(tubes=tuple(tubes), stage=first.stage, source=first.source)
+    w = StageWriter(os.path.join(spec.out_dir, rel), grid_scene, topo if spec.surface else None)
+    try:
+        for (index, name, _), _, _ in keep:
+            prim = w.layer.GetPrimAtPath(f"/Grid/{name}")
+            op = Sdf.AttributeSpec(prim, "xformOp:translate", Sdf.ValueTypeNames.Double3)
+            op.default = Gf.Vec3d(*grid_offset(spec, index))
+            order = Sdf.AttributeSpec(prim, "xformOpOrder", Sdf.ValueTypeNames.TokenArray, Sdf.VariabilityUniform)
+            order.default = Vt.TokenArray(["xformOp:translate"])
+        ranges = [_ranges(scene, spec.surface) for (_, _, scene), _, _ in keep]
+        for f in range(len(spec.time_codes)):
+            cls, parts = [], [] if spec.surface else None
+            for ((index, name, scene), p, _), r in zip(keep, ranges):
+                c, s = _frame_parts(r, arrays, f, p, spec.surface)
+                cls += c
+                if spec.surface:
+                    parts += s
+            w.write_frame(spec.time_codes[f], cls, parts)
+        w.close()
+    except BaseException:
+        w.abort()
+        raise
+    return [("grid.usda" if r["status"] == "ok" else "") for _, _, r in zip(task.variants, task.positions, task.rows)]
+
+
+def write_grid_root(spec: OutputSpec, stage_info, chunk_layers: list[str], names: list[str]) -> None:
+    """``DIR/grid.usda``: the stage's metadata, the chunks' layers as sublayers and the variants'
+    order under ``/Grid`` (``names``, batch order)."""
+    from pxr import Sdf, Usd, UsdGeom
+
+    path = os.path.join(spec.out_dir, "grid.usda")
+    tmp = os.path.join(spec.out_dir, f".grid.partial-{os.getpid()}.usda")
+    layer = Sdf.Layer.CreateNew(tmp)
+    st = Usd.Stage.Open(layer)
+    UsdGeom.SetStageMetersPerUnit(st, stage_info.meters_per_unit)
+    UsdGeom.SetStageUpAxis(st, UsdGeom.Tokens.z if stage_info.up_axis.upper() == "Z" else UsdGeom.Tokens.y)
+    st.SetTimeCodesPerSecond(stage_info.time_codes_per_second)
+    st.SetFramesPerSecond(stage_info.frames_per_second)
+    st.SetStartTimeCode(stage_info.start_time_code)
+    st.SetEndTimeCode(spec.time_codes[-1])
+    grid = UsdGeom.Xform.Define(st, "/Grid").GetPrim()
+    st.SetDefaultPrim(grid)
+    del st
+    layer.GetPrimAtPath("/Grid").nameChildrenOrder = list(names)
+    layer.subLayerPaths = list(chunk_layers)
+    layer.Save()
+    del layer
+    os.replace(tmp, path)
+
+
+def _atomic_text(path: str, text: str) -> None:
+    tmp = os.path.join(os.path.dirname(path), f".{os.path.basename(path)}.partial-{os.getpid()}")
+    with open(tmp, "w", encoding="utf-8", newline="") as f:
+        f.write(text)
+    os.replace(tmp, path)
+
+
+def _fmt(v) -> str:
+    if isinstance(v, float):
+        return "nan" if math.isnan(v) else repr(v)
+    return str(v)
+
+
+def write_summary(path: str, parameter_columns: list[str], variants, rows: dict) -> None:
+    """``summary.csv``: one row per variant in batch order (``rows``: batch index -> fields)."""
+    buf = io.StringIO()
+    out = csv.writer(buf, lineterminator="\n")
+    out.writerow(["variant", "name", *parameter_columns, *SUMMARY_FIELDS])
+    for v in variants:
+        r = rows[v.index]
+        params = list(v.cells) + list(v.selection)
+        tip = r.get("tip") or [math.nan] * 3
+        values = dict(r, tip_x=tip[0], tip_y=tip[1], tip_z=tip[2])
+        out.writerow([v.index, v.name, *params, *(_fmt(values.get(k, "")) for k in SUMMARY_FIELDS)])
+    _atomic_text(path, buf.getvalue())

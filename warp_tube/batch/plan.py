@@ -1,0 +1,154 @@
+"""Which variants run together: groups that share everything a run fixes once, cut into chunks.
+
+Variants run as the worlds of one model (:mod:`warp_tube.batch.worlds`) when they agree on what
+the model, the solver and the surface builders hold once for all worlds, so that each world
+computes what the variant alone would (``warp-tube run``):
+
+- topology: per tube prim its curve point counts, pinned points, spoke count, frames, caps and
+  reference normal; per force its tube, point and assistant line; moving pins or not;
+- time stepping: the integrator and substeps the variant alone gets (``Simulation``'s choice from
+  its own stability bound), gravity, and the stage's frames, time codes and units;
+- with the implicit integrator, its shortest rest segment (the solver's convergence tolerance);
+- with the surface: per prim the rest points (the surface's rest frames) and the mean spoke
+  length (the inner-bend guard's window), which the surface builder holds once.
+
+Everything else (materials, damping, forces and their samples, anchors, widths, and with
+``--no-surface`` the rest shape) may differ from world to world. A group is cut into chunks of at
+most ``chunk`` variants in batch order; chunks are the unit of work of a worker and of resuming.
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass
+
+import numpy as np
+
+from ..scene.spec import Scene
+
+__all__ = ["Chunk", "RunChoice", "run_choice", "run_choices", "group_key", "plan_chunks"]
+
+@dataclass(frozen=True)
+class RunChoice:
+    """What ``Simulation`` would pick for a scene alone: integrator, why, substeps per frame and
+    the substep [s]; ``min_segment`` [m] is its shortest rest segment."""
+
+    integrator: str
+    reason: str
+    substeps: int
+    dt: float
+    min_segment: float
+
+
+@dataclass(frozen=True)
+class Chunk:
+    """Variants (batch indices, increasing) that run as the worlds of one model."""
+
+    id: int
+    group: int
+    indices: tuple[int, ...]
+
+
+def _tube_key(t) -> tuple:
+    """What of a tube prim the stability bound depends on (content, not identity)."""
+    return (t.points.tobytes(), t.radius.tobytes(), tuple(t.curve_counts.tolist()), t.params, t.pinned.tobytes(),
+            t.anchors.tobytes())  # fmt: skip
+
+
+def run_choices(scenes: list[Scene], block: int = 1024) -> list[RunChoice]:
+    """The integrator and substeps ``Simulation(scene)`` chooses for each scene alone.
+
+    The policy is the one ``Simulation`` applies (:func:`warp_tube.centerline.policy.choose_integrator`), given each scene's stability
+    bound (``critical_time_step`` of its own nodes), so the batch cannot drift from it. Scenes of
+    one node layout are discretised together, ``block`` at a time (``build_model`` of a scene
+    holding them all, on the CPU; its host arrays sliced per scene), and scenes whose tubes agree
+    in everything the bound depends on share one answer.
+    """
+    out: list = [None] * len(scenes)
+    first_of: dict = {}  # content key -> index of the first scene with it
+    layouts: dict = {}
+    for i, s in enumerate(scenes):
+        key = (tuple(_tube_key(t) for t in s.tubes), tuple(f.assistant_line for f in s.forces), s.settings, s.stage.frame_dt)
+        if key in first_of:
+            continue
+        first_of[key] = i
+        layout = (tuple(tuple(t.curve_counts.tolist()) for t in s.tubes), key[1])
+        layouts.setdefault(layout, []).append(i)
+    for members in layouts.values():
+        for b in range(0, len(members), block):
+            idx = members[b : b + block]
+            for i, choice in zip(idx, _choices_of([scenes[i] for i in idx])):
+                out[i] = choice
+    for i, s in enumerate(scenes):
+        if out[i] is None:
+            key = (tuple(_tube_key(t) for t in s.tubes), tuple(f.assistant_line for f in s.forces), s.settings, s.stage.frame_dt)
+            out[i] = out[first_of[key]]
+    return out
+
+
+def _choices_of(scenes: list[Scene]) -> list[RunChoice]:
+    """run_choices for scenes of one node layout, discretised in one build."""
+    from ..centerline.policy import choose_integrator
+    from ..centerline.stability import critical_time_step
+    from ..model.tube import build_model
+    from .worlds import combined_scene
+
+    flat = build_model(combined_scene(scenes), world_count=1, device="cpu")
+    h = flat.host
+    n = len(h["node_mass"]) // len(scenes)
+    curves = (len(h["tube_node_start"]) - 1) // len(scenes)  # T + 1 entries: T curves per scene, and the end
+    out = []
+    for k, scene in enumerate(scenes):
+        nodes = slice(k * n, (k + 1) * n)
+        own = {name: h[name][nodes] for name in ("seg_ke", "seg_rest_length", "node_bend_k", "node_anchor_k", "node_inv_mass")}
+        own["tube_node_start"] = h["tube_node_start"][k * curves : (k + 1) * curves + 1] - k * n
+        spring_damping = max((t.params.spring_damping for t in scene.tubes), default=0.0)
+        bound = critical_time_step(own, flat.features.assistant_line, spring_damping)
+        choice = choose_integrator(scene.settings, bound, scene.stage.frame_dt, flat.features.assistant_line, scene.source)
+        integrator, reason, dt = choice.integrator, choice.reason, choice.dt
+        substeps = max(1, math.ceil(scene.stage.frame_dt / dt - 1e-9))
+        seg = own["seg_rest_length"]
+        out.append(RunChoice(integrator, reason, substeps, scene.stage.frame_dt / substeps,
+                             float(seg[seg > 0].min()) if (seg > 0).any() else 0.0))  # fmt: skip
+    return out
+
+
+def run_choice(scene: Scene) -> RunChoice:
+    """:func:`run_choices` of one scene."""
+    return run_choices([scene])[0]
+
+
+def mean_spoke_length(t) -> float:
+    """The surface builder's guard window scale for a tube prim: its mean spoke length [m]."""
+    if t.spoke_lengths is not None:
+        return float(t.spoke_lengths.mean())
+    return float(np.repeat(t.radius[:, None], t.params.spokes, axis=1).mean())
+
+
+def group_key(scene: Scene, choice: RunChoice, surface: bool) -> tuple:
+    """Variants with equal keys run as worlds of one model (see the module docstring)."""
+    s = scene.stage
+    tubes = tuple(
+        (t.path, tuple(t.curve_counts.tolist()), t.pinned.tobytes(), t.params.spokes, t.params.frames, t.params.caps,
+         t.params.reference_normal, t.pin_track is not None)
+        for t in scene.tubes
+    )  # fmt: skip
+    forces = tuple((f.tube, f.point, f.assistant_line) for f in scene.forces)
+    run = (choice.integrator, choice.substeps, scene.settings.gravity, s.start_time_code, s.end_time_code,
+           s.time_codes_per_second, s.frames_per_second, s.meters_per_unit, s.up_axis)  # fmt: skip
+    implicit = choice.min_segment if choice.integrator == "implicitEuler" else None
+    shape = tuple((t.points.tobytes(), mean_spoke_length(t)) for t in scene.tubes) if surface else None
+    return (tubes, forces, run, implicit, shape)
+
+
+def plan_chunks(keys: list, chunk: int) -> list[Chunk]:
+    """Chunks of at most ``chunk`` variants with equal keys, in batch order (groups ordered by
+    their first variant); deterministic for given keys and ``chunk``."""
+    groups: dict = {}
+    for i, k in enumerate(keys):
+        groups.setdefault(k, []).append(i)
+    out = []
+    for g, members in enumerate(groups.values()):
+        for s in range(0, len(members), chunk):
+            out.append(Chunk(id=len(out), group=g, indices=tuple(members[s : s + chunk])))
+    return out

@@ -1,0 +1,108 @@
+"""Reading a batch's variants and each one's integrator choice, in one process or several.
+
+A large table (at least :data:`PREPARE_ROWS_PER_PROCESS` rows per process) is read by several
+processes, each opening the scene and reading a part of the rows; problems from all parts are
+reported together, in row order, before anything runs.
+"""
+
+from __future__ import annotations
+
+import concurrent.futures as cf
+import dataclasses
+import multiprocessing
+import os
+
+import numpy as np
+
+from ..scene.spec import SceneError
+from .execute import ignore_sigint
+from .plan import run_choice, run_choices
+
+__all__ = ["prepare_batch", "checked_run_choices", "PREPARE_ROWS_PER_PROCESS", "PREPARE_PROCESSES"]
+
+
+#: tables of at least this many rows per process are read by several processes
+PREPARE_ROWS_PER_PROCESS = 1024
+
+
+#: at most this many processes read a table
+PREPARE_PROCESSES = 16
+
+
+def _extract(file, prim, info):
+    """The extraction hook for Mesh tubes, imported only when a scene has one."""
+    from ..extract.usd import tube_from_mesh_prim
+
+    return tube_from_mesh_prim(file, prim, info)
+
+
+def _prepare_part(scene: str, table, variant_sets):
+    """Read part of a table's variants and their run choices (in a worker process)."""
+    import warp as wp
+
+    from .variants import collect_variants
+
+    wp.config.log_level = wp.LOG_WARNING
+    wp.config.quiet = True
+    variants, problems = collect_variants(scene, table, variant_sets, extract=_extract)
+    if problems:
+        return variants, problems, None
+    try:
+        return variants, [], checked_run_choices(variants)
+    except SceneError as e:
+        return variants, [(table.first_row, str(e))], None
+
+
+def prepare_batch(scene: str, table, variant_sets, bar):
+    """Every variant and its run choice, read by one process or, for a large table, several
+    (each opening the scene and reading a part of the rows); all problems reported together."""
+    from .variants import Variants, name_width, prepare_variants, raise_problems
+
+    rows = len(table.rows) if table is not None else 1
+    parts = min(PREPARE_PROCESSES, os.cpu_count() or 1, rows // PREPARE_ROWS_PER_PROCESS)
+    if parts < 2:
+        variants = prepare_variants(scene, table, variant_sets, extract=_extract, progress=bar.reading)
+        return variants, checked_run_choices(variants)
+    from ..scene.usd import open_stage
+
+    open_stage(scene)  # a missing or unreadable scene: one message, before any process starts
+    bounds = np.linspace(0, rows, parts + 1).round().astype(int)
+    ctx = multiprocessing.get_context("spawn")
+    with cf.ProcessPoolExecutor(parts, mp_context=ctx, initializer=ignore_sigint) as ex:
+        futures = [ex.submit(_prepare_part, scene, table.part(a, b), variant_sets) for a, b in zip(bounds[:-1], bounds[1:])]
+        results = []
+        for f in futures:
+            results.append(f.result())
+            bar.reading(sum(len(r[0].variants) for r in results))
+    raise_problems([p for _, probs, _ in results for p in probs])
+    width = name_width(sum(len(r[0].variants) for r in results))
+    merged, choices = [], []
+    for part, _, part_choices in results:
+        merged += [dataclasses.replace(v, name=f"variant_{v.index:0{width}d}") for v in part.variants]
+        choices += part_choices
+    first = results[0][0]
+    return Variants(scene_path=scene, table=table, axes=first.axes, variants=tuple(merged)), choices
+
+
+def checked_run_choices(variants) -> list:
+    """Each variant's integrator and substeps alone; a variant whose settings no integrator takes
+    (e.g. implicit Euler with an assistant line) is a bad row, reported with the others."""
+    from .variants import MAX_PROBLEMS
+
+    scenes = [v.scene for v in variants.variants]
+    try:
+        return run_choices(scenes)
+    except SceneError:
+        pass
+    problems = []  # find which variants: one at a time
+    for v in variants.variants:
+        try:
+            run_choice(v.scene)
+        except SceneError as e:
+            where = variants.table.where(v.row) if variants.table is not None and v.row is not None else v.name
+            chosen = ", ".join(f"{a.label} = {c}" for a, c in zip(variants.axes, v.selection))
+            problems.append(f"{where}{' with ' + chosen if chosen else ''}: {e}")
+            if len(problems) > MAX_PROBLEMS:
+                break
+    more = "\n  ... and more" if len(problems) > MAX_PROBLEMS else ""
+    raise SceneError("problem(s) in the variants; nothing was run:\n  " + "\n  ".join(problems[:MAX_PROBLEMS]) + more)

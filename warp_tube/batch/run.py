@@ -1,0 +1,382 @@
+"""``warp-tube batch``: thousands of variants of a scene in one run.
+
+:func:`run_batch` reads every variant (:mod:`warp_tube.batch.variants`; nothing runs if any is
+bad), groups them into chunks that run as the worlds of one model (:mod:`warp_tube.batch.plan`),
+simulates the chunks (:mod:`warp_tube.batch.engine`) and writes them (:mod:`warp_tube.batch.outputs`)
+with a pool of writer processes, so the next chunk simulates while the last one is written.
+
+Where chunks run:
+
+- one device (``--device``, or a host with one GPU, or the CPU with ``--workers 1``): in this
+  process;
+- several GPUs of the host: one worker process per GPU (all of them, or ``--workers N``);
+- the CPU with ``--workers N``: N worker processes (Warp's CPU backend runs one thread each);
+- ``--scheduler ADDRESS``: the chunks are tasks of a Dask distributed cluster; each task
+  simulates on its worker's default device (or ``--device``) and writes its outputs into the batch
+  folder, which every worker must see at the same path.
+
+Finished chunks are recorded (:mod:`warp_tube.batch.journal`) as their outputs complete; an
+interrupted batch keeps them and ``--resume`` goes on from there.
+"""
+
+from __future__ import annotations
+
+import math
+import os
+import time
+from dataclasses import dataclass, field
+
+import numpy as np
+
+from ..scene.spec import SceneError
+from .engine import TIMERS, output_frames
+from .execute import Writers, run_dask, run_here, run_pooled, writer_count
+from .journal import Journal, file_digest
+from .outputs import LAYOUTS, OutputSpec, finish_arrays, prepare_arrays, surface_topology, write_grid_root, write_summary
+from .plan import group_key, plan_chunks
+from .prepare import prepare_batch
+from .progress import Progress
+
+__all__ = ["run_batch", "BatchResult", "BatchInterrupted", "DEFAULT_CHUNK_CPU", "DEFAULT_CHUNK_CUDA"]
+
+#: variants per chunk by default on the CPU and on a GPU (a chunk's output arrays stay in memory,
+#: or in /dev/shm, until written: 4,096 variants x 61 frames of a 20 x 16 tube are ~2 GB)
+DEFAULT_CHUNK_CPU = 1024
+DEFAULT_CHUNK_CUDA = 4096
+#: files a batch writes into its folder (an existing one means a batch is there already)
+BATCH_FILES = ("summary.csv", "centerline.npy", "surface.npy", "arrays.json", "grid.usda")
+
+
+class BatchInterrupted(KeyboardInterrupt):
+    """The batch was interrupted; ``result`` says what was finished (kept for ``--resume``)."""
+
+    def __init__(self, result):
+        super().__init__("interrupted")
+        self.result = result
+
+
+@dataclass
+class BatchResult:
+    """What a batch did.
+
+    Attributes:
+        out_dir: the batch folder.
+        variants: variants in the batch.
+        ok, failed: variants finished in this run (or before, when resuming), by status.
+        resumed: variants finished by an earlier run and skipped.
+        pending: variants not finished (an interrupted batch).
+        groups, chunks: how the variants were run.
+        devices: where the chunks ran ("dask" for a cluster).
+        wall_s: the whole command [s]; prepare_s: reading and checking the variants and planning;
+        simulate_s: simulating (wall, in this process; the sum over workers otherwise);
+        write_s: the writer tasks' time, summed over writers; write_wait_s: waiting for writers
+            after the last chunk was simulated.
+        timings: the simulation's own split (build, kernels, readback, control, checks, copy, rerun), summed.
+        failures: (variant name, reason) of the failed variants.
+    """
+
+    out_dir: str
+    variants: int = 0
+    ok: int = 0
+    failed: int = 0
+    resumed: int = 0
+    pending: int = 0
+    groups: int = 0
+    chunks: int = 0
+    devices: list = field(default_factory=list)
+    wall_s: float = 0.0
+    prepare_s: float = 0.0
+    simulate_s: float = 0.0
+    write_s: float = 0.0
+    write_wait_s: float = 0.0
+    frames: int = 0
+    timings: dict = field(default_factory=lambda: dict.fromkeys(TIMERS, 0.0))
+    failures: list = field(default_factory=list)
+
+    def text(self) -> str:
+        t = self.timings
+        lines = [
+            f"variants     {self.variants} in {self.groups} group(s), {self.chunks} chunk(s) on {', '.join(self.devices) or '-'}",
+            f"finished     {self.ok} ok, {self.failed} failed" + (f" ({self.resumed} from before)" if self.resumed else ""),
+            f"frames       {self.frames} per variant",
+            f"wall time    {self.wall_s:.2f} s: reading {self.prepare_s:.2f} s, simulating {self.simulate_s:.2f} s "
+            f"(kernels {t['kernels_s']:.2f} s, checks {t['checks_s']:.2f} s), waiting for writers {self.write_wait_s:.2f} s",
+            f"output       {self.out_dir}",
+        ]  # fmt: skip
+        if self.pending:
+            lines.append(f"unfinished   {self.pending} variant(s): warp-tube batch ... --resume goes on")
+        lines += [f"failed       {name}: {reason}" for name, reason in self.failures[:10]]
+        if len(self.failures) > 10:
+            lines.append(f"failed       ... and {len(self.failures) - 10} more (summary.csv)")
+        return "\n".join(lines)
+
+
+def _devices(device, workers, scheduler) -> list[str]:
+    from ..sim.simulation import resolve_device
+
+    if workers is not None and workers < 1:
+        raise SceneError(f"--workers {workers}: expected at least 1")
+    if scheduler:
+        return ["dask"]
+    import warp as wp
+
+    if device is not None:
+        dev = resolve_device(device)
+        if dev == "cpu":
+            return ["cpu"] * (workers or 1)
+        if workers not in (None, 1):
+            raise SceneError(f"--workers {workers} with --device {device}: one device runs one worker; leave out --device to use every GPU")
+        return [dev]
+    wp.init()
+    gpus = wp.get_cuda_device_count()
+    if gpus:
+        n = workers or gpus
+        if n > gpus:
+            raise SceneError(f"--workers {n}: this host has {gpus} GPU(s); a GPU runs one worker (--device cpu for CPU workers)")
+        return [f"cuda:{i}" for i in range(n)]
+    return ["cpu"] * (workers or 1)
+
+
+def _check_out_dir(out_dir: str, resume: bool) -> None:
+    parent = os.path.dirname(out_dir) or "."
+    if os.path.exists(out_dir) and not os.path.isdir(out_dir):
+        raise SceneError(f"{out_dir}: exists and is not a folder")
+    if not os.path.isdir(out_dir):
+        if resume:
+            raise SceneError(f"{out_dir}: no such folder: nothing to resume")
+        if not os.path.isdir(parent):
+            raise SceneError(f"{out_dir}: folder {parent} does not exist")
+        if not os.access(parent, os.W_OK):
+            raise SceneError(f"{out_dir}: folder {parent} is not writable")
+        return
+    if not os.access(out_dir, os.W_OK):
+        raise SceneError(f"{out_dir}: folder is not writable")
+    journal = Journal(out_dir)
+    found = [n for n in BATCH_FILES if os.path.exists(os.path.join(out_dir, n))]
+    found += sorted(n for n in os.listdir(out_dir) if n.startswith("variant_"))[:1]
+    if resume:
+        if not journal.exists() and not found:
+            raise SceneError(f"{out_dir}: no batch there to resume")
+    elif journal.exists() or found:
+        what = ", ".join((["an unfinished batch (.batch)"] if journal.exists() else []) + found)
+        raise SceneError(f"{out_dir}: holds batch outputs already ({what}): --resume continues that batch; "
+                         "or write to another folder")  # fmt: skip
+
+
+def _remove_stray_partials(out_dir: str) -> None:
+    """Remove partial files that an interrupted writer left (never a complete output)."""
+    for folder in (out_dir, os.path.join(out_dir, "grid")):
+        if os.path.isdir(folder):
+            for n in os.listdir(folder):
+                if n.startswith(".") and ".partial-" in n:
+                    os.remove(os.path.join(folder, n))
+
+
+def run_batch(scene: str, out_dir: str, table: str | None = None, *, variant_sets: str | None = None,
+              layout: str = "files", every: int = 1, frames: int | None = None, surface: bool | None = None,
+              device: str | None = None, workers: int | None = None, writers: int | None = None,
+              chunk: int | None = None, scheduler: str | None = None, resume: bool = False, progress: bool = False,
+              on_chunk=None) -> BatchResult:  # fmt: skip
+    """Run a batch (see the module docstring and README, "Batch").
+
+    Args:
+        scene: the scene file.
+        out_dir: the batch folder (created; must not hold another batch unless ``resume``).
+        table: the variants table (CSV), or None.
+        variant_sets: ``all`` or a list of the scene's variantSets to cross with the table.
+        layout: "files", "grid" or "arrays".
+        every: write every ``every``-th frame.
+        frames: frames per variant, frame 0 (rest) included (default: the scene's).
+        surface: write the Surface (default: yes for files and grid, no for arrays).
+        device: "cpu" or "cuda:N" (default: every GPU, else the CPU).
+        workers: processes on the CPU, or how many GPUs (default: 1 on the CPU, all GPUs).
+        writers: writer processes (default: the host's cores left over, at least 1; 0: write
+            in the simulating process).
+        chunk: variants per chunk (default :data:`DEFAULT_CHUNK_CPU` / :data:`DEFAULT_CHUNK_CUDA`,
+            fewer so that every worker gets two chunks).
+        scheduler: a Dask scheduler address, to run the chunks on a Dask cluster.
+        resume: go on with the unfinished batch in ``out_dir``.
+        progress: show progress bars.
+        on_chunk: called with each chunk's id when it is finished (recorded).
+
+    Returns:
+        The :class:`BatchResult`.
+
+    Raises:
+        SceneError: bad input or request; nothing was run and nothing written.
+        BatchInterrupted: interrupted; the finished chunks are kept.
+    """
+    from .table import read_table
+
+    t_start = time.perf_counter()
+    out_dir = os.path.abspath(os.fspath(out_dir))
+    if layout not in LAYOUTS:
+        raise SceneError(f"--layout {layout}: expected one of {', '.join(LAYOUTS)}")
+    if every < 1:
+        raise SceneError(f"--every {every}: expected at least 1")
+    if frames is not None and frames < 1:
+        raise SceneError(f"--frames {frames}: expected at least 1")
+    if chunk is not None and chunk < 1:
+        raise SceneError(f"--chunk {chunk}: expected at least 1")
+    if writers is not None and writers < 0:
+        raise SceneError(f"--writers {writers}: expected 0 or more")
+    surface = (layout != "arrays") if surface is None else bool(surface)
+    _check_out_dir(out_dir, resume)
+    devices = _devices(device, workers, scheduler)
+    tab = read_table(table) if table is not None else None
+    sims = 0 if scheduler else len(devices)
+    writer_pool = Writers(layout, 0 if scheduler else writer_count(writers, sims))
+    try:
+        return _run_batch(scene, out_dir, table, tab, devices, writer_pool, t_start, variant_sets=variant_sets,
+                          layout=layout, every=every, frames=frames, surface=surface, device=device, chunk=chunk,
+                          scheduler=scheduler, resume=resume, progress=progress, on_chunk=on_chunk)  # fmt: skip
+    finally:
+        writer_pool.shutdown()
+
+
+def _run_batch(scene, out_dir, table, tab, devices, writer_pool, t_start, *, variant_sets, layout, every, frames, surface,
+               device, chunk, scheduler, resume, progress, on_chunk) -> BatchResult:  # fmt: skip
+
+    bar = Progress(progress)
+    variants, choices = prepare_batch(scene, tab, variant_sets, bar)
+    bar.close_reading()
+    first = variants.variants[0].scene
+    n_frames = first.stage.frame_count if frames is None else int(frames)
+    keys = [group_key(v.scene, c, surface) for v, c in zip(variants.variants, choices)]
+    journal = Journal(out_dir)
+    if chunk is None:
+        base = DEFAULT_CHUNK_CUDA if devices[0].startswith("cuda") else DEFAULT_CHUNK_CPU
+        parallel = len(devices) if devices != ["dask"] else 4
+        chunk = max(1, min(base, math.ceil(len(variants) / (2 * parallel))))
+        if resume and journal.exists():  # the chunks of the batch being resumed
+            import json
+
+            with open(journal.state_path, encoding="utf-8") as f:
+                chunk = int(json.load(f).get("chunk", chunk))
+    plan = plan_chunks(keys, chunk)
+    F_idx = output_frames(n_frames, every)
+    time_codes = tuple(first.stage.start_time_code + k for k in F_idx)
+    signature = dict(version=1, scene=os.path.abspath(scene), scene_sha256=file_digest(scene),
+                     table=os.path.abspath(table) if table else None, table_sha256=file_digest(table),
+                     variant_sets=variant_sets, layout=layout, every=every, frames=n_frames, surface=surface,
+                     chunk=chunk, variants=len(variants))  # fmt: skip
+    result = BatchResult(out_dir=out_dir, variants=len(variants), groups=len({c.group for c in plan}), chunks=len(plan),
+                         devices=devices if devices != ["dask"] else [f"dask {scheduler}"], frames=len(F_idx))  # fmt: skip
+    spec = _output_spec(variants, layout, out_dir, journal.dir, surface, time_codes)
+    result.prepare_s = time.perf_counter() - t_start
+
+    if resume and not journal.exists():  # the batch there finished: nothing to do
+        return _finished(out_dir, result, t_start)
+    os.makedirs(out_dir, exist_ok=True)
+    done = journal.begin(signature, resume)
+    _remove_stray_partials(out_dir)
+    if layout == "arrays":
+        prepare_arrays(spec, resume=bool(done))
+    if layout == "grid":
+        os.makedirs(os.path.join(out_dir, "grid"), exist_ok=True)
+    records = dict(done)
+    for rec in done.values():
+        result.resumed += len(rec["rows"])
+    todo = [c for c in plan if c.id not in done]
+    bar.start(sum(len(c.indices) for c in todo) * max(n_frames - 1, 1), len(variants), result.resumed)
+
+    def finish(chunk_id: int, rows: list, outputs: list):
+        c = plan[chunk_id]
+        rec = {"rows": {str(i): _json_row(r, o) for i, r, o in zip(c.indices, rows, outputs)},
+               "layer": f"grid/chunk_{chunk_id:05d}.usdc" if layout == "grid" and any(r["status"] == "ok" for r in rows) else ""}  # fmt: skip
+        journal.record(chunk_id, rec)
+        records[chunk_id] = rec
+        bar.variants_done(len(c.indices))
+        if on_chunk is not None:
+            on_chunk(chunk_id)
+
+    context = dict(variants=variants, plan=plan, choices=choices, frames=n_frames, every=every, surface=surface,
+                   spec=spec, writers=writer_pool, device=device, scheduler=scheduler, bar=bar, finish=finish)  # fmt: skip
+    try:
+        if not todo:
+            pass
+        elif scheduler:
+            run_dask(todo, context, result)
+        elif len(devices) == 1:
+            run_here(todo, devices[0], context, result)
+        else:
+            run_pooled(todo, devices, context, result)
+    except KeyboardInterrupt:
+        bar.close()
+        _tally(result, records, variants)
+        result.pending = len(variants) - sum(len(r["rows"]) for r in records.values())
+        result.wall_s = time.perf_counter() - t_start
+        raise BatchInterrupted(result) from None
+    bar.close()
+    _finish_outputs(spec, variants, records, first, out_dir)
+    journal.remove()
+    _tally(result, records, variants)
+    result.wall_s = time.perf_counter() - t_start
+    return result
+
+
+def _finished(out_dir: str, result: BatchResult, t_start: float) -> BatchResult:
+    """The result of resuming a batch that had finished: its summary, read back."""
+    import csv
+
+    path = os.path.join(out_dir, "summary.csv")
+    if not os.path.exists(path):
+        raise SceneError(f"{out_dir}: no unfinished batch (.batch) and no summary.csv: nothing to resume")
+    with open(path, newline="", encoding="utf-8") as f:
+        rows = list(csv.DictReader(f))
+    result.resumed = len(rows)
+    result.ok = sum(r["status"] == "ok" for r in rows)
+    result.failed = len(rows) - result.ok
+    result.failures = [(r["name"], r["reason"]) for r in rows if r["status"] != "ok"]
+    result.wall_s = time.perf_counter() - t_start
+    return result
+
+
+def _json_row(row: dict, output: str) -> dict:
+    out = {k: (v.tolist() if isinstance(v, np.ndarray) else v) for k, v in row.items()}
+    out["output"] = output
+    return out
+
+
+def _tally(result: BatchResult, records: dict, variants) -> None:
+    result.ok = result.failed = 0
+    result.failures = []
+    rows = {int(i): r for rec in records.values() for i, r in rec["rows"].items()}
+    for i in sorted(rows):
+        if rows[i]["status"] == "ok":
+            result.ok += 1
+        else:
+            result.failed += 1
+            result.failures.append((variants.variants[i].name, rows[i]["reason"]))
+
+
+def _output_spec(variants, layout, out_dir, work_dir, surface, time_codes) -> OutputSpec:
+    vs = variants.variants
+    points = max(sum(len(t.points) for t in v.scene.tubes) for v in vs)
+    vertices = max(sum(surface_topology(t).vertex_count for t in v.scene.tubes) for v in vs) if surface else 0
+    first = vs[0].scene.stage
+    cell, columns = 1.0, 1
+    if layout == "grid":
+        mpu = first.meters_per_unit
+        size = max(float(np.ptp(np.concatenate([t.points for t in v.scene.tubes]), axis=0).max())
+                   + 2.0 * max(float(t.radius.max()) for t in v.scene.tubes) for v in vs)  # fmt: skip
+        cell = 1.5 * size / mpu
+        columns = math.ceil(math.sqrt(len(vs)))
+    return OutputSpec(layout=layout, out_dir=out_dir, surface=surface, time_codes=time_codes, variants=len(vs),
+                      points=points, vertices=vertices, work_dir=work_dir, grid_cell=cell, grid_columns=columns,
+                      up_axis=first.up_axis)  # fmt: skip
+
+
+def _finish_outputs(spec: OutputSpec, variants, records: dict, first_scene, out_dir: str) -> None:
+    rows = {int(i): r for rec in records.values() for i, r in rec["rows"].items()}
+    vs = variants.variants
+    if spec.layout == "arrays":
+        finish_arrays(spec, list(range(len(vs))), [v.name for v in vs],
+                      [sum(len(t.points) for t in v.scene.tubes) for v in vs],
+                      [sum(surface_topology(t).vertex_count for t in v.scene.tubes) for v in vs] if spec.surface else [])  # fmt: skip
+    if spec.layout == "grid":
+        layers = [records[c]["layer"] for c in sorted(records) if records[c]["layer"]]
+        ok = [v.name for v in vs if rows[v.index]["status"] == "ok"]
+        write_grid_root(spec, first_scene.stage, layers, ok)
+    write_summary(os.path.join(out_dir, "summary.csv"), variants.parameter_columns(), vs, rows)
+

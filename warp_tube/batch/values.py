@@ -1,0 +1,174 @@
+"""Table cells parsed to an attribute's USD type.
+
+Syntax by type (``str(Sdf.ValueTypeName)``):
+
+- real scalars (``double``, ``float``, ``half``): a number, ``1e5``;
+- integer scalars (``int``, ``uint``, ``int64``, ``uint64``, ``uchar``): an integer;
+- ``bool``: ``true``/``false`` (also ``1``/``0``, ``yes``/``no``);
+- ``token``, ``string``: the text;
+- vectors (``float3``, ``double3``, ``point3f``, ``vector3d``, ``color3f``, ``int2`` ...): the
+  components separated by spaces or commas, optionally in parentheses: ``(0, 0.02, 0)``;
+- arrays (``int[]``, ``float[]``, ``point3f[]`` ...): ``[1, 2, 3]`` or ``[(0, 0, 0), (1, 0, 0)]``,
+  or ``@FILE`` (relative to the table): ``.npy`` (NumPy), ``.csv`` / ``.txt`` (numbers, one
+  element per line), shaped (n,) or (n, components).
+
+The value replaces the attribute's value and any time samples it had (the override is authored
+as a default value in a stronger layer).
+"""
+
+from __future__ import annotations
+
+import os
+import re
+
+import numpy as np
+
+__all__ = ["parse_value", "CONTRACT_TYPES"]
+
+REALS = ("double", "float", "half", "timecode")
+INTS = ("int", "uint", "int64", "uint64", "uchar")
+TEXTS = ("token", "string")
+_VECTOR = re.compile(r"^(?:(half|float|double|int)([234])|(point|vector|normal|color|texCoord)([234])([hfd]))$")
+_SPLIT = re.compile(r"[\s,;()\[\]]+")
+
+#: USD types of the scene contract's attributes, used when the scene does not author one.
+CONTRACT_TYPES = {
+    "warptube:youngsModulus": "double", "warptube:stretchStiffness": "double", "warptube:bendStiffness": "double",
+    "warptube:density": "double", "warptube:damping": "double", "warptube:springDamping": "double",
+    "warptube:pinnedPoints": "int[]", "warptube:anchorPoints": "int[]", "warptube:anchorStiffness": "double",
+    "warptube:spokes": "int", "warptube:spokeLengths": "float[]", "warptube:referenceNormal": "float3",
+    "warptube:frames": "token", "warptube:caps": "bool", "warptube:timeStep": "double",
+    "warptube:integrator": "token", "warptube:gravity": "float3", "warptube:point": "int",
+    "warptube:force": "float3", "warptube:assistantLine": "bool",
+}  # fmt: skip
+
+
+def _shape(type_name: str):
+    """(element kind, components, is_array) of a USD type name; kind in real, int, bool, text."""
+    array = type_name.endswith("[]")
+    base = type_name[:-2] if array else type_name
+    if base in REALS:
+        return "real", 1, array
+    if base in INTS:
+        return "int", 1, array
+    if base == "bool":
+        return "bool", 1, array
+    if base in TEXTS and not array:
+        return "text", 1, False
+    m = _VECTOR.match(base)
+    if m:
+        if m.group(1):
+            return ("int" if m.group(1) == "int" else "real"), int(m.group(2)), array
+        return "real", int(m.group(4)), array
+    return None, 0, array
+
+
+def _describe(type_name: str) -> str:
+    kind, n, array = _shape(type_name)
+    if array:
+        example = "[1, 2, 3]" if n == 1 else "[(0, 0, 0), (1, 0, 0)]" if n == 3 else f"[({', '.join(['0'] * n)}), ...]"
+        return f"a {type_name} array, e.g. {example}, or @FILE (.npy, .csv, .txt)"
+    if n > 1:
+        return f"{n} numbers (a {type_name}), e.g. ({', '.join(['0'] * n)})"
+    return {"real": f"a number (a {type_name})", "int": f"an integer (an {type_name})", "bool": "true or false",
+            "text": f"a {type_name}"}[kind]  # fmt: skip
+
+
+def _numbers(text: str, kind: str):
+    tokens = [t for t in _SPLIT.split(text) if t]
+    out = []
+    for t in tokens:
+        try:
+            out.append(int(t) if kind == "int" else float(t))
+        except ValueError:
+            return None
+    return out
+
+
+def _load_file(name: str, folder: str, files: dict):
+    path = name if os.path.isabs(name) else os.path.join(folder, name)
+    if path in files:
+        return files[path]
+    if not os.path.isfile(path):
+        raise ValueError(f"no such file {path}")
+    ext = os.path.splitext(path)[1].lower()
+    try:
+        if ext == ".npy":
+            arr = np.load(path, allow_pickle=False)
+        elif ext in (".csv", ".txt"):
+            with open(path, encoding="utf-8") as f:
+                first = f.readline()
+            arr = np.loadtxt(path, delimiter="," if "," in first else None, ndmin=1)
+        else:
+            raise ValueError(f"{path}: extension {ext or '(none)'}: expected .npy, .csv or .txt")
+    except ValueError:
+        raise
+    except Exception as e:  # a corrupt .npy raises what NumPy's reader raises
+        raise ValueError(f"{path}: not a readable array ({e})") from None
+    files[path] = arr
+    return arr
+
+
+def parse_value(text: str, type_name: str, *, folder: str = ".", is_file: bool = False, files: dict | None = None):
+    """Parse one cell for an attribute of USD type ``type_name``.
+
+    Args:
+        text: the cell.
+        type_name: the attribute's type, e.g. ``double``, ``float3``, ``point3f[]``.
+        folder: where relative file names are found (the table's folder).
+        is_file: the cell names a file whatever it looks like (a ``@`` column).
+        files: a cache of arrays already loaded, by path.
+
+    Returns:
+        A value ``UsdAttribute.Set`` takes for that type: a Python number, bool or str, a tuple
+        of numbers, or a NumPy array (arrays).
+
+    Raises:
+        ValueError: the cell does not parse; the message says what was found and what is expected.
+    """
+    files = {} if files is None else files
+    kind, n, array = _shape(type_name)
+    if kind is None:
+        raise ValueError(f"attribute type {type_name} is not supported in a table")
+    expected = _describe(type_name)
+    if text == "":
+        raise ValueError(f"empty cell: expected {expected}")
+    if is_file or text.startswith("@"):
+        if not array:
+            raise ValueError(f"found {text!r}: a file gives arrays; expected {expected}")
+        arr = _load_file(text[1:].strip() if text.startswith("@") else text, folder, files)
+        if arr.dtype.kind not in "biuf":
+            raise ValueError(f"found {text!r}: an array of {arr.dtype}: expected numbers")
+        ok = (arr.ndim == 1 and (n == 1 or arr.size % n == 0)) or (arr.ndim == 2 and arr.shape[1] == n)
+        if not ok:
+            raise ValueError(f"found {text!r}: an array of shape {arr.shape}: expected (n,) or (n, {n})")
+        values = arr.reshape(-1, n) if n > 1 else arr.reshape(-1)
+        if kind == "int":
+            if not np.all(np.equal(np.mod(values, 1), 0)):
+                raise ValueError(f"found {text!r}: non-integer values: expected integers")
+            return values.astype(np.int64)
+        if kind == "bool":
+            return values.astype(bool)
+        return values.astype(np.float64)
+    if kind == "text":
+        return text
+    if kind == "bool":
+        low = text.lower()
+        if low in ("true", "1", "yes"):
+            return True
+        if low in ("false", "0", "no"):
+            return False
+        raise ValueError(f"found {text!r}: expected {expected}")
+    nums = _numbers(text, "int" if kind == "int" else "real")
+    if nums is None or len(nums) == 0:
+        raise ValueError(f"found {text!r}: expected {expected}")
+    if array:
+        if len(nums) % n:
+            raise ValueError(f"found {text!r}: {len(nums)} numbers, not a multiple of {n}: expected {expected}")
+        arr = np.asarray(nums, dtype=np.int64 if kind == "int" else np.float64)
+        return arr.reshape(-1, n) if n > 1 else arr
+    if len(nums) != n:
+        raise ValueError(f"found {text!r}: {len(nums)} number(s): expected {expected}")
+    if n == 1:
+        return nums[0]
+    return tuple(nums)

@@ -1,0 +1,325 @@
+"""Variants of a scene: a table's rows crossed with the scene's USD variantSets, each read into a
+validated :class:`~warp_tube.scene.spec.Scene`.
+
+The scene is opened once. For each combination of variant selections, and then for each table
+row, the selections and the row's values are authored in the stage's session layer (the
+strongest layer: a value there replaces the attribute's value and any time samples of the scene's
+layers), and the scene is read again through :class:`~warp_tube.scene.usd.SceneReader`, which
+re-reads only the prims the table overrides (and the tubes below them, and forces on them). Every
+cell is parsed and every variant read before anything is simulated; all problems found are
+reported together, each naming the row, the column and what is wrong.
+"""
+
+from __future__ import annotations
+
+import contextlib
+import itertools
+import logging
+from dataclasses import dataclass
+
+import numpy as np
+
+from ..scene.spec import Scene, SceneError
+from .table import Table
+from .values import CONTRACT_TYPES, parse_value
+
+__all__ = ["VariantSetAxis", "Variant", "Variants", "find_variant_sets", "select_variant_sets", "prepare_variants",
+           "collect_variants", "raise_problems"]
+
+#: at most this many problems are listed in one message
+MAX_PROBLEMS = 10
+
+_ELEMENT_DTYPES = {
+    "int": np.int32, "uint": np.uint32, "int64": np.int64, "uint64": np.uint64, "uchar": np.uint8,
+    "half": np.float16, "float": np.float32, "double": np.float64, "bool": np.bool_,
+}  # fmt: skip
+
+
+@dataclass(frozen=True)
+class VariantSetAxis:
+    """One USD variantSet expanded: the prim holding it, its name and its variants, in order."""
+
+    prim: str
+    name: str
+    choices: tuple[str, ...]
+
+    @property
+    def label(self) -> str:
+        """``/PRIM{SET}``: the summary's column for it."""
+        return f"{self.prim}{{{self.name}}}"
+
+
+@dataclass(frozen=True)
+class Variant:
+    """One variant of the batch.
+
+    Attributes:
+        index: its place in the batch (table row major, variant selections minor).
+        name: ``variant_00000``...
+        row: its table row, or None without a table.
+        cells: the row's cells (empty without a table).
+        selection: the chosen variant of each expanded variantSet.
+        scene: the variant's validated scene.
+    """
+
+    index: int
+    name: str
+    row: int | None
+    cells: tuple[str, ...]
+    selection: tuple[str, ...]
+    scene: Scene
+
+
+@dataclass(frozen=True)
+class Variants:
+    """Every variant of a batch, in batch order, with what they were made from."""
+
+    scene_path: str
+    table: Table | None
+    axes: tuple[VariantSetAxis, ...]
+    variants: tuple[Variant, ...]
+
+    def __len__(self) -> int:
+        return len(self.variants)
+
+    def parameter_columns(self) -> list[str]:
+        """The summary's parameter columns: the table's headers, then ``/PRIM{SET}`` per axis."""
+        cols = [c.header for c in self.table.columns] if self.table is not None else []
+        return cols + [a.label for a in self.axes]
+
+
+def find_variant_sets(stage) -> list[VariantSetAxis]:
+    """The variantSets of the stage's prims (as composed with their current selections)."""
+    out = []
+    for prim in stage.Traverse():
+        sets = prim.GetVariantSets()
+        for name in sets.GetNames():
+            choices = tuple(sets.GetVariantSet(name).GetVariantNames())
+            if choices:
+                out.append(VariantSetAxis(prim=str(prim.GetPath()), name=name, choices=choices))
+    return out
+
+
+def select_variant_sets(axes: list[VariantSetAxis], spec: str, scene_path: str) -> list[VariantSetAxis]:
+    """The axes named by ``spec``: ``all``, or a comma-separated list of ``SET`` or ``/PRIM{SET}``.
+
+    Raises:
+        SceneError: a name that matches no variantSet, or a ``SET`` held by several prims.
+    """
+    found = ", ".join(a.label for a in axes) or "none"
+    if spec.strip() == "all":
+        if not axes:
+            raise SceneError(f"--variant-sets all: {scene_path} has no variantSets")
+        return list(axes)
+    out = []
+    for item in (s.strip() for s in spec.split(",")):
+        if not item:
+            continue
+        if item.startswith("/"):
+            match = [a for a in axes if a.label == item]
+        else:
+            match = [a for a in axes if a.name == item]
+            if len(match) > 1:
+                raise SceneError(f"--variant-sets {item}: held by several prims ({', '.join(a.label for a in match)}): "
+                                 "name one as /PRIM{SET}")  # fmt: skip
+        if not match:
+            raise SceneError(f"--variant-sets {item}: no such variantSet in {scene_path} (found: {found})")
+        if match[0] not in out:
+            out.append(match[0])
+    if not out:
+        raise SceneError(f"--variant-sets {spec!r}: expected all, or SET or /PRIM{{SET}} names (found: {found})")
+    return out
+
+
+def name_width(count: int) -> int:
+    """Digits of the variants' names (``variant_00000``): at least 5."""
+    return max(5, len(str(count - 1)))
+
+
+def _usd_value(value, type_name: str):
+    """A parsed cell as ``UsdAttribute.Set`` takes it for ``type_name``."""
+    if not isinstance(value, np.ndarray):
+        return value
+    from pxr import Sdf
+
+    base = type_name[:-2]
+    elem = base if base in _ELEMENT_DTYPES else {"f": "float", "d": "double", "h": "half"}.get(base[-1], None)
+    if elem is None:  # int2, float3, double4, half2 ...
+        elem = base.rstrip("234")
+    cls = Sdf.ValueTypeNames.Find(type_name).type.pythonClass
+    return cls.FromNumpy(np.ascontiguousarray(value, dtype=_ELEMENT_DTYPES[elem]))
+
+
+def _resolve_columns(stage, table: Table, context: str):
+    """Per column: the attribute to author and its USD type name (or a problem message)."""
+    from pxr import Sdf
+
+    out = []
+    for col in table.columns:
+        prim = stage.GetPrimAtPath(col.prim)
+        if not prim:
+            out.append((None, None, f"{table.path}: column {col.header}: no prim {col.prim} in {context}"))
+            continue
+        attr = prim.GetAttribute(col.attribute)
+        if attr and attr.GetTypeName():
+            out.append((attr, str(attr.GetTypeName()), None))
+        elif col.attribute in CONTRACT_TYPES:
+            t = CONTRACT_TYPES[col.attribute]
+            out.append((prim.CreateAttribute(col.attribute, Sdf.ValueTypeNames.Find(t)), t, None))
+        else:
+            out.append((None, None, f"{table.path}: column {col.header}: {col.prim} has no attribute {col.attribute} "
+                                    f"in {context} (and it is not a warptube: scene attribute)"))  # fmt: skip
+    return out
+
+
+def prepare_variants(scene_path: str, table: Table | None = None, variant_sets: str | None = None, extract=None,
+                     progress=None) -> Variants:  # fmt: skip
+    """Read every variant of a batch, checking everything before anything runs.
+
+    Args, Raises: as :func:`collect_variants`, which this runs and whose problems it raises.
+    """
+    variants, problems = collect_variants(scene_path, table, variant_sets, extract, progress)
+    raise_problems(problems)
+    return variants
+
+
+def raise_problems(problems: list) -> None:
+    """Raise one SceneError listing ``problems`` ((row, message) pairs) in row order, if any."""
+    if problems:
+        problems = sorted(problems, key=lambda p: p[0])
+        head = [msg for _, msg in problems[:MAX_PROBLEMS]]
+        more = f"\n  ... and {len(problems) - MAX_PROBLEMS} more" if len(problems) > MAX_PROBLEMS else ""
+        raise SceneError(f"{len(problems)} problem(s) in the variants; nothing was run:\n  " + "\n  ".join(head) + more)
+
+
+class _Once(logging.Filter):
+    """Lets each distinct message through once (the same warning for every variant is one)."""
+
+    def __init__(self):
+        super().__init__()
+        self.seen = set()
+
+    def filter(self, record) -> bool:
+        message = record.getMessage()
+        if message in self.seen:
+            return False
+        self.seen.add(message)
+        return True
+
+
+@contextlib.contextmanager
+def _warn_once(name: str):
+    logger, once = logging.getLogger(name), _Once()
+    logger.addFilter(once)
+    try:
+        yield
+    finally:
+        logger.removeFilter(once)
+
+
+def collect_variants(scene_path: str, table: Table | None = None, variant_sets: str | None = None, extract=None,
+                     progress=None) -> tuple[Variants, list]:  # fmt: skip
+    """Read every variant of a batch (or of a part of its table), collecting the problems.
+
+    Args:
+        scene_path: the scene file.
+        table: the variants table, or None (then ``variant_sets`` alone makes the variants).
+        variant_sets: ``all``, a comma-separated list of ``SET`` / ``/PRIM{SET}``, or None.
+        extract: the extraction hook for ``Mesh`` tubes (as :func:`warp_tube.scene.usd.load_scene`).
+        progress: None, or a callable taking the number of variants read so far.
+
+    Returns:
+        The variants (None where a variant has a problem) and the problems, (row or -1, message)
+        pairs, each message naming the row (and line), the column and the problem.
+
+    Raises:
+        SceneError: the scene itself is invalid, or the request is (``variant_sets``, no table).
+    """
+    with _warn_once("warp_tube.scene.usd"):  # a scene's warning, once, not once per variant
+        return _collect(scene_path, table, variant_sets, extract, progress)
+
+
+def _collect(scene_path, table, variant_sets, extract, progress):
+    from pxr import Usd
+
+    from ..scene.usd import SceneReader, open_stage
+
+    if table is None and not variant_sets:
+        raise SceneError("nothing to vary: give --variants TABLE, --variant-sets, or both")
+    stage = open_stage(scene_path)
+    reader = SceneReader(stage, scene_path, extract)
+    reader.read()  # the scene as it is must be valid
+    axes = select_variant_sets(find_variant_sets(stage), variant_sets, scene_path) if variant_sets else []
+    combos = list(itertools.product(*[a.choices for a in axes]))
+    n_rows = len(table.rows) if table is not None else 1
+    total_rows = (table.first_row + n_rows) if table is not None else 1
+    width = name_width(total_rows * len(combos))
+    stage.SetEditTarget(Usd.EditTarget(stage.GetSessionLayer()))
+    out: list = [None] * (n_rows * len(combos))
+    problems: list[tuple[int, str]] = []  # (row or -1, message)
+    files: dict = {}
+    parsed_cache: dict = {}
+    done = 0
+    for c, combo in enumerate(combos):
+        for axis, choice in zip(axes, combo):
+            stage.GetPrimAtPath(axis.prim).GetVariantSet(axis.name).SetVariantSelection(choice)
+        chosen = ", ".join(f"{a.label} = {ch}" for a, ch in zip(axes, combo))
+        context = f"{scene_path}" + (f" with {chosen}" if chosen else "")
+        try:
+            base = reader.read()
+        except SceneError as e:
+            problems.append((-1, f"{context}: {e}" if chosen else str(e)))
+            continue
+        if table is None:
+            out[c] = Variant(index=c, name=f"variant_{c:0{width}d}", row=None, cells=(), selection=combo, scene=base)
+            done += 1
+            continue
+        columns = _resolve_columns(stage, table, context)
+        bad_cols = [msg for _, _, msg in columns if msg]
+        if bad_cols:
+            problems += [(-1, msg) for msg in bad_cols]
+            continue
+        changed = sorted({col.prim for col in table.columns})
+        seen_rows: dict = {}
+        for r, cells in enumerate(table.rows, start=table.first_row):
+            here = (r - table.first_row) * len(combos) + c  # in this (part of the) table
+            index = r * len(combos) + c  # in the batch
+            name = f"variant_{index:0{width}d}"
+            if cells in seen_rows:  # the same values as an earlier row: the same scene
+                out[here] = Variant(index, name, r, cells, combo, seen_rows[cells])
+                done += 1
+                continue
+            values, ok = [], True
+            for col, (attr, type_name, _), text in zip(table.columns, columns, cells):
+                key = (type_name, col.files, text)
+                try:
+                    if key not in parsed_cache:
+                        parsed_cache[key] = _usd_value(
+                            parse_value(text, type_name, folder=table.folder, is_file=col.files, files=files), type_name)
+                    values.append((attr, parsed_cache[key]))
+                except ValueError as e:
+                    problems.append((r, f"{table.where(r, col)}: {e}"))
+                    ok = False
+            if not ok:
+                continue
+            for attr, value in values:
+                if not attr.Set(value):
+                    problems.append((r, f"{table.where(r)}: {attr.GetPath()}: usd-core refused the value"))
+                    ok = False
+            if not ok:
+                continue
+            try:
+                scene = reader.read(changed=changed)
+            except SceneError as e:
+                msg = str(e)
+                col = next((col for col in table.columns if col.target in msg), None)
+                problems.append((r, f"{table.where(r, col)}{' with ' + chosen if chosen else ''}: {msg}"))
+                continue
+            seen_rows[cells] = scene
+            out[here] = Variant(index, name, r, cells, combo, scene)
+            done += 1
+            if progress is not None:
+                progress(done)
+        if len(problems) > 10 * MAX_PROBLEMS:
+            break
+    return Variants(scene_path=scene_path, table=table, axes=tuple(axes), variants=tuple(out)), problems

@@ -1,0 +1,132 @@
+"""Variants of one topology as the worlds of one model: per-world parameter arrays, one launch.
+
+:func:`build_worlds` discretises all the variants at once (``build_model`` of a scene holding every
+variant's tubes, one after another) and reads the result as ``(world, node)`` arrays: each model
+parameter array of shape (1, N) becomes (W, N), so world ``w`` holds variant ``w``'s masses,
+stiffnesses, rest shape and damping (the kernels read parameters at ``[w % rows, i]``). The
+topology (tube and force layout) is the first variant's, which every variant of a group shares
+(:mod:`warp_tube.batch.plan`). The surface of each tube prim is one ``SurfaceBuilder`` over all
+worlds, with per-world spoke lengths.
+"""
+
+from __future__ import annotations
+
+import dataclasses
+from dataclasses import dataclass
+
+import numpy as np
+import warp as wp
+
+from ..model.tube import TubeModel, build_model
+from ..scene.spec import Scene
+
+__all__ = ["Worlds", "build_worlds", "combined_scene"]
+
+#: host arrays of the combined model that hold one value (or vector) per node
+PER_NODE_HOST = ("node_rest_q", "node_mass", "node_inv_mass", "node_damping", "seg_rest_length", "seg_ke", "seg_kd",
+                 "node_bend_k", "node_kappa_rest", "node_anchor_k", "node_anchor_kd", "node_radius")  # fmt: skip
+
+
+def combined_scene(scenes: list[Scene]) -> Scene:
+    """One scene holding every scene's tubes and forces, scene after scene (forces re-targeted)."""
+    tubes, forces = [], []
+    for s in scenes:
+        offset = len(tubes)
+        tubes.extend(s.tubes)
+        forces.extend(dataclasses.replace(f, tube=f.tube + offset) if offset else f for f in s.forces)
+    first = scenes[0]
+    return Scene(tubes=tuple(tubes), forces=tuple(forces), settings=first.settings, stage=first.stage, source=first.source)
+
+
+@dataclass
+class Worlds:
+    """A chunk's variants as worlds.
+
+    Attributes:
+        scenes: the variants' scenes, one per world.
+        model: the model, ``world_count`` = W, parameter arrays (W, N).
+        host: per-world host arrays (float64): name -> (W, N) or (W, N, 3), see :data:`PER_NODE_HOST`.
+        prim_start: first node of each tube prim, (prims + 1,) (the last entry: N).
+        surfaces: per tube prim a ``SurfaceBuilder`` over the W worlds, or None.
+        vertex_start: first surface vertex of each prim in a world's concatenated vertices,
+            (prims + 1,), or None.
+    """
+
+    scenes: list
+    model: TubeModel
+    host: dict
+    prim_start: np.ndarray
+    surfaces: list | None
+    vertex_start: np.ndarray | None
+
+    @property
+    def world_count(self) -> int:
+        return self.model.world_count
+
+    def rest_q(self) -> np.ndarray:
+        """Rest positions [m], (W, N, 3) float64."""
+        return self.host["node_rest_q"]
+
+
+def build_worlds(scenes: list[Scene], device: str, surface: bool) -> Worlds:
+    """Discretise ``scenes`` (one topology) as the worlds of one model on ``device``."""
+    W = len(scenes)
+    flat = build_model(combined_scene(scenes), world_count=1, device=device)
+    one = build_model(scenes[0], world_count=W, device=device)
+    N = one.node_count
+    if flat.node_count != W * N:
+        raise ValueError(f"variants of one group have {flat.node_count} nodes in all, expected {W} x {N}")
+    per_world = {}
+    for f in dataclasses.fields(one):
+        value = getattr(one, f.name)
+        if isinstance(value, wp.array) and value.ndim == 2 and value.shape == (1, N):
+            per_world[f.name] = getattr(flat, f.name).reshape((W, N))
+    model = dataclasses.replace(one, features=flat.features, **per_world)
+    host = {name: flat.host[name].reshape((W, N) + flat.host[name].shape[1:]) for name in PER_NODE_HOST}
+    prim_start = np.append(one.host["prim_node_start"], N)
+    surfaces = vertex_start = None
+    if surface:
+        surfaces = _surface_builders(scenes, prim_start, device)
+        vertex_start = np.concatenate([[0], np.cumsum([b.vertex_count for b in surfaces])])
+    return Worlds(scenes=list(scenes), model=model, host=host, prim_start=prim_start, surfaces=surfaces,
+                  vertex_start=vertex_start)  # fmt: skip
+
+
+def _surface_builders(scenes, prim_start, device):
+    """Per tube prim, a SurfaceBuilder over all worlds, as ``Simulation`` builds one per prim."""
+    from ..surface.builder import SurfaceBuilder
+
+    out = []
+    W = len(scenes)
+    for k, t in enumerate(scenes[0].tubes):
+        lengths = []
+        for s in scenes:
+            u = s.tubes[k]
+            lengths.append(u.spoke_lengths if u.spoke_lengths is not None else np.repeat(u.radius[:, None], u.params.spokes, axis=1))
+        lengths = np.stack(lengths)
+        if np.all(lengths == lengths[:1]):
+            lengths = lengths[0]  # one row serves every world
+        out.append(
+            SurfaceBuilder(
+                tube_node_start=prim_start[k] + np.concatenate([[0], np.cumsum(t.curve_counts)]),
+                rest_q=t.points, spokes=t.params.spokes, spoke_lengths=lengths,
+                reference_normal=t.params.reference_normal, frames=t.params.frames, caps=t.params.caps,
+                world_count=W, device=device,
+            )  # fmt: skip
+        )
+    return out
+
+
+def initial_state(worlds: Worlds):
+    """``(state, next_state, control)`` at rest: each world at its own rest shape, pins there."""
+    m = worlds.model
+    q = worlds.rest_q()
+    hi = q.astype(np.float32)
+    state, next_state, control = m.state(), m.state(), m.control()
+    # As TubeModel.state: the low-order part is the rounding of the rest positions.
+    for s in (state, next_state):
+        s.node_q.assign(hi)
+        s.node_q_lo.assign((q - hi).astype(np.float32))
+    control.pin_q_start.assign(q.astype(np.float32))
+    control.pin_q_end.assign(q.astype(np.float32))
+    return state, next_state, control
