@@ -219,27 +219,23 @@ def make_onchip_kernel(features: Features, block_dim: int):
                         if i + 1 < end - 1:
                             ep1 = delta6(s_p1, wp.tile_extract(buf, p, lane + 2))
                             if kb_p1 != 0.0:
-                                ga, gb = bend_gradients(e0, ep1, zero, kb_p1)
+                                ga, gb, kb = bend_gradients(e0, ep1, zero, kb_p1)
                                 f += ga
                         if i > start and i < end - 1:
                             if kb_0 != 0.0:
-                                ga, gb = bend_gradients(em1, e0, zero, kb_0)
+                                ga, gb, kb = bend_gradients(em1, e0, zero, kb_0)
                                 f += gb - ga
                         if i - 1 > start:
                             em2 = delta6(wp.tile_extract(buf, p, lane - 2), s_m1)
                             if kb_m1 != 0.0:
-                                ga, gb = bend_gradients(em2, em1, zero, kb_m1)
+                                ga, gb, kb = bend_gradients(em2, em1, zero, kb_m1)
                                 f -= gb
                     # The other forces (gravity and the external force fixed over the frame),
                     # summed in the order node_force of .integrate uses.
-                    fo = zero
+                    fo = f_grav + f_ext
                     if wp.static(ANCHORS):
                         if ka > 0.0:
-                            fo -= (x - x_rest) * ka + v * kad
-                    if wp.static(GRAVITY):
-                        fo += f_grav
-                    if wp.static(EXTERNAL):
-                        fo += f_ext
+                            fo = fo - (x - x_rest) * ka - v * kad
                     f += fo
                     x, lo, v = advance(x, lo, v, f, im, alpha, dt)
         if active:

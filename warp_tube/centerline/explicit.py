@@ -120,28 +120,19 @@ class SemiImplicitEulerSolver:
     # -- one substep on the per-node path ------------------------------------------------------
     def _launch_step(self, s_in: TubeState, s_out: TubeState, c: TubeControl, dt: float, frac: float):
         m = self.model
+        state, control = pack(StateArrays, s_in), pack(ControlArrays, c)
         if m.features.curved:
             wp.launch(self.targets_kernel, (m.world_count, m.tube_count), device=self.device,
-                      inputs=[m.tube_node_start, m.node_rest_q, m.node_kappa_rest, m.node_bend_k, s_in.node_q, s_in.node_q_lo],
-                      outputs=[self._kappa_target, self._f_frame])  # fmt: skip
+                      inputs=[self._model_arrays, state], outputs=[self._kappa_target, self._f_frame])  # fmt: skip
         wp.launch(
-            self.step_kernel, (m.world_count, m.node_count), device=self.device,
-            block_dim=self.block_dim,
-            inputs=[frac, dt, m.node_tube, m.tube_node_start, m.node_rest_q, m.node_mass, m.node_inv_mass,
-                    m.node_damping, m.seg_rest_length, m.seg_ke, m.seg_kd, m.node_bend_k, m.node_anchor_k,
-                    m.node_anchor_kd, m.gravity, m.tube_force_start, m.force_node, m.al_start,
-                    s_in.node_q, s_in.node_q_lo, s_in.node_qd, self._kappa_target, s_in.al_q, s_in.al_q_lo, s_in.al_qd,
-                    self._f_frame, c.node_f_ext, c.pin_q_start, c.pin_q_end, c.al_active, c.al_link_length,
-                    c.al_fwd_length, c.al_bwd_length],
+            self.step_kernel, (m.world_count, m.node_count), device=self.device, block_dim=self.block_dim,
+            inputs=[frac, dt, m.node_tube, self._model_arrays, state, control, self._kappa_target, self._f_frame],
             outputs=[s_out.node_q, s_out.node_q_lo, s_out.node_qd],
         )  # fmt: skip
         if m.features.assistant_line:
             wp.launch(
                 self.al_kernel, (m.world_count, m.al_slots), device=self.device,
-                inputs=[dt, m.force_tube, m.tube_node_start, m.node_mass, m.node_damping, m.seg_ke, m.seg_kd,
-                        m.force_node, m.al_start, m.al_force_index, s_in.node_q, s_in.node_q_lo, s_in.node_qd, s_in.al_q,
-                        s_in.al_q_lo, s_in.al_qd, c.al_active, c.al_link_length, c.al_chord_length, c.al_fwd_length,
-                        c.al_bwd_length],
+                inputs=[dt, m.force_tube, m.al_force_index, self._model_arrays, state, control],
                 outputs=[s_out.al_q, s_out.al_q_lo, s_out.al_qd],
             )  # fmt: skip
 

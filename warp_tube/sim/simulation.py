@@ -39,12 +39,22 @@ IMPLICIT_DT = 1.0 / 240.0
 #: cost of an implicit substep over a semi-implicit one, per node (measured on the CPU: ~0.8 us
 #: against ~0.05 us; benchmarks/bench_integrators.py).
 IMPLICIT_COST_RATIO = 16.0
+#: with assistant lines (solved with the centerline) the implicit substep costs this much more again
+#: per line on a tube, relative to a semi-implicit substep with the same lines (measured on the CPU,
+#: 41 points, one line: ~5.0 us against ~0.11 us per node, i.e. ~3 x IMPLICIT_COST_RATIO).
+IMPLICIT_AL_COST = 3.0
 #: the largest substep multiplier ``auto`` tries for a frame that blew up.
 MAX_RETRY_FACTOR = 16
 #: no assistant line is built for a force within this angle of the tube's axis [rad].
 AL_MIN_ANGLE = math.radians(15.0)
 #: a free point farther than this many tube lengths from its rest position is a blow-up.
 RUNAWAY_LENGTHS = 1.0e3
+
+
+def implicit_cost_ratio(model) -> float:
+    """Cost of an implicit substep over a semi-implicit one for ``model`` (see the constants)."""
+    lines = model.al_lines if model.features.assistant_line else 0
+    return IMPLICIT_COST_RATIO * IMPLICIT_AL_COST**lines
 
 
 class NumericalError(RuntimeError):
@@ -171,14 +181,7 @@ class Simulation:
         s = self.scene.settings
         hc = self.critical_dt
         semi_dt = SAFETY * hc
-        has_al = self.model.features.assistant_line
         if s.integrator == "implicitEuler":
-            if has_al:
-                raise SceneError(
-                    f"{self.scene.source}: integrator 'implicitEuler' does not integrate the assistant line of "
-                    "a force with warptube:assistantLine = true: set assistantLine = false on the force, or use "
-                    "'auto' or 'semiImplicitEuler'"
-                )
             dt = min(s.time_step or IMPLICIT_DT, self.frame_dt)
             return "implicitEuler", f"from the scene, substep {dt:.3g} s", dt
         if s.integrator == "semiImplicitEuler":
@@ -199,13 +202,13 @@ class Simulation:
         impl_steps = math.ceil(self.frame_dt / impl_dt - 1e-9)
         if s.time_step is not None and s.time_step <= hc:
             return "semiImplicitEuler", f"auto: timeStep {s.time_step:.3g} s is within the stability bound {hc:.3g} s", s.time_step
-        cheaper = impl_steps * IMPLICIT_COST_RATIO < semi_steps
-        if cheaper and not has_al:
+        cost = implicit_cost_ratio(self.model)
+        if impl_steps * cost < semi_steps:
             return "implicitEuler", (
                 f"auto: stiff ({semi_steps} stable semi-implicit substeps a frame against {impl_steps} implicit "
-                f"ones at ~{IMPLICIT_COST_RATIO:g}x the cost each)"
+                f"ones at ~{cost:g}x the cost each)"
             ), impl_dt
-        why = "the assistant line needs it" if cheaper else f"cheaper than implicit ({impl_steps} substeps at ~{IMPLICIT_COST_RATIO:g}x the cost)"
+        why = f"cheaper than implicit ({impl_steps} substeps at ~{cost:g}x the cost)"
         return "semiImplicitEuler", f"auto: {semi_steps} substeps a frame at {SAFETY:g} x the stability bound {hc:.3g} s; {why}", semi_dt
 
     def _build_surfaces(self):
@@ -388,8 +391,8 @@ class Simulation:
 
     def _switch_to_implicit(self, problem: str) -> bool:
         """``auto``'s last resort for a frame semi-implicit Euler cannot take: implicit Euler
-        from now on (not with an assistant line, which only the semi-implicit solver has)."""
-        if self.integrator != "semiImplicitEuler" or self.model.features.assistant_line:
+        from now on."""
+        if self.integrator != "semiImplicitEuler":
             return False
         from ..centerline.implicit import ImplicitEulerSolver
 
