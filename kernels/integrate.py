@@ -1,14 +1,12 @@
 """Semi-implicit Euler integration of the centerline, specialised to a scene's features.
 
-:func:`make_kernels` builds, for one combination of :class:`~.springs.Features`, kernels that
-sum the force terms of :mod:`.springs`:
-
-- ``substeps``: one thread per (world, tube) runs a whole frame's substeps in a loop, with no
-  round trip to Python between them (the CPU path: a launch costs ~15 us there, a substep of a
-  20-point tube well under that). Each spring and stencil is evaluated once and added to all
-  its nodes.
-- ``step_nodes`` (+ ``step_al``, ``targets``): one thread per (world, node) advances one substep
-  from ``*_in`` to ``*_out``, gathering the terms around its node.
+:func:`make_kernels` builds, for one combination of :class:`~.springs.Features`, the per-tube
+kernel ``substeps``: one thread per (world, tube) runs a whole frame's substeps in a loop, with no
+round trip to Python between them (the CPU path: a launch costs ~15 us there, a substep of a
+20-point tube well under that; on CUDA, the path of tubes longer than the on-chip kernel's block).
+Each spring and stencil of :mod:`.springs` is evaluated once and added to all its nodes; the
+curved frames are carried along the tube in order (:func:`~.springs.curvature_targets`,
+:func:`~.springs.frame_forces`).
 
 Features a scene does not use are compiled out with ``wp.static``: a straight tube with no anchors,
 gravity, damping or assistant line evaluates only its structural and bending springs.
@@ -56,7 +54,7 @@ class ScratchArrays:
     node_kappa_target: wp.array2d[wp.vec3]
 
 
-#: Options of the per-node (CUDA path) kernels' modules: fast approximate division and square root.
+#: Options of the CUDA kernels' modules (the on-chip kernel): fast approximate division and square root.
 CUDA_OPTIONS = {"fast_math": True}
 
 
@@ -213,154 +211,4 @@ def make_kernels(features: Features):
                             state_out.al_q_lo[w, p] = lo_new
                             state_out.al_qd[w, p] = v_new
 
-    @wp.kernel(enable_backward=False, module="unique")
-    def targets(
-        model: ModelArrays,
-        state_in: StateArrays,
-        # out:
-        node_kappa_target: wp.array2d[wp.vec3],
-        node_f_frame: wp.array2d[wp.vec3],
-    ):
-        """Curvature targets of curved rest shapes and the forces of their dependence on the
-        shape [N], one thread per (world, tube)."""
-        w, t = wp.tid()
-        pw = w % model.node_rest_q.shape[0]
-        start = model.tube_node_start[t]
-        end = model.tube_node_start[t + 1]
-        curvature_targets(w, pw, start, end, state_in.node_q, model.node_rest_q, model.node_kappa_rest, node_kappa_target)
-        for i in range(start, end):
-            node_f_frame[w, i] = wp.vec3(0.0)
-        frame_forces(w, pw, start, end, state_in.node_q, state_in.node_q_lo, model.node_rest_q, model.node_bend_k, node_kappa_target, node_f_frame)
-
-    @wp.func
-    def al_node_force(model: ModelArrays, control: ControlArrays, s: StateArrays, w: int, pw: int, t: int, i: int, start: int, end: int) -> wp.vec3:
-        """Force [N] on node ``i`` from the line springs that end on it (owned by line points
-        ``i``, ``i - 1`` forward, ``i + 1`` backward)."""
-        f = wp.vec3(0.0)
-        for a in range(model.tube_force_start[t], model.tube_force_start[t + 1]):
-            if control.al_active[w, a] != 0:
-                fp, r = al_point(model, control, s, w, pw, a, i, start, end)
-                f += r[0]
-                if i > start:
-                    fp, r = al_point(model, control, s, w, pw, a, i - 1, start, end)
-                    f += r[2]
-                if i < end - 1:
-                    fp, r = al_point(model, control, s, w, pw, a, i + 1, start, end)
-                    f += r[3]
-        return f
-
-    @wp.kernel(enable_backward=False, module="unique", module_options=CUDA_OPTIONS)
-    def step_nodes(
-        frac: float,
-        dt: float,
-        node_tube: wp.array[int],
-        model: ModelArrays,
-        state_in: StateArrays,
-        control: ControlArrays,
-        node_kappa_target: wp.array2d[wp.vec3],
-        node_f_frame: wp.array2d[wp.vec3],
-        # out:
-        node_q_out: wp.array2d[wp.vec3],
-        node_q_lo_out: wp.array2d[wp.vec3],
-        node_qd_out: wp.array2d[wp.vec3],
-    ):
-        """One substep of ``dt`` [s] for one node; ``frac`` is the pin targets' progress."""
-        w, i = wp.tid()
-        pw = w % model.node_mass.shape[0]
-        im = model.node_inv_mass[pw, i]
-        node_q_in = state_in.node_q
-        node_q_lo_in = state_in.node_q_lo
-        node_qd_in = state_in.node_qd
-        if im == 0.0:
-            x_new = wp.lerp(control.pin_q_start[w, i], control.pin_q_end[w, i], frac)
-            node_qd_out[w, i] = (x_new - node_q_in[w, i]) / dt
-            node_q_out[w, i] = x_new
-            node_q_lo_out[w, i] = wp.vec3(0.0)
-            return
-        t = node_tube[i]
-        start = model.tube_node_start[t]
-        end = model.tube_node_start[t + 1]
-        # Each node evaluates its two springs and three bending stencils itself, from the four
-        # edges around it, each formed once from the compensated positions.
-        v = node_qd_in[w, i]
-        f = wp.vec3(0.0)
-        zero = wp.vec3(0.0)
-        em2 = zero
-        em1 = zero
-        e0 = zero
-        ep1 = zero
-        if i - 1 >= start:
-            em1 = node_delta(node_q_in, node_q_lo_in, w, i - 1, i)
-            kd = float(0.0)
-            if wp.static(SPRING_DAMPING):
-                kd = model.seg_kd[pw, i - 1]
-            f += spring_force(-em1, node_qd_in[w, i - 1] - v, model.seg_rest_length[pw, i - 1], model.seg_ke[pw, i - 1], kd)
-        if i + 1 < end:
-            e0 = node_delta(node_q_in, node_q_lo_in, w, i, i + 1)
-            kd = float(0.0)
-            if wp.static(SPRING_DAMPING):
-                kd = model.seg_kd[pw, i]
-            f += spring_force(e0, node_qd_in[w, i + 1] - v, model.seg_rest_length[pw, i], model.seg_ke[pw, i], kd)
-        if wp.static(BENDING):
-            kt = w % node_kappa_target.shape[0]
-            if i + 1 < end - 1:
-                ep1 = node_delta(node_q_in, node_q_lo_in, w, i + 1, i + 2)
-                k = model.node_bend_k[pw, i + 1]
-                if k != 0.0:
-                    ga, gb, kb = bend_gradients(e0, ep1, node_kappa_target[kt, i + 1], k)
-                    f += ga
-            if i > start and i < end - 1:
-                k = model.node_bend_k[pw, i]
-                if k != 0.0:
-                    ga, gb, kb = bend_gradients(em1, e0, node_kappa_target[kt, i], k)
-                    f += gb - ga
-            if i - 1 > start:
-                em2 = node_delta(node_q_in, node_q_lo_in, w, i - 2, i - 1)
-                k = model.node_bend_k[pw, i - 1]
-                if k != 0.0:
-                    ga, gb, kb = bend_gradients(em2, em1, node_kappa_target[kt, i - 1], k)
-                    f -= gb
-        if wp.static(CURVED):
-            f += node_f_frame[w, i]
-        f += node_force(load_node(model, control, w, pw, i), node_q_in[w, i], v)
-        if wp.static(AL):
-            f += al_node_force(model, control, state_in, w, pw, t, i, start, end)
-        x_new, lo_new, v_new = advance(node_q_in[w, i], node_q_lo_in[w, i], v, f, im, model.node_damping[pw, i], dt)
-        node_q_out[w, i] = x_new
-        node_q_lo_out[w, i] = lo_new
-        node_qd_out[w, i] = v_new
-
-    @wp.kernel(enable_backward=False, module="unique", module_options=CUDA_OPTIONS)
-    def step_al(
-        dt: float,
-        force_tube: wp.array[int],
-        al_force_index: wp.array[int],
-        model: ModelArrays,
-        state_in: StateArrays,
-        control: ControlArrays,
-        # out:
-        al_q_out: wp.array2d[wp.vec3],
-        al_q_lo_out: wp.array2d[wp.vec3],
-        al_qd_out: wp.array2d[wp.vec3],
-    ):
-        """One substep for one assistant-line point (thread per (world, AL slot)): its own springs
-        and the chord owned by the point before it."""
-        w, p = wp.tid()
-        a = al_force_index[p]
-        if control.al_active[w, a] == 0:
-            return
-        pw = w % model.node_mass.shape[0]
-        t = force_tube[a]
-        start = model.tube_node_start[t]
-        end = model.tube_node_start[t + 1]
-        i = start + (p - model.al_start[a])
-        f, r = al_point(model, control, state_in, w, pw, a, i, start, end)
-        if i > start:
-            fp, r = al_point(model, control, state_in, w, pw, a, i - 1, start, end)
-            f += r[1]
-        x_new, lo_new, v_new = advance(state_in.al_q[w, p], state_in.al_q_lo[w, p], state_in.al_qd[w, p], f, 1.0 / model.node_mass[pw, i], model.node_damping[pw, i], dt)
-        al_q_out[w, p] = x_new
-        al_q_lo_out[w, p] = lo_new
-        al_qd_out[w, p] = v_new
-
-    return substeps, targets, step_nodes, step_al
+    return substeps
