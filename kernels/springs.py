@@ -493,6 +493,77 @@ def al_segment(code: int, this: float, prev: float) -> float:
     return this
 
 
+# -- the stability bound's row sums, term by term ---------------------------------------------
+# Semi-implicit Euler's step bound (warp_tube.centerline.stability) takes the highest natural
+# frequency from Gershgorin's theorem on M^-1 K: each term adds to the rows of the nodes it acts on
+# the sum of the absolute entries of its stiffness, as below; ``stability_rows_kernel`` sums them.
+
+
+@wp.func
+def spring_rows(ke: wp.float64) -> wp.float64:
+    """Row sum [N/m] a spring of stiffness ``ke`` (:func:`spring_stiffness` along it) adds to each of
+    its ends: the diagonal and the neighbour, ``2 ke``."""
+    return wp.float64(2.0) * ke
+
+
+@wp.func
+def bend_rows(k: wp.float64, la: wp.float64, lb: wp.float64) -> wp.vec3d:
+    """Row sums [N/m] of a bending stencil's Gauss-Newton stiffness ``k J^T J`` on its (prev, mid,
+    next) nodes: ``k |J_m| sum_n |J_n|`` with the Jacobian magnitudes of a straight stencil of edge
+    lengths ``la``, ``lb`` (:func:`bend_jacobians`: ``|dkb/da| = 2 |b| / D = 1 / |a|``),
+    ``(1/la, 1/la + 1/lb, 1/lb)``."""
+    jac = wp.vec3d(wp.float64(1.0) / la, wp.float64(1.0) / la + wp.float64(1.0) / lb, wp.float64(1.0) / lb)
+    return (jac * k) * (jac[0] + jac[1] + jac[2])
+
+
+@wp.func
+def anchor_rows(ka: wp.float64) -> wp.float64:
+    """Row sum [N/m] of a returning spring of stiffness ``ka``, counted as a spring (``2 ka``)."""
+    return wp.float64(2.0) * ka
+
+
+@wp.func
+def al_rows(axial: wp.float64, lines: int) -> wp.float64:
+    """Row sum [N/m] the assistant lines add at a node whose structural springs add ``axial``: per
+    line a link and a tractive spring beside every structural spring (:func:`al_springs`, with the
+    stiffness of the segment beside them), ``2 lines axial``."""
+    return wp.float64(2.0 * float(lines)) * axial
+
+
+@wp.kernel(enable_backward=False, module="unique")
+def stability_rows_kernel(
+    lines: int,
+    tube_node_start: wp.array[int],
+    seg_rest_length: wp.array[wp.float64],
+    seg_ke: wp.array[wp.float64],
+    node_bend_k: wp.array[wp.float64],
+    node_anchor_k: wp.array[wp.float64],
+    rows_out: wp.array[wp.float64],
+):
+    """Gershgorin row sums [N/m] of the stiffness of one tube (thread per tube), from the terms'
+    row functions above; ``lines`` assistant lines on every tube."""
+    t = wp.tid()
+    start = tube_node_start[t]
+    end = tube_node_start[t + 1]
+    zero = wp.float64(0.0)
+    for i in range(start, end):
+        rows_out[i] = zero
+    for i in range(start, end - 1):
+        r = spring_rows(seg_ke[i])
+        rows_out[i] = rows_out[i] + r
+        rows_out[i + 1] = rows_out[i + 1] + r
+    for i in range(start, end):
+        rows_out[i] = rows_out[i] + al_rows(rows_out[i], lines)
+    for j in range(start + 1, end - 1):
+        if node_bend_k[j] > zero:
+            r3 = bend_rows(node_bend_k[j], seg_rest_length[j - 1], seg_rest_length[j])
+            rows_out[j - 1] = rows_out[j - 1] + r3[0]
+            rows_out[j] = rows_out[j] + r3[1]
+            rows_out[j + 1] = rows_out[j + 1] + r3[2]
+    for i in range(start, end):
+        rows_out[i] = rows_out[i] + anchor_rows(node_anchor_k[i])
+
+
 # -- node terms: returning spring, gravity, point force; mass damping -------------------------
 
 
