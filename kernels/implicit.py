@@ -128,8 +128,8 @@ def make_factor_solve(bandwidth: int):
             for dd in range(1, wp.static(B + 1)):
                 if i + dd < u1:
                     a = s.mat_l[w, i, dd - 1]
-                    for m in range(1, wp.static(B + 1) - dd):
-                        if i - m >= u0:
+                    for m in range(1, wp.static(B)):
+                        if dd + m <= wp.static(B) and i - m >= u0:
                             a = a - s.mat_l[w, i - m, dd + m - 1] * s.mat_d[w, i - m] * wp.transpose(s.mat_l[w, i - m, m - 1])
                     s.mat_l[w, i, dd - 1] = a * dinv
         for i in range(u0, u1):
@@ -216,6 +216,7 @@ def make_implicit_kernel(features: Features, al_lines: int = 0):
     PER_NODE = 1 + K  # unknowns per node
     factor_solve = make_factor_solve(2 * PER_NODE)
     load_node, node_force, node_energy, node_stiffness, node_damping, _ = make_node_terms(features)
+    NODE_STIFFNESS = features.anchors  # the node terms with stiffness and damping blocks
 
     @wp.func(inline=True)
     def unknown(model: ModelArrays, control: ControlArrays, w: int, t: int, start: int, u: int) -> wp.vec3i:
@@ -274,7 +275,7 @@ def make_implicit_kernel(features: Features, al_lines: int = 0):
             return wp.vec2(model.seg_kd[pw, i], model.seg_kd[pw, wp.max(i - 1, 0)])
         return wp.vec2(0.0)
 
-    @wp.func(inline=True)
+    @wp.func
     def set_iterate(
         w: int, pw: int, t: int, start: int, end: int, h: wp.float64, step: wp.float64,
         model: ModelArrays, control: ControlArrays, scratch: ImplicitScratch, state: StateArrays,
@@ -287,7 +288,7 @@ def make_implicit_kernel(features: Features, al_lines: int = 0):
                 v_new = scratch.v_it[w, u] + scratch.r[w, u] * step
                 set_unknown(state, w, ref, scratch.x0[w, u] + v_new * h, v_new)
 
-    @wp.func(inline=True)
+    @wp.func
     def merit(
         w: int, pw: int, t: int, start: int, end: int, h: wp.float64,
         model: ModelArrays, control: ControlArrays, scratch: ImplicitScratch, state: StateArrays,
@@ -317,7 +318,9 @@ def make_implicit_kernel(features: Features, al_lines: int = 0):
                 g += half * wp.float64(model.node_damping[pw, i]) * m * wp.length_sq(dy) / h
             if ref[0] == 0:
                 p = load_node(model, control, w, pw, i)
-                g += node_energy(p, y) + half * wp.float64(node_damping(p)) * wp.length_sq(dy) / h
+                g += node_energy(p, y)
+                if wp.static(NODE_STIFFNESS):
+                    g += half * wp.float64(node_damping(p)) * wp.length_sq(dy) / h
             if wp.static(AL):
                 if ref[0] == 1:
                     springs, nb, d, dv, d0, rest = line_point(model, control, w, pw, t, start, end, u, ref, scratch, state)
@@ -403,7 +406,8 @@ def make_implicit_kernel(features: Features, al_lines: int = 0):
             if ref[0] == 0:
                 p = load_node(model, control, w, pw, i)
                 f = f + node_force(p, unknown_position(state, w, ref), v)
-                a = a + eye * (h2 * wp.float64(node_stiffness(p)) + h * wp.float64(node_damping(p)))
+                if wp.static(NODE_STIFFNESS):
+                    a = a + eye * (h2 * wp.float64(node_stiffness(p)) + h * wp.float64(node_damping(p)))
             scratch.r[w, u] = f
             scratch.mat_d[w, u] = a
         # Structural springs, each once: force on both ends and the blocks.
