@@ -51,6 +51,7 @@ from .springs import (
     curvature_targets,
     frame_forces,
     make_node_terms,
+    node_terms_have_blocks,
     spring_damping_matrix,
     spring_dissipation,
     spring_energy,
@@ -216,7 +217,7 @@ def make_implicit_kernel(features: Features, al_lines: int = 0):
     PER_NODE = 1 + K  # unknowns per node
     factor_solve = make_factor_solve(2 * PER_NODE)
     load_node, node_force, node_energy, node_stiffness, node_damping, _ = make_node_terms(features)
-    NODE_STIFFNESS = features.anchors  # the node terms with stiffness and damping blocks
+    NODE_STIFFNESS = node_terms_have_blocks(features)
 
     @wp.func(inline=True)
     def unknown(model: ModelArrays, control: ControlArrays, w: int, t: int, start: int, u: int) -> wp.vec3i:

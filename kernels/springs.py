@@ -530,16 +530,19 @@ def al_rows(axial: wp.float64, lines: int) -> wp.float64:
     return wp.float64(2.0 * float(lines)) * axial
 
 
+@wp.struct
+class StabilityArrays:
+    """The model's stiffness fields the row sums read, float64 host copies, shape (node_count,)
+    (filled by name from ``TubeModel.host``)."""
+
+    seg_rest_length: wp.array[wp.float64]
+    seg_ke: wp.array[wp.float64]
+    node_bend_k: wp.array[wp.float64]
+    node_anchor_k: wp.array[wp.float64]
+
+
 @wp.kernel(enable_backward=False, module="unique")
-def stability_rows_kernel(
-    lines: int,
-    tube_node_start: wp.array[int],
-    seg_rest_length: wp.array[wp.float64],
-    seg_ke: wp.array[wp.float64],
-    node_bend_k: wp.array[wp.float64],
-    node_anchor_k: wp.array[wp.float64],
-    rows_out: wp.array[wp.float64],
-):
+def stability_rows_kernel(lines: int, tube_node_start: wp.array[int], m: StabilityArrays, rows_out: wp.array[wp.float64]):
     """Gershgorin row sums [N/m] of the stiffness of one tube (thread per tube), from the terms'
     row functions above; ``lines`` assistant lines on every tube."""
     t = wp.tid()
@@ -549,19 +552,19 @@ def stability_rows_kernel(
     for i in range(start, end):
         rows_out[i] = zero
     for i in range(start, end - 1):
-        r = spring_rows(seg_ke[i])
+        r = spring_rows(m.seg_ke[i])
         rows_out[i] = rows_out[i] + r
         rows_out[i + 1] = rows_out[i + 1] + r
     for i in range(start, end):
         rows_out[i] = rows_out[i] + al_rows(rows_out[i], lines)
     for j in range(start + 1, end - 1):
-        if node_bend_k[j] > zero:
-            r3 = bend_rows(node_bend_k[j], seg_rest_length[j - 1], seg_rest_length[j])
+        if m.node_bend_k[j] > zero:
+            r3 = bend_rows(m.node_bend_k[j], m.seg_rest_length[j - 1], m.seg_rest_length[j])
             rows_out[j - 1] = rows_out[j - 1] + r3[0]
             rows_out[j] = rows_out[j] + r3[1]
             rows_out[j + 1] = rows_out[j + 1] + r3[2]
     for i in range(start, end):
-        rows_out[i] = rows_out[i] + anchor_rows(node_anchor_k[i])
+        rows_out[i] = rows_out[i] + anchor_rows(m.node_anchor_k[i])
 
 
 # -- node terms: returning spring, gravity, point force; mass damping -------------------------
@@ -582,6 +585,12 @@ class NodeTerms:
     anchor_k: float
     anchor_kd: float
     f_applied: wp.vec3
+
+
+def node_terms_have_blocks(features: Features) -> bool:
+    """Whether a node term of ``features`` has stiffness or damping blocks (implicit Euler adds
+    ``stiffness`` and ``damping`` of :func:`make_node_terms` only then): the returning spring."""
+    return bool(features.anchors)
 
 
 @functools.cache

@@ -26,7 +26,9 @@ from warp_tube.sim.simulation import Simulation
 
 SCENES = sorted((pathlib.Path(__file__).resolve().parents[1] / "scenes").glob("*.usda"))
 SECONDS = 1.0
-cuda = pytest.mark.skipif(not wp.get_cuda_device_count(), reason="no CUDA device")
+def cuda(test):
+    """Marked ``gpu``; skips without a CUDA device."""
+    return pytest.mark.gpu(pytest.mark.skipif(not wp.get_cuda_device_count(), reason="no CUDA device")(test))
 
 
 def batch_scene():

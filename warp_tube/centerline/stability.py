@@ -22,7 +22,7 @@ import math
 import numpy as np
 import warp as wp
 
-from warp_tube.kernels.springs import stability_rows_kernel
+from warp_tube.kernels.springs import StabilityArrays, stability_rows_kernel
 
 __all__ = ["max_frequency", "critical_time_step"]
 
@@ -35,13 +35,11 @@ def _row_sums(host: dict, assistant_line: bool) -> np.ndarray:
     lines = 0
     if assistant_line:
         lines = max(1, int((np.asarray(host.get("tube_al_force", np.zeros((1, 1)))) >= 0).sum(axis=1).max()))
-    arr = lambda name: wp.array(np.asarray(host[name], dtype=np.float64), dtype=wp.float64, device="cpu")  # noqa: E731
+    fields = StabilityArrays()
+    for name in StabilityArrays.vars:
+        setattr(fields, name, wp.array(np.asarray(host[name], dtype=np.float64), dtype=wp.float64, device="cpu"))
     rows = wp.zeros(len(host["seg_ke"]), dtype=wp.float64, device="cpu")
-    wp.launch(
-        stability_rows_kernel, len(start) - 1, device="cpu",
-        inputs=[lines, wp.array(start, dtype=int, device="cpu"), arr("seg_rest_length"), arr("seg_ke"), arr("node_bend_k"), arr("node_anchor_k")],
-        outputs=[rows],
-    )  # fmt: skip
+    wp.launch(stability_rows_kernel, len(start) - 1, device="cpu", inputs=[lines, wp.array(start, dtype=int, device="cpu"), fields], outputs=[rows])
     return rows.numpy()
 
 
