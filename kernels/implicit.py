@@ -52,6 +52,7 @@ from .springs import (
     frame_forces,
     make_node_terms,
     node_terms_have_blocks,
+    pin_step,
     spring_damping_matrix,
     spring_dissipation,
     spring_energy,
@@ -560,8 +561,8 @@ def make_implicit_kernel(features: Features, al_lines: int = 0):
                 scratch.v_it[w, u] = wp.vec3d(wp.float64(0.0))
                 i = ref[1]
                 if ref[0] == 0 and model.node_inv_mass[pw, i] == 0.0:
-                    x_pin = wp.lerp(control.pin_q_start[w, i], control.pin_q_end[w, i], frac)
-                    state_out.node_qd[w, i] = wp.vec3((wp.vec3d(x_pin) - x0) / h)
+                    x_pin, v_pin = pin_step(control.pin_q_start[w, i], control.pin_q_end[w, i], frac, x0, h)
+                    state_out.node_qd[w, i] = wp.vec3(v_pin)
                     state_out.node_q[w, i] = x_pin
                     state_out.node_q_lo[w, i] = wp.vec3(0.0)
                 elif ref[0] == 0:

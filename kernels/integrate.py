@@ -39,6 +39,7 @@ from .springs import (
     make_node_terms,
     node_delta,
     pack,
+    pin_step,
     spring_force,
 )
 
@@ -189,8 +190,8 @@ def make_kernels(features: Features):
             for i in range(start, end):
                 im = node_inv_mass[pw, i]
                 if im == 0.0:
-                    x_new = wp.lerp(control.pin_q_start[w, i], control.pin_q_end[w, i], frac)
-                    node_qd[w, i] = (x_new - node_q[w, i]) / dt
+                    x_new, v_new = pin_step(control.pin_q_start[w, i], control.pin_q_end[w, i], frac, node_q[w, i], dt)
+                    node_qd[w, i] = v_new
                     node_q[w, i] = x_new
                     node_q_lo[w, i] = wp.vec3(0.0)
                 else:

@@ -55,6 +55,7 @@ from .springs import (
     holonomy_stencil,
     kappa_target,
     make_node_terms,
+    pin_step,
     spring_force,
     stencil_forces,
     transport,
@@ -358,9 +359,7 @@ def make_onchip_kernel(features: Features, block_dim: int, al_lines: int = 0):
             # 5. Advance in registers.
             if active:
                 if im == 0.0:
-                    x_new = wp.lerp(x_pin0, x_pin1, float(step + 1) / float(substep_count))
-                    v = (x_new - x) / dt
-                    x = x_new
+                    x, v = pin_step(x_pin0, x_pin1, float(step + 1) / float(substep_count), x, dt)
                     lo = zero
                 else:
                     x, lo, v = advance(x, lo, v, f, im, alpha, dt)

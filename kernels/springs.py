@@ -18,6 +18,7 @@ frame and its holonomy)     kappa_target, holonomy_stencil,
                             twist_gradients, first_frame_gradient
 returning spring, gravity,  :class:`NodeTerms` via                  node_anchor_k, node_anchor_kd,
 point force                 :func:`make_node_terms`                 gravity, node_f_ext
+pins                        :func:`pin_step`                        node_inv_mass 0, pin targets
 mass damping                ``advance`` of make_node_terms          node_damping
 assistant line: link,       :func:`al_springs` (which springs),     control.al_* rest lengths,
 chord, tractive springs     al_point_forces, al_spring_block,      seg_ke, seg_kd
@@ -565,6 +566,18 @@ def stability_rows_kernel(lines: int, tube_node_start: wp.array[int], m: Stabili
             rows_out[j + 1] = rows_out[j + 1] + r3[2]
     for i in range(start, end):
         rows_out[i] = rows_out[i] + anchor_rows(m.node_anchor_k[i])
+
+
+# -- pins ---------------------------------------------------------------------------------------
+
+
+@wp.func
+def pin_step(x_start: wp.vec3, x_end: wp.vec3, frac: float, x: Vec, dt: wp.Float):
+    """A pinned node's substep: its target [m], lerped over the frame from ``x_start`` to
+    ``x_end`` (``frac`` of the way at the substep's end), and the velocity [m/s] that takes it there
+    from ``x`` in ``dt`` [s] (in the precision of ``x``)."""
+    x_new = wp.lerp(x_start, x_end, frac)
+    return x_new, (type(x)(x_new) - x) / dt
 
 
 # -- node terms: returning spring, gravity, point force; mass damping -------------------------
