@@ -1,21 +1,34 @@
 """Centerline speed, with the error of the same discretisation beside it. Prints JSON.
 
-    python benchmarks/bench_centerline.py [--device cpu|cuda:0] [--reps 7] [--worlds 65536]
+    python benchmarks/bench_centerline.py [--device cpu|cuda:0] [--reps 7] [--worlds 65536] [--points 32] [--batch-only]
+
+On the GPU machine (H100 or H200), the issue's figures::
+
+    python benchmarks/bench_centerline.py --device cuda:0 --batch-only
 
 Cases (each timed after a warm-up; medians of ``--reps`` repetitions, all in one run):
 
 - ``substep_20pt_minimal``: one 20-point tube, clamped, structural + bending springs only; one
-  launch of the per-tube kernel runs a 60 fps frame's substeps; time per substep.
+  launch runs a 60 fps frame's substeps; time per substep.
 - ``substep_20pt_all_features``: the same tube curved at rest, with anchors, gravity, both
   dampings and a point force with its assistant line: what each feature costs.
 - ``frame_60fps_20pt``: ``Simulation.step`` for that minimal tube at 60 fps (substeps + host work).
-- ``batch``: ``--worlds`` copies of a 32-point tube (on CUDA: 65,536), per-node kernels with the
-  frame's substeps captured in a CUDA graph (block sizes compared), the same with every feature on,
-  and the per-tube kernel; hub-steps per second.
-- ``batch_onchip`` (+ ``_block64/128/512`` on CUDA): the same batch with the on-chip kernel (one
-  launch per frame, each block keeps whole tubes in registers and shared memory).
+- ``batch_onchip_minimal`` / ``batch_onchip_all_features``: ``--worlds`` copies (65,536 on CUDA,
+  256 on the CPU) of a ``--points``-point tube, minimal and with every feature on (curved,
+  anchors, gravity, mass and spring damping, a pushed point with its assistant line), on the
+  on-chip kernel (the default on CUDA: a frame in one launch, each block keeping whole tubes in
+  registers and shared memory; on the CPU it runs on cooperative fibers, a correctness path, slow);
+  both at the same substeps per launch; hub-steps per second and ``all_features_over_minimal``,
+  the ratio of their times per substep. On CUDA also at 64, 256 and 512 threads per block.
+- ``batch_per_tube_minimal`` / ``_all_features``: the same batches on the per-tube kernel (the CPU
+  path; on CUDA the path of tubes longer than a block).
+- ``bound``: what the on-chip kernel is judged against (see :func:`bound`): global-memory bytes per
+  hub-step (the state and parameters are read and the state written once a frame), float32
+  operations per hub-step (a count of the kernel's arithmetic, FMA = 2), shared-memory exchanges
+  per substep, and on a known GPU the hub-steps per second that its peak FP32 rate and memory
+  bandwidth allow, with each batch's fraction of it.
 - ``error``: the cantilever at 20 free segments with the same kernels: static tip error against
-  the elastica (PL^2/EI = 2) and first-frequency error against Euler-Bernoulli.
+  the elastica (PL^2/EI = 2).
 """
 
 from __future__ import annotations
@@ -32,14 +45,18 @@ import warp as wp
 
 wp.config.log_level = wp.LOG_WARNING  # stdout carries the JSON only: no banner, no module messages
 
-from warp_tube.model.tube import build_model
-from warp_tube.bench.references import cantilever_frequency, elastica_tip
-from warp_tube.scene.spec import ForceSpec, Scene, StageInfo, TubeParams, TubeSpec
-from warp_tube import Simulation
+from warp_tube.bench.references import elastica_tip
 from warp_tube.centerline.explicit import SemiImplicitEulerSolver
 from warp_tube.centerline.stability import critical_time_step
+from warp_tube.model.tube import build_model
+from warp_tube.scene.spec import ForceSpec, Scene, SimulationSettings, StageInfo, TubeParams, TubeSpec
+from warp_tube import Simulation
 
 E, RHO, R = 1.0e6, 1000.0, 0.02
+
+#: Peak float32 rate [FLOP/s, FMA = 2, no tensor cores] and memory bandwidth [B/s] by device name
+#: (vendor data sheets, SXM parts).
+PEAKS = {"H100": (67.0e12, 3.35e12), "H200": (67.0e12, 4.8e12)}
 
 
 def tube(n_points, curved=False, extras=False, length=1.0):
@@ -56,8 +73,6 @@ def tube(n_points, curved=False, extras=False, length=1.0):
 def scene(n_points, extras=False, fps=60.0):
     forces = (ForceSpec("/World/Push", 0, n_points - 3, [0.0], [[0.0, 0.0, 0.01]], assistant_line=True),) if extras else ()
     stage = StageInfo(meters_per_unit=1.0, time_codes_per_second=fps, frames_per_second=fps, end_time_code=fps)
-    from warp_tube.scene.spec import SimulationSettings
-
     settings = SimulationSettings(gravity=(0.0, -9.81, 0.0)) if extras else SimulationSettings()
     return Scene((tube(n_points, curved=extras, extras=extras),), forces, settings=settings, stage=stage)
 
@@ -73,27 +88,23 @@ def timed(fn, reps, sync):
     return float(np.median(out)), out
 
 
-def substep_case(device, n_points, extras, reps, per_node=None, worlds=1, substeps=None, block_dim=None, onchip=False):
+def substep_case(device, n_points, extras, reps, worlds=1, substeps=None, block_dim=None, onchip=None):
     sim = Simulation(scene(n_points, extras), device=device, world_count=worlds, surface=False)
     sim.step()  # builds the assistant line, compiles
-    try:
-        solver = SemiImplicitEulerSolver(sim.model, per_node=per_node, block_dim=block_dim, onchip=onchip)
-    except ValueError as e:  # a feature the on-chip kernel lacks
-        return {"skipped": str(e)}
+    solver = SemiImplicitEulerSolver(sim.model, block_dim=block_dim, onchip=onchip)
     n = substeps or sim.substeps
     s0, s1 = sim.state, sim.next_state
-    sync = (lambda: wp.synchronize_device(device))
+    if extras:
+        assert all(sim.model.features) and sim.control.al_active.numpy().all()
 
     def run():
         solver.integrate(s0, s1, sim.control, sim.dt, n)
 
     run()
-    med, all_t = timed(run, reps, sync)
+    med, all_t = timed(run, reps, lambda: wp.synchronize_device(device))
     return {
         "worlds": worlds, "points": n_points, "substeps_per_launch": n, "dt_s": sim.dt,
-        "per_node_kernel": solver.per_node and not solver.onchip,
-        "onchip_kernel": solver.onchip,
-        "block_dim": solver.onchip_block_dim if solver.onchip else solver.block_dim if solver.per_node else None,
+        "onchip_kernel": solver.onchip, "block_dim": solver.onchip_block_dim,
         "time_per_substep_us": med / n * 1e6,
         "hub_steps_per_s": worlds * sim.model.node_count * n / med,
         "reps_s": all_t,
@@ -108,15 +119,58 @@ def frame_case(device, reps):
             "time_per_substep_us": med / sim.substeps * 1e6}  # fmt: skip
 
 
+#: float32 operations per hub-step of the on-chip kernel, by term (a count of its arithmetic as
+#: written, FMA = 2, square root and division 1 each under fast math; a hand count, approximate):
+#: minimal = exchange + edges + spring + stencil + advance; the rest are added by the features.
+FLOPS = {
+    "edges": 18,  # two compensated edges
+    "spring": 22,  # spring_force
+    "stencil": 122,  # bend_gradients + stencil_forces
+    "exchange": 20,  # summing the contributions in and out
+    "advance": 22,  # compensated semi-implicit update
+    "mass_damping": 5,
+    "spring_damping": 10,  # velocity differences, damping along the springs
+    "anchors": 15,
+    "curved": 290,  # transports, a 5-round quaternion scan (32-point tubes), target, holonomy, mu scan
+    "assistant_line": 170,  # four row differences, up to four springs, the line point's update
+}
+#: Global-memory bytes per node per frame (loads and stores, float32 / int32), by term.
+BYTES = {"state": 72, "minimal": 64, "spring_damping": 8, "anchors": 20, "external": 12, "curved": 12, "assistant_line": 104}
+
+
+def bound(device_name, substeps_minimal, substeps_all, exchanges_all):
+    """The roofline the on-chip batches are judged against: flops and bytes per hub-step, and the
+    hub-steps per second a known GPU's peaks allow (the lower of the two limits)."""
+    flops_min = FLOPS["edges"] + FLOPS["spring"] + FLOPS["stencil"] + FLOPS["exchange"] + FLOPS["advance"]
+    flops_all = sum(FLOPS.values())
+    bytes_min = BYTES["state"] + BYTES["minimal"]
+    bytes_all = sum(BYTES.values())
+    out = {
+        "flops_per_hub_step": {"minimal": flops_min, "all_features": flops_all},
+        "bytes_per_node_frame": {"minimal": bytes_min, "all_features": bytes_all},
+        "bytes_per_hub_step": {"minimal": bytes_min / substeps_minimal, "all_features": bytes_all / substeps_all},
+        "shared_exchanges_per_substep": {"minimal": 2, "all_features": exchanges_all},
+    }
+    peak = next((v for k, v in PEAKS.items() if k in device_name), None)
+    if peak is not None:
+        fl, bw = peak
+        out["peaks_flops_bytes_per_s"] = [fl, bw]
+        out["bound_hub_steps_per_s"] = {
+            "minimal": min(fl / flops_min, bw * substeps_minimal / bytes_min),
+            "all_features": min(fl / flops_all, bw * substeps_all / bytes_all),
+        }
+    return out
+
+
 def error_case(device):
-    """Static tip error (PL^2/EI = 2) and first-frequency error of the 20-segment cantilever."""
+    """Static tip error (PL^2/EI = 2) of the 20-segment cantilever."""
     L, n = 1.0, 22
     EI = E * math.pi * R**4 / 4
     x = (np.arange(n) - 1) * L / 20
     pts = np.stack([x, 0 * x, 0 * x], axis=1)
-    f1 = cantilever_frequency(EI, RHO * math.pi * R**2, L)
+    w1 = 1.8751**2 * math.sqrt(EI / (RHO * math.pi * R**2 * L**4))
     P = 2 * EI / L**2
-    t = TubeSpec("/R", pts, [n], np.full(n, R), TubeParams(density=RHO, youngs_modulus=E, damping=1.5 * 2 * math.pi * f1), pinned=[0, 1])
+    t = TubeSpec("/R", pts, [n], np.full(n, R), TubeParams(density=RHO, youngs_modulus=E, damping=1.5 * w1), pinned=[0, 1])
     m = build_model(Scene((t,), (ForceSpec("/F", 0, n - 1, [0.0], [[0, -P, 0]], assistant_line=False),)), device=device)
     solver = SemiImplicitEulerSolver(m)
     dt = 0.5 * critical_time_step(m.host)
@@ -124,7 +178,7 @@ def error_case(device):
     fe = np.zeros((1, n, 3))
     fe[0, -1] = [0, -P, 0]
     c.node_f_ext.assign(fe)
-    chunk = int(1 / f1 / dt / 10) + 1
+    chunk = int(2 * math.pi / w1 / dt / 10) + 1
     prev = None
     for _ in range(2000):
         solver.integrate(s0, s1, c, dt, chunk)
@@ -143,7 +197,7 @@ def main():
     ap.add_argument("--reps", type=int, default=7)
     ap.add_argument("--worlds", type=int, default=None, help="batch size (default 65536 on CUDA, 256 on CPU)")
     ap.add_argument("--points", type=int, default=32, help="points per tube in the batch cases")
-    ap.add_argument("--batch-only", action="store_true", help="only the batch cases")
+    ap.add_argument("--batch-only", action="store_true", help="only the batch cases and the bound")
     a = ap.parse_args()
     wp.init()
     device = a.device or ("cuda:0" if wp.get_cuda_device_count() else "cpu")
@@ -159,19 +213,30 @@ def main():
         res["feature_cost_ratio"] = res["substep_20pt_all_features"]["time_per_substep_us"] / res["substep_20pt_minimal"]["time_per_substep_us"]
         res["frame_60fps_20pt"] = frame_case(device, a.reps)
     P = a.points
-    res["batch_per_node"] = substep_case(device, P, False, a.reps, per_node=True, worlds=worlds)
-    if wp.get_device(device).is_cuda:
-        for bd in (64, 128, 512):
-            res[f"batch_per_node_block{bd}"] = substep_case(device, P, False, a.reps, per_node=True, worlds=worlds, block_dim=bd)
-    res["batch_per_node_all_features"] = substep_case(device, P, True, a.reps, per_node=True, worlds=worlds)
-    res["batch_per_tube"] = substep_case(device, P, False, a.reps, per_node=False, worlds=worlds)
-    # On-chip: a frame's substeps in one launch, a block per group of tubes (on the CPU it runs
-    # on cooperative fibers: a correctness path, slow).
-    res["batch_onchip"] = substep_case(device, P, False, a.reps, worlds=worlds, onchip=True)
-    if wp.get_device(device).is_cuda:
-        for bd in (64, 256, 512):
-            res[f"batch_onchip_block{bd}"] = substep_case(device, P, False, a.reps, worlds=worlds, block_dim=bd, onchip=True)
-    res["error"] = error_case(device)
+    # Both batches at the substeps a frame of the all-features tube takes (the smaller step), so
+    # that a launch carries the same work per node.
+    n = Simulation(scene(P, True), device="cpu", surface=False).substeps
+    for kernel, onchip in (("onchip", True), ("per_tube", False)):
+        cases = {}
+        for name, extras in (("minimal", False), ("all_features", True)):
+            cases[name] = substep_case(device, P, extras, a.reps, worlds=worlds, substeps=n, onchip=onchip)
+            res[f"batch_{kernel}_{name}"] = cases[name]
+        res[f"batch_{kernel}_all_features_over_minimal"] = cases["all_features"]["time_per_substep_us"] / cases["minimal"]["time_per_substep_us"]
+        if dev.is_cuda and onchip:
+            for bd in (64, 256, 512):
+                for name, extras in (("minimal", False), ("all_features", True)):
+                    try:  # a block size the device cannot launch is reported, not fatal
+                        res[f"batch_onchip_{name}_block{bd}"] = substep_case(device, P, extras, a.reps, worlds=worlds, substeps=n, block_dim=bd, onchip=True)
+                    except Exception as e:  # noqa: BLE001
+                        res[f"batch_onchip_{name}_block{bd}"] = {"error": f"{type(e).__name__}: {e}"}
+    rounds = math.ceil(math.log2(P))
+    res["bound"] = b = bound(dev.name, n, n, 2 + 2 * (1 + rounds))
+    if "bound_hub_steps_per_s" in b:
+        for name in ("minimal", "all_features"):
+            b[f"fraction_of_bound_{name}"] = res[f"batch_onchip_{name}"]["hub_steps_per_s"] / b["bound_hub_steps_per_s"][name]
+    res["goal"] = {"all_features_hub_steps_per_s": 5e10, "all_features_over_minimal": 1.5}
+    if not a.batch_only:
+        res["error"] = error_case(device)
     for v in res.values():
         if isinstance(v, dict):
             v.pop("reps_s", None)

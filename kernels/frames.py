@@ -105,6 +105,20 @@ def rotate_minimal(a: wp.vec3, b: wp.vec3, x: wp.vec3) -> wp.vec3:
     return x + kx + wp.cross(k, kx) / (1.0 + c)
 
 
+@wp.func(inline=True)
+def transport(a: wp.vec3, b: wp.vec3) -> wp.quat:
+    """The rotation of :func:`rotate_minimal` from unit vector ``a`` to unit vector ``b`` as a unit
+    quaternion, for composing transports along a tube: ``(a x b, 1 + a.b)`` normalised, or the half
+    turn about :func:`least_aligned_normal` of ``a`` where ``1 + a.b`` is below
+    :data:`ANTIPARALLEL_EPS`."""
+    c = wp.dot(a, b)
+    if c < -1.0 + ANTIPARALLEL_EPS:
+        k = least_aligned_normal(a)
+        return wp.quat(k[0], k[1], k[2], 0.0)
+    v = wp.cross(a, b)
+    return wp.normalize(wp.quat(v[0], v[1], v[2], 1.0 + c))
+
+
 @wp.func
 def reflection_pair_a(x0: wp.vec3, x1: wp.vec3) -> wp.vec4:
     """The first reflection of a double-reflection step from hub ``x0`` to hub ``x1`` [1]: its

@@ -1,92 +1,117 @@
 """Semi-implicit Euler with a whole frame's substeps kept on chip: one CUDA block per group of tubes.
 
-:func:`make_onchip_kernel` builds, for one combination of :class:`~.integrate.Features` and one
-block size, a kernel launched with ``wp.launch_tiled`` over (world blocks, node groups): each block
-owns whole tubes, one thread per node. A thread loads its node's state and parameters into
-registers once, then for every substep
+:func:`make_onchip_kernel` builds, for one combination of :class:`~.springs.Features`, one block
+size and a number of assistant lines per tube, a kernel launched with ``wp.launch_tiled`` over
+(world blocks, node groups): each block owns whole tubes, one thread per node, and the thread at
+node ``i`` also owns the points of the tube's assistant lines at ``i``. A thread loads its node's
+state and parameters into registers once, then for every substep
 
-1. writes its compensated position ``(q, q_lo)`` into a shared-memory tile (the element write ends
-   in a block barrier),
-2. reads its neighbours' positions (up to two either side, same tube) from that tile, evaluates
-   its two structural springs and three bending stencils exactly as ``step_nodes`` of
-   :mod:`.integrate` does, and advances its own state in registers,
+1. writes its compensated position ``(q, q_lo)`` (with spring damping also its velocity; with
+   assistant lines also theirs) into a shared-memory tile, and reads its neighbours';
+2. with a curved rest shape, finds the Bishop frame of its edge by a parallel prefix product of
+   the edge-to-edge transports along its tube (:func:`~.springs.transport`, a Hillis-Steele scan
+   of quaternions, ``ceil(log2(tube length))`` rounds), and after its stencil, the suffix sums of
+   the stencils' holonomy weights ``mu`` the same way (:func:`~.springs.frame_forces` is the
+   sequential form of both);
+3. evaluates the terms it owns, each once, with the functions of :mod:`.springs`: structural
+   spring ``i``, the bending stencil at ``i`` (with its frame terms), its node terms, and the
+   springs of its line points (:func:`~.springs.al_point_forces`); it writes what they put on its
+   two neighbours into a second tile and reads back what its neighbours' terms put on it;
+4. advances its node (pinned nodes follow their targets, lerped from ``pin_q_start`` to
+   ``pin_q_end`` over the frame) and its line points in registers;
 
-and after the last substep stores the state once. The tile is double-buffered by substep parity,
-so one barrier per substep suffices: a thread writes buffer ``s % 2`` only after the barrier of
-substep ``s - 1``, which every thread passes after its reads of substep ``s - 2``.
+and after the last substep stores the state once. Writing an element of a shared tile ends in a
+block barrier (Warp), and every thread of the block writes each tile once a round (inactive
+lanes write zeros), so each exchange costs one barrier and no tile is overwritten while read.
 
-Block layout (set by the host, :class:`warp_tube.centerline.explicit.SemiImplicitEulerSolver`): the tubes of one
-world are packed, in order, into groups of at most ``block_dim`` nodes (``group_node_start``); a
-block holds ``worlds_per_block`` copies of one group from consecutive worlds, each in ``slot``
-consecutive lanes (``slot`` is the largest group's node count). So a tube must fit in one block:
-at most ``block_dim`` <= 1024 points.
-
-Features: structural and bending springs of a straight rest shape, pins (inverse mass 0, targets
-lerped from ``pin_q_start`` to ``pin_q_end`` over the frame), anchors, gravity, mass-proportional
-damping and external point forces. Curved rest shapes, spring damping and the assistant line are
-not supported (:data:`UNSUPPORTED`): they need per-tube passes or extra state.
+Block layout (set by the host, :class:`warp_tube.centerline.explicit.SemiImplicitEulerSolver`): the
+tubes of one world are packed, in order, into groups of at most ``block_dim`` nodes
+(``group_node_start``); a block holds ``worlds_per_block`` copies of one group from consecutive
+worlds, each in ``slot`` consecutive lanes (``slot`` is the largest group's node count). So a
+tube must fit in one block: at most :data:`MAX_BLOCK_DIM` points (longer tubes take the per-tube
+kernel of :mod:`.integrate`).
 
 On the CPU the same kernel runs when ``wp.config.enable_cpu_blocks`` is set (Warp's cooperative
 fibers stand in for a block's threads, the barrier switches between them): slow, for testing.
 """
 
-from __future__ import annotations
 
 import functools
 
 import warp as wp
 
-from .integrate import Features
 from .options import CUDA_OPTIONS
-from .springs import bend_gradients, spring_force
-
-#: Features the on-chip kernel does not implement.
-UNSUPPORTED = ("curved", "spring_damping", "assistant_line")
+from .springs import (
+    ControlArrays,
+    Features,
+    ModelArrays,
+    NodeTerms,
+    StateArrays,
+    al_point_forces,
+    al_springs,
+    bend_gradients,
+    first_edge_normal,
+    first_frame_gradient,
+    holonomy_stencil,
+    kappa_target,
+    make_node_terms,
+    pin_step,
+    spring_force,
+    stencil_forces,
+    transport,
+    twist_gradients,
+)
 
 #: Largest block (threads = nodes) of the on-chip kernel; longer tubes need another path.
 MAX_BLOCK_DIM = 1024
 
-vec6 = wp.types.vector(length=6, dtype=wp.float32)
-
-
-@wp.func
-def pack6(q: wp.vec3, q_lo: wp.vec3) -> vec6:
-    """A compensated position ``(q, q_lo)`` [m] as one shared-memory element."""
-    return vec6(q[0], q[1], q[2], q_lo[0], q_lo[1], q_lo[2])
-
-
-@wp.func
-def delta6(a: vec6, b: vec6) -> wp.vec3:
-    """``x_b - x_a`` [m] from packed compensated positions, as ``node_delta`` forms it."""
-    return wp.vec3(b[0] - a[0], b[1] - a[1], b[2] - a[2]) + wp.vec3(b[3] - a[3], b[4] - a[4], b[5] - a[5])
-
 
 @functools.cache
-def make_onchip_kernel(features: Features, block_dim: int):
-    """The on-chip substep kernel for ``features`` and ``block_dim`` threads per block; cached."""
+def make_onchip_kernel(features: Features, block_dim: int, al_lines: int = 0):
+    """The on-chip substep kernel for ``features``, ``block_dim`` threads per block and at most
+    ``al_lines`` assistant lines per tube; cached."""
     features = Features(*(bool(v) for v in features))
-    bad = [name for name in UNSUPPORTED if features._asdict()[name]]
-    if bad:
-        raise ValueError(f"the on-chip kernel does not support: {', '.join(bad)}")
     if not 1 <= block_dim <= MAX_BLOCK_DIM:
         raise ValueError(f"block_dim must be in [1, {MAX_BLOCK_DIM}], got {block_dim}")
-    BENDING = features.bending
-    ANCHORS = features.anchors
-    GRAVITY = features.gravity
-    MASS_DAMPING = features.mass_damping
-    EXTERNAL = features.external
     B = int(block_dim)
+    BENDING = features.bending
+    CURVED = features.curved and features.bending
+    SD = features.spring_damping
+    K = int(al_lines) if features.assistant_line else 0
+    KL = max(K, 1)  # register arrays need a row even without lines
+    # Shared-tile elements: per node (q, q_lo[, qd]) then per line point the same; what a thread's
+    # terms put on its previous node, its next node and each line's next point.
+    NODE = 9 if SD else 6
+    POS = NODE * (1 + K)
+    CON = 6 + 3 * K
+    pos_t = wp.types.vector(length=POS, dtype=wp.float32)
+    con_t = wp.types.vector(length=CON, dtype=wp.float32)
+    lines3 = wp.types.matrix((KL, 3), dtype=wp.float32)
+    lines4 = wp.types.matrix((KL, 4), dtype=wp.float32)
+    lines4i = wp.types.matrix((KL, 4), dtype=wp.int32)
+    lines_i = wp.types.vector(length=KL, dtype=wp.int32)
+    mat43 = wp.types.matrix((4, 3), dtype=wp.float32)
+    load_node, node_force, _, _, _, advance = make_node_terms(features)
 
     @wp.func
-    def advance(x: wp.vec3, lo: wp.vec3, v: wp.vec3, f: wp.vec3, inv_mass: float, alpha: float, dt: float):
-        """Semi-implicit Euler step with compensated position sum, as ``advance`` of
-        :mod:`.integrate`; returns (x', lo', v')."""
-        v_new = v + f * (inv_mass * dt)
-        if wp.static(MASS_DAMPING):
-            v_new = v_new / (1.0 + alpha * dt)
-        y = v_new * dt + lo
-        x_new = x + y
-        return x_new, y - (x_new - x), v_new
+    def get3(e: pos_t, off: int) -> wp.vec3:
+        return wp.vec3(e[off], e[off + 1], e[off + 2])
+
+    @wp.func
+    def con3(e: con_t, off: int) -> wp.vec3:
+        return wp.vec3(e[off], e[off + 1], e[off + 2])
+
+    @wp.func
+    def delta(a: pos_t, b: pos_t, off: int) -> wp.vec3:
+        """Position at ``off`` of ``b`` minus that of ``a`` [m], from compensated positions (the
+        float32 difference of nearby positions is exact, the low parts' difference is added)."""
+        return (get3(b, off) - get3(a, off)) + (get3(b, off + 3) - get3(a, off + 3))
+
+    @wp.func
+    def velocity(e: pos_t, off: int) -> wp.vec3:
+        if wp.static(SD):
+            return get3(e, off + 6)
+        return wp.vec3(0.0)
 
     @wp.kernel(enable_backward=False, module="unique", module_options=CUDA_OPTIONS)
     def substeps_onchip(
@@ -94,158 +119,267 @@ def make_onchip_kernel(features: Features, block_dim: int):
         dt: float,
         slot: int,
         worlds_per_block: int,
-        # model:
         group_node_start: wp.array[int],
         node_tube: wp.array[int],
-        tube_node_start: wp.array[int],
-        node_rest_q: wp.array2d[wp.vec3],
-        node_mass: wp.array2d[float],
-        node_inv_mass: wp.array2d[float],
-        node_damping: wp.array2d[float],
-        seg_rest_length: wp.array2d[float],
-        seg_ke: wp.array2d[float],
-        node_bend_k: wp.array2d[float],
-        node_anchor_k: wp.array2d[float],
-        node_anchor_kd: wp.array2d[float],
-        gravity: wp.vec3,
-        # state in:
-        node_q_in: wp.array2d[wp.vec3],
-        node_q_lo_in: wp.array2d[wp.vec3],
-        node_qd_in: wp.array2d[wp.vec3],
-        # control:
-        node_f_ext: wp.array2d[wp.vec3],
-        pin_q_start: wp.array2d[wp.vec3],
-        pin_q_end: wp.array2d[wp.vec3],
-        # out:
-        node_q_out: wp.array2d[wp.vec3],
-        node_q_lo_out: wp.array2d[wp.vec3],
-        node_qd_out: wp.array2d[wp.vec3],
+        model: ModelArrays,
+        state_in: StateArrays,
+        control: ControlArrays,
+        state_out: StateArrays,
     ):
-        """Advance the nodes of one group of tubes in ``worlds_per_block`` worlds by
-        ``substep_count`` substeps of ``dt`` [s]; one thread per node, state in registers and
-        positions exchanged through shared memory."""
+        """Advance the nodes (and line points) of one group of tubes in ``worlds_per_block``
+        worlds by ``substep_count`` substeps of ``dt`` [s]; one thread per node, state in
+        registers, neighbours exchanged through shared memory."""
         block, g, lane = wp.tid()
         c = lane // slot
         w = block * worlds_per_block + c
         i = group_node_start[g] + (lane - c * slot)
-        active = c < worlds_per_block and w < node_q_in.shape[0] and i < group_node_start[g + 1]
+        active = c < worlds_per_block and w < state_in.node_q.shape[0] and i < group_node_start[g + 1]
 
         zero = wp.vec3(0.0)
         x = zero
         lo = zero
         v = zero
-        f_grav = zero
-        f_ext = zero
-        x_rest = zero
         x_pin0 = zero
         x_pin1 = zero
+        t_rest = wp.vec3(1.0, 0.0, 0.0)
+        u_rest = wp.vec3(0.0, 1.0, 0.0)
+        kappa_rest = zero
         start = int(0)
         end = int(0)
         im = float(0.0)
+        inv_m = float(0.0)
         alpha = float(0.0)
-        ka = float(0.0)
-        kad = float(0.0)
-        # Springs i-1 (to the previous node) and i, bending stencils at i-1, i, i+1.
-        len_m1 = float(0.0)
-        ke_m1 = float(0.0)
-        len_0 = float(0.0)
-        ke_0 = float(0.0)
-        kb_m1 = float(0.0)
-        kb_0 = float(0.0)
-        kb_p1 = float(0.0)
+        rest_len = float(0.0)
+        ke = float(0.0)
+        kd = float(0.0)
+        ke_prev = float(0.0)
+        kd_prev = float(0.0)
+        kb = float(0.0)
+        terms = NodeTerms()
+        # Assistant-line points at this node, one row per line: state, springs, rest lengths, slot.
+        al_x = lines3()
+        al_lo = lines3()
+        al_v = lines3()
+        al_rest = lines4()
+        al_spr = lines4i()
+        al_slot = lines_i(-1)
         if active:
-            pw = w % node_mass.shape[0]
+            pw = w % model.node_mass.shape[0]
             t = node_tube[i]
-            start = tube_node_start[t]
-            end = tube_node_start[t + 1]
-            x = node_q_in[w, i]
-            lo = node_q_lo_in[w, i]
-            v = node_qd_in[w, i]
-            im = node_inv_mass[pw, i]
-            alpha = node_damping[pw, i]
-            x_pin0 = pin_q_start[w, i]
-            x_pin1 = pin_q_end[w, i]
-            if i - 1 >= start:
-                len_m1 = seg_rest_length[pw, i - 1]
-                ke_m1 = seg_ke[pw, i - 1]
+            start = model.tube_node_start[t]
+            end = model.tube_node_start[t + 1]
+            x = state_in.node_q[w, i]
+            lo = state_in.node_q_lo[w, i]
+            v = state_in.node_qd[w, i]
+            im = model.node_inv_mass[pw, i]
+            inv_m = 1.0 / model.node_mass[pw, i]
+            alpha = model.node_damping[pw, i]
+            x_pin0 = control.pin_q_start[w, i]
+            x_pin1 = control.pin_q_end[w, i]
+            terms = load_node(model, control, w, pw, i)
             if i + 1 < end:
-                len_0 = seg_rest_length[pw, i]
-                ke_0 = seg_ke[pw, i]
+                rest_len = model.seg_rest_length[pw, i]
+                ke = model.seg_ke[pw, i]
+                if wp.static(SD):
+                    kd = model.seg_kd[pw, i]
+            if i > start:
+                ke_prev = model.seg_ke[pw, i - 1]
+                if wp.static(SD):
+                    kd_prev = model.seg_kd[pw, i - 1]
             if wp.static(BENDING):
-                if i - 1 > start:
-                    kb_m1 = node_bend_k[pw, i - 1]
                 if i > start and i < end - 1:
-                    kb_0 = node_bend_k[pw, i]
-                if i + 1 < end - 1:
-                    kb_p1 = node_bend_k[pw, i + 1]
-            if wp.static(ANCHORS):
-                ka = node_anchor_k[pw, i]
-                kad = node_anchor_kd[pw, i]
-                x_rest = node_rest_q[pw, i]
-            if wp.static(GRAVITY):
-                f_grav = gravity * node_mass[pw, i]
-            if wp.static(EXTERNAL):
-                f_ext = node_f_ext[w, i]
+                    kb = model.node_bend_k[pw, i]
+            if wp.static(CURVED):
+                t_rest = wp.normalize(model.node_rest_q[pw, start + 1] - model.node_rest_q[pw, start])
+                u_rest = first_edge_normal(t_rest)
+                kappa_rest = model.node_kappa_rest[pw, i]
+            if wp.static(K > 0):
+                for m in range(K):
+                    a = model.tube_al_force[t, m]
+                    if a >= 0:
+                        if control.al_active[w, a] != 0:
+                            p = model.al_start[a] + (i - start)
+                            al_slot[m] = p
+                            al_x[m] = state_in.al_q[w, p]
+                            al_lo[m] = state_in.al_q_lo[w, p]
+                            al_v[m] = state_in.al_qd[w, p]
+                            al_rest[m] = wp.vec4(control.al_link_length[w, p], control.al_chord_length[w, p], control.al_fwd_length[w, p], control.al_bwd_length[w, p])
+                            al_spr[m] = al_springs(i, model.force_node[a], start, end)
 
-        buf = wp.tile_zeros(shape=(2, B), dtype=vec6, storage="shared")
+        has_prev = active and i > start
+        has_next = active and i < end - 1
+        pos_buf = wp.tile_zeros(shape=(B,), dtype=pos_t, storage="shared")
+        con_buf = wp.tile_zeros(shape=(B,), dtype=con_t, storage="shared")
+        if wp.static(CURVED):
+            frames = wp.tile_zeros(shape=(2, B), dtype=wp.quat, storage="shared")
+            weights = wp.tile_zeros(shape=(2, B), dtype=float, storage="shared")
         for step in range(substep_count):
-            p = step % 2
-            own = pack6(x, lo)
-            # Every thread reaches this write: it ends in the block barrier.
-            buf[p, lane] = own
+            # 1. Positions (and velocities) out, neighbours' in.
+            own = pos_t()
+            for k in range(3):
+                own[k] = x[k]
+                own[3 + k] = lo[k]
+                if wp.static(SD):
+                    own[6 + k] = v[k]
+            if wp.static(K > 0):
+                for m in range(K):
+                    for k in range(3):
+                        own[NODE * (m + 1) + k] = al_x[m, k]
+                        own[NODE * (m + 1) + 3 + k] = al_lo[m, k]
+                        if wp.static(SD):
+                            own[NODE * (m + 1) + 6 + k] = al_v[m, k]
+            pos_buf[lane] = own
+            prev = own
+            nxt = own
+            if has_prev:
+                prev = pos_buf[lane - 1]
+            if has_next:
+                nxt = pos_buf[lane + 1]
+            e_prev = delta(prev, own, 0)  # edge i - 1 (zero at a tube's first node)
+            e = delta(own, nxt, 0)  # edge i (zero at its last node)
+
+            f = zero
+            to_prev = zero
+            to_next = zero
+            if has_next:
+                fs = spring_force(e, velocity(nxt, 0) - v, rest_len, ke, kd)
+                f += fs
+                to_next -= fs
+
+            # 2. Curved rest shapes: the Bishop frame of edge i - 1, by a scan of transports.
+            target = zero
+            if wp.static(CURVED):
+                t_e = wp.normalize(e)
+                r = wp.quat_identity()
+                if active and i < end - 1:
+                    if i == start:
+                        r = transport(t_rest, t_e)
+                    else:
+                        r = transport(wp.normalize(e_prev), t_e)
+                frames[0, lane] = r
+                rd = int(0)
+                d = int(1)
+                while d < slot:
+                    if active and i - d >= start:
+                        r = r * frames[rd, lane - d]
+                    rd = 1 - rd
+                    frames[rd, lane] = r
+                    d = d * 2
+                if has_prev and kb != 0.0:
+                    u = wp.quat_rotate(wp.normalize(frames[rd, lane - 1]), u_rest)
+                    target = kappa_target(wp.normalize(e_prev), u, kappa_rest)
+
+            # 3. The bending stencil at i, its frame terms, the node terms, the line springs.
+            ga = zero
+            gb = zero
+            kappa = zero
+            if wp.static(BENDING):
+                if kb != 0.0:
+                    ga, gb, kappa = bend_gradients(e_prev, e, target, kb)
+            grad_a = zero
+            grad_b = zero
+            if wp.static(CURVED):
+                mu = float(0.0)
+                la = wp.length(e_prev)
+                if kb != 0.0:
+                    grad_a, mu = holonomy_stencil(e_prev, la, kappa, target, kb)
+                # Suffix sums of mu along the tube: the later stencils' weight on this transport.
+                weights[0, lane] = mu
+                rd = int(0)
+                d = int(1)
+                while d < slot:
+                    if active and i + d < end:
+                        mu += weights[rd, lane + d]
+                    rd = 1 - rd
+                    weights[rd, lane] = mu
+                    d = d * 2
+                m_after = float(0.0)
+                if has_next:
+                    m_after = weights[rd, lane + 1]
+                if kb != 0.0:
+                    ta, tb = twist_gradients(kappa, m_after, la, wp.length(e))
+                    grad_a += ta
+                    grad_b = tb
+                if active and i == start and i < end - 1:
+                    g0 = first_frame_gradient(t_rest, e, m_after)
+                    f += g0
+                    to_next -= g0
+            if wp.static(BENDING):
+                c_prev, c_mid, c_next = stencil_forces(ga, gb, grad_a, grad_b)
+                f += c_mid
+                to_prev += c_prev
+                to_next += c_next
+            f += node_force(terms, x, v)
+            al_f = lines3()
+            al_next = lines3()
+            if wp.static(K > 0):
+                for m in range(K):
+                    if al_slot[m] >= 0:
+                        o = NODE * (m + 1)
+                        xm = get3(own, o)
+                        lm = get3(own, o + 3)
+                        d_rows = mat43()
+                        dv_rows = mat43()
+                        d_rows[0] = (x - xm) + (lo - lm)
+                        dv_rows[0] = v - al_v[m]
+                        if has_next:
+                            d_rows[1] = delta(own, nxt, o)
+                            dv_rows[1] = velocity(nxt, o) - al_v[m]
+                            d_rows[2] = (get3(nxt, 0) - xm) + (get3(nxt, 3) - lm)
+                            dv_rows[2] = velocity(nxt, 0) - al_v[m]
+                        if has_prev:
+                            d_rows[3] = (get3(prev, 0) - xm) + (get3(prev, 3) - lm)
+                            dv_rows[3] = velocity(prev, 0) - al_v[m]
+                        fm, rows = al_point_forces(al_spr[m], d_rows, dv_rows, al_rest[m], ke, ke_prev, kd, kd_prev)
+                        al_f[m] = fm
+                        al_next[m] = rows[1]
+                        f += rows[0]
+                        to_next += rows[2]
+                        to_prev += rows[3]
+
+            # 4. What this thread's terms put on its neighbours out, theirs on it in.
+            out = con_t()
+            for k in range(3):
+                out[k] = to_prev[k]
+                out[3 + k] = to_next[k]
+            if wp.static(K > 0):
+                for m in range(K):
+                    for k in range(3):
+                        out[6 + 3 * m + k] = al_next[m, k]
+            con_buf[lane] = out
+            if has_prev:
+                back = con_buf[lane - 1]
+                f += con3(back, 3)
+                if wp.static(K > 0):
+                    for m in range(K):
+                        al_f[m] = al_f[m] + con3(back, 6 + 3 * m)
+            if has_next:
+                f += con3(con_buf[lane + 1], 0)
+
+            # 5. Advance in registers.
             if active:
                 if im == 0.0:
-                    x_new = wp.lerp(x_pin0, x_pin1, float(step + 1) / float(substep_count))
-                    v = (x_new - x) / dt
-                    x = x_new
+                    x, v = pin_step(x_pin0, x_pin1, float(step + 1) / float(substep_count), x, dt)
                     lo = zero
                 else:
-                    f = zero
-                    em2 = zero
-                    em1 = zero
-                    e0 = zero
-                    ep1 = zero
-                    # Each neighbour read once from the tile; edges as node_delta forms them.
-                    s_m1 = own
-                    s_p1 = own
-                    if i - 1 >= start:
-                        s_m1 = wp.tile_extract(buf, p, lane - 1)
-                        em1 = delta6(s_m1, own)
-                        f += spring_force(-em1, zero, len_m1, ke_m1, 0.0)
-                    if i + 1 < end:
-                        s_p1 = wp.tile_extract(buf, p, lane + 1)
-                        e0 = delta6(own, s_p1)
-                        f += spring_force(e0, zero, len_0, ke_0, 0.0)
-                    if wp.static(BENDING):
-                        if i + 1 < end - 1:
-                            ep1 = delta6(s_p1, wp.tile_extract(buf, p, lane + 2))
-                            if kb_p1 != 0.0:
-                                ga, gb = bend_gradients(e0, ep1, zero, kb_p1)
-                                f += ga
-                        if i > start and i < end - 1:
-                            if kb_0 != 0.0:
-                                ga, gb = bend_gradients(em1, e0, zero, kb_0)
-                                f += gb - ga
-                        if i - 1 > start:
-                            em2 = delta6(wp.tile_extract(buf, p, lane - 2), s_m1)
-                            if kb_m1 != 0.0:
-                                ga, gb = bend_gradients(em2, em1, zero, kb_m1)
-                                f -= gb
-                    # The other forces (gravity and the external force fixed over the frame),
-                    # summed in the order node_force of .integrate uses.
-                    fo = zero
-                    if wp.static(ANCHORS):
-                        if ka > 0.0:
-                            fo -= (x - x_rest) * ka + v * kad
-                    if wp.static(GRAVITY):
-                        fo += f_grav
-                    if wp.static(EXTERNAL):
-                        fo += f_ext
-                    f += fo
                     x, lo, v = advance(x, lo, v, f, im, alpha, dt)
+                if wp.static(K > 0):
+                    for m in range(K):
+                        if al_slot[m] >= 0:
+                            xm, lm, vm = advance(al_x[m], al_lo[m], al_v[m], al_f[m], inv_m, alpha, dt)
+                            al_x[m] = xm
+                            al_lo[m] = lm
+                            al_v[m] = vm
         if active:
-            node_q_out[w, i] = x
-            node_q_lo_out[w, i] = lo
-            node_qd_out[w, i] = v
+            state_out.node_q[w, i] = x
+            state_out.node_q_lo[w, i] = lo
+            state_out.node_qd[w, i] = v
+            if wp.static(K > 0):
+                for m in range(K):
+                    p = al_slot[m]
+                    if p >= 0:
+                        state_out.al_q[w, p] = al_x[m]
+                        state_out.al_q_lo[w, p] = al_lo[m]
+                        state_out.al_qd[w, p] = al_v[m]
 
     return substeps_onchip

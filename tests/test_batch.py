@@ -272,9 +272,9 @@ def test_bad_files_and_settings(tmp_path, capsys):
     # a points array of another length than curveVertexCounts says: the reader refuses it
     err = _bad(tmp_path, capsys, ["/World/Tube.points"], [("@p.npy",)], files={"p.npy": np.zeros((5, 3))})
     assert "row 0 (line 2)" in err and "curveVertexCounts" in err
-    # implicit Euler cannot take the push's assistant line: a bad row, before anything runs
-    err = _bad(tmp_path, capsys, ["/World/Simulation.warptube:integrator"], [("auto",), ("implicitEuler",)])
-    assert "row 1 (line 3)" in err and "assistantLine" in err
+    # a timeStep no integrator accepts: a bad row, before anything runs
+    err = _bad(tmp_path, capsys, ["/World/Simulation.warptube:timeStep"], [("0.001",), ("-1",)])
+    assert "row 1 (line 3)" in err and "timeStep" in err
 
 
 def test_bad_requests(tmp_path, capsys):

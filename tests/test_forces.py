@@ -10,19 +10,19 @@ from warp_tube.scene.spec import Scene, TubeParams, TubeSpec
 from warp_tube.centerline.explicit import SemiImplicitEulerSolver
 
 
-def kernel_force(model, q, per_node):
+def kernel_force(model, q, onchip):
     """Force [N] on every node at positions q: one substep from rest with zero velocity gives
     v = dt f / m."""
     s0, s1 = model.state(), model.state()
     s0.node_q.assign(q[None].astype(np.float32))
     dt = 1e-4
-    SemiImplicitEulerSolver(model, per_node=per_node).integrate(s0, s1, model.control(), dt, 1)
+    SemiImplicitEulerSolver(model, onchip=onchip).integrate(s0, s1, model.control(), dt, 1)
     return s1.node_qd.numpy()[0].astype(np.float64) * model.host["node_mass"][:, None] / dt, s0.node_q.numpy()[0].astype(np.float64)
 
 
 @pytest.mark.parametrize("shape", ["straight", "helix"])
-@pytest.mark.parametrize("per_node", [False, True])
-def test_forces_are_the_energy_gradient(shape, per_node):
+@pytest.mark.parametrize("onchip", [False, True])
+def test_forces_are_the_energy_gradient(shape, onchip):
     rng = np.random.default_rng(5)
     n = 12
     t = np.linspace(0.0, 3.0, n)
@@ -30,7 +30,7 @@ def test_forces_are_the_energy_gradient(shape, per_node):
     tube = TubeSpec("/T", rest, [n], np.full(n, 0.05), TubeParams(density=1000.0, youngs_modulus=1e6))
     model = build_model(Scene((tube,)), device="cpu")
     assert model.features.curved == (shape == "helix")
-    f, q = kernel_force(model, rest + rng.normal(scale=0.05, size=rest.shape), per_node)
+    f, q = kernel_force(model, rest + rng.normal(scale=0.05, size=rest.shape), onchip)
     h = 1e-6
     grad = np.zeros_like(q)
     for i in range(n):

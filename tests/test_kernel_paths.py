@@ -1,5 +1,5 @@
-"""The per-node kernel (the GPU path) against the per-tube kernel (the CPU path), and CUDA
-against the CPU when a CUDA device exists."""
+"""The on-chip kernel (the GPU path, here on Warp's CPU blocks) against the per-tube kernel (the
+CPU path), and CUDA against the CPU when a CUDA device exists."""
 
 import numpy as np
 import pytest
@@ -24,42 +24,41 @@ def all_features_scene():
     return Scene((tube,), (push, push2), settings=SimulationSettings(gravity=(0.0, -9.81, 0.0)), stage=stage)
 
 
-def run(device, per_node, frames=12, worlds=2):
+def run(device, onchip, frames=12, worlds=2):
     sim = Simulation(all_features_scene(), device=device, world_count=worlds, surface=False)
-    sim.solver = SemiImplicitEulerSolver(sim.model, per_node=per_node)
+    sim.solver = SemiImplicitEulerSolver(sim.model, onchip=onchip)
     for _ in range(frames):
         sim.step()
     return np.stack([sim.centerline_points(w)[0] for w in range(worlds)]), sim
 
 
-def test_per_node_kernel_matches_per_tube_kernel_on_cpu():
-    a, sim = run("cpu", per_node=False)
-    b, _ = run("cpu", per_node=True)
+def test_onchip_kernel_matches_per_tube_kernel_on_cpu():
+    a, sim = run("cpu", onchip=False)
+    b, _ = run("cpu", onchip=True)
     assert sim.model.features == sim.model.features._replace(
         bending=True, curved=True, anchors=True, gravity=True, mass_damping=True, spring_damping=True, external=True, assistant_line=True
     )
     moved = np.abs(a - all_features_scene().tubes[0].points).max()
     assert moved > 5e-3  # it really moved
-    # Same forces summed in another order (gather against scatter): float32 round-off only,
-    # amplified over ~2,000 substeps; 1e-5 m is 1e-3 of the motion.
+    # Same forces summed in another order (exchanged through shared memory against added in a
+    # loop, frames composed by a scan against in order): float32 round-off only, amplified over
+    # ~700 substeps; 1e-5 m is 1e-3 of the motion.
     np.testing.assert_allclose(a, b, atol=1e-5)
 
 
 @pytest.mark.skipif(not wp.get_cuda_device_count(), reason="no CUDA device")
 def test_cuda_matches_cpu():
-    a, _ = run("cpu", per_node=False)
-    b, _ = run("cuda:0", per_node=None)
+    a, _ = run("cpu", onchip=False)
+    b, sim = run("cuda:0", onchip=None)
+    assert sim.solver.onchip
     np.testing.assert_allclose(a, b, atol=1e-5)  # as above: order of summation and FMA only
 
 
 @pytest.mark.skipif(not wp.get_cuda_device_count(), reason="no CUDA device")
 def test_implicit_cuda_matches_cpu():
-    import dataclasses
-
     from warp_tube.centerline.implicit import ImplicitEulerSolver
 
     scene = all_features_scene()
-    scene = dataclasses.replace(scene, forces=tuple(dataclasses.replace(f, assistant_line=False) for f in scene.forces))
     out = []
     for device in ("cpu", "cuda:0"):
         sim = Simulation(scene, device=device, world_count=2, surface=False)

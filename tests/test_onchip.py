@@ -1,6 +1,6 @@
 """The on-chip kernel (a block per group of tubes, substeps in shared memory) against the per-tube
-and per-node kernels, on the CPU: Warp runs a tiled kernel's block there as cooperative fibers, so
-the shared-memory exchange and its barriers are exercised as on a GPU."""
+kernel, on the CPU: Warp runs a tiled kernel's block there as cooperative fibers, so the
+shared-memory exchanges, the scans along tubes and their barriers are exercised as on a GPU."""
 
 import numpy as np
 import pytest
@@ -15,14 +15,14 @@ WORLDS = 5
 LENGTHS = (16, 11, 3, 40)  # curves of one prim: a 3-point tube, and one longer than a 32-thread block
 
 
-def batch_model(world_count=WORLDS, lengths=LENGTHS, curved=False, spring_damping=0.0, assistant_line=False, device="cpu"):
+def batch_model(world_count=WORLDS, lengths=LENGTHS, curved=False, spring_damping=0.0, assistant_line=False, device="cpu", curve_all=False):
     """Straight tubes of different lengths in one prim, with pins at both ends of the first, an
     anchor, gravity, mass damping and a point force; segment stiffness and damping vary by world."""
     pts = []
     for k, n in enumerate(lengths):
         s = np.linspace(0.0, 0.02 * (n - 1), n)
-        bend = 0.05 * np.sin(8 * s) if curved and k == 0 else 0 * s
-        pts.append(np.stack([s, 0.1 * k + bend, 0 * s], axis=1))
+        bend = 0.05 * np.sin(8 * s) if curved and (k == 0 or curve_all) else 0 * s
+        pts.append(np.stack([s, 0.1 * k + bend, 0.02 * np.cos(5 * s) * (curve_all and curved)], axis=1))
     starts = np.cumsum((0,) + lengths)
     params = TubeParams(density=1050.0, youngs_modulus=5e4, damping=2.0, spring_damping=spring_damping, anchor_stiffness=40.0)
     anchors = [int(starts[k] + lengths[k] // 3) for k in range(min(1, len(lengths) - 1), len(lengths))]
@@ -71,12 +71,12 @@ def run(model, substeps=150, frames=2, **solver_args):
 @pytest.fixture(scope="module")
 def reference():
     model = batch_model()
-    q, qd, _ = run(model, per_node=False)
+    q, qd, _ = run(model, onchip=False)
     return model, q, qd
 
 
 @pytest.mark.parametrize("block_dim", [32, 256])
-def test_onchip_matches_per_tube_and_per_node(reference, block_dim):
+def test_onchip_matches_per_tube(reference, block_dim):
     model, q_ref, qd_ref = reference
     assert model.features == model.features._replace(
         bending=True, curved=False, anchors=True, gravity=True, mass_damping=True, spring_damping=False, external=True, assistant_line=False
@@ -91,17 +91,27 @@ def test_onchip_matches_per_tube_and_per_node(reference, block_dim):
         assert (solver.onchip_block_dim, solver._onchip_dim, solver._onchip_worlds_per_block) == (256, (2, 1), 3)
     moved = np.abs(q_ref - model.host["node_rest_q"][None]).max()
     assert moved > 5e-3  # it really moved
-    # Per-tube: the same forces, each spring and stencil summed onto its nodes in another order
-    # (scatter against gather), so the runs differ by float32 round-off (a few 1e-8 m per substep
-    # at positions of ~0.1 m) carried through 300 damped substeps: 1e-6 m is ~30 ulp, 1e-4 of the
-    # motion; velocities (~0.05 m/s) to the same relative size.
+    # The same forces, each spring and stencil summed onto its nodes in another order (exchanged
+    # through shared memory against added in a loop), so the runs differ by float32 round-off (a
+    # few 1e-8 m per substep at positions of ~0.1 m) carried through 300 damped substeps: 1e-6 m
+    # is ~30 ulp, 1e-4 of the motion; velocities (~0.05 m/s) to the same relative size.
     np.testing.assert_allclose(q, q_ref, rtol=0, atol=1e-6)
     np.testing.assert_allclose(qd, qd_ref, rtol=0, atol=1e-5 * np.abs(qd_ref).max())
-    # Per-node: the same expressions in the same order as the on-chip kernel (gather, compensated
-    # edges, forces summed alike), so only compiler contraction could part them: a few ulp.
-    q_pn, qd_pn, _ = run(model, per_node=True)
-    np.testing.assert_allclose(q, q_pn, rtol=0, atol=1e-7)
-    np.testing.assert_allclose(qd, qd_pn, rtol=0, atol=1e-6 * np.abs(qd_pn).max())
+
+
+@pytest.mark.parametrize("block_dim", [32, 256])
+def test_onchip_curved_and_spring_damped_matches_per_tube(block_dim):
+    # A curved tube (the scan of frame transports and of holonomy weights along it, over a
+    # 40-point tube: six rounds) with spring damping, per-world stiffness and damping.
+    model = batch_model(curved=True, spring_damping=1e-4, curve_all=True)
+    assert model.features.curved and model.features.spring_damping
+    q_ref, qd_ref, _ = run(model, onchip=False)
+    q, qd, solver = run(model, onchip=True, block_dim=block_dim)
+    assert solver.onchip
+    assert np.abs(q_ref - model.host["node_rest_q"][None]).max() > 5e-3
+    # As above (measured 7e-8 m, velocities 1e-6 of their size).
+    np.testing.assert_allclose(q, q_ref, rtol=0, atol=1e-6)
+    np.testing.assert_allclose(qd, qd_ref, rtol=0, atol=1e-5 * np.abs(qd_ref).max())
 
 
 @pytest.mark.skipif(not wp.get_cuda_device_count(), reason="no CUDA device")
@@ -110,7 +120,7 @@ def test_onchip_cuda_matches_cpu(reference):
     q, _, solver = run(batch_model(device="cuda:0"), onchip=True)
     assert solver.onchip
     # Fast math (approximate division and square root) and FMA on the GPU against the CPU's
-    # per-tube kernel: a few float32 ulp per substep, as the per-node path's CUDA test allows.
+    # per-tube kernel: a few float32 ulp per substep.
     np.testing.assert_allclose(q, q_ref, rtol=0, atol=1e-5)
 
 
@@ -128,19 +138,9 @@ def test_onchip_pins_reach_their_targets_and_input_is_kept():
     np.testing.assert_array_equal(s1.node_q_lo.numpy()[:, pinned], 0.0)
 
 
-@pytest.mark.parametrize(
-    "kind, args",
-    [("curved", dict(curved=True)), ("spring_damping", dict(spring_damping=1e-4)), ("assistant_line", dict(assistant_line=True))],
-)
-def test_onchip_refuses_unsupported_features(kind, args):
-    model = batch_model(world_count=1, lengths=(9, 5), **args)
-    assert getattr(model.features, kind)
-    with pytest.raises(ValueError, match=kind):
-        SemiImplicitEulerSolver(model, onchip=True)
-    SemiImplicitEulerSolver(model)  # the default paths still take it
-
-
 def test_onchip_falls_back_for_tubes_longer_than_a_block():
+    # A tube longer than the largest block takes the per-tube kernel (correct, sequential along
+    # the tube), whatever was asked.
     model = batch_model(world_count=1, lengths=(1100,))
     solver = SemiImplicitEulerSolver(model, onchip=True)
-    assert not solver.onchip
+    assert not solver.onchip and solver.onchip_block_dim is None

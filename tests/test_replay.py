@@ -23,8 +23,8 @@ def frames(sim, plan):
     return s0.node_q.numpy().copy(), s0.node_qd.numpy().copy()
 
 
-@pytest.mark.parametrize("per_node", [False, True])
-def test_replayed_frames_equal_direct_launches(per_node):
+@pytest.mark.parametrize("onchip", [False, True])
+def test_replayed_frames_equal_direct_launches(onchip):
     # One recorded command captured at several (dt, substeps): each graph must keep the values it
     # was captured with, so mixing them has to reproduce the direct launches bit for bit.
     out = []
@@ -33,7 +33,7 @@ def test_replayed_frames_equal_direct_launches(per_node):
         n = sim.substeps  # stable; the plan's other counts are finer
         plan = [(n, 5), (2 * n, 5), (n, 5), (4 * n, 4), (2 * n, 3)]
         sim.step()  # builds the assistant line, so the frames below use every feature
-        sim.solver = SemiImplicitEulerSolver(sim.model, per_node=per_node)
+        sim.solver = SemiImplicitEulerSolver(sim.model, onchip=onchip)
         sim.solver._graphs.enabled = capture
         out.append(frames(sim, plan))
         if capture:

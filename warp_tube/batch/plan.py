@@ -88,7 +88,7 @@ def run_choices(scenes: list[Scene], block: int = 1024) -> list[RunChoice]:
 
 def _choices_of(scenes: list[Scene]) -> list[RunChoice]:
     """run_choices for scenes of one node layout, discretised in one build."""
-    from ..centerline.policy import choose_integrator
+    from ..centerline.policy import choose_integrator, implicit_cost_ratio
     from ..centerline.stability import critical_time_step
     from ..model.tube import build_model
     from .worlds import combined_scene
@@ -104,7 +104,7 @@ def _choices_of(scenes: list[Scene]) -> list[RunChoice]:
         own["tube_node_start"] = h["tube_node_start"][k * curves : (k + 1) * curves + 1] - k * n
         spring_damping = max((t.params.spring_damping for t in scene.tubes), default=0.0)
         bound = critical_time_step(own, flat.features.assistant_line, spring_damping)
-        choice = choose_integrator(scene.settings, bound, scene.stage.frame_dt, flat.features.assistant_line, scene.source)
+        choice = choose_integrator(scene.settings, bound, scene.stage.frame_dt, implicit_cost_ratio(flat))
         integrator, reason, dt = choice.integrator, choice.reason, choice.dt
         substeps = max(1, math.ceil(scene.stage.frame_dt / dt - 1e-9))
         seg = own["seg_rest_length"]

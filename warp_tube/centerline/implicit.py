@@ -14,56 +14,47 @@ from __future__ import annotations
 import warp as wp
 
 from warp_tube.kernels.implicit import ImplicitScratch, make_implicit_kernel
-from warp_tube.kernels.integrate import ControlArrays, ModelArrays, StateArrays, pack
+from warp_tube.kernels.springs import ControlArrays, ModelArrays, StateArrays, pack
 
 from ..model.tube import TubeControl, TubeModel, TubeState
 
-__all__ = ["ImplicitEulerSolver", "AssistantLineNotSupported"]
-
-
-class AssistantLineNotSupported(NotImplementedError):
-    """The implicit solver does not integrate the assistant line; use the semi-implicit one."""
+__all__ = ["ImplicitEulerSolver"]
 
 
 class ImplicitEulerSolver:
     """Linearised backward Euler, one banded solve per tube per substep.
 
     Args:
-        model: the discretised scene (without an assistant line).
+        model: the discretised scene; its assistant lines are integrated with the centerline
+            (their points are unknowns of the same solve).
         iterations: Newton iterations per substep at most; 1 is the linearised backward Euler
             step (with a line search). The default 2 keeps a stiff rod in large motion from
             gaining energy (measured: 1 iteration gains up to 2% a step at 1e9 Pa, 1/60 s).
         tolerance: stop iterating once an iteration moves no node by more than this fraction of
             the shortest segment.
-
-    Raises:
-        AssistantLineNotSupported: the model has an assistant line (a point force with
-            ``assistantLine`` true); the semi-implicit solver handles it.
     """
 
     name = "implicitEuler"
 
     def __init__(self, model: TubeModel, iterations: int = 2, tolerance: float = 1e-6):
-        if model.features.assistant_line:
-            raise AssistantLineNotSupported(
-                "the implicit Euler solver does not integrate the assistant line (a point force with "
-                "assistantLine = true); use the semi-implicit Euler solver for this scene"
-            )
         self.model = model
         self.iterations = int(iterations)
         self.tolerance = float(tolerance)
         seg = model.host["seg_rest_length"]
         self._tol = self.tolerance * float(seg[seg > 0].min()) if (seg > 0).any() else 0.0
         self.device = wp.get_device(model.device)
-        self.kernel = make_implicit_kernel(model.features)
+        lines = model.al_lines if model.features.assistant_line else 0
+        self.kernel = make_implicit_kernel(model.features, lines)
         W, N = model.world_count, model.node_count
+        U, B = N * (1 + lines), 2 * (1 + lines)  # unknowns a world, block bandwidth
         s = ImplicitScratch()
         s.node_kappa_target = wp.zeros((W, N), dtype=wp.vec3, device=self.device)
         s.node_f_frame = wp.zeros((W, N), dtype=wp.vec3, device=self.device)
-        for name in ("node_x0", "node_v0", "node_w", "node_r"):
-            setattr(s, name, wp.zeros((W, N), dtype=wp.vec3d, device=self.device))
-        for name in ("mat_d", "mat_dinv", "mat_l1", "mat_l2"):
-            setattr(s, name, wp.zeros((W, N), dtype=wp.mat33d, device=self.device))
+        for name in ("x0", "v0", "v_it", "r"):
+            setattr(s, name, wp.zeros((W, U), dtype=wp.vec3d, device=self.device))
+        for name in ("mat_d", "mat_dinv"):
+            setattr(s, name, wp.zeros((W, U), dtype=wp.mat33d, device=self.device))
+        s.mat_l = wp.zeros((W, U, B), dtype=wp.mat33d, device=self.device)
         self._scratch = s
         self._model_arrays = pack(ModelArrays, model)
         self._commands = {}
@@ -76,7 +67,7 @@ class ImplicitEulerSolver:
         """Advance ``substeps`` substeps of ``dt`` [s] from ``state_in`` into ``state_out``.
 
         ``state_in`` is left unchanged; pins move linearly from ``control.pin_q_start`` to
-        ``control.pin_q_end`` over the interval. Assistant-line arrays are not touched.
+        ``control.pin_q_end`` over the interval.
         """
         # A recorded launch replays without re-packing its arguments (~15 us a launch on the CPU).
         key = (id(state_in), id(state_out), id(control))

@@ -1,10 +1,10 @@
 """Which integrator and substep a run uses: the scene's choice, or ``auto``'s.
 
 ``auto`` (the default) picks semi-implicit Euler at :data:`SAFETY` x its stability bound unless
-implicit Euler needs fewer substeps by more than their cost ratio per node
-(:data:`IMPLICIT_COST_RATIO`), and never implicit Euler with an assistant line (only the
-semi-implicit solver integrates it). The reason for the choice is returned with it and printed in
-the run summary.
+implicit Euler needs fewer substeps by more than their cost ratio (:func:`implicit_cost_ratio`:
+:data:`IMPLICIT_COST_RATIO` per node, times :data:`IMPLICIT_AL_COST` per assistant line on a tube,
+which implicit Euler solves with the centerline). The reason for the choice is returned with it and
+printed in the run summary.
 """
 
 from __future__ import annotations
@@ -13,10 +13,10 @@ import logging
 import math
 from dataclasses import dataclass
 
-from ..scene.spec import SceneError, SimulationSettings
+from ..scene.spec import SimulationSettings
 
-__all__ = ["IntegratorChoice", "choose_integrator", "implicit_substeps", "SAFETY", "IMPLICIT_DT", "IMPLICIT_COST_RATIO",
-           "RUN_WARNING"]
+__all__ = ["IntegratorChoice", "choose_integrator", "implicit_cost_ratio", "implicit_substeps", "SAFETY", "IMPLICIT_DT",
+           "IMPLICIT_COST_RATIO", "IMPLICIT_AL_COST", "RUN_WARNING"]
 
 log = logging.getLogger(__name__)
 
@@ -27,6 +27,10 @@ SAFETY = 0.5
 IMPLICIT_DT = 1.0 / 240.0
 #: cost of an implicit substep over a semi-implicit one, per node (benchmarks/bench_integrators.py).
 IMPLICIT_COST_RATIO = 16.0
+#: with assistant lines (solved with the centerline) the implicit substep costs this much more again
+#: per line on a tube, relative to a semi-implicit substep with the same lines (measured on the CPU,
+#: 41 points, one line: ~5.0 us against ~0.11 us per node, i.e. ~3 x IMPLICIT_COST_RATIO).
+IMPLICIT_AL_COST = 3.0
 #: ``extra`` of the log records of run warnings (:mod:`warp_tube.sim.simulation` explains them).
 RUN_WARNING = {"run_warning": True}
 
@@ -40,35 +44,33 @@ class IntegratorChoice:
     dt: float
 
 
+def implicit_cost_ratio(model) -> float:
+    """Cost of an implicit substep over a semi-implicit one for ``model`` (a
+    :class:`~warp_tube.model.tube.TubeModel`; see the constants)."""
+    lines = model.al_lines if model.features.assistant_line else 0
+    return IMPLICIT_COST_RATIO * IMPLICIT_AL_COST**lines
+
+
 def implicit_substeps(frame_dt: float, time_step: float | None = None) -> int:
     """Implicit Euler's substeps per frame of ``frame_dt`` [s] (substep ``time_step`` [s] or
     :data:`IMPLICIT_DT`, at most a frame)."""
     return max(1, math.ceil(frame_dt / min(time_step or IMPLICIT_DT, frame_dt) - 1e-9))
 
 
-def choose_integrator(settings: SimulationSettings, critical_dt: float, frame_dt: float, assistant_line: bool,
-                      source: str = "scene") -> IntegratorChoice:  # fmt: skip
+def choose_integrator(settings: SimulationSettings, critical_dt: float, frame_dt: float,
+                      implicit_cost: float = IMPLICIT_COST_RATIO) -> IntegratorChoice:  # fmt: skip
     """The integrator and substep for a scene.
 
     Args:
         settings: the scene's simulation settings (integrator, forced substep).
         critical_dt: semi-implicit Euler's stability bound [s] (``inf`` when nothing is stiff).
         frame_dt: the output frame's duration [s].
-        assistant_line: whether a force builds an assistant line.
-        source: the scene's file, for messages.
-
-    Raises:
-        SceneError: ``implicitEuler`` asked for a scene with an assistant line.
+        implicit_cost: an implicit substep's cost over a semi-implicit one
+            (:func:`implicit_cost_ratio` of the model).
     """
     s, hc = settings, critical_dt
     semi_dt = SAFETY * hc
     if s.integrator == "implicitEuler":
-        if assistant_line:
-            raise SceneError(
-                f"{source}: integrator 'implicitEuler' does not integrate the assistant line of "
-                "a force with warptube:assistantLine = true: set assistantLine = false on the force, or use "
-                "'auto' or 'semiImplicitEuler'"
-            )
         dt = min(s.time_step or IMPLICIT_DT, frame_dt)
         return IntegratorChoice("implicitEuler", f"from the scene, substep {dt:.3g} s", dt)
     if s.integrator == "semiImplicitEuler":
@@ -90,11 +92,10 @@ def choose_integrator(settings: SimulationSettings, critical_dt: float, frame_dt
     impl_steps = math.ceil(frame_dt / impl_dt - 1e-9)
     if s.time_step is not None and s.time_step <= hc:
         return IntegratorChoice("semiImplicitEuler", f"auto: timeStep {s.time_step:.3g} s is within the stability bound {hc:.3g} s", s.time_step)
-    cheaper = impl_steps * IMPLICIT_COST_RATIO < semi_steps
-    if cheaper and not assistant_line:
+    if impl_steps * implicit_cost < semi_steps:
         return IntegratorChoice("implicitEuler", (
             f"auto: stiff ({semi_steps} stable semi-implicit substeps a frame against {impl_steps} implicit "
-            f"ones at ~{IMPLICIT_COST_RATIO:g}x the cost each)"
+            f"ones at ~{implicit_cost:g}x the cost each)"
         ), impl_dt)  # fmt: skip
-    why = "the assistant line needs it" if cheaper else f"cheaper than implicit ({impl_steps} substeps at ~{IMPLICIT_COST_RATIO:g}x the cost)"
+    why = f"cheaper than implicit ({impl_steps} substeps at ~{implicit_cost:g}x the cost)"
     return IntegratorChoice("semiImplicitEuler", f"auto: {semi_steps} substeps a frame at {SAFETY:g} x the stability bound {hc:.3g} s; {why}", semi_dt)

@@ -6,11 +6,13 @@ For a linear system ``M x'' + C x' + K x = 0`` semi-implicit (symplectic) Euler 
 (mass-proportional damping is integrated implicitly and does not limit ``h``).
 
 ``w_max^2`` is bounded above by Gershgorin's theorem on ``M^-1 K``: for each free node, the sum of
-the absolute entries of its row of the stiffness matrix, divided by its mass. Structural and
-returning springs contribute ``2 ke`` (diagonal plus neighbour); a bending stencil of coefficient
-``k = EI / l_v`` on edges ``la``, ``lb`` has Jacobian magnitudes ``(1/la, 1/la + 1/lb, 1/lb)`` on its
-three nodes, so node m's row gets ``k |J_m| sum_n |J_n|``. On a uniform chain the bound is exact as
-the chain grows: ``4 EA / (m l)`` axially and ``16 EI / (m l^3)`` in bending.
+the absolute entries of its row of the stiffness matrix, divided by its mass. Each force term
+defines what it adds to those rows next to its force and stiffness (``warp_tube.kernels.springs``):
+structural and returning springs ``2 ke`` (diagonal plus neighbour), each assistant line a link
+and a tractive spring beside every structural spring, a bending stencil of coefficient
+``k = EI / l_v`` on edges ``la``, ``lb`` ``k |J_m| sum_n |J_n|`` on its node m, with the Jacobian
+magnitudes ``(1/la, 1/la + 1/lb, 1/lb)``. On a uniform chain the bound is exact as the chain
+grows: ``4 EA / (m l)`` axially and ``16 EI / (m l^3)`` in bending.
 """
 
 from __future__ import annotations
@@ -18,32 +20,27 @@ from __future__ import annotations
 import math
 
 import numpy as np
+import warp as wp
+
+from warp_tube.kernels.springs import StabilityArrays, stability_rows_kernel
 
 __all__ = ["max_frequency", "critical_time_step"]
 
 
 def _row_sums(host: dict, assistant_line: bool) -> np.ndarray:
-    start = host["tube_node_start"]
-    ke = host["seg_ke"]
-    l = host["seg_rest_length"]
-    bk = host["node_bend_k"]
-    n = len(ke)
-    rows = np.zeros(n)
-    last = np.zeros(n, dtype=bool)
-    last[start[1:] - 1] = True
-    seg_ok = ~last  # segment i exists where node i is not its tube's last node
-    axial = np.where(seg_ok, 2.0 * ke, 0.0)
-    rows += axial
-    rows[1:] += axial[:-1]
+    """Gershgorin row sums [N/m] of the stiffness, shape (node_count,), from each term's row
+    function next to its force (``warp_tube.kernels.springs``: spring_rows, bend_rows, anchor_rows,
+    al_rows), evaluated in float64 on the CPU."""
+    start = np.asarray(host["tube_node_start"], dtype=np.int32)
+    lines = 0
     if assistant_line:
-        rows += 2.0 * rows  # a link and a tractive spring beside every structural one
-    inv_l = np.where(seg_ok & (l > 0), 1.0 / np.where(l > 0, l, 1.0), 0.0)
-    for j in np.nonzero(bk > 0)[0]:
-        ja, jb = inv_l[j - 1], inv_l[j]
-        jac = np.array([ja, ja + jb, jb])
-        rows[j - 1 : j + 2] += bk[j] * jac * jac.sum()
-    rows += 2.0 * host["node_anchor_k"]
-    return rows
+        lines = max(1, int((np.asarray(host.get("tube_al_force", np.zeros((1, 1)))) >= 0).sum(axis=1).max()))
+    fields = StabilityArrays()
+    for name in StabilityArrays.vars:
+        setattr(fields, name, wp.array(np.asarray(host[name], dtype=np.float64), dtype=wp.float64, device="cpu"))
+    rows = wp.zeros(len(host["seg_ke"]), dtype=wp.float64, device="cpu")
+    wp.launch(stability_rows_kernel, len(start) - 1, device="cpu", inputs=[lines, wp.array(start, dtype=int, device="cpu"), fields], outputs=[rows])
+    return rows.numpy()
 
 
 def max_frequency(host: dict, assistant_line: bool = False) -> float:

@@ -285,7 +285,9 @@ class TubeModel:
     force_tube: wp.array  # (force_count,) int
     al_start: wp.array  # (force_count,) int, first AL slot of each force
     al_force_index: wp.array  # (al_slots,) int
-    features: object  # kernels.integrate.Features
+    al_lines: int  # most assistant lines on one tube, K
+    tube_al_force: wp.array  # (tube_count, max(K, 1)) int: the forces with a line on each tube, -1 padded
+    features: object  # kernels.springs.Features
     host: dict
 
     def state(self) -> TubeState:
@@ -323,7 +325,7 @@ class TubeModel:
 
 def build_model(scene: Scene, world_count: int = 1, device=None) -> TubeModel:
     """Discretise ``scene`` into a :class:`TubeModel` on ``device`` (Warp device or name)."""
-    from warp_tube.kernels.integrate import Features
+    from warp_tube.kernels.springs import Features
 
     device = str(wp.get_device(device))
     pts, tube_start, node_tube = [], [0], []
@@ -406,8 +408,14 @@ def build_model(scene: Scene, world_count: int = 1, device=None) -> TubeModel:
             n = tube_start[t + 1] - tube_start[t]
             al_force_index.extend([a] * n)
             slot += n
+    lines = [[a for a in range(tube_force_start[t], tube_force_start[t + 1]) if uses_al[a]] for t in range(t_index)]
+    al_lines = max((len(v) for v in lines), default=0)
+    tube_al_force = np.full((t_index, max(al_lines, 1)), -1, dtype=np.int64)
+    for t, v in enumerate(lines):
+        tube_al_force[t, : len(v)] = v
     host.update(force_tube=force_tube, force_node=force_node, tube_force_start=tube_force_start,
-                al_start=np.asarray(al_start, dtype=np.int64), force_uses_al=np.asarray(uses_al, dtype=bool))  # fmt: skip
+                al_start=np.asarray(al_start, dtype=np.int64), force_uses_al=np.asarray(uses_al, dtype=bool),
+                tube_al_force=tube_al_force)  # fmt: skip
     g = scene.settings.gravity
     features = Features(
         bending=bool((host["node_bend_k"] > 0).any()),
@@ -438,6 +446,7 @@ def build_model(scene: Scene, world_count: int = 1, device=None) -> TubeModel:
         node_anchor_k=row(host["node_anchor_k"]), node_anchor_kd=row(host["node_anchor_kd"]),
         gravity=wp.vec3(*(g if g is not None else (0.0, 0.0, 0.0))),
         tube_force_start=ints(tube_force_start), force_node=ints(force_node), force_tube=ints(force_tube),
-        al_start=ints(al_start), al_force_index=ints(al_force_index),
+        al_start=ints(al_start), al_force_index=ints(al_force_index), al_lines=al_lines,
+        tube_al_force=wp.array(tube_al_force.astype(np.int32), dtype=int, device=device),
         features=features, host=host,
     )  # fmt: skip

@@ -26,7 +26,7 @@ import numpy as np
 import warp as wp
 
 from ..centerline.explicit import SemiImplicitEulerSolver
-from ..centerline.policy import IMPLICIT_COST_RATIO, RUN_WARNING, choose_integrator, implicit_substeps
+from ..centerline.policy import IMPLICIT_COST_RATIO, RUN_WARNING, choose_integrator, implicit_cost_ratio, implicit_substeps
 from ..centerline.stability import critical_time_step
 from ..model.tube import build_model
 from ..scene.spec import Scene, SceneError
@@ -50,8 +50,6 @@ LONG_RUN_SECONDS = 60.0
 #: environment variable that pauses a run at a known point, for the interrupt tests:
 #: "compile" (before the first frame, where kernels compile) or "frame:K" (after frame K is written).
 PAUSE_ENV = "WARP_TUBE_PAUSE_AT"
-
-
 
 
 class NumericalError(RuntimeError):
@@ -172,7 +170,7 @@ class Simulation:
         self.frame_dt = scene.stage.frame_dt
         spring_damping = max((t.params.spring_damping for t in scene.tubes), default=0.0)
         self.critical_dt = critical_time_step(m.host, m.features.assistant_line, spring_damping)
-        choice = choose_integrator(scene.settings, self.critical_dt, self.frame_dt, m.features.assistant_line, scene.source)
+        choice = choose_integrator(scene.settings, self.critical_dt, self.frame_dt, implicit_cost_ratio(m))
         self.integrator, self.reason = choice.integrator, choice.reason
         self.substeps = max(1, math.ceil(self.frame_dt / choice.dt - 1e-9))
         self.dt = self.frame_dt / self.substeps
@@ -277,8 +275,8 @@ class Simulation:
 
     def _switch_to_implicit(self, problem: str) -> bool:
         """``auto``'s last resort for a frame semi-implicit Euler cannot take: implicit Euler
-        from now on (not with an assistant line, which only the semi-implicit solver has)."""
-        if self.integrator != "semiImplicitEuler" or self.model.features.assistant_line:
+        from now on."""
+        if self.integrator != "semiImplicitEuler":
             return False
         from ..centerline.implicit import ImplicitEulerSolver
 
