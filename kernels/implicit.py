@@ -37,15 +37,12 @@ import functools
 
 import warp as wp
 
+from .assistant_line import al_point_energy, al_point_forces, al_spring_block, al_springs
 from .springs import (
     ControlArrays,
     Features,
     ModelArrays,
     StateArrays,
-    al_point_energy,
-    al_point_forces,
-    al_spring_block,
-    al_springs,
     bend_energy,
     bend_jacobians,
     curvature_targets,

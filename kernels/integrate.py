@@ -27,13 +27,12 @@ import functools
 import warp as wp
 
 from .options import CUDA_OPTIONS
+from .assistant_line import al_point_forces, al_springs
 from .springs import (
     ControlArrays,
     Features,
     ModelArrays,
     StateArrays,
-    al_point_forces,
-    al_springs,
     bend_gradients,
     curvature_targets,
     frame_forces,

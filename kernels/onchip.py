@@ -41,14 +41,13 @@ import functools
 import warp as wp
 
 from .options import CUDA_OPTIONS
+from .assistant_line import al_point_forces, al_springs
 from .springs import (
     ControlArrays,
     Features,
     ModelArrays,
     NodeTerms,
     StateArrays,
-    al_point_forces,
-    al_springs,
     bend_gradients,
     first_edge_normal,
     first_frame_gradient,

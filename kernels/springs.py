@@ -20,7 +20,7 @@ returning spring, gravity,  :class:`NodeTerms` via                  node_anchor_
 point force                 :func:`make_node_terms`                 gravity, node_f_ext
 pins                        :func:`pin_step`                        node_inv_mass 0, pin targets
 mass damping                ``advance`` of make_node_terms          node_damping
-assistant line: link,       :func:`al_springs` (which springs),     control.al_* rest lengths,
+assistant line: link,       :mod:`.assistant_line`: al_springs,    control.al_* rest lengths,
 chord, tractive springs     al_point_forces, al_spring_block,      seg_ke, seg_kd
                             al_point_energy
 =========================== ====================================== ==============================
@@ -377,100 +377,6 @@ def frame_forces(
     g0 = first_frame_gradient(wp.normalize(node_rest_q[pw, start + 1] - node_rest_q[pw, start]), node_delta(node_q, node_q_lo, w, start, start + 1), m_sum)
     node_f_out[w, start + 1] = node_f_out[w, start + 1] - g0
     node_f_out[w, start] = node_f_out[w, start] + g0
-
-
-# -- the assistant line -----------------------------------------------------------------------
-
-#: Line springs per line point: its neighbours, in this order, are node ``P_i``, line point
-#: ``P_{i+1}'``, node ``P_{i+1}`` and node ``P_{i-1}`` (see :func:`al_springs`).
-AL_SPRINGS = 4
-
-Mat43 = wp.types.matrix((4, 3), wp.Float)
-
-
-@wp.func
-def al_springs(i: int, k: int, start: int, end: int) -> wp.vec4i:
-    """Which springs join assistant-line point ``P_i'`` of a tube with nodes ``start..end-1``,
-    pushed at node ``k`` (section 2.2 of the seed paper), to its neighbours (:data:`AL_SPRINGS`),
-    each spring owned by one line point:
-
-    - the link ``P_i' - P_i``;
-    - the chord ``P_i' - P_{i+1}'`` (the offset copy of structural spring ``i``);
-    - the forward tractive spring ``P_i' - P_{i+1}`` for ``i >= k``;
-    - the backward tractive spring ``P_i' - P_{i-1}`` for ``i <= k``.
-
-    Per neighbour: 0, no spring; 1, a spring with the stiffness and damping of segment ``i``; 2,
-    of segment ``i - 1`` (the link at a tube's last node, and the backward tractive spring). Rest
-    lengths: the control's ``al_link_length``, ``al_chord_length``, ``al_fwd_length``,
-    ``al_bwd_length`` of the point's slot, set when the line is built.
-    """
-    link = 1
-    if i == end - 1:
-        link = 2
-    chord = 0
-    fwd = 0
-    if i < end - 1:
-        chord = 1
-        if i >= k:
-            fwd = 1
-    bwd = 0
-    if i <= k and i > start:
-        bwd = 2
-    return wp.vec4i(link, chord, fwd, bwd)
-
-
-@wp.func
-def al_point_forces(springs: wp.vec4i, d: Mat43, dv: Mat43, rest_length: wp.vec4, ke: float, ke_prev: float, kd: float, kd_prev: float):
-    """Forces of one line point's springs (:func:`al_springs`): ``d[s]`` and ``dv[s]`` are neighbour
-    ``s``'s position [m] and velocity [m/s] minus the point's; ``ke``, ``kd`` the stiffness [N/m]
-    and damping [N s/m] of segment ``i``, ``ke_prev``, ``kd_prev`` of segment ``i - 1``. Returns
-    the force on the point [N] and, row ``s``, the force on neighbour ``s`` (zero where there is
-    no spring)."""
-    r = d * type(d[0, 0])(0.0)
-    f = r[0]
-    for s in range(AL_SPRINGS):
-        if springs[s] != 0:
-            fs = spring_force(
-                d[s], dv[s], type(d[0, 0])(rest_length[s]),
-                type(d[0, 0])(al_segment(springs[s], ke, ke_prev)), type(d[0, 0])(al_segment(springs[s], kd, kd_prev)),
-            )  # fmt: skip
-            f = f + fs
-            r[s] = -fs
-    return f, r
-
-
-@wp.func
-def al_spring_block(springs: wp.vec4i, s: int, d: Mat43, rest_length: wp.vec4, ke: float, ke_prev: float, kd: float, kd_prev: float, h: wp.Float):
-    """Implicit Euler's block ``h^2 K + h C`` [kg] of a line point's spring to neighbour ``s`` (as
-    :func:`al_point_forces`; :func:`spring_stiffness`, :func:`spring_damping_matrix`); zero where
-    there is no spring or it has no length."""
-    ds = d[s]
-    blk = wp.outer(ds, ds) * type(h)(0.0)
-    if springs[s] != 0 and wp.length(ds) >= type(h)(EPS):
-        blk = spring_stiffness(ds, type(h)(rest_length[s]), type(h)(al_segment(springs[s], ke, ke_prev))) * (h * h)
-        blk = blk + spring_damping_matrix(ds, type(h)(al_segment(springs[s], kd, kd_prev))) * h
-    return blk
-
-
-@wp.func
-def al_point_energy(springs: wp.vec4i, d: Mat43, d0: Mat43, rest_length: wp.vec4, ke: float, ke_prev: float, kd: float, kd_prev: float, h: wp.Float):
-    """Energy [J] of one line point's springs (as :func:`al_point_forces`; :func:`spring_energy`)
-    plus their damping's dissipation over a step of ``h`` [s] from end differences ``d0``
-    (:func:`spring_dissipation`)."""
-    e = type(h)(0.0)
-    for s in range(AL_SPRINGS):
-        if springs[s] != 0:
-            e += spring_energy(d[s], type(h)(rest_length[s]), type(h)(al_segment(springs[s], ke, ke_prev)))
-            e += spring_dissipation(d[s], d0[s], type(h)(al_segment(springs[s], kd, kd_prev)), h)
-    return e
-
-
-@wp.func
-def al_segment(code: int, this: float, prev: float) -> float:
-    """The parameter of segment ``i`` (code 1) or ``i - 1`` (code 2) (:func:`al_springs`)."""
-    if code == 2:
-        return prev
-    return this
 
 
 # -- the stability bound's row sums, term by term ---------------------------------------------
