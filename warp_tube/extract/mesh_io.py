@@ -193,12 +193,14 @@ class BoundaryLoop:
         centroid: mean of the loop's vertices [mesh units], shape (3,).
         radius: mean distance of the loop's vertices from the centroid [mesh units].
         normal: unit normal of the loop's best-fit plane, shape (3,) (sign arbitrary).
+        extent: largest distance of the loop's vertices from the centroid [mesh units].
     """
 
     vertices: np.ndarray
     centroid: np.ndarray
     radius: float
     normal: np.ndarray
+    extent: float
 
 
 def boundary_loops(mesh: trimesh.Trimesh) -> list[BoundaryLoop]:
@@ -235,11 +237,8 @@ def boundary_loops(mesh: trimesh.Trimesh) -> list[BoundaryLoop]:
         pts = v[chain]
         c = pts.mean(axis=0)
         _, _, vt = np.linalg.svd(pts - c, full_matrices=False)
-        loops.append(
-            BoundaryLoop(
-                np.asarray(chain, dtype=np.int64), c, float(np.linalg.norm(pts - c, axis=1).mean()), vt[2]
-            )
-        )
+        dist = np.linalg.norm(pts - c, axis=1)
+        loops.append(BoundaryLoop(np.asarray(chain, dtype=np.int64), c, float(dist.mean()), vt[2], float(dist.max())))
     loops.sort(key=lambda lp: -lp.radius)
     return loops
 
