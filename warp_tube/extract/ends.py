@@ -7,10 +7,14 @@ Choice (in the voxel graph of :mod:`warp_tube.extract.distance_map`):
   piece (the tube leaving the loop in one direction). A loop in the side of a tube that goes on both
   ways (an opening where a branch was cut flush, a short branch stub, a hole) leaves two or more
   pieces there.
-- Two or more terminal loops: the ends are the two of them farthest apart along the inside. One:
-  it is one end, the other is the inside point farthest from it. None (a closed mesh, or one with
-  openings in its side only): the two ends of the longest geodesic, found by a double sweep from the
-  widest point (the farthest-apart rule). The loops that are not ends are reported with their size.
+- A flat face that seals the tube where it was cut out of a longer one
+  (:func:`warp_tube.extract.mesh_io.flat_cuts`) is an end of the mesh like a terminal open loop when
+  it passes the same test.
+- Two or more such ends: the tube's ends are the two of them farthest apart along the inside.
+  One: it is one end, the other is the inside point farthest from it. None (a closed mesh with
+  rounded tips, or one with openings in its side only): the two ends of the longest geodesic, found
+  by a double sweep from the widest point (the farthest-apart rule). The loops that are not ends are
+  reported with their size.
 
 End rings (on the centred line, :mod:`warp_tube.extract.sections`):
 
@@ -18,9 +22,12 @@ End rings (on the centred line, :mod:`warp_tube.extract.sections`):
   first point whose cross-section is complete (every ray meets the wall), so that the end ring lies
   on the wall and not across the open end (an oblique cut leaves a short stretch open);
 - at a closed end the line is continued straight along its tangent to the closed surface (the
-  tip), and the end hub is put where the simulator's rounded cap, a dome of the end ring's spoke
-  lengths (rings at polar angles ``(pi / 2)(1 - k / K)``, :func:`warp_tube.surface.topology.cap_ring_count`),
-  lies closest to the mesh (a flat cap puts it about 0.85 radii in, a round tip about one radius).
+  tip). A rounded tip is capped: the end hub is put where the simulator's cap, a dome of the end
+  ring's spoke lengths (rings at polar angles ``(pi / 2)(1 - k / K)``,
+  :func:`warp_tube.surface.topology.cap_ring_count`), lies closest to the mesh (about one radius in
+  on a hemisphere). A flat cut (a segment cut out of a longer tube and sealed) is trimmed: a dome
+  cannot follow it (the best misses a flat disc by 0.11 radii, an oblique one by more), so the end
+  hub goes just inside the cut and the scene leaves that end open.
 
 Lengths are in the mesh's units.
 """
@@ -36,7 +43,7 @@ from scipy.spatial import cKDTree
 
 from . import distance_map as dmap
 from ..surface.topology import cap_ring_count
-from .mesh_io import BoundaryLoop
+from .mesh_io import BoundaryLoop, FlatCut
 from .polyline import arclength
 from .queries import MeshQueries
 from ..model.frames import spoke_directions
@@ -49,23 +56,25 @@ log = logging.getLogger(__name__)
 _SHELL = (3.0, 4.0)  # geodesic shell around a loop, in local radii, for the terminal test
 _CAP_FIT = np.linspace(0.3, 1.5, 49)  # candidate distances of a closed end's hub from the tip, in end radii
 _POLE_WEIGHT = 0.6  # the pole is one vertex, the cap rings S each: its distance counts this much
+_FLAT = 0.03  # a closed end is a flat cut where the surface ahead lies within this x end radius of a plane
+_CUT_MARGIN = 0.02  # a trimmed end ring stays this x end radius before the cut's plane
 
 
 @dataclass(frozen=True)
 class EndChoice:
-    """The two end voxels of the tube, their loops (None: closed end) and the loops left over.
+    """The two end voxels of the tube, what closes them and the loops left over.
 
     Attributes:
         a, b: voxel indices of the ends in the distance map.
-        loop_a, loop_b: the open loops at the ends, or None for closed ends.
+        end_a, end_b: the open loop or sealed flat cut at each end, or None for a closed tip.
         terminal: the terminal loops (open ends of the mesh).
         others: the loops that are not ends (openings in the wall, cut side branches, spare ends).
     """
 
     a: int
     b: int
-    loop_a: BoundaryLoop | None
-    loop_b: BoundaryLoop | None
+    end_a: BoundaryLoop | FlatCut | None
+    end_b: BoundaryLoop | FlatCut | None
     terminal: list[BoundaryLoop]
     others: list[BoundaryLoop]
 
@@ -74,7 +83,7 @@ def _nearest_voxel(dm: dmap.DistanceMap, tree: cKDTree, reach: np.ndarray, point
     return int(reach[tree.query(point)[1]])
 
 
-def is_terminal(dm: dmap.DistanceMap, voxel: int, loop: BoundaryLoop) -> bool:
+def is_terminal(dm: dmap.DistanceMap, voxel: int, loop: BoundaryLoop | FlatCut) -> bool:
     """Whether the tube ends at ``loop``: the inside voxels at a geodesic distance of 3 to 4 local
     radii from the loop's voxel form at most one connected piece (two or more: the tube goes on
     both ways past the loop). The local radius is the larger of the loop's radius and the widest
@@ -92,38 +101,42 @@ def is_terminal(dm: dmap.DistanceMap, voxel: int, loop: BoundaryLoop) -> bool:
     return int((np.bincount(label) >= max(3, 0.05 * len(shell))).sum()) <= 1
 
 
-def choose_ends(dm: dmap.DistanceMap, loops: list[BoundaryLoop]) -> EndChoice:
+def choose_ends(dm: dmap.DistanceMap, loops: list[BoundaryLoop], cuts: list[FlatCut] = ()) -> EndChoice:
     """The tube's two ends (see the module).
 
     Args:
         dm: the distance map of the inside.
         loops: the open loops large enough to be ends (open ends, openings, cut branches).
+        cuts: flat faces that may seal a cut end (:func:`warp_tube.extract.mesh_io.flat_cuts`);
+            a terminal one is a mesh end like a terminal open loop.
     """
     root = int(np.argmax(dm.dfb))
     d_root = dmap.shortest_tree(dm.length_graph, root)[0]
     reach = np.flatnonzero(np.isfinite(d_root))
     tree = cKDTree(dm.points[reach])
-    voxels = [_nearest_voxel(dm, tree, reach, lp.centroid) for lp in loops]
-    terminal = [i for i, v in enumerate(voxels) if is_terminal(dm, v, loops[i])]
+    cand = list(loops) + list(cuts)
+    voxels = [_nearest_voxel(dm, tree, reach, lp.centroid) for lp in cand]
+    terminal = [i for i, v in enumerate(voxels) if is_terminal(dm, v, cand[i])]
     if len(terminal) >= 2:
-        cand = [voxels[i] for i in terminal]
-        dist = np.stack([dmap.shortest_tree(dm.length_graph, c)[0][cand] for c in cand])
+        vox = [voxels[i] for i in terminal]
+        dist = np.stack([dmap.shortest_tree(dm.length_graph, c)[0][vox] for c in vox])
         i, j = np.unravel_index(int(np.argmax(np.where(np.isfinite(dist), dist, -1.0))), dist.shape)
         ia, ib = terminal[i], terminal[j]
-        a, b, loop_a, loop_b = voxels[ia], voxels[ib], loops[ia], loops[ib]
+        a, b, end_a, end_b = voxels[ia], voxels[ib], cand[ia], cand[ib]
     elif len(terminal) == 1:
         ia = terminal[0]
-        a, loop_a = voxels[ia], loops[ia]
+        a, end_a = voxels[ia], cand[ia]
         d_a = dmap.shortest_tree(dm.length_graph, a)[0]
-        b, loop_b = int(np.argmax(np.where(np.isfinite(d_a), d_a, -1.0))), None
+        b, end_b = int(np.argmax(np.where(np.isfinite(d_a), d_a, -1.0))), None
     else:
         a = int(reach[np.argmax(d_root[reach])])
         d_a = dmap.shortest_tree(dm.length_graph, a)[0]
         b = int(np.argmax(np.where(np.isfinite(d_a), d_a, -1.0)))
-        loop_a = loop_b = None
-    used = [lp for lp in (loop_a, loop_b) if lp is not None]
+        end_a = end_b = None
+    used = [e for e in (end_a, end_b) if e is not None]
     return EndChoice(
-        a, b, loop_a, loop_b, [loops[i] for i in terminal], [lp for lp in loops if not any(lp is u for u in used)]
+        a, b, end_a, end_b, [cand[i] for i in terminal if isinstance(cand[i], BoundaryLoop)],
+        [lp for lp in loops if not any(lp is u for u in used)],
     )
 
 
@@ -203,20 +216,65 @@ def _cap_points(hub: np.ndarray, tangent: np.ndarray, lengths: np.ndarray, spoke
     return np.vstack(pts)
 
 
-def fit_closed_end(q: MeshQueries, line: np.ndarray, diag: float, spokes: int):
-    """Place the closed end of ``line`` (its start) where the simulator's cap fits the mesh.
+def _best_cap(q: MeshQueries, ext: np.ndarray, r_end: float, diag: float, spokes: int):
+    """Arclength from ``ext[0]`` (the tip) along ``ext`` of the end hub whose cap fits best, or None.
 
-    The line is continued straight along its first segment's direction (outwards) to the closed
-    surface: that hit is the tube's tip. For hubs at :data:`_CAP_FIT` end radii from the tip along
-    the continued line, the cap is built on the hub's ring (``spokes`` rays in the plane normal to
-    the line) and the hub whose ring is complete and whose cap lies nearest the mesh is taken: the
-    least of the largest distance of a cap-ring point and :data:`_POLE_WEIGHT` times the pole's (on a
-    flat cap this puts the hub 0.82 radii in, its cap rings within 0.11 radii of the mesh and the
-    pole 0.18 radii beyond it).
+    The cap's axis is the line's outward tangent there. The score of a position is the larger of
+    the largest distance of a cap-ring point from the mesh and :data:`_POLE_WEIGHT` times the pole's.
+    """
+    s = arclength(ext)
+    best, best_score = None, np.inf
+    for c in _CAP_FIT * max(r_end, 1e-12):
+        hub, tan = _point_at(ext, s, c)
+        r, s_ = plane_basis((-tan)[None])
+        hits, valid, _ = ring_hits(q, hub[None], spoke_directions(r, s_, spokes), diag)
+        if not valid.all():
+            continue
+        dist = q.distance(_cap_points(hub, -tan, hits[0], spokes), diag)
+        score = max(float(dist[1:].max()), _POLE_WEIGHT * float(dist[0]))
+        if score < best_score:
+            best, best_score = c, score
+    return best
+
+
+def _cut_plane(q: MeshQueries, hub: np.ndarray, out: np.ndarray, r_end: float, diag: float):
+    """The plane of a flat cut closing the tube ahead of ``hub`` (looking along unit ``out``), as
+    ``(point, unit normal)``, or None when the closed surface there is not flat: the hits of rays
+    in a cone of 35 degrees around ``out`` lie within 3 % of the end radius of their best plane."""
+    r, s = plane_basis(out[None])
+    dirs = [out]
+    for angle in (np.radians(20.0), np.radians(35.0)):
+        ring = spoke_directions(r, s, 8)[0]
+        dirs += list(np.cos(angle) * out + np.sin(angle) * ring)
+    dirs = np.asarray(dirs)
+    t = q.rays(q.closed, np.repeat(hub[None], len(dirs), axis=0), dirs, diag)
+    if (t <= 0.0).any():
+        return None
+    pts = hub + t[:, None] * dirs
+    centre = pts.mean(axis=0)
+    _, _, vt = np.linalg.svd(pts - centre)
+    normal = vt[2] if np.dot(vt[2], out) > 0.0 else -vt[2]
+    if np.abs((pts - centre) @ normal).max() > _FLAT * r_end:
+        return None
+    return centre, normal
+
+
+def fit_closed_end(q: MeshQueries, line: np.ndarray, diag: float, spokes: int, cut: FlatCut | None = None):
+    """End the tube at the closed end of ``line`` (its start): capped at a round tip, trimmed at a cut.
+
+    The line is continued straight along its outward tangent (a quadratic through its first four
+    points) to the closed surface: that hit is the tube's tip. Where the surface ahead is a flat cut
+    (``cut``, or found by :func:`_cut_plane`), the end hub goes where the ring normal to the line first lies wholly
+    inside the cut (every spoke end at least 2 % of the end radius before its plane): the scene
+    leaves that end open (``"cut"``). Elsewhere (a rounded tip) it goes where the simulator's cap
+    fits: for hubs at :data:`_CAP_FIT` end radii from the tip along the continued line, the cap is
+    built on the hub's ring (``spokes`` rays in the plane normal to the line) and the hub whose
+    ring is complete with the best cap (:func:`_best_cap`; a hemisphere puts it one radius in) is
+    taken (``"closed"``).
 
     Returns:
-        ``(line (k, 3) starting at the end hub, tip (3,))``, or the line unchanged and its first
-        point when no ray reaches the closed surface.
+        ``(line (k, 3) starting at the end hub, tip (3,), kind)``, ``kind`` "closed" or "cut"; the
+        line unchanged when no ray reaches the closed surface or no position has a complete ring.
     """
     if len(line) >= 4:  # the outward tangent at the end, from a quadratic through the first 4 points
         coef = np.polyfit(arclength(line[:4]), line[:4], 2)  # rows: s^2, s, 1
@@ -226,23 +284,53 @@ def fit_closed_end(q: MeshQueries, line: np.ndarray, diag: float, spokes: int):
     out = out / max(np.linalg.norm(out), 1e-300)
     t = q.rays(q.closed, line[0][None], out[None], diag)[0]
     if t <= 0.0:
-        return line, line[0].copy()
+        return line, line[0].copy(), "closed"
     tip = line[0] + t * out
     ext = np.concatenate([tip[None], line])  # from the tip inwards
     s = arclength(ext)
     r_end = float(q.distance(line[:1], diag)[0])
-    best, best_score = None, np.inf
-    for c in _CAP_FIT:
-        hub, tan = _point_at(ext, s, c * max(r_end, 1e-12) + 0.0)
-        r, s_ = plane_basis((-tan)[None])
-        hits, valid, _ = ring_hits(q, hub[None], spoke_directions(r, s_, spokes), diag)
-        if not valid.all():
-            continue
-        dist = q.distance(_cap_points(hub, -tan, hits[0], spokes), diag)
-        score = max(float(dist[1:].max()), _POLE_WEIGHT * float(dist[0]))
-        if score < best_score:
-            best, best_score = c * r_end, score
+    if cut is not None:
+        normal = cut.normal if np.dot(cut.normal, out) > 0.0 else -cut.normal
+        cut = (cut.centroid, normal)
+    else:
+        cut = _cut_plane(q, line[0], out, r_end, diag)
+    if cut is not None:
+        best = _inside_cut(q, ext, s, cut, r_end, diag, spokes)
+        kind = "cut"
+    else:
+        best = _best_cap(q, ext, r_end, diag, spokes)
+        kind = "closed"
     if best is None:
-        return line, tip
+        return line, tip, kind
     hub, _ = _point_at(ext, s, best)
-    return np.concatenate([hub[None], ext[s > best]]), tip
+    return np.concatenate([hub[None], ext[s > best]]), tip, kind
+
+
+def _inside_cut(q: MeshQueries, ext, s, cut, r_end: float, diag: float, spokes: int):
+    """Least arclength from the tip along ``ext`` at which the hub's ring (normal to the line) is
+    complete and lies wholly before the cut plane, refined by bisection to 1 % of ``r_end``."""
+    point, normal = cut
+
+    def inside(x: float) -> bool:
+        hub, tan = _point_at(ext, s, x)
+        r, s_ = plane_basis(tan[None])
+        dirs = spoke_directions(r, s_, max(spokes, RAYS))[0]
+        origins = np.repeat(hub[None], len(dirs), axis=0)
+        hits = q.rays(q.wall, origins, dirs, diag)  # next to the cut the distance from the wall
+        if (hits <= 0.0).any() or (q.rays(q.closed, origins, dirs, diag) < hits - 1e-5 * diag).any():
+            return False  # is small, so ring_hits' bound by it does not apply: any wall hit counts
+        ends = hub + hits[:, None] * dirs
+        return bool(((ends - point) @ normal).max() <= -_CUT_MARGIN * r_end)
+
+    probe = np.linspace(0.0, min(2.0 * r_end, s[-1]), 21)
+    ok = [inside(x) for x in probe]
+    if not any(ok):
+        return None
+    k = int(np.argmax(ok))
+    if k == 0:
+        return 0.0
+    lo, hi = probe[k - 1], probe[k]
+    while hi - lo > 0.01 * r_end:
+        mid = 0.5 * (lo + hi)
+        lo, hi = (lo, mid) if inside(mid) else (mid, hi)
+    return hi

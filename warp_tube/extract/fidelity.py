@@ -24,6 +24,7 @@ import numpy as np
 import warp as wp
 
 from ..kernels import raycast
+from ..model.frames import rotation_minimizing_frames, spoke_directions
 from ..surface.builder import SurfaceBuilder
 from .polyline import arclength, nearest_on_polyline
 
@@ -32,7 +33,10 @@ if TYPE_CHECKING:
 
     from .pipeline import ExtractedTube
 
-__all__ = ["RestSurface", "rest_surface", "Distances", "Fidelity", "fidelity_of", "surface_fidelity", "mesh_distances"]
+__all__ = [
+    "RestSurface", "rest_surface", "plain_surface", "Distances", "Fidelity", "fidelity_of", "surface_fidelity",
+    "mesh_distances", "measured_vertices",
+]  # fmt: skip
 
 
 @dataclass(frozen=True)
@@ -85,6 +89,28 @@ def rest_surface(points, spoke_lengths, reference_normal, caps: bool, device=Non
         out.append(pts.numpy()[0].astype(np.float64))
     faces = np.asarray(b.face_vertex_indices, dtype=np.int64).reshape(-1, 3)
     return RestSurface(out[0], faces, out[1], n, s)
+
+
+def plain_surface(points, spoke_lengths, reference_normal):
+    """Rings ``hub + spoke_length * direction`` as measured (no guard, no caps), joined by strips.
+
+    Args:
+        points: hubs, shape (n, 3); spoke_lengths: shape (n, S); reference_normal: shape (3,).
+
+    Returns:
+        ``(vertices (n * S, 3), faces (2 * (n - 1) * S, 3))``; vertex ``i * S + j`` is spoke j of hub i.
+    """
+    p = np.asarray(points, dtype=np.float64)
+    n, m = np.shape(spoke_lengths)
+    _, r, s = rotation_minimizing_frames(p, None, reference_normal)
+    v = (p[:, None, :] + np.asarray(spoke_lengths)[..., None] * spoke_directions(r, s, m)).reshape(-1, 3)
+    i, j = np.meshgrid(np.arange(n - 1), np.arange(m), indexing="ij")
+    a = i * m + j
+    b = i * m + (j + 1) % m
+    faces = np.concatenate(
+        [np.stack([a, b, b + m], -1).reshape(-1, 3), np.stack([a, b + m, a + m], -1).reshape(-1, 3)]
+    )
+    return v, faces
 
 
 def mesh_distances(query: np.ndarray, vertices: np.ndarray, faces: np.ndarray, device=None) -> np.ndarray:
@@ -174,12 +200,6 @@ class Fidelity:
     def within(self, mean: float, p99: float, max_: float) -> bool:
         """Whether both directions are within the bounds."""
         return self.to_surface.within(mean, p99, max_) and self.to_input.within(mean, p99, max_)
-
-    def body_score(self, mean: float, p99: float, max_: float) -> float:
-        """Largest ratio of a figure to its bound over the input-to-surface and body-ring distances
-        (at most 1 when all are within the bounds); caps, which no hub count changes, left out."""
-        return max(getattr(d, k) / b for d in (self.to_surface, self.rings_to_input)
-                   for k, b in (("mean", mean), ("p99", p99), ("max", max_)))  # fmt: skip
 
 
 def measured_vertices(points, radius_first: float, radius_last: float, vertices, tips=None, branch_paths=()):

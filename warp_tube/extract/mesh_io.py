@@ -24,6 +24,8 @@ __all__ = [
     "BoundaryLoop",
     "boundary_loops",
     "cap_loops",
+    "FlatCut",
+    "flat_cuts",
 ]
 
 log = logging.getLogger(__name__)
@@ -260,3 +262,76 @@ def cap_loops(mesh: trimesh.Trimesh, loops: list[BoundaryLoop]) -> tuple[np.ndar
         f.append(fan)
         n += 1
     return np.concatenate(v), np.concatenate(f)
+
+
+@dataclass(frozen=True)
+class FlatCut:
+    """A flat face closing a tube where it was cut and sealed (a planar patch of the surface).
+
+    Attributes:
+        centroid: area-weighted centre of the patch [mesh units], shape (3,).
+        normal: unit normal of its plane, shape (3,) (sign arbitrary).
+        area: its area [mesh units^2].
+        radius: radius of a disc of that area [mesh units].
+    """
+
+    centroid: np.ndarray
+    normal: np.ndarray
+    area: float
+    radius: float
+
+
+def flat_cuts(mesh: trimesh.Trimesh, min_area: float, angle_deg: float = 1.0) -> list[FlatCut]:
+    """Planar patches of ``mesh`` of at least ``min_area``, largest first.
+
+    Faces are grouped with their neighbours when their normals differ by less than ``angle_deg``
+    and they lie in one plane; groups in one plane (normals within ``angle_deg``, offsets within
+    1 % of the radius of ``min_area``'s disc) whose centres lie within four such radii are merged
+    (a sealed cut is often split by a row of bent triangles). Patches much longer than wide (area
+    below 0.3 pi times the square of their largest distance from the centre: the flat strips of a
+    faceted straight wall) are left out.
+    """
+    n = np.asarray(mesh.face_normals)
+    area = np.asarray(mesh.area_faces)
+    c = np.asarray(mesh.triangles_center)
+    adj = np.asarray(mesh.face_adjacency)
+    if len(adj) == 0:
+        return []
+    cos = np.cos(np.radians(angle_deg))
+    r0 = float(np.sqrt(min_area / np.pi))
+    same = (np.abs(np.einsum("ij,ij->i", n[adj[:, 0]], n[adj[:, 1]])) > cos) & (
+        np.abs(np.einsum("ij,ij->i", n[adj[:, 0]], c[adj[:, 1]] - c[adj[:, 0]])) < 0.01 * r0
+    )
+    import scipy.sparse as sp
+    from scipy.sparse.csgraph import connected_components
+
+    g = sp.coo_matrix((np.ones(int(same.sum())), (adj[same, 0], adj[same, 1])), shape=(len(n), len(n)))
+    _, label = connected_components(g, directed=False)
+    total = np.bincount(label, weights=area)
+    groups = [k for k in np.argsort(-total) if total[k] >= 0.1 * min_area]
+    v = np.asarray(mesh.vertices)
+    f_all = np.asarray(mesh.faces)
+    patches = []
+    for k in groups:
+        f = label == k
+        w = area[f]
+        centre = (c[f] * w[:, None]).sum(axis=0) / w.sum()
+        normal = n[f][np.argmax(w)]
+        corners = v[f_all[f].reshape(-1)]
+        for p in patches:
+            if (abs(float(np.dot(p["normal"], normal))) > cos and abs(float(np.dot(p["normal"], centre - p["centre"])))
+                    < 0.01 * r0 and np.linalg.norm(centre - p["centre"]) < 4.0 * r0):  # fmt: skip
+                p["centre"] = (p["centre"] * p["area"] + centre * w.sum()) / (p["area"] + w.sum())
+                p["area"] += float(w.sum())
+                p["corners"] = np.concatenate([p["corners"], corners])
+                break
+        else:
+            patches.append({"centre": centre, "normal": normal, "area": float(w.sum()), "corners": corners})
+    out = []
+    for p in patches:
+        reach = float(np.linalg.norm(p["corners"] - p["centre"], axis=1).max())
+        # A cut across a tube is about as wide as it is long (a disc or an ellipse); a flat strip
+        # of a faceted wall is long and thin.
+        if p["area"] >= min_area and p["area"] >= 0.3 * np.pi * reach**2:
+            out.append(FlatCut(p["centre"], p["normal"], p["area"], float(np.sqrt(p["area"] / np.pi))))
+    return sorted(out, key=lambda x: -x.area)

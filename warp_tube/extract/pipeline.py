@@ -44,8 +44,8 @@ from ..model.frames import hub_tangents, initial_normal, rotation_minimizing_fra
 from ..scene.spec import SceneError
 from .branches import find_branches
 from .ends import choose_ends, cut_closed_tail, fit_closed_end, trim_open_end
-from .fidelity import Fidelity, fidelity_of, rest_surface
-from .mesh_io import BoundaryLoop, boundary_loops, cap_loops, clean_mesh
+from .fidelity import Distances, Fidelity, fidelity_of, measured_vertices, mesh_distances, plain_surface
+from .mesh_io import BoundaryLoop, boundary_loops, cap_loops, clean_mesh, flat_cuts
 from .polyline import arclength, resample, resample_spline, smooth
 from .queries import MeshQueries
 from .sections import measure_spokes, recentre, recentre_hubs
@@ -55,11 +55,13 @@ __all__ = ["ExtractedTube", "TubeEnd", "Branch", "Opening", "extract_centerline"
 log = logging.getLogger(__name__)
 
 _END_LOOP_FRACTION = 0.3  # a boundary loop may be an end if its radius >= this x median tube radius
+_CUT_AREA = 0.25  # a flat face may seal a cut end if its area >= this x pi x median tube radius^2
 _DENSE_SPACING = 0.5  # spacing of the dense axis, in median distances from the wall
 AUTO_FIDELITY = (0.03, 0.12, 0.35)
-"""Default hub count: from one hub per mean radius, 1.5 times more until both distances between the
-mesh and the simulator's rest surface (:mod:`warp_tube.extract.fidelity`) are within these
-fractions of the mean radius (mean, 99th percentile, largest), or :data:`MAX_AUTO_HUBS` is reached."""
+"""Default hub count: from one hub per mean radius, 1.5 times more until the mesh's vertices (ends
+and side branches left out) lie within these fractions of the mean radius (mean, 99th percentile,
+largest) of the surface of the measured rings, or the least hub spacing is reached (the count that
+came closest is kept)."""
 MAX_AUTO_HUBS = 1000
 _CELL_SPACING = 1.05 * float(CELL_WINDOW) / float(CELL_MIN_GAP)  # mean radii: least automatic hub spacing
 
@@ -69,7 +71,8 @@ class TubeEnd:
     """One end of the extracted tube.
 
     Attributes:
-        kind: "open" (a boundary loop of the mesh) or "closed" (a capped end).
+        kind: "open" (at a boundary loop of the mesh), "closed" (a rounded tip: capped when both
+            ends are) or "cut" (closed by a flat cut: trimmed, left open).
         center: position of the end hub [mesh units], shape (3,).
         radius: mean spoke length of the end hub [mesh units].
         tip: where the mesh ends [mesh units], shape (3,): the open loop's centre, or where the
@@ -173,7 +176,7 @@ class ExtractedTube:
 
     @property
     def caps(self) -> bool:
-        """Whether the scene closes the tube with caps (both ends closed)."""
+        """Whether the scene closes the tube with caps (both ends rounded and closed)."""
         return all(e.kind == "closed" for e in self.ends)
 
     def spoke_directions(self) -> np.ndarray:
@@ -266,7 +269,8 @@ def extract_centerline(
     timings["distance_map"] = time.perf_counter() - t0
 
     t0 = time.perf_counter()
-    choice = choose_ends(dm, end_size)
+    cuts = flat_cuts(m, _CUT_AREA * np.pi * r_med**2)
+    choice = choose_ends(dm, end_size, cuts)
     cdist, pred, _ = dmap.shortest_tree(dm.centred_graph, choice.a)
     if not np.isfinite(cdist[choice.b]):
         raise SceneError(f"{src}: its ends are not connected inside the mesh: expected one tube")
@@ -274,8 +278,8 @@ def extract_centerline(
     if len(voxel_path) < 3:
         raise SceneError(f"{src}: the tube is {len(voxel_path)} voxels long: expected a longer tube")
     path, d = dm.points[voxel_path], dm.dfb[voxel_path]
-    path, d = _open_or_cut(path, d, choice.loop_a, h)
-    path, d = _open_or_cut(path[::-1], d[::-1], choice.loop_b, h)
+    path, d = _open_or_cut(path, d, choice.end_a, h)
+    path, d = _open_or_cut(path[::-1], d[::-1], choice.end_b, h)
     path, d = path[::-1], d[::-1]
     timings["path"] = time.perf_counter() - t0
 
@@ -285,19 +289,19 @@ def extract_centerline(
     count = max(8, int(np.ceil(length / (_DENSE_SPACING * r_path))) + 1)
     dense = smooth(resample(path, count), 1.0)
     move = np.ones(len(dense), dtype=bool)
-    move[[0, -1]] = [choice.loop_a is None, choice.loop_b is None]  # a loop's centre stays; closed ends centre
+    open_a, open_b = (isinstance(e, BoundaryLoop) for e in (choice.end_a, choice.end_b))
+    move[[0, -1]] = [not open_a, not open_b]  # a loop's centre stays; closed ends centre
     dense = recentre(q, dense, diag, move=move)
     ends = []
-    for at_end, loop in ((False, choice.loop_a), (True, choice.loop_b)):
+    for at_end, end in ((False, choice.end_a), (True, choice.end_b)):
         line = dense[::-1] if at_end else dense
-        if loop is not None:
-            tip = loop.centroid.copy()
-            line, trimmed = trim_open_end(q, line, diag, 1.5 * loop.radius)
+        if isinstance(end, BoundaryLoop):
+            tip = end.centroid.copy()
+            line, trimmed = trim_open_end(q, line, diag, 1.5 * end.radius)
             kind = "open"
         else:
-            line, tip = fit_closed_end(q, line, diag, spokes)
+            line, tip, kind = fit_closed_end(q, line, diag, spokes, end)
             trimmed = float(np.linalg.norm(tip - line[0]))
-            kind = "closed"
         dense = line[::-1] if at_end else line
         ends.append((kind, tip, trimmed))
     dense = recentre(q, resample_spline(dense, max(8, len(dense))), diag, iterations=2)
@@ -318,20 +322,30 @@ def extract_centerline(
     max_hubs = int(min(MAX_AUTO_HUBS, max(8, np.floor(length / (_CELL_SPACING * max(r_path, r_med))) + 1)))
     tips = np.stack([ends[0][1], ends[1][1]])
     branch_paths = [fb.path for fb in found]
+    verts = np.asarray(m.vertices)
+    end_radius = dense_spokes.mean(axis=1)
+    counted = measured_vertices(dense, end_radius[0], end_radius[-1], verts, tips, branch_paths)
     n = int(hubs) if hubs is not None else default_hub_count(length, r_med)
     tried = []
     while True:
+        # The hub count is chosen on the rings as measured: their spoke ends lie on the mesh, so what
+        # the count changes is how closely the strips between rings follow it.
         points = recentre_hubs(q, resample_spline(dense, n), diag, r_path)
-        kept = rings.keep_guard_clear(q, rings.rest_rings(q, points, spokes, caps, diag, device), caps, diag,
-                                      np.asarray(m.vertices), device)  # fmt: skip
-        fid = fidelity_of(kept.points, kept.lengths, kept.reference_normal, caps, m.vertices, m.faces, tips=tips,
-                          branch_paths=branch_paths, device=device)  # fmt: skip
-        tried.append((fid.body_score(*AUTO_FIDELITY), n, kept, fid))
-        if hubs is not None or fid.body_score(*AUTO_FIDELITY) <= 1.0 or n >= max_hubs:
+        ref = initial_normal(hub_tangents(points)[0])
+        lengths, _ = measure_spokes(q, points, ref, spokes, diag)
+        cover = Distances.of(mesh_distances(verts[counted], *plain_surface(points, lengths, ref), device),
+                             float(lengths.mean()))  # fmt: skip
+        score = max(cover.mean / AUTO_FIDELITY[0], cover.p99 / AUTO_FIDELITY[1], cover.max / AUTO_FIDELITY[2])
+        tried.append((score, n, points))
+        if hubs is not None or score <= 1.0 or n >= max_hubs:
             break
         n = min(int(np.ceil(1.5 * n)), max_hubs)
-    _, n, kept, fid = min(tried, key=lambda x: x[0])
+    _, n, points = min(tried, key=lambda x: x[:2])
+    kept = rings.keep_guard_clear(q, rings.rest_rings(q, points, spokes, caps, diag, device), caps, diag, verts,
+                                  device)  # fmt: skip
     points, spoke_len, ref, valid = kept.points, kept.lengths, kept.reference_normal, kept.valid
+    fid = fidelity_of(points, spoke_len, ref, caps, m.vertices, m.faces, tips=tips, branch_paths=branch_paths,
+                      device=device)  # fmt: skip
     timings["hubs"] = time.perf_counter() - t0
 
     hub_tree = cKDTree(points)
@@ -372,9 +386,9 @@ def extract_centerline(
     return tube
 
 
-def _open_or_cut(path: np.ndarray, d: np.ndarray, loop: BoundaryLoop | None, h: float):
+def _open_or_cut(path: np.ndarray, d: np.ndarray, loop, h: float):
     """Start a voxel path at its open loop's centre, or cut its off-centre tail at a closed end."""
-    if loop is not None:
+    if isinstance(loop, BoundaryLoop):
         return np.concatenate([loop.centroid[None], path]), np.concatenate([[loop.radius], d])
     return cut_closed_tail(path, d, h)
 
