@@ -1,4 +1,4 @@
-"""``warp-tube extract MESH -o SCENE.usda [--hubs N] [--spokes S] [--scale F | --scale FX FY FZ]``."""
+"""``warp-tube extract MESH -o SCENE.usda [--hubs N] [--spokes S] [--scale F | --scale FX FY FZ] [--strict]``."""
 
 from __future__ import annotations
 
@@ -13,7 +13,7 @@ __all__ = ["extract_to_scene"]
 log = logging.getLogger(__name__)
 
 
-def extract_to_scene(mesh_path, output, *, hubs=None, spokes=16, scale=None, device=None) -> ExtractedTube:
+def extract_to_scene(mesh_path, output, *, hubs=None, spokes=16, scale=None, device=None, strict=False) -> ExtractedTube:
     """Extract the tube in a mesh file and write a simulation scene for it.
 
     Args:
@@ -24,13 +24,15 @@ def extract_to_scene(mesh_path, output, *, hubs=None, spokes=16, scale=None, dev
         scale: None, one factor or (fx, fy, fz): metres per mesh unit along each axis (e.g.
             0.000832031 0.000832031 0.001 for CT voxel indices of 0.83 x 0.83 x 1 mm). Without it
             the mesh is taken to be in metres. The scene is written in metres (metersPerUnit 1).
+        strict: refuse a mesh that is not tube-like (SceneError) instead of warning.
 
     Raises:
-        SceneError: unreadable or unusable mesh, or an output that cannot be written.
+        SceneError: unreadable or unusable mesh (with ``strict``: not tube-like), or an output that cannot be
+            written.
     """
     factors = (1.0, 1.0, 1.0) if scale is None else scale
     mesh = load_mesh(mesh_path, factors)
-    tube = extract_centerline(mesh, hubs=hubs, spokes=spokes, device=device, source=str(mesh_path))
+    tube = extract_centerline(mesh, hubs=hubs, spokes=spokes, device=device, source=str(mesh_path), strict=strict)
     if tube.length > 20.0:
         log.warning("%s: the tube is %.3g m long: is the mesh in mm or voxels? Pass --scale", mesh_path, tube.length)
     write_scene(tube, output, meters_per_unit=1.0)

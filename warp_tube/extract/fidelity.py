@@ -34,9 +34,14 @@ if TYPE_CHECKING:
     from .pipeline import ExtractedTube
 
 __all__ = [
-    "RestSurface", "rest_surface", "plain_surface", "Distances", "Fidelity", "fidelity_of", "surface_fidelity",
+    "FIDELITY_BOUNDS", "RestSurface", "rest_surface", "plain_surface", "Distances", "Fidelity", "fidelity_of", "surface_fidelity",
     "mesh_distances", "measured_vertices",
 ]  # fmt: skip
+
+
+FIDELITY_BOUNDS = (0.04, 0.15, 0.40)
+"""Bounds on the two-way distances (mean, 99th percentile, largest), as fractions of the mean
+radius, that an extracted tube's rest surface is expected to meet (README, "Centerline extraction")."""
 
 
 @dataclass(frozen=True)
@@ -157,8 +162,8 @@ class Distances:
         return Distances(float(d.mean()), float(np.percentile(d, 99)), float(d.max()), len(d), left_out)
 
     def within(self, mean: float, p99: float, max_: float) -> bool:
-        """Whether all three figures are within the given bounds."""
-        return self.mean <= mean and self.p99 <= p99 and self.max <= max_
+        """Whether all three figures are within the given bounds (nothing measured: within)."""
+        return self.counted == 0 or (self.mean <= mean and self.p99 <= p99 and self.max <= max_)
 
 
 @dataclass(frozen=True)

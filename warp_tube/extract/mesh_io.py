@@ -287,9 +287,10 @@ def flat_cuts(mesh: trimesh.Trimesh, min_area: float, angle_deg: float = 1.0) ->
     Faces are grouped with their neighbours when their normals differ by less than ``angle_deg``
     and they lie in one plane; groups in one plane (normals within ``angle_deg``, offsets within
     1 % of the radius of ``min_area``'s disc) whose centres lie within four such radii are merged
-    (a sealed cut is often split by a row of bent triangles). Patches much longer than wide (area
-    below 0.3 pi times the square of their largest distance from the centre: the flat strips of a
-    faceted straight wall) are left out.
+    (a sealed cut is often split by a row of bent triangles). Left out: groups whose bordering
+    faces turn less than about 53 degrees away from them on average (a facet of a faceted wall,
+    not a seal meeting the wall at a crease), and patches much longer than wide (area below 0.3 pi
+    times the square of their largest distance from the centre: flat strips of a straight wall).
     """
     n = np.asarray(mesh.face_normals)
     area = np.asarray(mesh.area_faces)
@@ -306,27 +307,41 @@ def flat_cuts(mesh: trimesh.Trimesh, min_area: float, angle_deg: float = 1.0) ->
     from scipy.sparse.csgraph import connected_components
 
     g = sp.coo_matrix((np.ones(int(same.sum())), (adj[same, 0], adj[same, 1])), shape=(len(n), len(n)))
-    _, label = connected_components(g, directed=False)
-    total = np.bincount(label, weights=area)
-    groups = [k for k in np.argsort(-total) if total[k] >= 0.1 * min_area]
+    count, label = connected_components(g, directed=False)
+    total = np.bincount(label, weights=area, minlength=count)
+    centre_of = np.stack([np.bincount(label, weights=area * c[:, k], minlength=count) for k in range(3)], axis=1)
+    centre_of /= np.maximum(total, 1e-300)[:, None]
+    order = np.lexsort((area, label))  # per group, its largest face last
+    largest = np.zeros(count, dtype=np.int64)
+    largest[label[order]] = order
+    normal_of = n[largest]
+    # A seal meets the tube's wall at a crease all round: the faces bordering it turn away (a flat
+    # facet of a faceted wall has neighbours almost in its plane).
+    la, lb = label[adj[:, 0]], label[adj[:, 1]]
+    rim = la != lb
+    turn = np.zeros(count)
+    seen = np.zeros(count)
+    for mine, other in ((adj[rim, 0], adj[rim, 1]), (adj[rim, 1], adj[rim, 0])):
+        grp = label[mine]
+        np.add.at(turn, grp, np.abs(np.einsum("ij,ij->i", n[other], normal_of[grp])))
+        np.add.at(seen, grp, 1.0)
+    creased = (seen > 0) & (turn <= 0.6 * np.maximum(seen, 1.0))
+    groups = [k for k in np.argsort(-total) if total[k] >= 0.1 * min_area and creased[k]]
     v = np.asarray(mesh.vertices)
     f_all = np.asarray(mesh.faces)
     patches = []
     for k in groups:
-        f = label == k
-        w = area[f]
-        centre = (c[f] * w[:, None]).sum(axis=0) / w.sum()
-        normal = n[f][np.argmax(w)]
-        corners = v[f_all[f].reshape(-1)]
+        centre, normal, w_sum = centre_of[k], normal_of[k], float(total[k])
+        corners = v[f_all[label == k].reshape(-1)]
         for p in patches:
             if (abs(float(np.dot(p["normal"], normal))) > cos and abs(float(np.dot(p["normal"], centre - p["centre"])))
                     < 0.01 * r0 and np.linalg.norm(centre - p["centre"]) < 4.0 * r0):  # fmt: skip
-                p["centre"] = (p["centre"] * p["area"] + centre * w.sum()) / (p["area"] + w.sum())
-                p["area"] += float(w.sum())
+                p["centre"] = (p["centre"] * p["area"] + centre * w_sum) / (p["area"] + w_sum)
+                p["area"] += w_sum
                 p["corners"] = np.concatenate([p["corners"], corners])
                 break
         else:
-            patches.append({"centre": centre, "normal": normal, "area": float(w.sum()), "corners": corners})
+            patches.append({"centre": centre, "normal": normal, "area": w_sum, "corners": corners})
     out = []
     for p in patches:
         reach = float(np.linalg.norm(p["corners"] - p["centre"], axis=1).max())

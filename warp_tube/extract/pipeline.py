@@ -39,7 +39,6 @@ import warp as wp
 from scipy.spatial import cKDTree
 
 from . import distance_map as dmap
-from ..kernels.surface import CELL_MIN_GAP, CELL_WINDOW
 from ..model.frames import hub_tangents, initial_normal, rotation_minimizing_frames, spoke_directions
 from ..scene.spec import SceneError
 from .branches import find_branches
@@ -48,7 +47,7 @@ from .fidelity import Distances, Fidelity, fidelity_of, measured_vertices, mesh_
 from .mesh_io import BoundaryLoop, boundary_loops, cap_loops, clean_mesh, flat_cuts
 from .polyline import arclength, resample, resample_spline, smooth
 from .queries import MeshQueries
-from .sections import measure_spokes, recentre, recentre_hubs
+from .sections import measure_spokes, open_rays, recentre, recentre_hubs
 
 __all__ = ["ExtractedTube", "TubeEnd", "Branch", "Opening", "extract_centerline", "default_hub_count", "AUTO_FIDELITY"]
 
@@ -60,10 +59,10 @@ _DENSE_SPACING = 0.5  # spacing of the dense axis, in median distances from the 
 AUTO_FIDELITY = (0.03, 0.12, 0.35)
 """Default hub count: from one hub per mean radius, 1.5 times more until the mesh's vertices (ends
 and side branches left out) lie within these fractions of the mean radius (mean, 99th percentile,
-largest) of the surface of the measured rings, or the least hub spacing is reached (the count that
-came closest is kept)."""
+largest) of the surface of the measured rings, or more hubs stop helping (by 5 %), or the least hub
+spacing is reached; the count that came closest is kept."""
 MAX_AUTO_HUBS = 1000
-_CELL_SPACING = 1.05 * float(CELL_WINDOW) / float(CELL_MIN_GAP)  # mean radii: least automatic hub spacing
+_MIN_SPACING = 0.3  # least automatic hub spacing, in median tube radii
 
 
 @dataclass(frozen=True)
@@ -255,7 +254,7 @@ def extract_centerline(
     if holes:
         log.info("%s: %d small holes closed", src, len(holes))
     wall_v, wall_f = cap_loops(m, holes)
-    q = MeshQueries(wall_v, wall_f, closed_v, closed_f, device)
+    q = MeshQueries(wall_v, wall_f, closed_v, closed_f, device, raw=(m.vertices, m.faces))
     timings["prepare"] = time.perf_counter() - t_start
 
     t0 = time.perf_counter()
@@ -317,9 +316,7 @@ def extract_centerline(
 
     t0 = time.perf_counter()
     caps = all(kind == "closed" for kind, _, _ in ends)
-    # Hubs closer than pi / CELL_MIN_GAP mean radii let the guard's cell planes (meant for the two
-    # legs of a fold) pair hubs of one bend; the automatic count stays coarser than that.
-    max_hubs = int(min(MAX_AUTO_HUBS, max(8, np.floor(length / (_CELL_SPACING * max(r_path, r_med))) + 1)))
+    max_hubs = int(min(MAX_AUTO_HUBS, max(8, np.floor(length / (_MIN_SPACING * r_med)) + 1)))
     tips = np.stack([ends[0][1], ends[1][1]])
     branch_paths = [fb.path for fb in found]
     verts = np.asarray(m.vertices)
@@ -337,8 +334,11 @@ def extract_centerline(
                              float(lengths.mean()))  # fmt: skip
         score = max(cover.mean / AUTO_FIDELITY[0], cover.p99 / AUTO_FIDELITY[1], cover.max / AUTO_FIDELITY[2])
         tried.append((score, n, points))
+        log.debug("hubs %d: coverage %.4f %.4f %.4f", n, cover.mean, cover.p99, cover.max)
         if hubs is not None or score <= 1.0 or n >= max_hubs:
             break
+        if len(tried) > 1 and score > 0.95 * tried[-2][0]:
+            break  # more hubs stopped helping: what is left, more do not change
         n = min(int(np.ceil(1.5 * n)), max_hubs)
     _, n, points = min(tried, key=lambda x: x[:2])
     kept = rings.keep_guard_clear(q, rings.rest_rings(q, points, spokes, caps, diag, device), caps, diag, verts,
@@ -375,7 +375,7 @@ def extract_centerline(
         fidelity=fid,
         source=src,
     )
-    tube.warnings = tubelike.check(tube, q, points, diag, hubs_given=hubs is not None)
+    tube.warnings = tubelike.check(tube, open_rays(q, points, diag), hubs_given=hubs is not None)
     for w in tube.warnings:
         log.warning("%s: %s", src, w)
     if strict:

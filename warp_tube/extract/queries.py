@@ -1,8 +1,9 @@
 """Warp meshes of a tube being extracted and the queries run on them: rays, distances, diameters.
 
-Two meshes are kept: the *wall* (the input with its small holes closed: rays and distances see the
-real tube, open ends stay open) and the *closed* mesh (every boundary loop closed by a fan: inside
-tests, and the test whether a ray leaves the tube through an open loop before it meets the wall).
+Three meshes are kept: the *wall* (the input with its small holes closed: rays and distances see
+the real tube, open ends stay open), the *closed* mesh (every boundary loop closed by a fan: inside
+tests, and the test whether a ray leaves the tube through an open loop before it meets the wall)
+and the input as given (whether a ray leaves through any hole at all).
 Lengths are in the mesh's units; the host arrays are float64, the Warp ones float32 (callers work
 near the origin, so that float32 keeps the precision of small tubes far from it).
 """
@@ -25,13 +26,16 @@ class MeshQueries:
         wall_v, wall_f: the wall (small holes closed): vertices (V, 3), triangles (F, 3).
         closed_v, closed_f: every loop closed.
         device: Warp device.
+        raw: the mesh as given, ``(vertices, triangles)`` (default: the wall), for the test whether
+            a ray leaves through any hole.
     """
 
-    def __init__(self, wall_v, wall_f, closed_v, closed_f, device):
+    def __init__(self, wall_v, wall_f, closed_v, closed_f, device, raw=None):
         self.device = device
         self._keep = []
         self.wall = self._mesh(wall_v, wall_f)
         self.closed = self._mesh(closed_v, closed_f)
+        self.raw = self._mesh(*raw) if raw is not None else self.wall
 
     def _mesh(self, v, f):
         pts = wp.array(np.asarray(v, dtype=np.float32), dtype=wp.vec3, device=self.device)

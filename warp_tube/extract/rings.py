@@ -40,9 +40,9 @@ __all__ = ["TOLERANCE", "SCALES", "ROUNDS", "Rings", "rest_rings", "keep_guard_c
 
 TOLERANCE = 0.005
 """Largest move of a ring vertex by the guard at rest, as a fraction of the mean radius, left alone."""
-SCALES = (0.35, 0.7, 1.4)
+SCALES = (0.5, 1.0)
 """Smoothing lengths tried over a cut window, in mean radii."""
-ROUNDS = 3
+ROUNDS = 2
 """Rounds of trials at most."""
 
 

@@ -18,6 +18,8 @@ Lengths are in the mesh's units.
 
 from __future__ import annotations
 
+import warnings
+
 import numpy as np
 from scipy.ndimage import gaussian_filter1d
 
@@ -25,7 +27,7 @@ from ..model.frames import hub_tangents, initial_normal, rotation_minimizing_fra
 from .polyline import resample_spline, smooth, tangents
 from .queries import MeshQueries
 
-__all__ = ["OUTLIER_RATIO", "ring_hits", "fill_around", "section_offsets", "recentre", "measure_spokes", "plane_basis", "recentre_hubs"]
+__all__ = ["OUTLIER_RATIO", "ring_hits", "open_rays", "fill_around", "section_offsets", "recentre", "measure_spokes", "plane_basis", "recentre_hubs"]
 
 OUTLIER_RATIO = 2.5
 """A hit longer than this times the median of its ring's valid hits does not belong to the section."""
@@ -49,9 +51,23 @@ def ring_hits(q: MeshQueries, points: np.ndarray, dirs: np.ndarray, diag: float)
     tc = q.rays(q.closed, origins, dirs, diag)
     dfb = q.distance(points, diag)
     valid = (t > 0.0) & (tc >= t - 1e-5 * diag) & (t < 6.0 * np.maximum(dfb, 1e-12)[:, None])
-    med = np.array([np.median(ti[vi]) if vi.any() else np.inf for ti, vi in zip(t, valid)])
-    valid &= t <= OUTLIER_RATIO * med[:, None]
+    with warnings.catch_warnings():  # rings with no valid hit: an all-NaN row has no median
+        warnings.simplefilter("ignore", RuntimeWarning)
+        med = np.nanmedian(np.where(valid, t, np.nan), axis=1) if valid.size else np.zeros(len(t))
+    valid &= t <= OUTLIER_RATIO * np.where(np.isnan(med), np.inf, med)[:, None]
     return t, valid, dfb
+
+
+def open_rays(q: MeshQueries, points: np.ndarray, diag: float, rays: int = RAYS) -> np.ndarray:
+    """Which of ``rays`` rays in each hub's ring plane (normal to its bisector tangent) leave the tube
+    without meeting its wall: no hit on the mesh as given, or the closed mesh (every loop capped)
+    hit first, so the ray passes through an opening or hole of the mesh. Bool, shape (n, rays)."""
+    r, s = plane_basis(hub_tangents(points))
+    dirs = spoke_directions(r, s, rays)
+    origins = np.repeat(points[:, None, :], rays, axis=1)
+    t = q.rays(q.raw, origins, dirs, diag)
+    tc = q.rays(q.closed, origins, dirs, diag)
+    return (t <= 0.0) | (tc < t - 1e-5 * diag)
 
 
 def fill_around(t: np.ndarray, valid: np.ndarray, fallback: np.ndarray) -> np.ndarray:
@@ -166,9 +182,10 @@ def measure_spokes(q: MeshQueries, points: np.ndarray, reference_normal: np.ndar
         ok = valid[:, j]
         if ok.any() and not ok.all():
             t[:, j] = np.interp(idx, idx[ok], t[ok, j])
-    rows = np.isnan(t).any(axis=1)
-    if rows.any():
-        fill = np.nanmean(np.where(np.isnan(t), np.nan, t), axis=1) if not np.isnan(t).all() else dfb
+    if np.isnan(t).any():  # a spoke valid at no hub: its ring's mean, or the distance from the wall
+        with warnings.catch_warnings():
+            warnings.simplefilter("ignore", RuntimeWarning)
+            fill = np.nanmean(t, axis=1)
         fill = np.where(np.isnan(fill), dfb, fill)
         t = np.where(np.isnan(t), fill[:, None], t)
     return np.maximum(t, 1e-6 * diag), valid
