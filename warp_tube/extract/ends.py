@@ -44,18 +44,21 @@ from scipy.spatial import cKDTree
 from . import distance_map as dmap
 from ..surface.topology import cap_ring_count
 from .mesh_io import BoundaryLoop, FlatCut
-from .polyline import arclength
+from .polyline import arclength, resample_spline
 from .queries import MeshQueries
 from ..model.frames import spoke_directions
 from .sections import RAYS, plane_basis, ring_hits
 
-__all__ = ["EndChoice", "is_terminal", "choose_ends", "cut_closed_tail", "trim_open_end", "fit_closed_end"]
+__all__ = [
+    "EndChoice", "is_terminal", "choose_ends", "cut_closed_tail", "trim_open_end", "fit_closed_end", "settle_end",
+]
 
 log = logging.getLogger(__name__)
 
 _SHELL = (3.0, 4.0)  # geodesic shell around a loop, in local radii, for the terminal test
 _CAP_FIT = np.linspace(0.3, 1.5, 49)  # candidate distances of a closed end's hub from the tip, in end radii
 _POLE_WEIGHT = 0.6  # the pole is one vertex, the cap rings S each: its distance counts this much
+_CAP_TOLERANCE = 0.2  # a closed tip is capped where the best cap lies within this x end radius of it
 _FLAT = 0.03  # a closed end is a flat cut where the surface ahead lies within this x end radius of a plane
 _CUT_MARGIN = 0.02  # a trimmed end ring stays this x end radius before the cut's plane
 
@@ -217,7 +220,8 @@ def _cap_points(hub: np.ndarray, tangent: np.ndarray, lengths: np.ndarray, spoke
 
 
 def _best_cap(q: MeshQueries, ext: np.ndarray, r_end: float, diag: float, spokes: int):
-    """Arclength from ``ext[0]`` (the tip) along ``ext`` of the end hub whose cap fits best, or None.
+    """Arclength from ``ext[0]`` (the tip) along ``ext`` of the end hub whose cap fits best (None: no
+    position has a complete ring) and the cap's score there [mesh units].
 
     The cap's axis is the line's outward tangent there. The score of a position is the larger of
     the largest distance of a cap-ring point from the mesh and :data:`_POLE_WEIGHT` times the pole's.
@@ -234,7 +238,7 @@ def _best_cap(q: MeshQueries, ext: np.ndarray, r_end: float, diag: float, spokes
         score = max(float(dist[1:].max()), _POLE_WEIGHT * float(dist[0]))
         if score < best_score:
             best, best_score = c, score
-    return best
+    return best, best_score
 
 
 def _cut_plane(q: MeshQueries, hub: np.ndarray, out: np.ndarray, r_end: float, diag: float):
@@ -259,51 +263,93 @@ def _cut_plane(q: MeshQueries, hub: np.ndarray, out: np.ndarray, r_end: float, d
     return centre, normal
 
 
+def _extend(q: MeshQueries, line: np.ndarray, r_end: float, diag: float, cut: FlatCut | None):
+    """The line continued beyond its start along the quadratic through its first four points (so a
+    bend goes on bending) until it meets the closed surface, or the plane of ``cut``; where that
+    meets nothing within three end radii, straight along the tangent at the start.
+
+    Returns:
+        ``(extended line from the tip inwards (k, 3), tip (3,))``, or ``(line, None)`` when nothing
+        is met.
+    """
+    if len(line) >= 4:
+        s4 = arclength(line[:4])
+        coef = np.polyfit(s4, line[:4], 2)  # rows: s^2, s, 1
+    else:  # a straight continuation: p(sigma) = line[0] - sigma * out for sigma < 0
+        out = (line[0] - line[1]) / max(np.linalg.norm(line[0] - line[1]), 1e-300)
+        coef = np.stack([np.zeros(3), -out, line[0]])
+    step = 0.05 * max(r_end, 1e-12)
+    prev = line[0]
+    beyond = []
+    for k in range(1, 61):
+        sigma = -k * step
+        p = coef[0] * sigma**2 + coef[1] * sigma + coef[2]
+        seg = p - prev
+        length = float(np.linalg.norm(seg))
+        if cut is not None:
+            a, b = float(np.dot(prev - cut.centroid, cut.normal)), float(np.dot(p - cut.centroid, cut.normal))
+            if a * b <= 0.0 and a != b:
+                tip = prev + (a / (a - b)) * seg
+                return np.concatenate([tip[None], np.asarray(beyond[::-1]).reshape(-1, 3), line]), tip
+        elif length > 0.0:
+            t = q.rays(q.closed, prev[None], (seg / length)[None], length)[0]
+            if t > 0.0:
+                tip = prev + t * seg / length
+                return np.concatenate([tip[None], np.asarray(beyond[::-1]).reshape(-1, 3), line]), tip
+        beyond.append(p)
+        prev = p
+    # The quadratic turned away without meeting the surface: go straight along the end's tangent.
+    out = -coef[1] / max(np.linalg.norm(coef[1]), 1e-300)
+    t = q.rays(q.closed, line[0][None], out[None], diag)[0]
+    if t <= 0.0:
+        return line, None
+    tip = line[0] + t * out
+    return np.concatenate([tip[None], line]), tip
+
+
 def fit_closed_end(q: MeshQueries, line: np.ndarray, diag: float, spokes: int, cut: FlatCut | None = None):
     """End the tube at the closed end of ``line`` (its start): capped at a round tip, trimmed at a cut.
 
-    The line is continued straight along its outward tangent (a quadratic through its first four
-    points) to the closed surface: that hit is the tube's tip. Where the surface ahead is a flat cut
+    The line is continued beyond its start along the quadratic through its first four points to the
+    closed surface (or ``cut``'s plane): that is the tube's tip. Where the surface ahead is a flat cut
     (``cut``, or found by :func:`_cut_plane`), the end hub goes where the ring normal to the line first lies wholly
     inside the cut (every spoke end at least 2 % of the end radius before its plane): the scene
     leaves that end open (``"cut"``). Elsewhere (a rounded tip) it goes where the simulator's cap
     fits: for hubs at :data:`_CAP_FIT` end radii from the tip along the continued line, the cap is
     built on the hub's ring (``spokes`` rays in the plane normal to the line) and the hub whose
     ring is complete with the best cap (:func:`_best_cap`; a hemisphere puts it one radius in) is
-    taken (``"closed"``).
+    taken (``"closed"``); where even that cap misses the tip by more than :data:`_CAP_TOLERANCE`
+    end radii, the end stays there but is left open (``"cut"``).
 
     Returns:
-        ``(line (k, 3) starting at the end hub, tip (3,), kind)``, ``kind`` "closed" or "cut"; the
-        line unchanged when no ray reaches the closed surface or no position has a complete ring.
+        ``(line (k, 3) starting at the end hub, tip (3,), kind, seal)``: ``kind`` "closed" or "cut",
+        ``seal`` the cut's ``(point, outward unit normal, radius)`` or None; the line unchanged when no
+        ray reaches the closed surface or no position has a complete ring.
     """
-    if len(line) >= 4:  # the outward tangent at the end, from a quadratic through the first 4 points
-        coef = np.polyfit(arclength(line[:4]), line[:4], 2)  # rows: s^2, s, 1
-        out = -coef[1]
-    else:
-        out = line[0] - line[1]
-    out = out / max(np.linalg.norm(out), 1e-300)
-    t = q.rays(q.closed, line[0][None], out[None], diag)[0]
-    if t <= 0.0:
-        return line, line[0].copy(), "closed"
-    tip = line[0] + t * out
-    ext = np.concatenate([tip[None], line])  # from the tip inwards
+    r_end = float(q.distance(line[:1], diag)[0])
+    ext, tip = _extend(q, line, r_end, diag, cut)
+    if tip is None:
+        return line, line[0].copy(), "closed", None
     s = arclength(ext)
     r_end = float(q.distance(line[:1], diag)[0])
+    out = (ext[0] - ext[1]) / max(np.linalg.norm(ext[0] - ext[1]), 1e-300)
     if cut is not None:
         normal = cut.normal if np.dot(cut.normal, out) > 0.0 else -cut.normal
-        cut = (cut.centroid, normal)
+        seal = (cut.centroid, normal, max(cut.radius, r_end))
     else:
-        cut = _cut_plane(q, line[0], out, r_end, diag)
-    if cut is not None:
-        best = _inside_cut(q, ext, s, cut, r_end, diag, spokes)
+        plane = _cut_plane(q, line[0], out, r_end, diag)
+        seal = None if plane is None else (*plane, 1.5 * r_end)
+    if seal is not None:
+        best = _inside_cut(q, ext, s, seal[:2], r_end, diag, spokes)
         kind = "cut"
     else:
-        best = _best_cap(q, ext, r_end, diag, spokes)
-        kind = "closed"
+        best, score = _best_cap(q, ext, r_end, diag, spokes)
+        # A tip the cap cannot follow (flattened, oblique, lopsided) is trimmed like a cut instead.
+        kind = "closed" if score <= _CAP_TOLERANCE * r_end else "cut"
     if best is None:
-        return line, tip, kind
+        return line, tip, kind, seal
     hub, _ = _point_at(ext, s, best)
-    return np.concatenate([hub[None], ext[s > best]]), tip, kind
+    return np.concatenate([hub[None], ext[s > best]]), tip, kind, seal
 
 
 def _inside_cut(q: MeshQueries, ext, s, cut, r_end: float, diag: float, spokes: int):
@@ -334,3 +380,55 @@ def _inside_cut(q: MeshQueries, ext, s, cut, r_end: float, diag: float, spokes: 
         mid = 0.5 * (lo + hi)
         lo, hi = (lo, mid) if inside(mid) else (mid, hi)
     return hi
+
+
+def _cut_line(line: np.ndarray, s: np.ndarray, x: float) -> np.ndarray:
+    """``line`` without its first ``x`` of arclength (``s``: its arclengths)."""
+    start, _ = _point_at(line, s, x)
+    return np.concatenate([start[None], line[s > x]])
+
+
+def settle_end(q: MeshQueries, line: np.ndarray, hubs: int, diag: float, spokes: int, seal=None) -> np.ndarray:
+    """Trim the start of the axis ``line`` (an open or cut end) until the end ring of ``hubs`` hubs fits.
+
+    The simulator's end ring is normal to the end hub's edge, not to the axis, so on a bent end it
+    can lean out of an open end or through a cut. The line is trimmed, by up to one and a half hub
+    spacings, until the first of ``hubs`` hubs spread along it (:func:`~warp_tube.extract.polyline.resample_spline`)
+    has a ring, normal to its edge, whose every ray meets the tube's wall as a section of it
+    (:func:`~warp_tube.extract.sections.ring_hits`; and, with a ``seal``
+    ``(point, outward normal, radius)``, whose every spoke end stays 2 % of the end radius before its
+    plane); bisection to 1 % of the spacing. Unchanged when it fits already or nothing does.
+
+    Returns:
+        The line, shape (k, 3).
+    """
+    s = arclength(line)
+    reach = 1.5 * s[-1] / max(hubs - 1, 1)
+    r_end = float(q.distance(line[:1], diag)[0])
+
+    def fits(x: float) -> bool:
+        pts = resample_spline(_cut_line(line, s, x), hubs)
+        axis = pts[0] - pts[1]
+        axis = axis / max(np.linalg.norm(axis), 1e-300)
+        r, s_ = plane_basis(axis[None])
+        dirs = spoke_directions(r, s_, max(spokes, RAYS))
+        hits, valid, _ = ring_hits(q, pts[:1], dirs, diag)
+        if not valid.all():
+            return False
+        if seal is not None:
+            ends = pts[0] + hits[0][:, None] * dirs[0]
+            return bool(((ends - seal[0]) @ seal[1]).max() <= -_CUT_MARGIN * r_end)
+        return True
+
+    if hubs < 3 or fits(0.0):
+        return line
+    probe = np.linspace(0.0, reach, 11)[1:]
+    ok = [fits(x) for x in probe]
+    if not any(ok):
+        return line
+    k = int(np.argmax(ok))
+    lo, hi = (probe[k - 1] if k else 0.0), probe[k]  # lo does not fit, hi does
+    while hi - lo > 0.01 * reach:
+        mid = 0.5 * (lo + hi)
+        lo, hi = (lo, mid) if fits(mid) else (mid, hi)
+    return _cut_line(line, s, hi)

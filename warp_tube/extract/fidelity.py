@@ -9,10 +9,13 @@ Distances are measured both ways with ``wp.Mesh`` closest-point queries, as frac
 spoke length (the tube's mean radius):
 
 - from the input's vertices to the surface, leaving out the vertices of side branches (nearer to a
-  branch's path than to the centerline) and those within one end radius of either end of the tube
-  (along the centerline extended to where the mesh ends: the open loop's centre, or the cap's tip);
+  branch's path than to the centerline), those within one end radius of either end of the tube
+  (along the centerline extended to where the mesh ends: the open loop's centre, or the cap's tip)
+  and those on the flat faces that seal a cut end (the trimmed end leaves them open);
 - from the surface's vertices (rings and caps) to the input, leaving nothing out: a spike, a fold or a
-  cap that does not meet the mesh shows here.
+  cap that does not meet the mesh shows here. Openings of the mesh that are not the tube's ends
+  (where a branch was cut flush) are closed by fans first (:func:`closed_openings`): the tube keeps
+  its wall across them, as the spokes measured against the same closure do.
 """
 
 from __future__ import annotations
@@ -35,7 +38,7 @@ if TYPE_CHECKING:
 
 __all__ = [
     "FIDELITY_BOUNDS", "RestSurface", "rest_surface", "plain_surface", "Distances", "Fidelity", "fidelity_of", "surface_fidelity",
-    "mesh_distances", "measured_vertices",
+    "mesh_distances", "measured_vertices", "simulated_surface", "closed_openings",
 ]  # fmt: skip
 
 
@@ -207,12 +210,15 @@ class Fidelity:
         return self.to_surface.within(mean, p99, max_) and self.to_input.within(mean, p99, max_)
 
 
-def measured_vertices(points, radius_first: float, radius_last: float, vertices, tips=None, branch_paths=()):
+def measured_vertices(points, radius_first: float, radius_last: float, vertices, tips=None, branch_paths=(),
+                      seals=()):  # fmt: skip
     """Which input vertices the input-to-surface distances count, bool shape (V,).
 
     Left out: vertices whose nearest point on the centerline (the hubs, extended by ``tips``, the
-    two points where the mesh ends, when given) lies within one end radius of either end of it, and
-    vertices nearer to a side branch's path than to the centerline.
+    two points where the mesh ends, when given) lies within one end radius of either end of it,
+    vertices nearer to a side branch's path than to the centerline, and vertices on the flat faces
+    that seal a cut end (``seals``: ``(point, unit normal, radius)`` of each; within 2 % of the radius
+    of the plane and two radii of the point), which a trimmed end leaves open.
     """
     line = np.asarray(points, dtype=np.float64)
     if tips is not None:
@@ -228,12 +234,15 @@ def measured_vertices(points, radius_first: float, radius_last: float, vertices,
             keep &= ~(nearest_on_polyline(verts, path, step)[0] < dist_line)
         elif len(path) == 1:
             keep &= ~(np.linalg.norm(verts - path[0], axis=1) < dist_line)
+    for point, normal, radius in seals:
+        rel = verts - np.asarray(point)
+        keep &= ~((np.abs(rel @ np.asarray(normal)) <= 0.02 * radius) & (np.linalg.norm(rel, axis=1) <= 2.0 * radius))
     return keep
 
 
 def fidelity_of(
-    points, spoke_lengths, reference_normal, caps: bool, vertices, faces, *, tips=None, branch_paths=(), device=None,
-    surface: RestSurface | None = None,
+    points, spoke_lengths, reference_normal, caps: bool, vertices, faces, *, tips=None, branch_paths=(), seals=(),
+    device=None, surface: RestSurface | None = None, wall=None,
 ) -> Fidelity:
     """Two-way fidelity of hubs and spokes to the mesh ``(vertices (V, 3), faces (F, 3))``, same units.
 
@@ -241,16 +250,19 @@ def fidelity_of(
         points, spoke_lengths, reference_normal, caps: the tube as the scene holds it.
         tips: the two points where the mesh ends, shape (2, 3) (default: the end hubs).
         branch_paths: side branches' paths (their vertices are not counted towards the surface).
+        seals: the planes of flat faces sealing cut ends (see :func:`measured_vertices`).
         surface: the frame-0 surface when already built (:func:`rest_surface`).
+        wall: ``(vertices, triangles)`` the surface's vertices are measured against (default: the
+            mesh itself; :func:`closed_openings` closes the openings the tube keeps).
     """
     points = np.asarray(points, dtype=np.float64)
     lengths = np.asarray(spoke_lengths, dtype=np.float64)
     surf = surface or rest_surface(points, lengths, reference_normal, caps, device)
     radius = float(lengths.mean())
     end_r = lengths.mean(axis=1)
-    keep = measured_vertices(points, end_r[0], end_r[-1], vertices, tips, branch_paths)
+    keep = measured_vertices(points, end_r[0], end_r[-1], vertices, tips, branch_paths, seals)
     d_in = mesh_distances(np.asarray(vertices)[keep], surf.points, surf.faces, device)
-    d_out = mesh_distances(surf.points, vertices, faces, device)
+    d_out = mesh_distances(surf.points, *(wall if wall is not None else (vertices, faces)), device)
     ring = surf.ring_lengths(points)
     ratios = ring.max(axis=1) / np.maximum(ring.min(axis=1), 1e-300)
     body = surf.hubs * surf.spokes
@@ -264,10 +276,58 @@ def fidelity_of(
     )
 
 
-def surface_fidelity(tube: ExtractedTube, mesh: trimesh.Trimesh, device=None) -> Fidelity:
-    """Fidelity of ``tube`` to ``mesh`` (the mesh it was extracted from, after the same scale)."""
-    tips = None
-    if all(getattr(e, "tip", None) is not None for e in tube.ends):
-        tips = np.stack([e.tip for e in tube.ends])
+def closed_openings(tube: ExtractedTube, mesh: trimesh.Trimesh) -> tuple[np.ndarray, np.ndarray]:
+    """``mesh`` with every boundary loop closed by a fan except the tube's open ends: the wall the
+    tube's surface is measured against (an opening where a branch was cut flush is part of the tube,
+    kept closed). Returns ``(vertices (V', 3), triangles (F', 3))``."""
+    from .mesh_io import boundary_loops, cap_loops
+
+    loops = boundary_loops(mesh)
+    tips = np.stack([e.tip for e in tube.ends if e.kind == "open"]) if any(e.kind == "open" for e in tube.ends) else None
+    tol = 1e-6 * float(np.ptp(np.asarray(mesh.vertices), axis=0).max())
+    others = [lp for lp in loops if tips is None or np.min(np.linalg.norm(tips - lp.centroid, axis=1)) > tol]
+    return cap_loops(mesh, others)
+
+
+def simulated_surface(tube: ExtractedTube, meters_per_unit: float = 1.0, device="cpu") -> RestSurface:
+    """The frame-0 Surface of the scene ``warp-tube extract`` writes for ``tube``, built through the
+    public API: :func:`warp_tube.extract.usd.write_scene`, :func:`warp_tube.load_scene`, then
+    ``warp_tube.Simulation(scene, device).surface_points()`` before any step.
+
+    Args:
+        tube: the extracted tube [mesh units]; meters_per_unit: metres per mesh unit (the scene's).
+
+    Returns:
+        The surface [mesh units] (``unguarded``: the same rebuilt with the guard off, by :func:`rest_surface`).
+    """
+    import os
+    import tempfile
+
+    from .. import Simulation, load_scene
+    from .usd import write_scene
+
+    with tempfile.TemporaryDirectory() as tmp:
+        path = os.path.join(tmp, "scene.usda")
+        write_scene(tube, path, meters_per_unit=meters_per_unit)
+        sim = Simulation(load_scene(path), device=device)
+        points = sim.surface_points()[0].astype(np.float64)
+        faces = np.asarray(sim.surfaces[0].face_vertex_indices, dtype=np.int64).reshape(-1, 3)
+    plain = rest_surface(tube.points, tube.spoke_lengths, tube.reference_normal, tube.caps, device)
+    return RestSurface(points, faces, plain.unguarded, tube.hubs, tube.spokes)
+
+
+def surface_fidelity(tube: ExtractedTube, mesh: trimesh.Trimesh, device=None, *, simulated: bool = False,
+                     meters_per_unit: float = 1.0) -> Fidelity:  # fmt: skip
+    """Fidelity of ``tube`` to ``mesh`` (the mesh it was extracted from, after the same scale).
+
+    Args:
+        simulated: measure the Surface of the written scene through the public API
+            (:func:`simulated_surface`, on the CPU) instead of the builder directly.
+        meters_per_unit: metres per mesh unit, for the written scene.
+    """
+    tips = np.stack([e.tip for e in tube.ends])
+    surface = simulated_surface(tube, meters_per_unit) if simulated else None
     return fidelity_of(tube.points, tube.spoke_lengths, tube.reference_normal, tube.caps, mesh.vertices, mesh.faces,
-                       tips=tips, branch_paths=[b.path for b in tube.branch_details], device=device)  # fmt: skip
+                       tips=tips, branch_paths=[b.path for b in tube.branch_details], device=device, surface=surface,
+                       seals=[e.seal for e in tube.ends if e.seal is not None],
+                       wall=closed_openings(tube, mesh))  # fmt: skip

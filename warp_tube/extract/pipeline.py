@@ -42,7 +42,7 @@ from . import distance_map as dmap
 from ..model.frames import hub_tangents, initial_normal, rotation_minimizing_frames, spoke_directions
 from ..scene.spec import SceneError
 from .branches import find_branches
-from .ends import choose_ends, cut_closed_tail, fit_closed_end, trim_open_end
+from .ends import choose_ends, cut_closed_tail, fit_closed_end, settle_end, trim_open_end
 from .fidelity import Distances, Fidelity, fidelity_of, measured_vertices, mesh_distances, plain_surface
 from .mesh_io import BoundaryLoop, boundary_loops, cap_loops, clean_mesh, flat_cuts
 from .polyline import arclength, resample, resample_spline, smooth
@@ -77,6 +77,8 @@ class TubeEnd:
         tip: where the mesh ends [mesh units], shape (3,): the open loop's centre, or where the
             axis continued from the end hub meets the closed surface.
         trimmed: length of axis between the tip and the end hub [mesh units].
+        seal: for a "cut" end, the flat face that seals the mesh there: ``(point (3,), outward unit
+            normal (3,), radius)`` [mesh units]; None otherwise.
     """
 
     kind: str
@@ -84,6 +86,7 @@ class TubeEnd:
     radius: float
     tip: np.ndarray
     trimmed: float
+    seal: tuple | None = None
 
 
 @dataclass(frozen=True)
@@ -270,6 +273,8 @@ def extract_centerline(
     t0 = time.perf_counter()
     cuts = flat_cuts(m, _CUT_AREA * np.pi * r_med**2)
     choice = choose_ends(dm, end_size, cuts)
+    if choice.others:  # openings that are not ends are part of the tube's wall: closed, like holes
+        q = MeshQueries(*cap_loops(m, holes + choice.others), closed_v, closed_f, device, raw=(m.vertices, m.faces))
     cdist, pred, _ = dmap.shortest_tree(dm.centred_graph, choice.a)
     if not np.isfinite(cdist[choice.b]):
         raise SceneError(f"{src}: its ends are not connected inside the mesh: expected one tube")
@@ -294,15 +299,16 @@ def extract_centerline(
     ends = []
     for at_end, end in ((False, choice.end_a), (True, choice.end_b)):
         line = dense[::-1] if at_end else dense
+        seal = None
         if isinstance(end, BoundaryLoop):
             tip = end.centroid.copy()
             line, trimmed = trim_open_end(q, line, diag, 1.5 * end.radius)
             kind = "open"
         else:
-            line, tip, kind = fit_closed_end(q, line, diag, spokes, end)
+            line, tip, kind, seal = fit_closed_end(q, line, diag, spokes, end)
             trimmed = float(np.linalg.norm(tip - line[0]))
         dense = line[::-1] if at_end else line
-        ends.append((kind, tip, trimmed))
+        ends.append((kind, tip, trimmed, seal))
     dense = recentre(q, resample_spline(dense, max(8, len(dense))), diag, iterations=2)
     timings["axis"] = time.perf_counter() - t0
 
@@ -315,19 +321,25 @@ def extract_centerline(
     timings["branches"] = time.perf_counter() - t0
 
     t0 = time.perf_counter()
-    caps = all(kind == "closed" for kind, _, _ in ends)
+    caps = all(e[0] == "closed" for e in ends)
+    seals = [e[3] for e in ends if e[3] is not None]
     max_hubs = int(min(MAX_AUTO_HUBS, max(8, np.floor(length / (_MIN_SPACING * r_med)) + 1)))
     tips = np.stack([ends[0][1], ends[1][1]])
     branch_paths = [fb.path for fb in found]
     verts = np.asarray(m.vertices)
     end_radius = dense_spokes.mean(axis=1)
-    counted = measured_vertices(dense, end_radius[0], end_radius[-1], verts, tips, branch_paths)
+    counted = measured_vertices(dense, end_radius[0], end_radius[-1], verts, tips, branch_paths, seals)
     n = int(hubs) if hubs is not None else default_hub_count(length, r_med)
     tried = []
     while True:
         # The hub count is chosen on the rings as measured: their spoke ends lie on the mesh, so what
         # the count changes is how closely the strips between rings follow it.
-        points = recentre_hubs(q, resample_spline(dense, n), diag, r_path)
+        line = dense
+        for k, (kind, _, _, seal) in enumerate(ends):  # open and cut ends: end rings inside the mesh
+            if kind != "closed":
+                line = settle_end(q, line[::-1], n, diag, spokes, seal)[::-1] if k else \
+                    settle_end(q, line, n, diag, spokes, seal)  # fmt: skip
+        points = recentre_hubs(q, resample_spline(line, n), diag, r_path)
         ref = initial_normal(hub_tangents(points)[0])
         lengths, _ = measure_spokes(q, points, ref, spokes, diag)
         cover = Distances.of(mesh_distances(verts[counted], *plain_surface(points, lengths, ref), device),
@@ -345,7 +357,7 @@ def extract_centerline(
                                   device)  # fmt: skip
     points, spoke_len, ref, valid = kept.points, kept.lengths, kept.reference_normal, kept.valid
     fid = fidelity_of(points, spoke_len, ref, caps, m.vertices, m.faces, tips=tips, branch_paths=branch_paths,
-                      device=device)  # fmt: skip
+                      seals=seals, device=device, wall=cap_loops(m, choice.others))  # fmt: skip
     timings["hubs"] = time.perf_counter() - t0
 
     hub_tree = cKDTree(points)
@@ -357,9 +369,10 @@ def extract_centerline(
     openings = _openings(choice.others, points, spoke_len, found, hub_tree, src)
     radius = spoke_len.mean(axis=1)
     tube_ends = tuple(
-        TubeEnd(kind, points[i] + shift, float(radius[i]), tip + shift, float(trimmed))
-        for i, (kind, tip, trimmed) in zip((0, -1), ends)
-    )
+        TubeEnd(kind, points[i] + shift, float(radius[i]), tip + shift, float(trimmed),
+                None if seal is None else (seal[0] + shift, seal[1], float(seal[2])))
+        for i, (kind, tip, trimmed, seal) in zip((0, -1), ends)
+    )  # fmt: skip
     tube = ExtractedTube(
         points=points + shift,
         spoke_lengths=spoke_len,

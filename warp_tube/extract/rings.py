@@ -36,10 +36,14 @@ from .polyline import smooth
 from .queries import MeshQueries
 from .sections import measure_spokes
 
-__all__ = ["TOLERANCE", "SCALES", "ROUNDS", "Rings", "rest_rings", "keep_guard_clear"]
+__all__ = ["TOLERANCE", "MOVE_WEIGHT", "GAIN", "SCALES", "ROUNDS", "Rings", "rest_rings", "keep_guard_clear"]
 
-TOLERANCE = 0.005
+TOLERANCE = 0.02
 """Largest move of a ring vertex by the guard at rest, as a fraction of the mean radius, left alone."""
+MOVE_WEIGHT = 0.5
+"""Weight of the largest move of a hub off the centred axis in a window's score."""
+GAIN = 0.02
+"""Least improvement of a window's score, as a fraction of the mean radius, for a trial to be kept."""
 SCALES = (0.5, 1.0)
 """Smoothing lengths tried over a cut window, in mean radii."""
 ROUNDS = 2
@@ -119,8 +123,10 @@ def keep_guard_clear(q: MeshQueries, rings: Rings, caps: bool, diag: float, vert
                      device=None) -> Rings:  # fmt: skip
     """Smooth the axis where the guard would cut the rest rings (see the module).
 
-    A window's score is the sum of the largest distance of its guarded ring vertices from the mesh
-    and the largest distance from the surface of the mesh's vertices nearest to its hubs.
+    A window's score is the sum of the largest distance of its guarded ring vertices from the mesh,
+    the largest distance from the surface of the mesh's vertices nearest to its hubs and
+    :data:`MOVE_WEIGHT` times the largest move of a hub off the centred axis; a trial is kept when it
+    lowers the score by :data:`GAIN` of the mean radius or more.
 
     Args:
         q: the mesh's queries; rings: the hubs as measured (:func:`rest_rings`); caps: the scene's
@@ -147,9 +153,11 @@ def keep_guard_clear(q: MeshQueries, rings: Rings, caps: bool, diag: float, vert
             cover = mesh_distances(vertices, *r.surface, device)
             worst = np.zeros(n)
             np.maximum.at(worst, owner, cover)
-            return {w: float(r.error[w[0] : w[1]].max() + worst[w[0] : w[1]].max()) for w in windows}
+            moved = np.linalg.norm(r.points - rings.points, axis=1)
+            return {w: float(r.error[w[0] : w[1]].max() + worst[w[0] : w[1]].max()
+                             + MOVE_WEIGHT * moved[w[0] : w[1]].max()) for w in windows}  # fmt: skip
 
-        choice = {w: (sc, None) for w, sc in scores(best).items()}
+        choice = {w: (sc - GAIN * radius, None) for w, sc in scores(best).items()}
         trials = []
         for scale in SCALES:
             sigma = scale * radius / spacing
