@@ -4,16 +4,20 @@ time, centring and fidelity of the rest surface the simulator writes.
 Per case: the hub count (automatic unless ``--hubs``), seconds of extraction (median of
 ``--repeat`` runs, kernel compile excluded: one warm-up extraction runs first), and the frame-0
 Surface of the scene that ``warp-tube extract`` writes, built through the public API
-(``warp_tube.load_scene`` then ``warp_tube.Simulation(scene, device="cpu").surface_points()``):
+(``warp_tube.load_scene`` then ``warp_tube.Simulation(scene, device="cpu").surface_points()``,
+:func:`warp_tube.extract.fidelity.simulated_surface`):
 
 - distances from the input's vertices to that Surface (side branches and one end radius at each
   end left out) and from the Surface's vertices to the input (nothing left out): mean, 99th
   percentile and largest, as fractions of the mean spoke length;
-- the longest over the shortest spoke of the two end rings, and how far the inner-bend guard moved
-  a vertex (against the same surface rebuilt with the guard off);
+- the longest over the shortest spoke of the two end rings (and of the rings one hub in: the mesh's
+  own section there), and how far the inner-bend guard moved a vertex (against the same surface
+  rebuilt with the guard off);
 - synthetic tubes: the distance of every interior hub from the true curve, over the local true radius.
 
-Prints JSON; ``--table`` prints a Markdown table instead.
+Prints JSON; ``--table`` prints a Markdown table instead (``--from FILE`` prints the table of a saved
+result). ``--centres`` compares, on the synthetic set, the two centres the extraction could use:
+the cross-section's centroid and the maximal inscribed circle (the distance field's ridge).
 
 Run: ``python benchmarks/bench_extract.py [MESH_DIR] [--only real|synthetic] [--repeat R] [--hubs N] [--table]``.
 """
@@ -27,7 +31,6 @@ import os
 import pathlib
 import platform
 import sys
-import tempfile
 import time
 
 import numpy as np
@@ -35,49 +38,29 @@ import warp as wp
 
 wp.config.log_level = wp.LOG_WARNING  # stdout carries the JSON only: no banner, no module messages
 
-import warp_tube
 from warp_tube.bench.synthetic_tubes import synthetic_cases
-from warp_tube.extract.fidelity import Distances, measured_vertices, mesh_distances, rest_surface
+from warp_tube.extract.fidelity import surface_fidelity
 from warp_tube.extract.mesh_io import load_mesh
 from warp_tube.extract.pipeline import extract_centerline
 from warp_tube.extract.polyline import arclength, project_points
-from warp_tube.extract.usd import write_scene
 
 VOXEL_MM = (0.832031, 0.832031, 1.0)  # EdinGCA CT voxel size (SOURCES.md): mesh units -> mm
 DEFAULT_DIR = pathlib.Path(__file__).resolve().parents[1].parent / "shared" / "data" / "meshes"
 
 
-def simulated_surface(tube, meters_per_unit: float):
-    """Frame-0 Surface of the scene written for ``tube``: ``(points (V, 3) [mesh units], faces (F, 3))``."""
-    with tempfile.TemporaryDirectory() as tmp:
-        path = os.path.join(tmp, "scene.usda")
-        write_scene(tube, path, meters_per_unit=meters_per_unit)
-        sim = warp_tube.Simulation(warp_tube.load_scene(path), device="cpu")
-        points = sim.surface_points()[0].astype(np.float64)
-        faces = np.asarray(sim.surfaces[0].face_vertex_indices, dtype=np.int64).reshape(-1, 3)
-    return points, faces
-
-
 def measure(tube, mesh, meters_per_unit: float) -> dict:
     """Two-way distances, end-ring spoke ratios and guard moves of the frame-0 Surface (see module doc)."""
-    points, faces = simulated_surface(tube, meters_per_unit)
-    radius = float(tube.spoke_lengths.mean())
-    end_r = tube.spoke_lengths.mean(axis=1)
-    tips = np.stack([e.tip for e in tube.ends])
-    keep = measured_vertices(tube.points, end_r[0], end_r[-1], mesh.vertices, tips,
-                             [b.path for b in tube.branch_details])  # fmt: skip
-    to_surface = Distances.of(mesh_distances(mesh.vertices[keep], points, faces), radius, int((~keep).sum()))
-    to_input = Distances.of(mesh_distances(points, mesh.vertices, mesh.faces), radius)
-    n, s = tube.spoke_lengths.shape
-    ring = np.linalg.norm(points[: n * s].reshape(n, s, 3) - tube.points[:, None], axis=-1)
-    ratio = ring.max(axis=1) / ring.min(axis=1)
-    unguarded = rest_surface(tube.points, tube.spoke_lengths, tube.reference_normal, tube.caps).unguarded
+    fid = surface_fidelity(tube, mesh, simulated=True, meters_per_unit=meters_per_unit)
+    lengths = tube.spoke_lengths
+    inner = lengths[[1, -2]] if tube.hubs > 3 else lengths[[0, -1]]
     return {
-        "to_surface": {k: round(getattr(to_surface, k), 4) for k in ("mean", "p99", "max")},
-        "to_input": {k: round(getattr(to_input, k), 4) for k in ("mean", "p99", "max")},
-        "vertices_left_out": to_surface.left_out,
-        "end_ratios": [round(float(ratio[0]), 2), round(float(ratio[-1]), 2)],
-        "guard_moved": round(float(np.linalg.norm(points - unguarded, axis=1).max() / radius), 4),
+        "to_surface": {k: round(getattr(fid.to_surface, k), 4) for k in ("mean", "p99", "max")},
+        "to_input": {k: round(getattr(fid.to_input, k), 4) for k in ("mean", "p99", "max")},
+        "vertices_left_out": fid.to_surface.left_out,
+        "end_ratios": [round(x, 2) for x in fid.end_ratios],
+        # the mesh's own cross-section next to each end: the ratio of the ring one hub in
+        "mesh_end_ratios": [round(float(r.max() / r.min()), 2) for r in inner],
+        "guard_moved": round(fid.guard_moved, 4),
     }
 
 
@@ -89,16 +72,55 @@ def centring(tube, case) -> dict:
     return {"hub_error_max": round(float(e.max()), 4), "hub_error_mean": round(float(e.mean()), 4)}
 
 
-def row(name, mesh, tube, seconds, meters_per_unit, case=None) -> dict:
+def centres(case, samples: int = 40) -> dict:
+    """Centre of the cross-section normal to the true curve, at ``samples`` points of it (a tenth of
+    the length from each end left out), found two ways from a start a fifth of the radius off: the
+    section's centroid (rays, :func:`warp_tube.extract.sections.section_offsets`, 8 iterations) and
+    the maximal inscribed circle (the distance field's ridge in the plane: the point of largest
+    distance from the wall, by a shrinking 9 x 9 grid search); distance of each from the curve over
+    the radius there."""
+    from warp_tube.extract.polyline import tangents
+    from warp_tube.extract.queries import MeshQueries
+    from warp_tube.extract.sections import plane_basis, section_offsets
+
+    v = np.asarray(case.mesh.vertices)
+    shift = 0.5 * (v.min(axis=0) + v.max(axis=0))
+    q = MeshQueries(v - shift, case.mesh.faces, v - shift, case.mesh.faces, "cpu")
+    diag = float(np.linalg.norm(np.ptp(v, axis=0)))
+    k = len(case.curve)
+    idx = np.linspace(k // 10, k - 1 - k // 10, samples).astype(int)
+    x, t, r = case.curve[idx] - shift, tangents(case.curve)[idx], case.radius[idx]
+    a, b = plane_basis(t)
+    start = x + 0.2 * r[:, None] * a
+    p = start.copy()
+    for _ in range(8):
+        p = p + section_offsets(q, p, t, diag)[0]
+    centroid = np.linalg.norm(p - x, axis=1) / r
+    p, step = start.copy(), 0.3
+    grid = np.array([(u, w) for u in np.linspace(-1, 1, 9) for w in np.linspace(-1, 1, 9)])
+    for _ in range(6):
+        cand = p[:, None] + step * r[:, None, None] * (grid[None, :, :1] * a[:, None] + grid[None, :, 1:] * b[:, None])
+        d = q.distance(cand.reshape(-1, 3), diag).reshape(len(p), -1)
+        p = cand[np.arange(len(p)), d.argmax(axis=1)]
+        step /= 3.0
+    ridge = np.linalg.norm(p - x, axis=1) / r
+    return {"mesh": case.name, "centroid_max": round(float(centroid.max()), 4), "centroid_mean": round(float(centroid.mean()), 4),
+            "ridge_max": round(float(ridge.max()), 4), "ridge_mean": round(float(ridge.mean()), 4)}  # fmt: skip
+
+
+def row(name, mesh, tube, seconds, meters_per_unit, case=None, times=None) -> dict:
     out = {
         "mesh": name,
         "vertices": int(len(mesh.vertices)),
         "hubs": tube.hubs,
         "seconds": round(seconds, 3),
+        "seconds_each": [round(x, 3) for x in (times or [seconds])],
         "length": float(f"{tube.length:.4g}"),
         "mean_radius": float(f"{tube.spoke_lengths.mean():.4g}"),
         "ends": [e.kind for e in tube.ends],
         "branches": [[j, float(f"{x:.4g}")] for j, x in tube.branches],
+        "openings": [[o.kind, float(f"{o.radius:.4g}")] for o in tube.openings],
+        "stages": {k: round(v, 3) for k, v in tube.timings.items()},
         **measure(tube, mesh, meters_per_unit),
     }
     if case is not None:
@@ -108,8 +130,8 @@ def row(name, mesh, tube, seconds, meters_per_unit, case=None) -> dict:
 
 def table(result: dict) -> str:
     """Markdown table of the rows."""
-    head = ("| mesh | hubs | s | in->surface mean / p99 / max | surface->in mean / p99 / max | end ratios | "
-            "guard | hub error max / mean |")  # fmt: skip
+    head = ("| mesh | hubs | s | mesh to surface: mean / p99 / max % | surface to mesh: mean / p99 / max % | "
+            "end ring ratios | guard moved | hub error max / mean |")  # fmt: skip
     lines = [head, "|" + "---|" * 8]
     for r in result["rows"]:
         a, b = r["to_surface"], r["to_input"]
@@ -130,7 +152,17 @@ def main() -> None:
     ap.add_argument("--spokes", type=int, default=16)
     ap.add_argument("--hubs", type=int, default=None)
     ap.add_argument("--table", action="store_true", help="print a Markdown table instead of JSON")
+    ap.add_argument("--from", dest="saved", help="print the table of a saved JSON result and stop")
+    ap.add_argument("--centres", action="store_true", help="compare section centroids and inscribed circles")
     a = ap.parse_args()
+    if a.saved:
+        print(table(json.loads(pathlib.Path(a.saved).read_text())))
+        return
+    if a.centres:
+        with contextlib.redirect_stdout(sys.stderr):
+            wp.init()
+        print(json.dumps([centres(c) for c in synthetic_cases()], indent=1))
+        return
     rows = []
     with contextlib.redirect_stdout(sys.stderr):  # Warp's start-up banner and module loads: not JSON
         wp.init()
@@ -149,7 +181,7 @@ def main() -> None:
                 t0 = time.perf_counter()
                 tube = extract_centerline(mesh, hubs=a.hubs, spokes=a.spokes, source=str(f))
                 times.append(time.perf_counter() - t0)
-            rows.append(row(f.name, mesh, tube, float(np.median(times)), 0.001 if voxels else 1.0))
+            rows.append(row(f.name, mesh, tube, float(np.median(times)), 0.001 if voxels else 1.0, times=times))
     for case in cases:
         t0 = time.perf_counter()
         tube = extract_centerline(case.mesh, hubs=a.hubs, spokes=a.spokes, source=case.name)

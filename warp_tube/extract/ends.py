@@ -10,11 +10,12 @@ Choice (in the voxel graph of :mod:`warp_tube.extract.distance_map`):
 - A flat face that seals the tube where it was cut out of a longer one
   (:func:`warp_tube.extract.mesh_io.flat_cuts`) is an end of the mesh like a terminal open loop when
   it passes the same test.
-- Two or more such ends: the tube's ends are the two of them farthest apart along the inside.
-  One: it is one end, the other is the inside point farthest from it. None (a closed mesh with
-  rounded tips, or one with openings in its side only): the two ends of the longest geodesic, found
-  by a double sweep from the widest point (the farthest-apart rule). The loops that are not ends are
-  reported with their size.
+- Two or more terminal open loops: the tube's ends are the two of them farthest apart along the
+  inside. One: it is one end, the other is the sealed cut farthest from it, or without one the
+  inside point farthest from it. None, but sealed cuts: the same among the cuts. None of either (a
+  closed mesh with rounded tips, or one with openings in its side only): the two ends of the
+  longest geodesic, found by a double sweep from the widest point (the farthest-apart rule). The
+  loops that are not ends are reported with their size.
 
 End rings (on the centred line, :mod:`warp_tube.extract.sections`):
 
@@ -61,6 +62,7 @@ _POLE_WEIGHT = 0.6  # the pole is one vertex, the cap rings S each: its distance
 _CAP_TOLERANCE = 0.2  # a closed tip is capped where the best cap lies within this x end radius of it
 _FLAT = 0.03  # a closed end is a flat cut where the surface ahead lies within this x end radius of a plane
 _CUT_MARGIN = 0.02  # a trimmed end ring stays this x end radius before the cut's plane
+_RING_RATIO = 3.0  # an end ring's longest spoke is at most this x its shortest (no degenerate end ring)
 
 
 @dataclass(frozen=True)
@@ -120,17 +122,34 @@ def choose_ends(dm: dmap.DistanceMap, loops: list[BoundaryLoop], cuts: list[Flat
     cand = list(loops) + list(cuts)
     voxels = [_nearest_voxel(dm, tree, reach, lp.centroid) for lp in cand]
     terminal = [i for i, v in enumerate(voxels) if is_terminal(dm, v, cand[i])]
-    if len(terminal) >= 2:
-        vox = [voxels[i] for i in terminal]
+    open_ends = [i for i in terminal if isinstance(cand[i], BoundaryLoop)]
+    sealed = [i for i in terminal if not isinstance(cand[i], BoundaryLoop)]
+
+    def farthest_pair(idx):
+        vox = [voxels[i] for i in idx]
         dist = np.stack([dmap.shortest_tree(dm.length_graph, c)[0][vox] for c in vox])
         i, j = np.unravel_index(int(np.argmax(np.where(np.isfinite(dist), dist, -1.0))), dist.shape)
-        ia, ib = terminal[i], terminal[j]
+        return idx[i], idx[j]
+
+    def farthest_from(i, idx):
+        """The candidate of ``idx`` farthest from candidate ``i``, or the farthest inside voxel."""
+        d_i = dmap.shortest_tree(dm.length_graph, voxels[i])[0]
+        d_i = np.where(np.isfinite(d_i), d_i, -1.0)
+        if idx:
+            k = max(idx, key=lambda k: d_i[voxels[k]])
+            return voxels[k], cand[k]
+        return int(np.argmax(d_i)), None
+
+    # Open loops first (the issue of an end put in a blind bulge), then sealed cuts, then the
+    # farthest-apart rule.
+    pool = open_ends if len(open_ends) >= 2 else (sealed if not open_ends and len(sealed) >= 2 else None)
+    if pool is not None:
+        ia, ib = farthest_pair(pool)
         a, b, end_a, end_b = voxels[ia], voxels[ib], cand[ia], cand[ib]
-    elif len(terminal) == 1:
-        ia = terminal[0]
+    elif open_ends or sealed:
+        ia = (open_ends or sealed)[0]
         a, end_a = voxels[ia], cand[ia]
-        d_a = dmap.shortest_tree(dm.length_graph, a)[0]
-        b, end_b = int(np.argmax(np.where(np.isfinite(d_a), d_a, -1.0))), None
+        b, end_b = farthest_from(ia, sealed if open_ends else [])
     else:
         a = int(reach[np.argmax(d_root[reach])])
         d_a = dmap.shortest_tree(dm.length_graph, a)[0]
@@ -327,6 +346,8 @@ def fit_closed_end(q: MeshQueries, line: np.ndarray, diag: float, spokes: int, c
         ray reaches the closed surface or no position has a complete ring.
     """
     r_end = float(q.distance(line[:1], diag)[0])
+    if cut is not None and np.dot(line[0] - cut.centroid, cut.normal) * np.dot(line[-1] - cut.centroid, cut.normal) <= 0:
+        cut = None  # the line starts on the far side of the cut's plane: it does not close this end
     ext, tip = _extend(q, line, r_end, diag, cut)
     if tip is None:
         return line, line[0].copy(), "closed", None
@@ -354,7 +375,9 @@ def fit_closed_end(q: MeshQueries, line: np.ndarray, diag: float, spokes: int, c
 
 def _inside_cut(q: MeshQueries, ext, s, cut, r_end: float, diag: float, spokes: int):
     """Least arclength from the tip along ``ext`` at which the hub's ring (normal to the line) is
-    complete and lies wholly before the cut plane, refined by bisection to 1 % of ``r_end``."""
+    complete, not degenerate (longest ray at most :data:`_RING_RATIO` times the shortest) and lies
+    wholly before the cut plane, refined by bisection to 1 % of ``r_end``; None if none within two
+    end radii."""
     point, normal = cut
 
     def inside(x: float) -> bool:
@@ -365,16 +388,18 @@ def _inside_cut(q: MeshQueries, ext, s, cut, r_end: float, diag: float, spokes: 
         hits = q.rays(q.wall, origins, dirs, diag)  # next to the cut the distance from the wall
         if (hits <= 0.0).any() or (q.rays(q.closed, origins, dirs, diag) < hits - 1e-5 * diag).any():
             return False  # is small, so ring_hits' bound by it does not apply: any wall hit counts
+        if hits.max() > _RING_RATIO * hits.min():
+            return False  # a degenerate ring: along the cut, or into a corner
         ends = hub + hits[:, None] * dirs
         return bool(((ends - point) @ normal).max() <= -_CUT_MARGIN * r_end)
 
-    probe = np.linspace(0.0, min(2.0 * r_end, s[-1]), 21)
+    probe = np.linspace(_CUT_MARGIN * r_end, min(2.0 * r_end, s[-1]), 21)
     ok = [inside(x) for x in probe]
     if not any(ok):
         return None
     k = int(np.argmax(ok))
     if k == 0:
-        return 0.0
+        return probe[0]
     lo, hi = probe[k - 1], probe[k]
     while hi - lo > 0.01 * r_end:
         mid = 0.5 * (lo + hi)

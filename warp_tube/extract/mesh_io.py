@@ -220,6 +220,7 @@ def boundary_loops(mesh: trimesh.Trimesh) -> list[BoundaryLoop]:
     used: set[tuple[int, int]] = set()
     v = np.asarray(mesh.vertices, dtype=np.float64)
     loops = []
+    chains: list[list[int]] = []
     for a0, b0 in bnd.tolist():
         if (a0, b0) in used:
             continue
@@ -234,7 +235,27 @@ def boundary_loops(mesh: trimesh.Trimesh) -> list[BoundaryLoop]:
             if not cands:
                 break
             a, b = b, cands[0]
-        if len(chain) < 3:
+        chains.append(chain)
+    # A loop that touches itself at a vertex (a pinch) is traced as several closed walks: splice
+    # walks that share a vertex into one (Hierholzer), so that one opening is one loop.
+    merged = True
+    while merged:
+        merged = False
+        for i in range(len(chains)):
+            for j in range(i + 1, len(chains)):
+                common = set(chains[i]) & set(chains[j])
+                if common:
+                    x = next(iter(common))
+                    a, b = chains[i], chains[j]
+                    k, m = a.index(x), b.index(x)
+                    chains[i] = a[: k + 1] + b[m + 1 :] + b[: m + 1] + a[k + 1 :]
+                    del chains[j]
+                    merged = True
+                    break
+            if merged:
+                break
+    for chain in chains:
+        if len(set(chain)) < 3:
             continue
         pts = v[chain]
         c = pts.mean(axis=0)

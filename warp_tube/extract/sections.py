@@ -33,6 +33,9 @@ OUTLIER_RATIO = 2.5
 """A hit longer than this times the median of its ring's valid hits does not belong to the section."""
 RAYS = 32
 """Rays per cross-section when centring."""
+MAX_TURN = np.radians(60.0)
+"""Largest turn at a point of the dense axis (half a tube radius between points) that centring may
+make: sharper is tighter than the tube's own radius, a fold of the line, not of the tube."""
 
 
 def ring_hits(q: MeshQueries, points: np.ndarray, dirs: np.ndarray, diag: float):
@@ -120,7 +123,8 @@ def _safe_moves(q: MeshQueries, p: np.ndarray, offset: np.ndarray, movable: np.n
     """The offsets that centre without leaving the axis: each capped at a third of the point's
     distance from the wall, and dropped where the moved point would lie nearer to the wall than 80 %
     of where it was (a section cut obliquely through a bulge or a bend's far side has its centroid
-    off the axis) or where the line would turn back on itself. Shape (n, 3)."""
+    off the axis), where the line would turn back on itself, or where it would turn by more than
+    :data:`MAX_TURN` at a point that did not. Shape (n, 3)."""
     dfb = q.distance(p, diag)
     size = np.linalg.norm(offset, axis=1)
     cap = np.minimum(1.0, dfb / (3.0 * np.maximum(size, 1e-300)))
@@ -132,7 +136,20 @@ def _safe_moves(q: MeshQueries, p: np.ndarray, offset: np.ndarray, movable: np.n
     back = np.einsum("ij,ij->i", e0, e1) <= 0.0
     keep[1:] &= ~back
     keep[:-1] &= ~back
+    before = _turns(p)
+    for _ in range(3):  # moves that kink the line (a turn over MAX_TURN that was not there) stay
+        sharp = np.flatnonzero((_turns(np.where(keep[:, None], moved, p)) > MAX_TURN) & (before <= MAX_TURN)) + 1
+        if len(sharp) == 0:
+            break
+        keep[np.clip(np.concatenate([sharp - 1, sharp, sharp + 1]), 0, len(p) - 1)] = False
     return np.where(keep[:, None], offset, 0.0)
+
+
+def _turns(p: np.ndarray) -> np.ndarray:
+    """Turning angle [rad] at each interior point of a polyline, shape (n - 2,)."""
+    e = np.diff(p, axis=0)
+    e = e / np.maximum(np.linalg.norm(e, axis=1, keepdims=True), 1e-300)
+    return np.arccos(np.clip(np.einsum("ij,ij->i", e[1:], e[:-1]), -1.0, 1.0))
 
 
 def recentre(q: MeshQueries, line: np.ndarray, diag: float, *, iterations: int = 4, tangent_sigma: float = 1.0,
