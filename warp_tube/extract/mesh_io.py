@@ -1,4 +1,5 @@
-"""Tube meshes for centerline extraction: loading, cleaning, boundary loops and capping.
+"""Tube meshes for centerline extraction: loading, cleaning, boundary loops, capping and the flat
+faces that seal cut ends.
 
 Meshes come from STL/PLY/OBJ files (through trimesh) or from the points and faces of a USD
 ``Mesh`` prim carrying ``warptube:extract = true``. Everything that is wrong with the input becomes
@@ -12,7 +13,9 @@ import os
 from dataclasses import dataclass
 
 import numpy as np
+import scipy.sparse as sp
 import trimesh
+from scipy.sparse.csgraph import connected_components
 
 from ..scene.spec import SceneError
 
@@ -324,9 +327,6 @@ def flat_cuts(mesh: trimesh.Trimesh, min_area: float, angle_deg: float = 1.0) ->
     same = (np.abs(np.einsum("ij,ij->i", n[adj[:, 0]], n[adj[:, 1]])) > cos) & (
         np.abs(np.einsum("ij,ij->i", n[adj[:, 0]], c[adj[:, 1]] - c[adj[:, 0]])) < 0.01 * r0
     )
-    import scipy.sparse as sp
-    from scipy.sparse.csgraph import connected_components
-
     g = sp.coo_matrix((np.ones(int(same.sum())), (adj[same, 0], adj[same, 1])), shape=(len(n), len(n)))
     count, label = connected_components(g, directed=False)
     total = np.bincount(label, weights=area, minlength=count)

@@ -4,22 +4,25 @@ The seed paper's "distance mapping" (Wan et al. 2002), with the hubs put on the 
 rings made so that the simulator rebuilds the input at rest:
 
 1. Clean the mesh, find its boundary loops: loops of a tube's size are open ends or openings, small
-   ones holes; all are capped for the inside test (:mod:`warp_tube.extract.mesh_io`).
+   ones holes; all are capped for the inside test (:mod:`warp_tube.extract.mesh_io`), and flat faces
+   that seal cut ends are found.
 2. Distance-from-boundary field on inside voxels and its voxel graph (:mod:`warp_tube.extract.distance_map`).
-3. Ends (:mod:`warp_tube.extract.ends`): at the open loops where the tube ends, else (closed
-   meshes) the two ends of the longest geodesic; a most-centred voxel path joins them.
+3. Ends (:mod:`warp_tube.extract.ends`): at open loops where the mesh ends, then sealed cuts, else
+   (closed meshes) the two ends of the longest geodesic; a most-centred voxel path joins them.
+   Openings that are not ends are closed like holes for what follows.
 4. Axis: the path, resampled densely, is moved onto the centroids of its cross-sections (rays in
    the plane normal to it, :mod:`warp_tube.extract.sections`); its ends are trimmed to complete
-   cross-sections at open loops and fitted to the simulator's cap at closed ends.
-5. Hubs: N points equally spaced along the cubic spline through the axis, each then re-centred in
+   sections at open loops and sealed cuts, and fitted to the simulator's cap at rounded tips.
+5. Hubs: N points equally spaced along the cubic spline through the axis (the open and cut ends
+   trimmed until the end rings, normal to their edges, lie inside the mesh), each then re-centred in
    its own ring plane (the simulator's, normal to the bisector tangent); spoke lengths by rays along
    the simulator's spoke directions (:func:`warp_tube.model.frames.rotation_minimizing_frames`,
    :func:`warp_tube.model.frames.spoke_directions`, reference normal
-   :func:`warp_tube.model.frames.initial_normal` of the first tangent).
-6. Rest surface: the simulator's own rebuild (its inner-bend guard and caps included,
-   :mod:`warp_tube.extract.fidelity`) is compared with the mesh both ways; by default the hub count
-   grows until it meets :data:`AUTO_FIDELITY` (:mod:`warp_tube.extract.rings` keeps the guard from
-   cutting into measured rings).
+   :func:`warp_tube.model.frames.initial_normal` of the first tangent). By default the hub count
+   grows until the measured rings cover the mesh to :data:`AUTO_FIDELITY`.
+6. Rest surface: where the simulator's inner-bend guard would cut a ring at rest, the axis is
+   smoothed there (:mod:`warp_tube.extract.rings`); the simulator's own rebuild (guard and caps
+   included, :mod:`warp_tube.extract.fidelity`) is then compared with the mesh both ways.
 
 Side branches (e.g. of a coronary artery) are the parts of the inside farther than their own
 diameter beyond the main tube's surface; each is reported with its junction hub and length. The
