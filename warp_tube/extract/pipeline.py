@@ -79,7 +79,7 @@ class TubeEnd:
         radius: mean spoke length of the end hub [mesh units].
         tip: where the mesh ends [mesh units], shape (3,): the open loop's centre, or where the
             axis continued from the end hub meets the closed surface.
-        trimmed: length of axis between the tip and the end hub [mesh units].
+        trimmed: distance from the tip to the end hub [mesh units].
         seal: for a "cut" end, the flat face that seals the mesh there: ``(point (3,), outward unit
             normal (3,), radius)`` [mesh units]; None otherwise.
     """
@@ -305,13 +305,12 @@ def extract_centerline(
         seal = None
         if isinstance(end, BoundaryLoop):
             tip = end.centroid.copy()
-            line, trimmed = trim_open_end(q, line, diag, 1.5 * end.radius)
+            line, _ = trim_open_end(q, line, diag, 1.5 * end.radius)
             kind = "open"
         else:
             line, tip, kind, seal = fit_closed_end(q, line, diag, spokes, end)
-            trimmed = float(np.linalg.norm(tip - line[0]))
         dense = line[::-1] if at_end else line
-        ends.append((kind, tip, trimmed, seal))
+        ends.append((kind, tip, seal))
     dense = recentre(q, resample_spline(dense, max(8, len(dense))), diag, iterations=2)
     timings["axis"] = time.perf_counter() - t0
 
@@ -325,7 +324,7 @@ def extract_centerline(
 
     t0 = time.perf_counter()
     caps = all(e[0] == "closed" for e in ends)
-    seals = [e[3] for e in ends if e[3] is not None]
+    seals = [e[2] for e in ends if e[2] is not None]
     max_hubs = int(min(MAX_AUTO_HUBS, max(8, np.floor(length / (_MIN_SPACING * r_med)) + 1)))
     tips = np.stack([ends[0][1], ends[1][1]])
     branch_paths = [fb.path for fb in found]
@@ -338,7 +337,7 @@ def extract_centerline(
         # The hub count is chosen on the rings as measured: their spoke ends lie on the mesh, so what
         # the count changes is how closely the strips between rings follow it.
         line = dense
-        for k, (kind, _, _, seal) in enumerate(ends):  # open and cut ends: end rings inside the mesh
+        for k, (kind, _, seal) in enumerate(ends):  # open and cut ends: end rings inside the mesh
             if kind != "closed":
                 line = settle_end(q, line[::-1], n, diag, spokes, seal)[::-1] if k else \
                     settle_end(q, line, n, diag, spokes, seal)  # fmt: skip
@@ -369,12 +368,12 @@ def extract_centerline(
         jh = int(hub_tree.query(dense[min(fb.junction, len(dense) - 1)])[1])
         branches.append(Branch(jh, fb.length, fb.path + shift))
         log.info("%s: side branch (%s) at hub %d, %.4g long: left out of the tube", src, fb.kind, jh, fb.length)
-    openings = _openings(choice.others, points, spoke_len, found, hub_tree, src)
+    openings = _openings(choice.others, spoke_len, hub_tree, src)
     radius = spoke_len.mean(axis=1)
     tube_ends = tuple(
-        TubeEnd(kind, points[i] + shift, float(radius[i]), tip + shift, float(trimmed),
+        TubeEnd(kind, points[i] + shift, float(radius[i]), tip + shift, float(np.linalg.norm(tip - points[i])),
                 None if seal is None else (seal[0] + shift, seal[1], float(seal[2])))
-        for i, (kind, tip, trimmed, seal) in zip((0, -1), ends)
+        for i, (kind, tip, seal) in zip((0, -1), ends)
     )  # fmt: skip
     tube = ExtractedTube(
         points=points + shift,
@@ -409,7 +408,7 @@ def _open_or_cut(path: np.ndarray, d: np.ndarray, loop, h: float):
     return cut_closed_tail(path, d, h)
 
 
-def _openings(loops, points, spoke_len, found, hub_tree, src) -> list[Opening]:
+def _openings(loops, spoke_len, hub_tree, src) -> list[Opening]:
     """Report the open loops that are not ends: in the tube's wall, or closing a side branch."""
     out = []
     for lp in loops:
