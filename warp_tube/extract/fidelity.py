@@ -74,7 +74,8 @@ class RestSurface:
         return np.linalg.norm(self.points - self.unguarded, axis=1)
 
 
-def rest_surface(points, spoke_lengths, reference_normal, caps: bool, device=None) -> RestSurface:
+def rest_surface(points, spoke_lengths, reference_normal, caps: bool, device=None, *, unguarded: bool = True
+                 ) -> RestSurface:  # fmt: skip
     """Frame-0 surface of hubs and spokes, rebuilt by the simulator's :class:`SurfaceBuilder`.
 
     Args:
@@ -83,6 +84,8 @@ def rest_surface(points, spoke_lengths, reference_normal, caps: bool, device=Non
         reference_normal: direction of spoke 0 at hub 0, shape (3,).
         caps: whether the scene closes both ends with caps.
         device: Warp device (default: Warp's default device).
+        unguarded: rebuild it with the guard off too (:attr:`RestSurface.unguarded`; else that is
+            the rings ``hub + length * direction`` of :func:`plain_surface` and the guarded caps).
     """
     device = wp.get_device(device)
     p = np.asarray(points, dtype=np.float64)
@@ -90,12 +93,16 @@ def rest_surface(points, spoke_lengths, reference_normal, caps: bool, device=Non
     n, s = lengths.shape
     q = wp.array(p.astype(np.float32)[None], dtype=wp.vec3, device=device)
     out = []
-    for reach in (None, 0.0):
+    for reach in (None, 0.0) if unguarded else (None,):
         kw = {} if reach is None else {"guard_reach": reach}
         b = SurfaceBuilder(np.array([0, n]), p, s, lengths, reference_normal, caps=caps, device=device, **kw)
         pts, _ = b.compute(q)
         out.append(pts.numpy()[0].astype(np.float64))
     faces = np.asarray(b.face_vertex_indices, dtype=np.int64).reshape(-1, 3)
+    if not unguarded:
+        plain = out[0].copy()
+        plain[: n * s] = plain_surface(p, lengths, reference_normal)[0]
+        out.append(plain)
     return RestSurface(out[0], faces, out[1], n, s)
 
 

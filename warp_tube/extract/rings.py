@@ -26,12 +26,10 @@ from __future__ import annotations
 from dataclasses import dataclass
 
 import numpy as np
-
-from ..model.frames import hub_tangents, initial_normal, rotation_minimizing_frames, spoke_directions
-from ..surface.builder import SurfaceBuilder
 from scipy.spatial import cKDTree
 
-from .fidelity import mesh_distances
+from ..model.frames import hub_tangents, initial_normal
+from .fidelity import mesh_distances, rest_surface
 from .polyline import smooth
 from .queries import MeshQueries
 from .sections import measure_spokes
@@ -76,24 +74,16 @@ def rest_rings(q: MeshQueries, points: np.ndarray, spokes: int, caps: bool, diag
     p = np.asarray(points, dtype=np.float64)
     ref = initial_normal(hub_tangents(p)[0])
     lengths, valid = measure_spokes(q, p, ref, spokes, diag)
+    surf = rest_surface(p, lengths, ref, caps, device, unguarded=False)
     n = len(p)
-    b = SurfaceBuilder(np.array([0, n]), p, spokes, lengths, ref, caps=caps, device=device)
-    import warp as wp
-
-    pts, _ = b.compute(wp.array(p.astype(np.float32)[None], dtype=wp.vec3, device=b.device))
-    surf = pts.numpy()[0].astype(np.float64)
-    _, r, s = rotation_minimizing_frames(p, None, ref)
-    plain = p[:, None, :] + lengths[..., None] * spoke_directions(r, s, spokes)
-    ring = surf[: n * spokes].reshape(n, spokes, 3)
-    cut = np.linalg.norm(ring - plain, axis=-1).max(axis=1)
-    dist = q.distance(surf, diag)
+    cut = surf.guard_moves()[: n * spokes].reshape(n, spokes).max(axis=1)
+    dist = q.distance(surf.points, diag)
     error = dist[: n * spokes].reshape(n, spokes).max(axis=1)
-    if len(surf) > n * spokes:
-        half = (len(surf) - n * spokes) // 2
+    if len(surf.points) > n * spokes:
+        half = (len(surf.points) - n * spokes) // 2
         error[0] = max(error[0], dist[n * spokes : n * spokes + half].max())
         error[-1] = max(error[-1], dist[n * spokes + half :].max())
-    faces = np.asarray(b.face_vertex_indices, dtype=np.int64).reshape(-1, 3)
-    return Rings(p, lengths, ref, valid, cut, error, (surf, faces))
+    return Rings(p, lengths, ref, valid, cut, error, (surf.points, surf.faces))
 
 
 def _windows(bad: np.ndarray, n: int, margin: int) -> list[tuple[int, int]]:
