@@ -3,19 +3,23 @@ five real meshes of ../shared/data/meshes (skipped when that folder is absent).
 
 Oracles: synthetic meshes are rings of known radius around a known curve, so the true centerline
 and radius are known exactly; the real meshes are checked against the lengths measured
-independently in their SOURCES.md and against their own vertices (rebuilt-surface distance).
+independently in their SOURCES.md and against their own vertices (two-way distances to the frame-0
+Surface of the written scene). The 24-tube synthetic set is in test_extract_synthetic.py; the ends,
+the tube-likeness check and the warnings in test_extract_ends.py.
 """
 
 from __future__ import annotations
 
 import logging
+import pathlib
 
 import numpy as np
 import pytest
 import trimesh
 
 from warp_tube.extract.pipeline import extract_centerline
-from warp_tube.extract.fidelity import surface_fidelity
+from warp_tube.bench.extraction import simulated_surface
+from warp_tube.extract.fidelity import FIDELITY_BOUNDS, rest_surface, surface_fidelity
 from warp_tube.model.frames import rotation_minimizing_frames
 from warp_tube.extract.mesh_io import load_mesh, mesh_from_arrays
 from warp_tube.extract.polyline import arclength, project_points
@@ -129,15 +133,21 @@ def test_helix_centerline_and_spokes(caps):
     assert rel.max() < 0.06, rel.max()
     assert np.median(rel) < 0.01, np.median(rel)
     assert np.all(np.abs(tube.radius - local) / local < 0.06)
-    # Ends: at the true ends of the curve (open: loop centroid; capped: 10 % of r inside the cap).
+    # Ends: the tips at the true ends of the curve (open: the loop's centre; flat caps: the cap's
+    # centre, within the 48-gon's sagitta); open ends' hubs within a radius of them, flat caps
+    # trimmed (left open) within a radius too.
     total = arclength(curve_pts)[-1]
-    _, arc = project_points(tube.points[[0, -1]], curve_pts)
-    assert arc[0] < 0.1 and arc[1] > total - 0.1
-    assert [e.kind for e in tube.ends] == (["closed"] * 2 if caps else ["open"] * 2)
+    _, arc = project_points(np.stack([e.tip for e in tube.ends]), curve_pts)
+    arc = np.sort(arc)  # the tube may run either way along the curve
+    assert arc[0] < 0.01 * total and arc[1] > 0.99 * total
+    for e in tube.ends:
+        assert np.linalg.norm(e.tip - e.center) < e.radius
+    assert [e.kind for e in tube.ends] == (["cut"] * 2 if caps else ["open"] * 2)
     assert tube.branches == []
-    # Equally spaced hubs (in arclength of the finer re-centred line; chords differ by ~h^2 k^2/24).
+    # Equally spaced hubs along the centred axis, but for the ends (settled so their rings fit) and
+    # the in-plane moves of re-centring.
     seg = np.linalg.norm(np.diff(tube.points, axis=0), axis=1)
-    assert np.ptp(seg) < 2e-3 * seg.mean()
+    assert np.ptp(seg[1:-1]) < 0.02 * seg.mean()
 
 
 def test_inward_normals_give_the_same_tube():
@@ -166,7 +176,7 @@ def test_default_hub_count_and_fidelity():
     # About one hub per mean radius at least (length 19 / radius 0.5; the radius is estimated).
     assert tube.hubs >= 0.8 * 19 / 0.5
     fid = surface_fidelity(tube, mesh)
-    assert fid.mean < 0.04 and fid.p95 < 0.12
+    assert fid.within(*FIDELITY_BOUNDS), fid
 
 
 def test_thin_triangles_and_small_hole():
@@ -290,33 +300,89 @@ def test_write_scene_round_trip(tmp_path):
 
 
 # ---------------------------------------------------------------------------------------------
+# the measured surface is the one the simulator writes
+
+
+def test_builder_surface_equals_the_simulations_frame0_surface(tmp_path):
+    mesh, _, _ = tube_mesh(caps=False)
+    tube = extract_centerline(mesh, hubs=30)
+    direct = rest_surface(tube.points, tube.spoke_lengths, tube.reference_normal, tube.caps)
+    public = simulated_surface(tube, meters_per_unit=1.0)
+    # The same builder and kernels on the same float32 hubs (the Simulation path converts the scene's
+    # metres and back, exact for metersPerUnit 1).
+    assert np.array_equal(direct.faces, public.faces)
+    assert np.allclose(direct.points, public.points, rtol=0.0, atol=1e-6 * tube.radius.mean())
+
+
+def test_warp_tube_run_writes_that_surface_at_frame_0(tmp_path):
+    pytest.importorskip("pxr")
+    from pxr import Usd, UsdGeom
+
+    from warp_tube.cli import main
+    from warp_tube.extract.usd import write_scene
+
+    mesh, _, _ = tube_mesh(caps=True, radius=lambda u: 0.01 * varying_radius(u), curve=lambda u: 0.01 * helix(u))
+    tube = extract_centerline(mesh, hubs=24)
+    scene = tmp_path / "tube.usda"
+    path = write_scene(tube, scene, meters_per_unit=1.0, name="Helix")
+    out = tmp_path / "out.usda"
+    assert main(["run", str(scene), "-o", str(out), "--frames", "1", "--quiet", "--device", "cpu"]) == 0
+    stage = Usd.Stage.Open(str(out))
+    written = np.asarray(UsdGeom.Mesh(stage.GetPrimAtPath(path + "/Surface")).GetPointsAttr().Get(0.0))
+    public = simulated_surface(tube, meters_per_unit=1.0)
+    # float32 points written as they were computed.
+    assert written.shape == public.points.shape
+    assert np.allclose(written, public.points, rtol=0.0, atol=1e-6 * tube.radius.mean())
+
+
+# ---------------------------------------------------------------------------------------------
 # real meshes (../shared/data/meshes, SOURCES.md)
 
 REAL = {
-    # file: (scale, centroid-path length from SOURCES.md [mesh units after scale], side branches)
-    "VH_F_Vasculature__VHF_descending_aorta_a.ply": ((1.0, 1.0, 1.0), 0.153, 0),
-    # LAD and RCA: the vessel runs on past most of its open loops to closed tips; the loop whose
-    # centroid lies outside the wall is a cut side branch (LAD: 2.28 mm loop 1.64 mm off the axis,
-    # wall 1.44 mm; RCA: 1.38 mm loop 2.24 mm off, wall ~1.5 mm), the others are wall openings.
-    "VH_F_Vasculature__VHF_left_anterior_descending_artery.ply": ((1.0, 1.0, 1.0), 0.124, 1),
-    "VH_F_Vasculature__VHF_right_coronary_artery.ply": ((1.0, 1.0, 1.0), 0.192, 1),
-    "EdinGCA_3D_00090_large_intestine_DSJ-SF-.ply": (VOXEL_MM, 403.0, None),
-    "EdinGCA_3D_00090_small_intestine_JIJ-DJJ.ply": (VOXEL_MM, 997.0, None),
+    # file: (scale to mm or m, centroid-path length from SOURCES.md [mesh units after scale], ends)
+    "VH_F_Vasculature__VHF_descending_aorta_a.ply": ((1.0, 1.0, 1.0), 0.153, ["open", "open"]),
+    # LAD and RCA: the vessel runs on past its openings (branches cut flush, or a short stub) to
+    # blind tips; only the LAD's 1.81 mm loop is an end of the mesh.
+    "VH_F_Vasculature__VHF_left_anterior_descending_artery.ply": ((1.0, 1.0, 1.0), 0.124, ["closed", "open"]),
+    "VH_F_Vasculature__VHF_right_coronary_artery.ply": ((1.0, 1.0, 1.0), 0.192, None),
+    # The intestine segments end at flat caps where they were cut out of the organ: trimmed.
+    "EdinGCA_3D_00090_large_intestine_DSJ-SF-.ply": (VOXEL_MM, 403.0, ["cut", "cut"]),
+    "EdinGCA_3D_00090_small_intestine_JIJ-DJJ.ply": (VOXEL_MM, 997.0, ["cut", "cut"]),
 }
+# Meshes whose frame-0 Surface meets the bounds both ways. The jejunum does not: at its tight folds,
+# where the two legs of a hairpin lie pressed together, the simulator's inner-bend guard cuts the
+# rings (README, "Centerline extraction").
+WITHIN_BOUNDS = [name for name in REAL if "small_intestine" not in name]
 
 
 @needs_meshes
 @pytest.mark.parametrize("name", sorted(REAL))
-def test_real_mesh_fidelity(name):
-    scale, length, branches = REAL[name]
+def test_real_mesh_ends_length_and_frame0_surface(name):
+    scale, length, ends = REAL[name]
     mesh = load_mesh(MESHES / name, scale)
     tube = extract_centerline(mesh)
-    fid = surface_fidelity(tube, mesh)
-    # The rest surface rebuilt from hubs and spokes lies near every vertex (ends and side branches
-    # left out): mean <= 5 % and 95th percentile <= 15 % of the mean radius.
-    assert fid.mean <= 0.05 and fid.p95 <= 0.15, fid
-    assert fid.counted > 0.7 * len(mesh.vertices)
-    # Length against the independent centroid-path measurement of SOURCES.md.
-    assert abs(tube.length - length) < 0.06 * length, tube.length
-    if branches is not None:
-        assert len(tube.branches) == branches, tube.branches
+    fid = surface_fidelity(tube, mesh, surface=simulated_surface(tube, 0.001 if scale == VOXEL_MM else 1.0))
+    if name in WITHIN_BOUNDS:
+        assert fid.to_surface.within(*FIDELITY_BOUNDS), fid.to_surface
+        assert fid.to_input.within(*FIDELITY_BOUNDS), fid.to_input
+        assert not tube.warnings, tube.warnings
+    else:
+        # Everywhere but at its folds the surface follows the jejunum: the means are within bounds.
+        assert fid.to_surface.mean <= 0.1 and fid.to_input.mean <= FIDELITY_BOUNDS[0], fid
+        assert any("misses the mesh" in w for w in tube.warnings)
+    assert fid.to_surface.counted > 0.6 * len(mesh.vertices)
+    # No degenerate end ring: its longest spoke at most 3 times its shortest, unless the mesh's own
+    # section there is as elongated (the ring one hub in, within 25 %).
+    for ratio, inner in zip(fid.end_ratios, tube.spoke_lengths[[1, -2]]):
+        assert ratio <= max(3.0, 1.25 * inner.max() / inner.min()), fid.end_ratios
+    # Tip to tip against the independent centroid-path length of SOURCES.md (within 6 %; 10 % for
+    # the jejunum, where the path crosses loops fused in the segmentation and leaves them out as a
+    # 128 mm side branch, which its geodesic bands of SOURCES.md go round).
+    reach = tube.length + sum(float(np.linalg.norm(e.tip - e.center)) for e in tube.ends)
+    assert abs(reach - length) < (0.1 if "small_intestine" in name else 0.06) * length, reach
+    if ends is not None:
+        assert sorted(e.kind for e in tube.ends) == sorted(ends)
+    # Ends at open loops where the mesh has open ends; the others reported with their size.
+    if "right_coronary" in name:
+        assert [e.kind for e in tube.ends].count("open") == 0
+        assert len(tube.openings) == 3 and all(o.radius > 0.001 for o in tube.openings)

@@ -63,6 +63,7 @@ def _parser() -> argparse.ArgumentParser:
     e.add_argument("--hubs", type=int, help="centerline points (default: from length and radius)")
     e.add_argument("--spokes", type=int, default=16, help="spokes per hub")
     e.add_argument("--scale", type=float, nargs="+", metavar="F", help="F, or FX FY FZ: mesh units to metres")
+    e.add_argument("--strict", action="store_true", help="refuse a mesh that is not tube-like instead of warning")
 
     v = sub.add_parser("preview", help="render a contact sheet of an output stage to PNG")
     v.add_argument("stage")
@@ -166,7 +167,7 @@ def _cmd_extract(a) -> int:
     if a.scale is not None and len(a.scale) not in (1, 3):
         raise SceneError(f"--scale takes 1 or 3 values, got {len(a.scale)}")
     done = extract_to_scene(a.mesh, a.output, hubs=a.hubs, spokes=a.spokes, scale=a.scale,
-                            progress=stderr_is_terminal())  # fmt: skip
+                            progress=stderr_is_terminal(), strict=a.strict)  # fmt: skip
     print(done.summary())
     return EXIT_OK
 

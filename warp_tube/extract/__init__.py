@@ -1,4 +1,7 @@
 """Centerline extraction from a tube mesh (the paper's distance mapping): mesh reading (:mod:`.mesh_io`),
-the distance field (:mod:`.distance_map`), the path and its resampling (:mod:`.pipeline`,
-:mod:`.polyline`), side branches (:mod:`.branches`), fidelity (:mod:`.fidelity`), the scene it writes
-(:mod:`.usd`) and the command (:mod:`.command`)."""
+the queries on it (:mod:`.queries`), the distance field (:mod:`.distance_map`), the tube's ends
+(:mod:`.ends`), cross-sections and spokes (:mod:`.sections`), the pipeline and its resampling
+(:mod:`.pipeline`, :mod:`.polyline`), rings the inner-bend guard leaves alone (:mod:`.rings`), side
+branches (:mod:`.branches`), fidelity of the simulator's rest surface (:mod:`.fidelity`), the
+tube-likeness check (:mod:`.tubelike`), the scene it writes (:mod:`.usd`) and the command
+(:mod:`.command`)."""

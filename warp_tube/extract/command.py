@@ -1,4 +1,4 @@
-"""``warp-tube extract MESH -o SCENE.usda [--hubs N] [--spokes S] [--scale F | --scale FX FY FZ]``."""
+"""``warp-tube extract MESH -o SCENE.usda [--hubs N] [--spokes S] [--scale F | --scale FX FY FZ] [--strict]``."""
 
 from __future__ import annotations
 
@@ -8,20 +8,15 @@ from dataclasses import dataclass, field
 
 from ..scene.files import USD_EXTENSIONS, output_path
 from ..runtime.progress import Phase
-from .fidelity import Fidelity, surface_fidelity
+from .fidelity import Fidelity
 from .mesh_io import load_mesh
 from .pipeline import ExtractedTube, extract_centerline
 from .tube_check import size_warning, summary_line, tube_warnings
 from .usd import write_scene
 
-__all__ = ["extract_to_scene", "Extraction", "FIDELITY_MAX_POINTS"]
+__all__ = ["extract_to_scene", "Extraction"]
 
 log = logging.getLogger(__name__)
-
-#: the fit is measured only while the rebuilt surface has at most this many points (hubs x spokes):
-#: beyond, building its query structure costs more than the extraction.
-FIDELITY_MAX_POINTS = 2_000_000
-
 
 @dataclass
 class Extraction:
@@ -39,7 +34,8 @@ class Extraction:
         return summary_line(self.tube, self.fidelity, self.name or self.output)
 
 
-def extract_to_scene(mesh_path, output, *, hubs=None, spokes=16, scale=None, device=None, progress=None) -> Extraction:
+def extract_to_scene(mesh_path, output, *, hubs=None, spokes=16, scale=None, device=None, progress=None,
+                     strict=False) -> Extraction:  # fmt: skip
     """Extract the tube in a mesh file and write a simulation scene for it.
 
     Args:
@@ -53,13 +49,16 @@ def extract_to_scene(mesh_path, output, *, hubs=None, spokes=16, scale=None, dev
             the mesh is taken to be in metres. The scene is written in metres (metersPerUnit 1).
         device: Warp device for the queries.
         progress: status lines for the long phases on stderr (default: when it is a terminal).
+        strict: refuse a mesh that is not tube-like (SceneError) instead of warning.
 
     Returns:
-        The :class:`Extraction`. Warnings (a shape that does not look like a tube, a fit that
-        could not be measured, a very large ``hubs``) are logged and listed in it.
+        The :class:`Extraction`. Warnings (a shape that does not look like a tube, a rest surface
+        that misses the mesh, a fit that could not be measured, a very large ``hubs``) are logged
+        and listed in it.
 
     Raises:
-        SceneError: unreadable or unusable mesh, or an output that cannot be written.
+        SceneError: unreadable or unusable mesh (with ``strict``: not tube-like), or an output that cannot be
+            written.
     """
     from ..runtime.warp_setup import init_warp
 
@@ -76,11 +75,9 @@ def extract_to_scene(mesh_path, output, *, hubs=None, spokes=16, scale=None, dev
     with Phase(f"reading {name}", enabled=progress):
         mesh = load_mesh(mesh_path, factors)
     with Phase(f"extracting the centerline of {name} ({len(mesh.faces):,} faces)", enabled=progress):
-        tube = extract_centerline(mesh, hubs=hubs, spokes=spokes, device=device, source=str(mesh_path))
-    fid = None
-    if tube.hubs * tube.spokes <= FIDELITY_MAX_POINTS:
-        with Phase("measuring how well the hubs and spokes rebuild the mesh", enabled=progress):
-            fid = surface_fidelity(tube, mesh)
+        tube = extract_centerline(mesh, hubs=hubs, spokes=spokes, device=device, source=str(mesh_path), strict=strict)
+    fid = tube.fidelity
+    warnings += tube.warnings  # the tube-likeness check and the fit on the simulator's rest surface (logged)
     found = tube_warnings(tube, fid, automatic_hubs=hubs is None)
     if tube.length > 20.0:
         found.append(f"the tube is {tube.length:.3g} m long: is the mesh in mm or voxels? Pass --scale")

@@ -1,4 +1,5 @@
-"""Tube meshes for centerline extraction: loading, cleaning, boundary loops and capping.
+"""Tube meshes for centerline extraction: loading, cleaning, boundary loops, capping and the flat
+faces that seal cut ends.
 
 Meshes come from STL/PLY/OBJ files (through trimesh) or from the points and faces of a USD
 ``Mesh`` prim carrying ``warptube:extract = true``. Everything that is wrong with the input becomes
@@ -12,7 +13,9 @@ import os
 from dataclasses import dataclass
 
 import numpy as np
+import scipy.sparse as sp
 import trimesh
+from scipy.sparse.csgraph import connected_components
 
 from ..scene.spec import SceneError
 
@@ -24,6 +27,8 @@ __all__ = [
     "BoundaryLoop",
     "boundary_loops",
     "cap_loops",
+    "FlatCut",
+    "flat_cuts",
 ]
 
 log = logging.getLogger(__name__)
@@ -193,12 +198,14 @@ class BoundaryLoop:
         centroid: mean of the loop's vertices [mesh units], shape (3,).
         radius: mean distance of the loop's vertices from the centroid [mesh units].
         normal: unit normal of the loop's best-fit plane, shape (3,) (sign arbitrary).
+        extent: largest distance of the loop's vertices from the centroid [mesh units].
     """
 
     vertices: np.ndarray
     centroid: np.ndarray
     radius: float
     normal: np.ndarray
+    extent: float
 
 
 def boundary_loops(mesh: trimesh.Trimesh) -> list[BoundaryLoop]:
@@ -216,6 +223,7 @@ def boundary_loops(mesh: trimesh.Trimesh) -> list[BoundaryLoop]:
     used: set[tuple[int, int]] = set()
     v = np.asarray(mesh.vertices, dtype=np.float64)
     loops = []
+    chains: list[list[int]] = []
     for a0, b0 in bnd.tolist():
         if (a0, b0) in used:
             continue
@@ -230,16 +238,33 @@ def boundary_loops(mesh: trimesh.Trimesh) -> list[BoundaryLoop]:
             if not cands:
                 break
             a, b = b, cands[0]
-        if len(chain) < 3:
+        chains.append(chain)
+    # A loop that touches itself at a vertex (a pinch) is traced as several closed walks: splice
+    # walks that share a vertex into one (Hierholzer), so that one opening is one loop.
+    merged = True
+    while merged:
+        merged = False
+        for i in range(len(chains)):
+            for j in range(i + 1, len(chains)):
+                common = set(chains[i]) & set(chains[j])
+                if common:
+                    x = next(iter(common))
+                    a, b = chains[i], chains[j]
+                    k, m = a.index(x), b.index(x)
+                    chains[i] = a[: k + 1] + b[m + 1 :] + b[: m + 1] + a[k + 1 :]
+                    del chains[j]
+                    merged = True
+                    break
+            if merged:
+                break
+    for chain in chains:
+        if len(set(chain)) < 3:
             continue
         pts = v[chain]
         c = pts.mean(axis=0)
         _, _, vt = np.linalg.svd(pts - c, full_matrices=False)
-        loops.append(
-            BoundaryLoop(
-                np.asarray(chain, dtype=np.int64), c, float(np.linalg.norm(pts - c, axis=1).mean()), vt[2]
-            )
-        )
+        dist = np.linalg.norm(pts - c, axis=1)
+        loops.append(BoundaryLoop(np.asarray(chain, dtype=np.int64), c, float(dist.mean()), vt[2], float(dist.max())))
     loops.sort(key=lambda lp: -lp.radius)
     return loops
 
@@ -261,3 +286,88 @@ def cap_loops(mesh: trimesh.Trimesh, loops: list[BoundaryLoop]) -> tuple[np.ndar
         f.append(fan)
         n += 1
     return np.concatenate(v), np.concatenate(f)
+
+
+@dataclass(frozen=True)
+class FlatCut:
+    """A flat face closing a tube where it was cut and sealed (a planar patch of the surface).
+
+    Attributes:
+        centroid: area-weighted centre of the patch [mesh units], shape (3,).
+        normal: unit normal of its plane, shape (3,) (sign arbitrary).
+        area: its area [mesh units^2].
+        radius: radius of a disc of that area [mesh units].
+    """
+
+    centroid: np.ndarray
+    normal: np.ndarray
+    area: float
+    radius: float
+
+
+def flat_cuts(mesh: trimesh.Trimesh, min_area: float, angle_deg: float = 1.0) -> list[FlatCut]:
+    """Planar patches of ``mesh`` of at least ``min_area``, largest first.
+
+    Faces are grouped with their neighbours when their normals differ by less than ``angle_deg``
+    and they lie in one plane; groups in one plane (normals within ``angle_deg``, offsets within
+    1 % of the radius of ``min_area``'s disc) whose centres lie within four such radii are merged
+    (a sealed cut is often split by a row of bent triangles). Left out: groups whose bordering
+    faces turn less than about 53 degrees away from them on average (a facet of a faceted wall,
+    not a seal meeting the wall at a crease), and patches much longer than wide (area below 0.3 pi
+    times the square of their largest distance from the centre: flat strips of a straight wall).
+    """
+    n = np.asarray(mesh.face_normals)
+    area = np.asarray(mesh.area_faces)
+    c = np.asarray(mesh.triangles_center)
+    adj = np.asarray(mesh.face_adjacency)
+    if len(adj) == 0:
+        return []
+    cos = np.cos(np.radians(angle_deg))
+    r0 = float(np.sqrt(min_area / np.pi))
+    same = (np.abs(np.einsum("ij,ij->i", n[adj[:, 0]], n[adj[:, 1]])) > cos) & (
+        np.abs(np.einsum("ij,ij->i", n[adj[:, 0]], c[adj[:, 1]] - c[adj[:, 0]])) < 0.01 * r0
+    )
+    g = sp.coo_matrix((np.ones(int(same.sum())), (adj[same, 0], adj[same, 1])), shape=(len(n), len(n)))
+    count, label = connected_components(g, directed=False)
+    total = np.bincount(label, weights=area, minlength=count)
+    centre_of = np.stack([np.bincount(label, weights=area * c[:, k], minlength=count) for k in range(3)], axis=1)
+    centre_of /= np.maximum(total, 1e-300)[:, None]
+    order = np.lexsort((area, label))  # per group, its largest face last
+    largest = np.zeros(count, dtype=np.int64)
+    largest[label[order]] = order
+    normal_of = n[largest]
+    # A seal meets the tube's wall at a crease all round: the faces bordering it turn away (a flat
+    # facet of a faceted wall has neighbours almost in its plane).
+    la, lb = label[adj[:, 0]], label[adj[:, 1]]
+    rim = la != lb
+    turn = np.zeros(count)
+    seen = np.zeros(count)
+    for mine, other in ((adj[rim, 0], adj[rim, 1]), (adj[rim, 1], adj[rim, 0])):
+        grp = label[mine]
+        np.add.at(turn, grp, np.abs(np.einsum("ij,ij->i", n[other], normal_of[grp])))
+        np.add.at(seen, grp, 1.0)
+    creased = (seen > 0) & (turn <= 0.6 * np.maximum(seen, 1.0))
+    groups = [k for k in np.argsort(-total) if total[k] >= 0.1 * min_area and creased[k]]
+    v = np.asarray(mesh.vertices)
+    f_all = np.asarray(mesh.faces)
+    patches = []
+    for k in groups:
+        centre, normal, w_sum = centre_of[k], normal_of[k], float(total[k])
+        corners = v[f_all[label == k].reshape(-1)]
+        for p in patches:
+            if (abs(float(np.dot(p["normal"], normal))) > cos and abs(float(np.dot(p["normal"], centre - p["centre"])))
+                    < 0.01 * r0 and np.linalg.norm(centre - p["centre"]) < 4.0 * r0):  # fmt: skip
+                p["centre"] = (p["centre"] * p["area"] + centre * w_sum) / (p["area"] + w_sum)
+                p["area"] += w_sum
+                p["corners"] = np.concatenate([p["corners"], corners])
+                break
+        else:
+            patches.append({"centre": centre, "normal": normal, "area": w_sum, "corners": corners})
+    out = []
+    for p in patches:
+        reach = float(np.linalg.norm(p["corners"] - p["centre"], axis=1).max())
+        # A cut across a tube is about as wide as it is long (a disc or an ellipse); a flat strip
+        # of a faceted wall is long and thin.
+        if p["area"] >= min_area and p["area"] >= 0.3 * np.pi * reach**2:
+            out.append(FlatCut(p["centre"], p["normal"], p["area"], float(np.sqrt(p["area"] / np.pi))))
+    return sorted(out, key=lambda x: -x.area)

@@ -1,16 +1,15 @@
-"""Does an extracted tube look like a tube? Warnings, in the user's terms, for inputs that do not.
+"""Does an extraction need a second look? Warnings, in the user's terms, beside the tube-likeness
+check of :mod:`warp_tube.extract.tubelike` (length against radius, closed cross-sections, the rest
+surface's fit), which the extraction itself runs.
 
 Extraction finds a centerline in any closed or open surface, so a blob (a sphere), a mesh with too
 few vertices to measure the fit, or a broken mesh still gives hubs and spokes. These checks look at
 the result and say what is suspicious and what to do:
 
-- *not elongated*: the centerline is shorter than :data:`MIN_LENGTH_DIAMETERS` mean diameters;
 - *fit not measurable*: no mesh vertex lies away from the ends (e.g. a plain cylinder, whose only
   vertices are its two end rings), so the automatic hub count could not converge;
 - *over-resolved*: the automatic hub count went past :data:`MAX_HUBS_PER_RADIUS` hubs per mean
   radius (it stops at its limit when the surface cannot be matched);
-- *poor fit*: the rebuilt surface lies farther from the mesh than :data:`POOR_FIT` (mean, 95th
-  percentile, as fractions of the mean radius);
 - *missed spokes*: more than :data:`MISSED_FRACTION` of the spoke rays hit nothing.
 """
 
@@ -20,9 +19,7 @@ import math
 
 __all__ = ["tube_warnings", "summary_line", "size_warning"]
 
-MIN_LENGTH_DIAMETERS = 2.0
 MAX_HUBS_PER_RADIUS = 10.0
-POOR_FIT = (0.10, 0.30)
 MISSED_FRACTION = 0.10
 #: ``--hubs`` above this gets a warning with the size of what will be written.
 LARGE_HUBS = 20_000
@@ -43,12 +40,7 @@ def tube_warnings(tube, fidelity=None, automatic_hubs: bool = True, units: str =
     out = []
     r = float(tube.radius.mean())
     length = tube.length
-    if r > 0 and length < MIN_LENGTH_DIAMETERS * 2.0 * r:
-        out.append(
-            f"does not look like a tube: its centerline is {length:.3g} {units} long and {2 * r:.3g} {units} across (length "
-            f"{length / (2 * r):.1f} x its diameter); the hubs-and-spokes model is for elongated shapes"
-        )
-    if fidelity is not None and fidelity.counted == 0:
+    if fidelity is not None and fidelity.to_surface.counted == 0:
         out.append(
             "the fit of the rebuilt surface could not be measured: no mesh vertex lies away from the tube's ends "
             "(a mesh with vertices only at its end rings, such as a plain cylinder, has none); subdivide the mesh "
@@ -60,11 +52,6 @@ def tube_warnings(tube, fidelity=None, automatic_hubs: bool = True, units: str =
             f"{tube.hubs} hubs for a tube {length:.3g} {units} long and {r:.3g} {units} in radius ({per_radius:.0f} per radius, where "
             f"one or two suffice): the surface could not be matched with fewer; check the mesh, or pass --hubs "
             f"{max(8, round(length / r) + 1)}"
-        )
-    if fidelity is not None and fidelity.counted > 0 and (fidelity.mean > POOR_FIT[0] or fidelity.p95 > POOR_FIT[1]):
-        out.append(
-            f"the rebuilt surface lies {fidelity.mean:.0%} (mean) and {fidelity.p95:.0%} (95th percentile) of the "
-            "radius from the mesh: the mesh may not be a single tube"
         )
     rays = tube.hubs * tube.spokes
     if rays and tube.missed_spokes > MISSED_FRACTION * rays:
@@ -88,17 +75,20 @@ def size_warning(hubs: int, spokes: int) -> str | None:
 
 
 def summary_line(tube, fidelity, output: str, units: str = "m") -> str:
-    """One line about an extraction: hubs, length, radius range, ends, branches, fit."""
+    """One line about an extraction: hubs, length (tip to tip: the hubs' span and what was trimmed at
+    the ends), radius range, ends, branches, fit."""
+    reach = tube.length + sum(e.trimmed for e in tube.ends)
     ends = "/".join(e.kind for e in tube.ends)
     fit = "fit not measured"
     if fidelity is not None:
         fit = (
-            f"surface within {fidelity.mean:.1%} (mean) / {fidelity.p95:.1%} (95th percentile) of the radius"
-            if fidelity.counted
+            f"surface within {fidelity.mean:.1%} (mean) / {fidelity.p99:.1%} (99th percentile) of the radius, "
+            "both ways"
+            if fidelity.to_surface.counted
             else "fit not measurable"
         )
     return (
-        f"{output}: {tube.hubs} hubs x {tube.spokes} spokes, {tube.length:.4g} {units} long, radius "
+        f"{output}: {tube.hubs} hubs x {tube.spokes} spokes, {reach:.4g} {units} long, radius "
         f"{tube.radius.min():.3g}-{tube.radius.max():.3g} {units}, ends {ends}, {len(tube.branches)} side "
         f"branch(es) left out, {fit}"
     )

@@ -4,8 +4,9 @@
 ``/World`` default prim, the tube as a linear ``BasisCurves`` with ``warptube:`` attributes
 (hubs as points, widths from the mean spoke lengths, measured ``spokeLengths``, anchors at both
 ends), and a ``/World/Push`` force that ramps up on the middle hub, holds, and is released, so the
-scene simulates as written. Side branches left out of the tube are recorded in the tube prim's
-``customData`` (``warptube:branches``).
+scene simulates as written. Side branches left out of the tube and open loops that are not ends
+(openings) are recorded in the tube prim's ``customData`` (``warptube:branches:*``,
+``warptube:openings:*``), and the caps are on when both ends are rounded closed tips.
 
 :func:`tube_from_mesh_prim` is the extraction hook of :func:`warp_tube.scene.usd.load_scene` for
 ``Mesh`` prims carrying ``warptube:extract = true``.
@@ -161,9 +162,7 @@ def write_scene(
     prim.CreateAttribute("warptube:referenceNormal", Sdf.ValueTypeNames.Float3).Set(
         Gf.Vec3f(*extracted.reference_normal.astype(float))
     )
-    prim.CreateAttribute("warptube:caps", Sdf.ValueTypeNames.Bool).Set(
-        all(e.kind == "closed" for e in extracted.ends)
-    )
+    prim.CreateAttribute("warptube:caps", Sdf.ValueTypeNames.Bool).Set(bool(extracted.caps))
     if anchors:
         prim.CreateAttribute("warptube:anchorPoints", Sdf.ValueTypeNames.IntArray).Set(Vt.IntArray(anchors))
         prim.CreateAttribute("warptube:anchorStiffness", D).Set(float(k))
@@ -171,6 +170,10 @@ def write_scene(
     prim.SetCustomDataByKey("warptube:ends", Vt.StringArray([e.kind for e in extracted.ends]))
     prim.SetCustomDataByKey("warptube:branches:junctionHubs", Vt.IntArray([int(j) for j, _ in extracted.branches]))
     prim.SetCustomDataByKey("warptube:branches:lengths", Vt.DoubleArray([float(x) for _, x in extracted.branches]))
+    openings = extracted.openings
+    prim.SetCustomDataByKey("warptube:openings:hubs", Vt.IntArray([o.hub for o in openings]))
+    prim.SetCustomDataByKey("warptube:openings:radii", Vt.DoubleArray([o.radius for o in openings]))
+    prim.SetCustomDataByKey("warptube:openings:kinds", Vt.StringArray([o.kind for o in openings]))
 
     if push:
         f = push_force(extracted, meters_per_unit, youngs_modulus)
@@ -255,7 +258,7 @@ def tube_from_mesh_prim(file: str, prim, info: StageInfo) -> TubeSpec:
             bend_stiffness=None if vals["bendStiffness"] is None else float(vals["bendStiffness"]),
             damping=float(vals["damping"] or 0.0), spring_damping=float(vals["springDamping"] or 0.0),
             anchor_stiffness=k_anchor, spokes=spokes, frames=str(frames or "rotationMinimizing"),
-            caps=bool(caps) if caps is not None else all(e.kind == "closed" for e in tube.ends),
+            caps=bool(caps) if caps is not None else tube.caps,
             reference_normal=tuple(float(x) for x in tube.reference_normal),
         )  # fmt: skip
         return TubeSpec(

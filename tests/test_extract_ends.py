@@ -1,0 +1,133 @@
+"""Where an extracted tube ends, what the tube-likeness check says, and the warnings of warp-tube extract.
+
+Meshes are built here with known ends: voxel tubes (blocky, flat ends) and swept tubes with round
+tips from warp_tube.bench.synthetic_tubes.
+"""
+
+from __future__ import annotations
+
+import logging
+
+import numpy as np
+import pytest
+import trimesh
+
+from warp_tube.bench.synthetic_tubes import frenet_curve, sweep_mesh
+from warp_tube.cli import main
+from warp_tube.extract.mesh_io import boundary_loops
+from warp_tube.extract.pipeline import extract_centerline
+from warp_tube.extract.tubelike import NOT_A_TUBE
+from warp_tube.scene.spec import SceneError
+
+from .test_extract import helix, tube_mesh, voxel_surface
+
+
+def pouch_tube(h=0.125):
+    """A tube along x (radius 1.5, from x = 0, closed flat, to x = 20) narrowing to radius 0.9 over its
+    last unit and open there, with a blind pouch (radius 1, 6 long along +y) at x = 17: its tip lies
+    farther from the closed end along the inside than the opening does."""
+    x, y, z = np.meshgrid(np.arange(-1, 22, h), np.arange(-2, 9, h), np.arange(-2, 2, h), indexing="ij")
+    r = np.where(x < 19.0, 1.5, 0.9)
+    main_ = (x >= 0) & (x <= 20) & (y**2 + z**2 <= r**2)
+    pouch = (y >= 0) & (y <= 6) & ((x - 17) ** 2 + z**2 <= 1.0)
+    m = voxel_surface(main_ | pouch, h)
+    m.vertices += np.array([-1.0, -2.0, -2.0]) - 1.5 * h
+    c = m.triangles_center
+    opening = (np.abs(m.face_normals[:, 0]) > 0.9) & (c[:, 0] > 20.0 - 0.5 * h)
+    return trimesh.Trimesh(m.vertices, m.faces[~opening], process=False)
+
+
+def test_an_open_loop_is_an_end_even_when_a_blind_pouch_lies_farther():
+    mesh = pouch_tube()
+    (loop,) = boundary_loops(mesh)
+    assert 0.8 < loop.radius < 1.1  # the small opening
+    tube = extract_centerline(mesh)
+    kinds = [e.kind for e in tube.ends]
+    assert sorted(kinds) == ["cut", "open"], kinds
+    tips = {e.kind: e.tip for e in tube.ends}
+    # The open end at the opening, the other at the flat closed end x = 0 (voxel surfaces lie up to
+    # half a voxel off the nominal shape).
+    assert np.linalg.norm(tips["open"] - loop.centroid) < 1e-9
+    assert abs(tips["cut"][0] - 0.0) < 0.25
+    # The pouch (6 long beyond the tube's axis at x = 17) is a side branch left out.
+    assert len(tube.branches) == 1
+    junction, length = tube.branches[0]
+    assert abs(tube.points[junction, 0] - 17.0) < 1.5 and 4.0 < length < 7.5
+
+
+def capsule(length=12.0, radius=1.0):
+    """A straight tube with round tips along +x from the origin: (mesh, curve points)."""
+    s, x, t = frenet_curve(lambda u: 0.0 * u, lambda u: 0.0 * u, length, step=0.05)
+    return sweep_mesh(x, t, np.full(len(s), radius), ("round", "round"), ring=32), x
+
+
+def test_an_opening_in_the_wall_is_not_an_end():
+    mesh, axis = capsule()
+    c = mesh.triangles_center
+    hole = np.linalg.norm(c - np.array([6.0, 1.0, 0.0]), axis=1) < 0.6  # a branch cut flush, on the side
+    holed = trimesh.Trimesh(mesh.vertices, mesh.faces[~hole], process=False)
+    (loop,) = boundary_loops(holed)
+    tube = extract_centerline(holed)
+    # Both ends at the round tips (capped), not at the opening.
+    assert [e.kind for e in tube.ends] == ["closed", "closed"] and tube.caps
+    assert sorted(abs(e.tip[0] - 6.0) for e in tube.ends) == pytest.approx([7.0, 7.0], abs=0.05)
+    (opening,) = tube.openings
+    assert opening.kind == "wall" and opening.radius == pytest.approx(loop.radius)
+    assert opening.vertices == len(loop.vertices)
+    # The hubs stay on the axis past the opening: the spokes meet the opening's closure.
+    assert np.abs(tube.points[:, 1:]).max() < 0.05
+
+
+def test_two_open_ends_and_a_spare_loop():
+    mesh, axis = capsule(length=14.0)
+    c = mesh.triangles_center
+    keep = (c[:, 0] > -0.01) & (c[:, 0] < 14.01)  # cut both round tips off: two open ends
+    hole = np.linalg.norm(c - np.array([5.0, 0.0, 1.0]), axis=1) < 0.5
+    opened = trimesh.Trimesh(mesh.vertices, mesh.faces[keep & ~hole], process=False)
+    opened.remove_unreferenced_vertices()
+    tube = extract_centerline(opened)
+    assert [e.kind for e in tube.ends] == ["open", "open"]
+    assert sorted(e.tip[0] for e in tube.ends) == pytest.approx([0.0, 14.0], abs=1e-6)
+    assert [o.kind for o in tube.openings] == ["wall"]
+
+
+def test_a_sphere_is_not_tube_like_and_strict_refuses_it(caplog):
+    sphere = trimesh.creation.icosphere(radius=1.0)
+    with caplog.at_level(logging.WARNING, logger="warp_tube"):
+        tube = extract_centerline(sphere)
+    assert any(w.startswith(NOT_A_TUBE) and "mean radii long" in w for w in tube.warnings)
+    assert NOT_A_TUBE in caplog.text
+    with pytest.raises(SceneError, match="not tube-like.*--strict"):
+        extract_centerline(sphere, strict=True)
+
+
+def test_a_cylinder_missing_a_face_along_it_is_not_tube_like():
+    c = trimesh.creation.cylinder(radius=1.0, height=10.0, sections=24)
+    side = np.flatnonzero(np.abs(c.face_normals[:, 2]) < 0.1)
+    pair = [f for f in side if np.allclose(c.face_normals[f], c.face_normals[side[0]])]
+    assert len(pair) == 2  # the two triangles of one side face
+    slit = trimesh.Trimesh(c.vertices, np.delete(c.faces, pair, axis=0), process=False)
+    tube = extract_centerline(slit)
+    assert any(w.startswith(NOT_A_TUBE) and "not closed loops" in w for w in tube.warnings), tube.warnings
+    assert not any(w.startswith(NOT_A_TUBE) for w in extract_centerline(c).warnings)
+
+
+def test_cli_strict_exits_2_without_output_and_plain_extract_warns(tmp_cwd, capsys, caplog):
+    trimesh.creation.icosphere(radius=0.01).export(tmp_cwd / "ball.stl")
+    assert main(["extract", "ball.stl", "-o", "ball.usda", "--strict"]) == 2
+    err = capsys.readouterr().err
+    assert "ball.stl" in err and "not tube-like" in err and "Traceback" not in err
+    assert not (tmp_cwd / "ball.usda").exists()
+    with caplog.at_level(logging.WARNING, logger="warp_tube"):
+        assert main(["extract", "ball.stl", "-o", "ball.usda"]) == 0
+    assert "ball.stl: not tube-like" in caplog.text
+    assert (tmp_cwd / "ball.usda").exists()
+
+
+def test_too_few_hubs_warn_with_the_fidelity():
+    mesh, _, _ = tube_mesh(curve=helix, caps=False)
+    coarse = extract_centerline(mesh, hubs=5)
+    (warning,) = coarse.warnings
+    assert "misses the mesh" in warning and "--hubs 5" in warning and "%" in warning
+    auto = extract_centerline(mesh)
+    assert auto.warnings == [] and auto.hubs > 5

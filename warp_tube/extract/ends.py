@@ -1,0 +1,459 @@
+"""Where an extracted tube ends: the choice of its two ends, and its end rings.
+
+Choice (in the voxel graph of :mod:`warp_tube.extract.distance_map`):
+
+- An open boundary loop is *terminal* when the tube does not go on past it (:func:`is_terminal`):
+  the inside voxels at a geodesic distance of 3 to 4 local radii from the loop form one connected
+  piece (the tube leaving the loop in one direction). A loop in the side of a tube that goes on both
+  ways (an opening where a branch was cut flush, a short branch stub, a hole) leaves two or more
+  pieces there.
+- A flat face that seals the tube where it was cut out of a longer one
+  (:func:`warp_tube.extract.mesh_io.flat_cuts`) is an end of the mesh like a terminal open loop when
+  it passes the same test.
+- Two or more terminal open loops: the tube's ends are the two of them farthest apart along the
+  inside. One: it is one end, the other is the sealed cut farthest from it, or without one the
+  inside point farthest from it. None, but sealed cuts: the same among the cuts. None of either (a
+  closed mesh with rounded tips, or one with openings in its side only): the two ends of the
+  longest geodesic, found by a double sweep from the widest point (the farthest-apart rule). The
+  loops that are not ends are reported with their size.
+
+End rings (on the centred line, :mod:`warp_tube.extract.sections`):
+
+- at an open end the line runs to the loop's centre (the tube's *tip*) and is trimmed back to the
+  first point whose cross-section is complete (every ray meets the wall), so that the end ring lies
+  on the wall and not across the open end (an oblique cut leaves a short stretch open);
+- at a closed end the line is continued straight along its tangent to the closed surface (the
+  tip). A rounded tip is capped: the end hub is put where the simulator's cap, a dome of the end
+  ring's spoke lengths (rings at polar angles ``(pi / 2)(1 - k / K)``,
+  :func:`warp_tube.surface.topology.cap_ring_count`), lies closest to the mesh (about one radius in
+  on a hemisphere). A flat cut (a segment cut out of a longer tube and sealed) is trimmed: a dome
+  cannot follow it (the best misses a flat disc by 0.11 radii, an oblique one by more), so the end
+  hub goes just inside the cut and the scene leaves that end open.
+
+Lengths are in the mesh's units.
+"""
+
+from __future__ import annotations
+
+import logging
+from dataclasses import dataclass
+
+import numpy as np
+from scipy.sparse.csgraph import connected_components, dijkstra
+from scipy.spatial import cKDTree
+
+from . import distance_map as dmap
+from ..surface.topology import cap_ring_count
+from .mesh_io import BoundaryLoop, FlatCut
+from .polyline import arclength, resample_spline
+from .queries import MeshQueries
+from ..model.frames import spoke_directions
+from .sections import RAYS, plane_basis, ring_hits
+
+__all__ = [
+    "EndChoice", "is_terminal", "choose_ends", "cut_closed_tail", "trim_open_end", "fit_closed_end", "settle_end",
+]
+
+log = logging.getLogger(__name__)
+
+_SHELL = (3.0, 4.0)  # geodesic shell around a loop, in local radii, for the terminal test
+_CAP_FIT = np.linspace(0.3, 1.5, 49)  # candidate distances of a closed end's hub from the tip, in end radii
+_POLE_WEIGHT = 0.6  # the pole is one vertex, the cap rings S each: its distance counts this much
+_CAP_TOLERANCE = 0.2  # a closed tip is capped where the best cap lies within this x end radius of it
+_FLAT = 0.03  # a closed end is a flat cut where the surface ahead lies within this x end radius of a plane
+_CUT_MARGIN = 0.02  # a trimmed end ring stays this x end radius before the cut's plane
+_RING_RATIO = 3.0  # an end ring's longest spoke is at most this x its shortest (no degenerate end ring)
+
+
+@dataclass(frozen=True)
+class EndChoice:
+    """The two end voxels of the tube, what closes them and the loops left over.
+
+    Attributes:
+        a, b: voxel indices of the ends in the distance map.
+        end_a, end_b: the open loop or sealed flat cut at each end, or None for a closed tip.
+        terminal: the terminal loops (open ends of the mesh).
+        others: the loops that are not ends (openings in the wall, cut side branches, spare ends).
+    """
+
+    a: int
+    b: int
+    end_a: BoundaryLoop | FlatCut | None
+    end_b: BoundaryLoop | FlatCut | None
+    terminal: list[BoundaryLoop]
+    others: list[BoundaryLoop]
+
+
+def _nearest_voxel(dm: dmap.DistanceMap, tree: cKDTree, reach: np.ndarray, point: np.ndarray) -> int:
+    return int(reach[tree.query(point)[1]])
+
+
+def is_terminal(dm: dmap.DistanceMap, voxel: int, loop: BoundaryLoop | FlatCut) -> bool:
+    """Whether the tube ends at ``loop``: the inside voxels at a geodesic distance of 3 to 4 local
+    radii from the loop's voxel form at most one connected piece (two or more: the tube goes on
+    both ways past the loop). The local radius is the larger of the loop's radius and the widest
+    distance from the wall within two loop radii of the voxel. An opening in the wall less than
+    three local radii from a closed tip leaves one piece too, and counts as an end.
+    """
+    h = dm.voxel_size
+    near = dijkstra(dm.length_graph, directed=False, indices=voxel, limit=2.0 * loop.radius + 2.0 * h)
+    r_loc = max(loop.radius, float(dm.dfb[np.isfinite(near)].max()))
+    dist = dijkstra(dm.length_graph, directed=False, indices=voxel, limit=_SHELL[1] * r_loc + h)
+    shell = np.flatnonzero((dist >= _SHELL[0] * r_loc) & (dist <= _SHELL[1] * r_loc))
+    if len(shell) == 0:
+        return True  # nothing that far: a short piece behind the loop
+    _, label = connected_components(dm.length_graph[shell][:, shell], directed=False)
+    return int((np.bincount(label) >= max(3, 0.05 * len(shell))).sum()) <= 1
+
+
+def choose_ends(dm: dmap.DistanceMap, loops: list[BoundaryLoop], cuts: list[FlatCut] = ()) -> EndChoice:
+    """The tube's two ends (see the module).
+
+    Args:
+        dm: the distance map of the inside.
+        loops: the open loops large enough to be ends (open ends, openings, cut branches).
+        cuts: flat faces that may seal a cut end (:func:`warp_tube.extract.mesh_io.flat_cuts`);
+            a terminal one is a mesh end like a terminal open loop.
+    """
+    root = int(np.argmax(dm.dfb))
+    d_root = dmap.shortest_tree(dm.length_graph, root)[0]
+    reach = np.flatnonzero(np.isfinite(d_root))
+    tree = cKDTree(dm.points[reach])
+    cand = list(loops) + list(cuts)
+    voxels = [_nearest_voxel(dm, tree, reach, lp.centroid) for lp in cand]
+    terminal = [i for i, v in enumerate(voxels) if is_terminal(dm, v, cand[i])]
+    open_ends = [i for i in terminal if isinstance(cand[i], BoundaryLoop)]
+    sealed = [i for i in terminal if not isinstance(cand[i], BoundaryLoop)]
+
+    def farthest_pair(idx):
+        vox = [voxels[i] for i in idx]
+        dist = np.stack([dmap.shortest_tree(dm.length_graph, c)[0][vox] for c in vox])
+        i, j = np.unravel_index(int(np.argmax(np.where(np.isfinite(dist), dist, -1.0))), dist.shape)
+        return idx[i], idx[j]
+
+    def farthest_from(i, idx):
+        """The candidate of ``idx`` farthest from candidate ``i``, or the farthest inside voxel."""
+        d_i = dmap.shortest_tree(dm.length_graph, voxels[i])[0]
+        d_i = np.where(np.isfinite(d_i), d_i, -1.0)
+        if idx:
+            k = max(idx, key=lambda k: d_i[voxels[k]])
+            return voxels[k], cand[k]
+        return int(np.argmax(d_i)), None
+
+    # Open loops first (the issue of an end put in a blind bulge), then sealed cuts, then the
+    # farthest-apart rule.
+    pool = open_ends if len(open_ends) >= 2 else (sealed if not open_ends and len(sealed) >= 2 else None)
+    if pool is not None:
+        ia, ib = farthest_pair(pool)
+        a, b, end_a, end_b = voxels[ia], voxels[ib], cand[ia], cand[ib]
+    elif open_ends or sealed:
+        ia = (open_ends or sealed)[0]
+        a, end_a = voxels[ia], cand[ia]
+        b, end_b = farthest_from(ia, sealed if open_ends else [])
+    else:
+        a = int(reach[np.argmax(d_root[reach])])
+        d_a = dmap.shortest_tree(dm.length_graph, a)[0]
+        b = int(np.argmax(np.where(np.isfinite(d_a), d_a, -1.0)))
+        end_a = end_b = None
+    used = [e for e in (end_a, end_b) if e is not None]
+    return EndChoice(
+        a, b, end_a, end_b, [cand[i] for i in terminal if isinstance(cand[i], BoundaryLoop)],
+        [lp for lp in loops if not any(lp is u for u in used)],
+    )
+
+
+def cut_closed_tail(path: np.ndarray, d: np.ndarray, h: float) -> tuple[np.ndarray, np.ndarray]:
+    """Cut the start of a voxel path that ends at a closed tip while it runs off-centre.
+
+    A most-centred path to the farthest voxel of a closed end leaves the axis near the end to reach
+    the wall; its points before the distance from the wall first reaches 80 % of the largest
+    within three such distances further on are cut (at most a third of the path).
+
+    Args:
+        path: voxel centres, shape (k, 3); d: their distances from the wall, shape (k,); h: voxel edge.
+
+    Returns:
+        ``(path, d)`` without the cut points.
+    """
+    s = arclength(path)
+    i = 0
+    for i in range(len(path) // 3):
+        win = (s >= s[i]) & (s <= s[i] + 3.0 * d[i] + 2.0 * h)
+        if d[i] >= 0.8 * d[win].max():
+            break
+    return path[i:], d[i:]
+
+
+def _point_at(line: np.ndarray, s: np.ndarray, sigma: float) -> tuple[np.ndarray, np.ndarray]:
+    """Point and unit tangent of a polyline at arclength ``sigma`` from its start (clamped)."""
+    sigma = float(np.clip(sigma, 0.0, s[-1]))
+    k = int(np.clip(np.searchsorted(s, sigma, side="right") - 1, 0, len(line) - 2))
+    w = (sigma - s[k]) / max(s[k + 1] - s[k], 1e-300)
+    t = line[k + 1] - line[k]
+    return line[k] + w * t, t / max(np.linalg.norm(t), 1e-300)
+
+
+def _complete(q: MeshQueries, point: np.ndarray, tangent: np.ndarray, diag: float) -> bool:
+    r, s = plane_basis(tangent[None])
+    _, valid, _ = ring_hits(q, point[None], spoke_directions(r, s, RAYS), diag)
+    return bool(valid.all())
+
+
+def trim_open_end(q: MeshQueries, line: np.ndarray, diag: float, reach: float) -> tuple[np.ndarray, float]:
+    """Cut the start of ``line`` (which begins at an open loop's centre) back to the first point
+    whose cross-section normal to the line is complete, searched within ``reach`` of the start and
+    refined by bisection to 1 % of ``reach``.
+
+    Returns:
+        ``(line (k, 3), trimmed length)``; the line is unchanged when its first point's section is
+        complete or no point within ``reach`` has one.
+    """
+    s = arclength(line)
+    probe = np.linspace(0.0, min(reach, s[-1]), 9)
+    ok = [_complete(q, *_point_at(line, s, x), diag) for x in probe]
+    if ok[0] or not any(ok):
+        return line, 0.0
+    k = int(np.argmax(ok))
+    lo, hi = probe[k - 1], probe[k]
+    while hi - lo > 0.01 * reach:
+        mid = 0.5 * (lo + hi)
+        if _complete(q, *_point_at(line, s, mid), diag):
+            hi = mid
+        else:
+            lo = mid
+    start, _ = _point_at(line, s, hi)
+    rest = line[s > hi]
+    return np.concatenate([start[None], rest]), hi
+
+
+def _cap_points(hub: np.ndarray, tangent: np.ndarray, lengths: np.ndarray, spokes: int) -> np.ndarray:
+    """The simulator's cap on a hub with outward unit ``tangent``: cap rings and pole, shape (k, 3)."""
+    r, s = plane_basis(tangent[None])
+    u = spoke_directions(r, s, spokes)[0]
+    big_k = cap_ring_count(spokes)
+    pts = [hub + lengths.mean() * tangent]
+    for k in range(1, big_k):
+        beta = 0.5 * np.pi * (1.0 - k / big_k)
+        pts.append(hub + lengths[:, None] * (np.cos(beta) * tangent + np.sin(beta) * u))
+    return np.vstack(pts)
+
+
+def _best_cap(q: MeshQueries, ext: np.ndarray, r_end: float, diag: float, spokes: int):
+    """Arclength from ``ext[0]`` (the tip) along ``ext`` of the end hub whose cap fits best (None: no
+    position has a complete ring) and the cap's score there [mesh units].
+
+    The cap's axis is the line's outward tangent there. The score of a position is the larger of
+    the largest distance of a cap-ring point from the mesh and :data:`_POLE_WEIGHT` times the pole's.
+    """
+    s = arclength(ext)
+    best, best_score = None, np.inf
+    for c in _CAP_FIT * max(r_end, 1e-12):
+        hub, tan = _point_at(ext, s, c)
+        r, s_ = plane_basis((-tan)[None])
+        hits, valid, _ = ring_hits(q, hub[None], spoke_directions(r, s_, spokes), diag)
+        if not valid.all():
+            continue
+        dist = q.distance(_cap_points(hub, -tan, hits[0], spokes), diag)
+        score = max(float(dist[1:].max()), _POLE_WEIGHT * float(dist[0]))
+        if score < best_score:
+            best, best_score = c, score
+    return best, best_score
+
+
+def _cut_plane(q: MeshQueries, hub: np.ndarray, out: np.ndarray, r_end: float, diag: float):
+    """The plane of a flat cut closing the tube ahead of ``hub`` (looking along unit ``out``), as
+    ``(point, unit normal)``, or None when the closed surface there is not flat: the hits of rays
+    in a cone of 35 degrees around ``out`` lie within 3 % of the end radius of their best plane."""
+    r, s = plane_basis(out[None])
+    dirs = [out]
+    for angle in (np.radians(20.0), np.radians(35.0)):
+        ring = spoke_directions(r, s, 8)[0]
+        dirs += list(np.cos(angle) * out + np.sin(angle) * ring)
+    dirs = np.asarray(dirs)
+    t = q.rays(q.closed, np.repeat(hub[None], len(dirs), axis=0), dirs, diag)
+    if (t <= 0.0).any():
+        return None
+    pts = hub + t[:, None] * dirs
+    centre = pts.mean(axis=0)
+    _, _, vt = np.linalg.svd(pts - centre)
+    normal = vt[2] if np.dot(vt[2], out) > 0.0 else -vt[2]
+    if np.abs((pts - centre) @ normal).max() > _FLAT * r_end:
+        return None
+    return centre, normal
+
+
+def _extend(q: MeshQueries, line: np.ndarray, r_end: float, diag: float, cut: FlatCut | None):
+    """The line continued beyond its start along the quadratic through its first four points (so a
+    bend goes on bending) until it meets the closed surface, or the plane of ``cut``; where that
+    meets nothing within three end radii, straight along the tangent at the start.
+
+    Returns:
+        ``(extended line from the tip inwards (k, 3), tip (3,))``, or ``(line, None)`` when nothing
+        is met.
+    """
+    if len(line) >= 4:
+        s4 = arclength(line[:4])
+        coef = np.polyfit(s4, line[:4], 2)  # rows: s^2, s, 1
+    else:  # a straight continuation: p(sigma) = line[0] - sigma * out for sigma < 0
+        out = (line[0] - line[1]) / max(np.linalg.norm(line[0] - line[1]), 1e-300)
+        coef = np.stack([np.zeros(3), -out, line[0]])
+    step = 0.05 * max(r_end, 1e-12)
+    prev = line[0]
+    beyond = []
+    for k in range(1, 61):
+        sigma = -k * step
+        p = coef[0] * sigma**2 + coef[1] * sigma + coef[2]
+        seg = p - prev
+        length = float(np.linalg.norm(seg))
+        if cut is not None:
+            a, b = float(np.dot(prev - cut.centroid, cut.normal)), float(np.dot(p - cut.centroid, cut.normal))
+            if a * b <= 0.0 and a != b:
+                tip = prev + (a / (a - b)) * seg
+                return np.concatenate([tip[None], np.asarray(beyond[::-1]).reshape(-1, 3), line]), tip
+        elif length > 0.0:
+            t = q.rays(q.closed, prev[None], (seg / length)[None], length)[0]
+            if t > 0.0:
+                tip = prev + t * seg / length
+                return np.concatenate([tip[None], np.asarray(beyond[::-1]).reshape(-1, 3), line]), tip
+        beyond.append(p)
+        prev = p
+    # The quadratic turned away without meeting the surface: go straight along the end's tangent.
+    out = -coef[1] / max(np.linalg.norm(coef[1]), 1e-300)
+    t = q.rays(q.closed, line[0][None], out[None], diag)[0]
+    if t <= 0.0:
+        return line, None
+    tip = line[0] + t * out
+    return np.concatenate([tip[None], line]), tip
+
+
+def fit_closed_end(q: MeshQueries, line: np.ndarray, diag: float, spokes: int, cut: FlatCut | None = None):
+    """End the tube at the closed end of ``line`` (its start): capped at a round tip, trimmed at a cut.
+
+    The line is continued beyond its start along the quadratic through its first four points to the
+    closed surface (or ``cut``'s plane): that is the tube's tip. Where the surface ahead is a flat cut
+    (``cut``, or found by :func:`_cut_plane`), the end hub goes where the ring normal to the line first lies wholly
+    inside the cut (every spoke end at least 2 % of the end radius before its plane): the scene
+    leaves that end open (``"cut"``). Elsewhere (a rounded tip) it goes where the simulator's cap
+    fits: for hubs at :data:`_CAP_FIT` end radii from the tip along the continued line, the cap is
+    built on the hub's ring (``spokes`` rays in the plane normal to the line) and the hub whose
+    ring is complete with the best cap (:func:`_best_cap`; a hemisphere puts it one radius in) is
+    taken (``"closed"``); where even that cap misses the tip by more than :data:`_CAP_TOLERANCE`
+    end radii, the end stays there but is left open (``"cut"``).
+
+    Returns:
+        ``(line (k, 3) starting at the end hub, tip (3,), kind, seal)``: ``kind`` "closed" or "cut",
+        ``seal`` the cut's ``(point, outward unit normal, radius)`` or None; the line unchanged when no
+        ray reaches the closed surface or no position has a complete ring.
+    """
+    r_end = float(q.distance(line[:1], diag)[0])
+    if cut is not None and np.dot(line[0] - cut.centroid, cut.normal) * np.dot(line[-1] - cut.centroid, cut.normal) <= 0:
+        cut = None  # the line starts on the far side of the cut's plane: it does not close this end
+    ext, tip = _extend(q, line, r_end, diag, cut)
+    if tip is None:
+        return line, line[0].copy(), "closed", None
+    s = arclength(ext)
+    r_end = float(q.distance(line[:1], diag)[0])
+    out = (ext[0] - ext[1]) / max(np.linalg.norm(ext[0] - ext[1]), 1e-300)
+    if cut is not None:
+        normal = cut.normal if np.dot(cut.normal, out) > 0.0 else -cut.normal
+        seal = (cut.centroid, normal, max(cut.radius, r_end))
+    else:
+        plane = _cut_plane(q, line[0], out, r_end, diag)
+        seal = None if plane is None else (*plane, 1.5 * r_end)
+    if seal is not None:
+        best = _inside_cut(q, ext, s, seal[:2], r_end, diag, spokes)
+        kind = "cut"
+    else:
+        best, score = _best_cap(q, ext, r_end, diag, spokes)
+        # A tip the cap cannot follow (flattened, oblique, lopsided) is trimmed like a cut instead.
+        kind = "closed" if score <= _CAP_TOLERANCE * r_end else "cut"
+    if best is None:
+        return line, tip, kind, seal
+    hub, _ = _point_at(ext, s, best)
+    return np.concatenate([hub[None], ext[s > best]]), tip, kind, seal
+
+
+def _inside_cut(q: MeshQueries, ext, s, cut, r_end: float, diag: float, spokes: int):
+    """Least arclength from the tip along ``ext`` at which the hub's ring (normal to the line) is
+    complete, not degenerate (longest ray at most :data:`_RING_RATIO` times the shortest) and lies
+    wholly before the cut plane, refined by bisection to 1 % of ``r_end``; None if none within two
+    end radii."""
+    point, normal = cut
+
+    def inside(x: float) -> bool:
+        hub, tan = _point_at(ext, s, x)
+        r, s_ = plane_basis(tan[None])
+        dirs = spoke_directions(r, s_, max(spokes, RAYS))[0]
+        origins = np.repeat(hub[None], len(dirs), axis=0)
+        hits = q.rays(q.wall, origins, dirs, diag)  # next to the cut the distance from the wall
+        if (hits <= 0.0).any() or (q.rays(q.closed, origins, dirs, diag) < hits - 1e-5 * diag).any():
+            return False  # is small, so ring_hits' bound by it does not apply: any wall hit counts
+        if hits.max() > _RING_RATIO * hits.min():
+            return False  # a degenerate ring: along the cut, or into a corner
+        ends = hub + hits[:, None] * dirs
+        return bool(((ends - point) @ normal).max() <= -_CUT_MARGIN * r_end)
+
+    probe = np.linspace(_CUT_MARGIN * r_end, min(2.0 * r_end, s[-1]), 21)
+    ok = [inside(x) for x in probe]
+    if not any(ok):
+        return None
+    k = int(np.argmax(ok))
+    if k == 0:
+        return probe[0]
+    lo, hi = probe[k - 1], probe[k]
+    while hi - lo > 0.01 * r_end:
+        mid = 0.5 * (lo + hi)
+        lo, hi = (lo, mid) if inside(mid) else (mid, hi)
+    return hi
+
+
+def _cut_line(line: np.ndarray, s: np.ndarray, x: float) -> np.ndarray:
+    """``line`` without its first ``x`` of arclength (``s``: its arclengths)."""
+    start, _ = _point_at(line, s, x)
+    return np.concatenate([start[None], line[s > x]])
+
+
+def settle_end(q: MeshQueries, line: np.ndarray, hubs: int, diag: float, spokes: int, seal=None) -> np.ndarray:
+    """Trim the start of the axis ``line`` (an open or cut end) until the end ring of ``hubs`` hubs fits.
+
+    The simulator's end ring is normal to the end hub's edge, not to the axis, so on a bent end it
+    can lean out of an open end or through a cut. The line is trimmed, by up to one and a half hub
+    spacings, until the first of ``hubs`` hubs spread along it (:func:`~warp_tube.extract.polyline.resample_spline`)
+    has a ring, normal to its edge, whose every ray meets the tube's wall as a section of it
+    (:func:`~warp_tube.extract.sections.ring_hits`; and, with a ``seal``
+    ``(point, outward normal, radius)``, whose every spoke end stays 2 % of the end radius before its
+    plane); bisection to 1 % of the spacing. Unchanged when it fits already or nothing does.
+
+    Returns:
+        The line, shape (k, 3).
+    """
+    s = arclength(line)
+    reach = 1.5 * s[-1] / max(hubs - 1, 1)
+    r_end = float(q.distance(line[:1], diag)[0])
+
+    def fits(x: float) -> bool:
+        pts = resample_spline(_cut_line(line, s, x), hubs)
+        axis = pts[0] - pts[1]
+        axis = axis / max(np.linalg.norm(axis), 1e-300)
+        r, s_ = plane_basis(axis[None])
+        dirs = spoke_directions(r, s_, max(spokes, RAYS))
+        hits, valid, _ = ring_hits(q, pts[:1], dirs, diag)
+        if not valid.all():
+            return False
+        if seal is not None:
+            ends = pts[0] + hits[0][:, None] * dirs[0]
+            return bool(((ends - seal[0]) @ seal[1]).max() <= -_CUT_MARGIN * r_end)
+        return True
+
+    if hubs < 3 or fits(0.0):
+        return line
+    probe = np.linspace(0.0, reach, 11)[1:]
+    ok = [fits(x) for x in probe]
+    if not any(ok):
+        return line
+    k = int(np.argmax(ok))
+    lo, hi = (probe[k - 1] if k else 0.0), probe[k]  # lo does not fit, hi does
+    while hi - lo > 0.01 * reach:
+        mid = 0.5 * (lo + hi)
+        lo, hi = (lo, mid) if fits(mid) else (mid, hi)
+    return _cut_line(line, s, hi)

@@ -1,0 +1,243 @@
+"""Cross-sections of a tube by rays: which hits belong to the tube, the section's centre, spokes.
+
+A cross-section at a point of the centerline is measured by rays from the point in the plane normal
+to the line there. A hit *belongs to the tube's cross-section* when the ray stays inside the tube up
+to it (the closed mesh, open loops capped, has no nearer hit: the ray did not leave through an open
+end or a wall opening), it lies within 6 times the point's distance from the wall (a ray that leaves
+through an open loop may hit far parts) and within :data:`OUTLIER_RATIO` times the median of its
+ring's valid hits (a ray that runs into a side branch's mouth or out of a bulge). Elliptic sections
+of aspect up to about 3 pass the last test.
+
+Centres: the centroid of the section's polygon (the ray hits, with the rays that do not belong to the
+tube filled in by interpolating the lengths of their valid neighbours around the ring, so that a
+branch's mouth is closed over as the kept tube's wall would run), moved to iteratively in the plane
+normal to the line. On a tube swept by circles normal to a curve this converges to the curve.
+
+Lengths are in the mesh's units.
+"""
+
+from __future__ import annotations
+
+import warnings
+
+import numpy as np
+from scipy.ndimage import gaussian_filter1d
+
+from ..model.frames import hub_tangents, initial_normal, rotation_minimizing_frames, spoke_directions
+from .polyline import resample_spline, smooth, tangents
+from .queries import MeshQueries
+
+__all__ = ["OUTLIER_RATIO", "ring_hits", "open_rays", "fill_around", "section_offsets", "recentre", "measure_spokes", "plane_basis", "recentre_hubs"]
+
+OUTLIER_RATIO = 2.5
+"""A hit longer than this times the median of its ring's valid hits does not belong to the section."""
+RAYS = 32
+"""Rays per cross-section when centring."""
+MAX_TURN = np.radians(60.0)
+"""Largest turn at a point of the dense axis (half a tube radius between points) that centring may
+make: sharper is tighter than the tube's own radius, a fold of the line, not of the tube."""
+
+
+def ring_hits(q: MeshQueries, points: np.ndarray, dirs: np.ndarray, diag: float):
+    """Wall hit distances of rays from each point and which of them belong to the tube's section.
+
+    Args:
+        points: ray origins, shape (n, 3); dirs: unit directions, shape (n, R, 3).
+        diag: the mesh's bounding-box diagonal (longest ray).
+
+    Returns:
+        ``(t (n, R), valid (n, R) bool, dfb (n,))``: hit distances (-1: none), validity, and each
+        point's distance from the wall.
+    """
+    origins = np.repeat(points[:, None, :], dirs.shape[1], axis=1)
+    t = q.rays(q.wall, origins, dirs, diag)
+    tc = q.rays(q.closed, origins, dirs, diag)
+    dfb = q.distance(points, diag)
+    valid = (t > 0.0) & (tc >= t - 1e-5 * diag) & (t < 6.0 * np.maximum(dfb, 1e-12)[:, None])
+    with warnings.catch_warnings():  # rings with no valid hit: an all-NaN row has no median
+        warnings.simplefilter("ignore", RuntimeWarning)
+        med = np.nanmedian(np.where(valid, t, np.nan), axis=1) if valid.size else np.zeros(len(t))
+    valid &= t <= OUTLIER_RATIO * np.where(np.isnan(med), np.inf, med)[:, None]
+    return t, valid, dfb
+
+
+def open_rays(q: MeshQueries, points: np.ndarray, diag: float, rays: int = RAYS) -> np.ndarray:
+    """Which of ``rays`` rays in each hub's ring plane (normal to its bisector tangent) leave the tube
+    without meeting its wall: no hit on the mesh as given, or the closed mesh (every loop capped)
+    hit first, so the ray passes through an opening or hole of the mesh. Bool, shape (n, rays)."""
+    r, s = plane_basis(hub_tangents(points))
+    dirs = spoke_directions(r, s, rays)
+    origins = np.repeat(points[:, None, :], rays, axis=1)
+    t = q.rays(q.raw, origins, dirs, diag)
+    tc = q.rays(q.closed, origins, dirs, diag)
+    return (t <= 0.0) | (tc < t - 1e-5 * diag)
+
+
+def fill_around(t: np.ndarray, valid: np.ndarray, fallback: np.ndarray) -> np.ndarray:
+    """Lengths with the invalid rays of each ring interpolated from its valid ones, shape (n, R).
+
+    Interpolation is linear in the ray angle, periodic around the ring; rings with no valid ray
+    take ``fallback`` (n,) all round.
+    """
+    n, m = t.shape
+    out = np.repeat(np.asarray(fallback, dtype=np.float64)[:, None], m, axis=1)
+    idx = np.arange(m)
+    for i in np.flatnonzero(valid.any(axis=1)):
+        ok = idx[valid[i]]
+        out[i] = np.interp(idx, np.concatenate([ok - m, ok, ok + m]), np.tile(t[i, ok], 3))
+    return out
+
+
+def plane_basis(tangent: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """Two unit vectors spanning the plane normal to each unit tangent, shapes (n, 3) each."""
+    t = np.asarray(tangent, dtype=np.float64)
+    r = np.stack([initial_normal(ti) for ti in t])
+    return r, np.cross(t, r)
+
+
+def section_offsets(q: MeshQueries, points: np.ndarray, tangent: np.ndarray, diag: float, rays: int = RAYS):
+    """Offset from each point to the centroid of its cross-section normal to ``tangent``.
+
+    Returns:
+        ``(offset (n, 3), ok (n,) bool, lengths (n, rays), valid (n, rays))``: ``ok`` where at least
+        60 % of the rays belong to the section and its polygon has a positive area.
+    """
+    r, s = plane_basis(tangent)
+    dirs = spoke_directions(r, s, rays)
+    t, valid, dfb = ring_hits(q, points, dirs, diag)
+    length = fill_around(t, valid, dfb)
+    phi = 2.0 * np.pi * np.arange(rays) / rays
+    x, y = length * np.cos(phi), length * np.sin(phi)
+    x1, y1 = np.roll(x, -1, axis=1), np.roll(y, -1, axis=1)
+    cross = x * y1 - x1 * y
+    area = 0.5 * cross.sum(axis=1)
+    ok = (valid.mean(axis=1) >= 0.6) & (area > 0.0)
+    safe = np.where(ok, area, 1.0)
+    cx = ((x + x1) * cross).sum(axis=1) / (6.0 * safe)
+    cy = ((y + y1) * cross).sum(axis=1) / (6.0 * safe)
+    offset = np.where(ok[:, None], cx[:, None] * r + cy[:, None] * s, 0.0)
+    return offset, ok, length, valid
+
+
+def _safe_moves(q: MeshQueries, p: np.ndarray, offset: np.ndarray, movable: np.ndarray, diag: float) -> np.ndarray:
+    """The offsets that centre without leaving the axis: each capped at a third of the point's
+    distance from the wall, and dropped where the moved point would lie nearer to the wall than 80 %
+    of where it was (a section cut obliquely through a bulge or a bend's far side has its centroid
+    off the axis), where the line would turn back on itself, or where it would turn by more than
+    :data:`MAX_TURN` at a point that did not. Shape (n, 3)."""
+    dfb = q.distance(p, diag)
+    size = np.linalg.norm(offset, axis=1)
+    cap = np.minimum(1.0, dfb / (3.0 * np.maximum(size, 1e-300)))
+    offset = np.where(movable[:, None], offset * cap[:, None], 0.0)
+    moved = p + offset
+    keep = q.distance(moved, diag) >= 0.8 * dfb
+    e0 = np.diff(p, axis=0)
+    e1 = np.diff(np.where(keep[:, None], moved, p), axis=0)
+    back = np.einsum("ij,ij->i", e0, e1) <= 0.0
+    keep[1:] &= ~back
+    keep[:-1] &= ~back
+    before = _turns(p)
+    for _ in range(3):  # moves that kink the line (a turn over MAX_TURN that was not there) stay
+        sharp = np.flatnonzero((_turns(np.where(keep[:, None], moved, p)) > MAX_TURN) & (before <= MAX_TURN)) + 1
+        if len(sharp) == 0:
+            break
+        keep[np.clip(np.concatenate([sharp - 1, sharp, sharp + 1]), 0, len(p) - 1)] = False
+    return np.where(keep[:, None], offset, 0.0)
+
+
+def _turns(p: np.ndarray) -> np.ndarray:
+    """Turning angle [rad] at each interior point of a polyline, shape (n - 2,)."""
+    e = np.diff(p, axis=0)
+    e = e / np.maximum(np.linalg.norm(e, axis=1, keepdims=True), 1e-300)
+    return np.arccos(np.clip(np.einsum("ij,ij->i", e[1:], e[:-1]), -1.0, 1.0))
+
+
+def recentre(q: MeshQueries, line: np.ndarray, diag: float, *, iterations: int = 4, tangent_sigma: float = 1.0,
+             move: np.ndarray | None = None) -> np.ndarray:  # fmt: skip
+    """Move points of a dense line onto the centroids of their cross-sections.
+
+    Each iteration measures every point's section in the plane normal to the tangent of the line
+    smoothed by ``tangent_sigma`` samples (so one noisy point does not tilt its plane), moves the
+    points towards the centroids (:func:`_safe_moves`) and respaces the line along a cubic spline
+    (which does not cut bends).
+
+    Args:
+        line: shape (n, 3), roughly equally spaced.
+        move: which points may move, bool (n,) (default: all but the two ends).
+
+    Returns:
+        The re-centred line, shape (n, 3).
+    """
+    p = np.asarray(line, dtype=np.float64).copy()
+    if move is None:
+        move = np.ones(len(p), dtype=bool)
+        move[[0, -1]] = False
+    for _ in range(iterations):
+        t = tangents(smooth(p, tangent_sigma))
+        offset, ok, _, _ = section_offsets(q, p, t, diag)
+        p = p + _safe_moves(q, p, offset, move & ok, diag)
+        p = resample_spline(p, len(p))
+    return p
+
+
+def measure_spokes(q: MeshQueries, points: np.ndarray, reference_normal: np.ndarray, spokes: int, diag: float):
+    """Spoke lengths by ray hits along the package's spoke directions at each hub.
+
+    Spoke ``j`` of hub ``i`` points along ``spoke_directions(*rotation_minimizing_frames(points, None,
+    reference_normal)[1:], spokes)[i, j]`` (the simulator's ring). Rays whose hit does not belong to
+    the section (see the module) take the length of the same spoke interpolated along the tube from
+    the hubs where it does; a spoke valid at no hub takes its ring's mean.
+
+    Returns:
+        ``(lengths (hubs, spokes), valid (hubs, spokes) bool)``.
+    """
+    _, r, s = rotation_minimizing_frames(points, None, reference_normal)
+    t, valid, dfb = ring_hits(q, points, spoke_directions(r, s, spokes), diag)
+    t = np.where(valid, t, np.nan)
+    idx = np.arange(len(points))
+    for j in range(spokes):
+        ok = valid[:, j]
+        if ok.any() and not ok.all():
+            t[:, j] = np.interp(idx, idx[ok], t[ok, j])
+    if np.isnan(t).any():  # a spoke valid at no hub: its ring's mean, or the distance from the wall
+        with warnings.catch_warnings():
+            warnings.simplefilter("ignore", RuntimeWarning)
+            fill = np.nanmean(t, axis=1)
+        fill = np.where(np.isnan(fill), dfb, fill)
+        t = np.where(np.isnan(t), fill[:, None], t)
+    return np.maximum(t, 1e-6 * diag), valid
+
+
+def recentre_hubs(q: MeshQueries, points: np.ndarray, diag: float, scale: float, *, iterations: int = 2,
+                  rays: int = RAYS) -> np.ndarray:  # fmt: skip
+    """Move interior hubs onto the centroids of their own ring's cross-section.
+
+    The ring plane is the simulator's: normal to the hub's bisector tangent
+    (:func:`warp_tube.model.frames.hub_tangents`). Moving a hub tilts its neighbours' planes a
+    little, so this runs ``iterations`` times; the end hubs stay. The moves (not the positions) are
+    smoothed along the tube over ``scale`` (Gaussian sigma, a length): a centroid is only known to
+    the resolution of the mesh's facets, and hubs much closer together than that would turn this
+    noise into curvature.
+
+    Args:
+        points: hubs on the centred axis, about equally spaced, shape (n, 3).
+        scale: smoothing length of the moves [mesh units] (about half the tube's radius).
+
+    Returns:
+        The hubs, shape (n, 3).
+    """
+    p = np.asarray(points, dtype=np.float64).copy()
+    if len(p) < 3:
+        return p
+    move = np.ones(len(p), dtype=bool)
+    move[[0, -1]] = False
+    spacing = float(np.mean(np.linalg.norm(np.diff(p, axis=0), axis=1)))
+    sigma = scale / max(spacing, 1e-300)
+    for _ in range(iterations):
+        offset, ok, _, _ = section_offsets(q, p, hub_tangents(p), diag, rays)
+        offset[~(move & ok)] = 0.0
+        if sigma > 0.5:
+            offset = gaussian_filter1d(offset, sigma, axis=0, mode="nearest")
+            offset[~move] = 0.0
+        p += offset
+    return p

@@ -1,0 +1,78 @@
+"""Whether an extracted mesh is a tube, and whether its hubs rebuild it well enough.
+
+Two checks on the mesh (their warnings start with :data:`NOT_A_TUBE`, and ``warp-tube extract
+--strict`` refuses the mesh on them):
+
+- length against radius: the axis from tip to tip must be at least :data:`MIN_LENGTH_RADII` mean
+  radii long (a sphere or a blob gives about two);
+- cross-sections that are single closed loops: at most :data:`MAX_OPEN_SECTIONS` of the interior
+  hubs may have a ray in their ring plane that leaves the tube through an opening of the mesh
+  (:func:`warp_tube.extract.sections.open_rays`): a cylinder with a face missing along its length,
+  or a sheet, fails this; a vessel with a few openings where branches were cut flush passes.
+
+One check on the result: the rest surface the simulator builds (:mod:`warp_tube.extract.fidelity`)
+must lie within :data:`~warp_tube.extract.fidelity.FIDELITY_BOUNDS` of the mesh both ways; if not,
+the warning names the figures, and with a given hub count the hub spacing it used.
+"""
+
+from __future__ import annotations
+
+from typing import TYPE_CHECKING
+
+import numpy as np
+
+from .fidelity import FIDELITY_BOUNDS
+
+if TYPE_CHECKING:
+    from .pipeline import ExtractedTube
+
+__all__ = ["NOT_A_TUBE", "MIN_LENGTH_RADII", "MAX_OPEN_SECTIONS", "check"]
+
+NOT_A_TUBE = "not tube-like"
+MIN_LENGTH_RADII = 4.0
+"""Least length of a tube from tip to tip, in mean radii."""
+MAX_OPEN_SECTIONS = 0.25
+"""Largest fraction of interior hubs whose ring is not a closed loop of the tube's wall."""
+
+
+def check(tube: ExtractedTube, open_rays: np.ndarray, *, hubs_given: bool) -> list[str]:
+    """Warnings about ``tube`` (see the module); empty when it passes.
+
+    Args:
+        tube: the extracted tube (its fidelity filled in).
+        open_rays: which rays of each hub's ring leave through an opening, bool (hubs, rays).
+        hubs_given: whether the hub count came from the caller (``--hubs``).
+    """
+    out = []
+    radius = float(tube.spoke_lengths.mean())
+    reach = tube.length + sum(e.trimmed for e in tube.ends)
+    if reach < MIN_LENGTH_RADII * radius:
+        out.append(
+            f"{NOT_A_TUBE}: {reach / radius:.1f} mean radii long from end to end (mean radius {radius:.4g}); "
+            f"a tube is at least {MIN_LENGTH_RADII:g}"
+        )
+    inner = np.asarray(open_rays)[1:-1]
+    if len(inner):
+        open_hubs = int(inner.any(axis=1).sum())
+        if open_hubs > MAX_OPEN_SECTIONS * len(inner):
+            out.append(
+                f"{NOT_A_TUBE}: the cross-sections at {open_hubs} of {len(inner)} hubs are not closed loops of its "
+                "wall (rays across them leave through an opening of the mesh)"
+            )
+    fid = tube.fidelity
+    if fid is not None and not fid.within(*FIDELITY_BOUNDS):
+        bounds = " / ".join(f"{100 * b:g}" for b in FIDELITY_BOUNDS)
+        text = (
+            f"the rest surface misses the mesh: mesh to surface {100 * fid.to_surface.mean:.1f} / "
+            f"{100 * fid.to_surface.p99:.1f} / {100 * fid.to_surface.max:.1f} %, surface to mesh "
+            f"{100 * fid.to_input.mean:.1f} / {100 * fid.to_input.p99:.1f} / {100 * fid.to_input.max:.1f} % of the mean "
+            f"radius (mean / 99th percentile / largest; bounds {bounds} %)"
+        )
+        if hubs_given:
+            spacing = tube.length / max(tube.hubs - 1, 1) / radius
+            text += (
+                f"; --hubs {tube.hubs} puts hubs {spacing:.2g} mean radii apart (tortuous tubes need about 0.3): "
+                "leave --hubs out to have the count chosen"
+            )
+        out.append(text)
+    return out
