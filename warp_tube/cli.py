@@ -1,4 +1,4 @@
-"""Command line: ``warp-tube run | check | extract | preview | export``.
+"""Command line: ``warp-tube run | check | extract | preview | export | bench``.
 
 Exit status: 0 done; 2 invalid input or request (message, no traceback, nothing simulated, no
 output file); 3 numerical failure (the frames finished so far are kept); 130 interrupted.
@@ -63,6 +63,15 @@ def _parser() -> argparse.ArgumentParser:
     x.add_argument("--format", choices=("obj", "glb"), default="obj")
     x.add_argument("-o", "--output", help="output file or folder (default: beside the stage)")
     x.add_argument("--frame", type=float, help="only this time code")
+
+    b = sub.add_parser("bench", help="speed against error beside peer simulators; results, report and plots")
+    b.add_argument("-o", "--output", required=True, help="folder for results.json, report.md and the plots")
+    b.add_argument("--suite", choices=("accuracy", "speed", "all"), default="all")
+    b.add_argument("--peers", help="pyelastica,newton (default: both where installed) or none")
+    b.add_argument("--device", help="cpu or cuda:N (default: CUDA when available)")
+    b.add_argument("--quick", action="store_true", help="the small problem set (tests, a first look)")
+    b.add_argument("--repeat", type=int, help="interleaved repetitions (default 3; 1 with --quick)")
+    b.add_argument("--replot", metavar="RESULTS", help="only rewrite report and plots from an earlier results.json")
     return p
 
 
@@ -131,6 +140,20 @@ def _cmd_export(a) -> int:
     return EXIT_OK
 
 
+def _cmd_bench(a) -> int:
+    from .bench.command import parse_peers, replot, run_bench
+
+    if a.replot:
+        replot(a.replot, a.output)
+        return EXIT_OK
+    repeat = a.repeat if a.repeat is not None else (1 if a.quick else 3)
+    if repeat < 1:
+        raise SceneError(f"--repeat {repeat}: expected at least 1")
+    run_bench(a.suite, parse_peers(a.peers), a.device, a.output, repeat, a.quick, log=lambda m: print(m, file=sys.stderr))
+    print(os.path.join(a.output, "report.md"))
+    return EXIT_OK
+
+
 def main(argv=None) -> int:
     """Entry point of the ``warp-tube`` console script; returns the exit status."""
     args = _parser().parse_args(argv)
@@ -139,7 +162,7 @@ def main(argv=None) -> int:
     wp.config.log_level = wp.LOG_INFO if args.verbose else wp.LOG_WARNING
     logging.basicConfig(level=logging.INFO if args.verbose else logging.WARNING, format="%(levelname)s %(name)s: %(message)s")
     try:
-        handler = {"run": _cmd_run, "check": _cmd_check, "extract": _cmd_extract, "preview": _cmd_preview, "export": _cmd_export}
+        handler = {"run": _cmd_run, "check": _cmd_check, "extract": _cmd_extract, "preview": _cmd_preview, "export": _cmd_export, "bench": _cmd_bench}
         return handler[args.command](args)
     except SceneError as e:
         print(f"warp-tube: {e}", file=sys.stderr)
