@@ -1,7 +1,8 @@
 """``warp-tube bench``: every code in a process of its own per repetition, repetitions
 interleaved (warp_tube, then each peer, then again), medians; results, report and plots in DIR.
 
-Output: ``DIR/results.json`` (every figure, each repetition's and the medians, with device,
+Output: ``DIR/logs/CODE-REP.log`` (each worker's progress: one JSON line per measurement),
+``DIR/results.json`` (every figure, each repetition's and the medians, with device,
 versions, command and date), ``DIR/report.md`` (tables, :mod:`.report`) and, with matplotlib
 installed (``pip install warp-tube[plots]``), ``DIR/*.png`` (:mod:`.plots`).
 """
@@ -95,9 +96,13 @@ def run_bench(suite: str, peers: list[str], device: str, out_dir: str, repeat: i
                        "--rep", str(rep), "--out", path] + (["--quick"] if quick else [])  # fmt: skip
                 t0 = time.perf_counter()
                 log(f"repetition {rep + 1}/{repeat}: {code} ...")
-                proc = subprocess.run(cmd, stdout=subprocess.DEVNULL, stderr=subprocess.PIPE, text=True)
+                logpath = os.path.join(out_dir, "logs", f"{code}-{rep}.log")
+                os.makedirs(os.path.dirname(logpath), exist_ok=True)
+                with open(logpath, "w") as logf:
+                    proc = subprocess.run(cmd, stdout=subprocess.DEVNULL, stderr=logf)
                 if proc.returncode != 0 or not os.path.exists(path):
-                    tail = "\n".join(proc.stderr.strip().splitlines()[-5:])
+                    with open(logpath) as logf:
+                        tail = "\n".join(logf.read().strip().splitlines()[-5:])
                     log(f"  {code} failed (exit status {proc.returncode}): {tail}")
                     skipped.setdefault(code, f"its worker failed: {tail}")
                     continue

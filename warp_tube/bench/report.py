@@ -47,6 +47,28 @@ def answer_ratios(rows: list, problem: str = HEADLINE) -> dict:
     return {k: r["answer_time"] / base["answer_time"] for k, r in best.items() if not k.startswith("warp_tube")}
 
 
+def throughput_ratios(rows: list) -> list[str]:
+    """Markdown lines: warp_tube's simulated tube-seconds per wall second over each peer's, per batch."""
+    tp = {}
+    for r in rows:
+        if r["kind"] == "throughput" and "failed" not in r:
+            tp.setdefault(label(r), {})[r["config"]["batch"]] = r["rod_seconds_per_s"]
+    ours = {k: v for k, v in tp.items() if k.startswith("warp_tube")}
+    peers = {k: v for k, v in tp.items() if not k.startswith("warp_tube")}
+    if not ours or not peers:
+        return []
+    out = ["", "Throughput ratio at equal error (each code's 0.2%-of-L configuration at 20 segments): "
+           "warp_tube's simulated tube-seconds per second over the peer's, same batch size.", "",
+           "| warp_tube | peer | " + " | ".join(str(b) for b in sorted({b for v in tp.values() for b in v})) + " |"]  # fmt: skip
+    batches = sorted({b for v in tp.values() for b in v})
+    out.append("|---|---|" + "---|" * len(batches))
+    for a, va in sorted(ours.items()):
+        for b, vb in sorted(peers.items()):
+            cells = [f"{va[n] / vb[n]:.0f}x" if n in va and n in vb else "-" for n in batches]
+            out.append(f"| {a} | {b} | " + " | ".join(cells) + " |")
+    return out
+
+
 def report_markdown(results: dict) -> str:
     rows = results["rows"]
     compile_by_code = {}
@@ -101,6 +123,7 @@ def report_markdown(results: dict) -> str:
             continue
         out.append(f"| {label(r)} | {r['config']['batch']} | {_fmt(r['rod_steps_per_s'])} | {_fmt(r['rod_seconds_per_s'])} | "
                    f"{_fmt(r['dt'])} | {r['reps']} | {_pct(r.get('spread'))} |")  # fmt: skip
+    out += throughput_ratios(rows)
     out += ["", "## Compilation / JIT (warm-up run of each process, apart from every figure above)", "", "| code | median [s] | each repetition [s] |", "|---|---|---|"]
     import numpy as np
 

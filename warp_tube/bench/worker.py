@@ -19,7 +19,8 @@ from . import plan
 
 RUNNERS = {"warp_tube": "warp_tube.bench.warp_tube_runner", "pyelastica": "warp_tube.bench.peers.pyelastica_runner",
            "newton": "warp_tube.bench.peers.newton_runner"}  # fmt: skip
-#: the throughput sweep stops growing a batch once one measurement took longer than this [s].
+#: the throughput sweep stops growing a batch once one measurement took longer than this [s], or
+#: when the next batch, at the same cost per tube, would take more than 3x as long.
 THROUGHPUT_CAP_S = {False: 60.0, True: 10.0}
 
 
@@ -64,12 +65,15 @@ def run(code: str, suite: str, device: str, rep: int, quick: bool) -> dict:
                 record("frequency", plan.cantilever(0.0).name, config, lambda: r.frequency(plan.cantilever(0.0), config, dev))
     if suite in ("speed", "all"):
         configs, sizes = plan.speed_plan(code, quick)
+        cap = THROUGHPUT_CAP_S[quick]
         for config in configs:
-            for batch in sizes:
+            for k, batch in enumerate(sizes):
                 t = time.perf_counter()
                 record("throughput", f"{config['segments']}-segment tubes", dict(config, batch=batch),
                        lambda: r.throughput(plan.cantilever(0.0), config, batch, dev))  # fmt: skip
-                if time.perf_counter() - t > THROUGHPUT_CAP_S[quick]:
+                took = time.perf_counter() - t
+                if k + 1 < len(sizes) and (took > cap or took * sizes[k + 1] / batch > 3 * cap):
+                    print(f"throughput: {code} stops at {batch} tubes ({took:.1f} s for that batch)", file=sys.stderr)
                     break
     return out
 

@@ -138,6 +138,9 @@ class _Run:
         self.frame_dt = FRAME_DT
         self.graph = None
         if self.device.is_cuda:
+            # the graph replays fixed buffers: an even number of state swaps per frame ends where it began
+            if self.substeps % 2:
+                raise ValueError(f"substeps {self.substeps}: an even count is needed for the CUDA graph of a frame")
             with wp.ScopedCapture(device=self.device) as cap:
                 self._substeps()
             self.graph = cap.graph

@@ -1,0 +1,31 @@
+#!/usr/bin/env bash
+# warp-tube bench on a CUDA GPU, with Newton on the same GPU (PyElastica has no GPU path and is left out).
+#
+# Usage, from the repository root on the GPU machine (each step stays under 10 minutes):
+#   bash benchmarks/gpu_bench.sh accuracy OUT   # static problems, first frequency
+#   bash benchmarks/gpu_bench.sh speed OUT      # throughput, 1 to 65,536 tubes
+# Then, where matplotlib is installed (here or on the GPU machine):
+#   warp-tube bench --replot OUT/accuracy/results.json -o OUT/accuracy
+#   warp-tube bench --replot OUT/speed/results.json -o OUT/speed
+#   cp OUT/accuracy/error_vs_time.png docs/bench_gpu_error_vs_time.png
+#   cp OUT/accuracy/convergence.png docs/bench_gpu_convergence.png
+#   cp OUT/speed/throughput.png docs/bench_gpu_throughput.png
+#
+# Needs warp-lang >= 1.19 and this package's core dependencies installed, and Newton: with no network,
+# put newton-1.8.0-py3-none-any.whl (pure Python, 8.6 MB; it requires only warp-lang >= 1.17) in
+# WHEELS (default ./wheels) first; on a machine with a package index: pip download --no-deps -d wheels newton==1.8.0
+set -euo pipefail
+step=${1:?accuracy or speed}
+out=${2:-bench-gpu}
+wheels=${WHEELS:-wheels}
+py=${PYTHON:-python}
+if ! "$py" -c "import newton" 2>/dev/null; then
+    "$py" -m pip install --no-index --no-deps --find-links "$wheels" newton==1.8.0
+fi
+"$py" -c "import warp as wp; wp.init(); assert wp.get_cuda_device_count() > 0, 'no CUDA device'"
+case "$step" in
+    accuracy) "$py" -m warp_tube bench --suite accuracy --peers newton --device cuda:0 --repeat 3 -o "$out/accuracy" ;;
+    speed) "$py" -m warp_tube bench --suite speed --peers newton --device cuda:0 --repeat 2 -o "$out/speed" ;;
+    *) echo "unknown step $step: expected accuracy or speed" >&2; exit 2 ;;
+esac
+nvidia-smi --query-gpu=name,driver_version --format=csv,noheader > "$out/$step/gpu.txt" || true
