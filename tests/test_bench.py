@@ -88,12 +88,15 @@ def test_plots_written(quick_run, tmp_path):
 
 @pytest.mark.parametrize(
     "args, message",
-    [(["--peers", "abaqus"], "unknown peer 'abaqus'"), (["--repeat", "0"], "--repeat 0"), (["--replot", "nowhere.json"], "nowhere.json")],
+    [(["--peers", "abaqus"], "unknown peer 'abaqus'"), (["--repeat", "0"], "--repeat 0"), (["--replot", "nowhere.json"], "nowhere.json"),
+     (["-o", "file.txt"], "is not a folder")],
 )
 def test_bad_requests_exit_2(args, message, tmp_path, capsys):
-    assert main(["bench", "-o", str(tmp_path / "o"), "--quick", *args]) == 2
+    (tmp_path / "file.txt").write_text("a user's file")
+    assert main(["bench", "-o", str(tmp_path / "o"), "--quick", *[str(tmp_path / a) if a == "file.txt" else a for a in args]]) == 2
     err = capsys.readouterr().err
     assert message in err and "Traceback" not in err
+    assert (tmp_path / "file.txt").read_text() == "a user's file"
 
 
 def test_planar_reference_against_independent_solutions():

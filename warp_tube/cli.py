@@ -149,7 +149,9 @@ def _cmd_bench(a) -> int:
     repeat = a.repeat if a.repeat is not None else (1 if a.quick else 3)
     if repeat < 1:
         raise SceneError(f"--repeat {repeat}: expected at least 1")
-    run_bench(a.suite, parse_peers(a.peers), a.device, a.output, repeat, a.quick, log=lambda m: print(m, file=sys.stderr))
+    peers = parse_peers(a.peers)
+    command = "warp-tube bench " + " ".join(a.argv)
+    run_bench(a.suite, peers, a.device, a.output, repeat, a.quick, log=lambda m: print(m, file=sys.stderr), command=command)
     print(os.path.join(a.output, "report.md"))
     return EXIT_OK
 
@@ -157,6 +159,7 @@ def _cmd_bench(a) -> int:
 def main(argv=None) -> int:
     """Entry point of the ``warp-tube`` console script; returns the exit status."""
     args = _parser().parse_args(argv)
+    args.argv = list(sys.argv[2:] if argv is None else argv[1:])
     import warp as wp
 
     wp.config.log_level = wp.LOG_INFO if args.verbose else wp.LOG_WARNING

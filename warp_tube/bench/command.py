@@ -70,14 +70,25 @@ def aggregate(runs: list[dict]) -> list[dict]:
     return rows
 
 
-def run_bench(suite: str, peers: list[str], device: str, out_dir: str, repeat: int, quick: bool, log=print) -> dict:
-    """Run the benchmark and write ``results.json``, ``report.md`` and the plots into ``out_dir``."""
+def _output_dir(out_dir: str) -> None:
+    """Create ``out_dir`` or check it is a writable folder (SceneError otherwise)."""
+    if os.path.exists(out_dir) and not os.path.isdir(out_dir):
+        raise SceneError(f"{out_dir}: exists and is not a folder: -o takes a folder for results.json, report.md and plots")
+    try:
+        os.makedirs(out_dir, exist_ok=True)
+    except OSError as e:
+        raise SceneError(f"{out_dir}: cannot create the output folder ({e.strerror})") from None
+    if not os.access(out_dir, os.W_OK):
+        raise SceneError(f"{out_dir}: not writable")
+
+
+def run_bench(suite: str, peers: list[str], device: str, out_dir: str, repeat: int, quick: bool, log=print, command: str = "warp-tube bench") -> dict:
+    """Run the benchmark and write ``results.json``, ``report.md`` and the plots into ``out_dir``;
+    ``command`` is recorded with the results."""
     from ..sim.simulation import resolve_device
 
     device = resolve_device(device)
-    os.makedirs(out_dir, exist_ok=True)
-    if not os.access(out_dir, os.W_OK):
-        raise SceneError(f"{out_dir}: not writable")
+    _output_dir(out_dir)
     codes, skipped = ["warp_tube"], {}
     for p in peers:
         ok, why = runner(p).available()
@@ -110,7 +121,7 @@ def run_bench(suite: str, peers: list[str], device: str, out_dir: str, repeat: i
                     runs.append(json.load(f))
                 log(f"  {code}: {time.perf_counter() - t0:.1f} s")
     results = dict(
-        command="warp-tube bench " + " ".join(sys.argv[2:]) if sys.argv[1:2] == ["bench"] else "warp-tube bench",
+        command=command,
         date=started.isoformat(timespec="seconds"), suite=suite, quick=quick, repeat=repeat, requested_device=device,
         host=dict(platform=platform.platform(), processor=platform.processor() or platform.machine(), cpu_count=os.cpu_count()),
         gpu=_gpu_name(device), skipped=skipped, runs=runs, rows=aggregate(runs),
@@ -158,7 +169,7 @@ def replot(results_path: str, out_dir: str, log=print) -> None:
         raise SceneError(f"{results_path}: cannot read benchmark results ({e})") from None
     if "rows" not in results:
         raise SceneError(f"{results_path}: no 'rows': not the results.json of warp-tube bench")
-    os.makedirs(out_dir, exist_ok=True)
+    _output_dir(out_dir)
     write_outputs(results, out_dir, log)
 
 

@@ -21,6 +21,8 @@ from .problems import ANSWER_TOLERANCE  # noqa: E402
 from .report import HEADLINE, label  # noqa: E402
 
 COLORS = {"warp_tube": "tab:green", "pyelastica": "tab:blue", "newton": "tab:orange"}
+#: a tip this far from the reference [fraction of L] has blown up: left out of the plots, named below them.
+BLOWN_UP = 0.5
 MARKERS = ["o", "s", "^", "D", "v", "P"]
 
 
@@ -28,8 +30,18 @@ def _families(rows, kind, problem=None):
     fam = {}
     for r in rows:
         if r["kind"] == kind and (problem is None or r["problem"] == problem) and "failed" not in r:
+            if kind == "static" and not r["error"] <= BLOWN_UP:
+                continue
             fam.setdefault(label(r), []).append(r)
     return fam
+
+
+def _blown_note(ax, rows):
+    """Name the static runs of the headline problem that blew up (left out of the plot)."""
+    bad = [f"{label(r)}, {r['config']['segments']} segments" for r in rows
+           if r["kind"] == "static" and r["problem"] == HEADLINE and "failed" not in r and not r["error"] <= BLOWN_UP]  # fmt: skip
+    if bad:
+        ax.figure.text(0.01, 0.005, "blew up (not drawn): " + "; ".join(bad), fontsize=6, color="gray")
 
 
 def _title(results, what):
@@ -54,6 +66,7 @@ def write_plots(results: dict, out_dir: str) -> list[str]:
             ax.plot(ti, ei, m, color=c, mfc=c if r["answer_time"] is not None else "none", label=name if r is rs[0] else None)
             ax.annotate(str(r["config"]["segments"]), (ti, ei), textcoords="offset points", xytext=(4, 3), fontsize=7, color=c)
     ax.axhline(ANSWER_TOLERANCE, color="gray", ls=":", lw=1)
+    _blown_note(ax, rows)
     ax.set_xscale("log")
     ax.set_yscale("log")
     ax.set_xlabel("wall time to the answer [s] (hollow: no answer; whole run)")
@@ -92,12 +105,13 @@ def write_plots(results: dict, out_dir: str) -> list[str]:
     for p, ls in ((1, "--"), (2, ":")):
         ax.plot(n, 0.05 * (n / n[0]) ** -p, ls, color="gray", lw=1, label=f"slope {p}")
     ax.axhline(ANSWER_TOLERANCE, color="gray", ls="-.", lw=0.8)
+    _blown_note(ax, rows)
     ax.set_xscale("log")
     ax.set_yscale("log")
     ax.set_xlabel("free segments")
     ax.set_ylabel("static tip error / L")
     ax.set_title(_title(results, f"{HEADLINE}: convergence"), fontsize=9)
-    ax.legend(fontsize=7)
+    ax.legend(fontsize=7, loc="upper right")
     ax.grid(True, which="both", alpha=0.3)
     paths.append(_save(fig, out_dir, "convergence.png"))
     return paths
@@ -106,7 +120,7 @@ def write_plots(results: dict, out_dir: str) -> list[str]:
 def _save(fig, out_dir, name):
     path = os.path.join(out_dir, name)
     tmp = path + ".partial.png"
-    fig.tight_layout()
+    fig.tight_layout(rect=(0, 0.02, 1, 1))
     fig.savefig(tmp, dpi=110)
     plt.close(fig)
     os.replace(tmp, path)
