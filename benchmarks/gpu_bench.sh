@@ -7,9 +7,9 @@
 # Then, where matplotlib is installed (here or on the GPU machine):
 #   warp-tube bench --replot OUT/accuracy/results.json -o OUT/accuracy
 #   warp-tube bench --replot OUT/speed/results.json -o OUT/speed
-#   cp OUT/accuracy/error_vs_time.png docs/bench_gpu_error_vs_time.png
-#   cp OUT/accuracy/convergence.png docs/bench_gpu_convergence.png
-#   cp OUT/speed/throughput.png docs/bench_gpu_throughput.png
+#   mkdir -p docs/bench_gpu && cp OUT/accuracy/error_vs_time.png OUT/accuracy/convergence.png OUT/speed/throughput.png docs/bench_gpu/
+#   cp OUT/accuracy/report.md docs/bench_gpu/accuracy.md && cp OUT/speed/report.md docs/bench_gpu/speed.md
+#   cp OUT/accuracy/results.json docs/bench_gpu/accuracy.json && cp OUT/speed/results.json docs/bench_gpu/speed.json
 #
 # Needs warp-lang >= 1.19 and this package's core dependencies installed, and Newton: with no network,
 # put newton-1.8.0-py3-none-any.whl (pure Python, 8.6 MB; it requires only warp-lang >= 1.17) in
