@@ -1,7 +1,8 @@
 #!/usr/bin/env bash
 # warp-tube bench on a CUDA GPU, with Newton on the same GPU (PyElastica has no GPU path and is left out).
 #
-# Usage, from the repository root on the GPU machine (each step stays under 10 minutes):
+# Usage, from the repository root on the GPU machine (each step is meant to stay under 10 minutes;
+# REPEAT=N sets the repetitions, 3 and 2 by default; REPEAT=1 if a step runs too long):
 #   bash benchmarks/gpu_bench.sh accuracy OUT   # static problems, first frequency
 #   bash benchmarks/gpu_bench.sh speed OUT      # throughput, 1 to 65,536 tubes
 # Then, where matplotlib is installed (here or on the GPU machine):
@@ -24,8 +25,8 @@ if ! "$py" -c "import newton" 2>/dev/null; then
 fi
 "$py" -c "import warp as wp; wp.init(); assert wp.get_cuda_device_count() > 0, 'no CUDA device'"
 case "$step" in
-    accuracy) "$py" -m warp_tube bench --suite accuracy --peers newton --device cuda:0 --repeat 3 -o "$out/accuracy" ;;
-    speed) "$py" -m warp_tube bench --suite speed --peers newton --device cuda:0 --repeat 2 -o "$out/speed" ;;
+    accuracy) "$py" -m warp_tube bench --suite accuracy --peers newton --device cuda:0 --repeat "${REPEAT:-3}" -o "$out/accuracy" ;;
+    speed) "$py" -m warp_tube bench --suite speed --peers newton --device cuda:0 --repeat "${REPEAT:-2}" -o "$out/speed" ;;
     *) echo "unknown step $step: expected accuracy or speed" >&2; exit 2 ;;
 esac
 nvidia-smi --query-gpu=name,driver_version --format=csv,noheader > "$out/$step/gpu.txt" || true
