@@ -50,8 +50,18 @@ def _title(results, what):
 
 
 def write_plots(results: dict, out_dir: str) -> list[str]:
-    """Write the three PNGs into ``out_dir``; returns their paths."""
+    """Write the PNGs the results have data for into ``out_dir``; returns their paths."""
     rows = results["rows"]
+    paths = []
+    if _families(rows, "static", HEADLINE):
+        paths += _static_plots(results, rows, out_dir)
+    fam = _families(rows, "throughput")
+    if fam:
+        paths.append(_throughput_plot(results, fam, out_dir))
+    return paths
+
+
+def _static_plots(results, rows, out_dir):
     paths = []
     # error against time to the answer
     fig, ax = plt.subplots(figsize=(7, 5))
@@ -75,22 +85,6 @@ def write_plots(results: dict, out_dir: str) -> list[str]:
     ax.legend(fontsize=7)
     ax.grid(True, which="both", alpha=0.3)
     paths.append(_save(fig, out_dir, "error_vs_time.png"))
-    # throughput
-    fam = _families(rows, "throughput")
-    if fam:
-        fig, ax = plt.subplots(figsize=(7, 5))
-        for i, (name, rs) in enumerate(sorted(fam.items())):
-            rs = sorted(rs, key=lambda r: r["config"]["batch"])
-            ax.plot([r["config"]["batch"] for r in rs], [r["rod_seconds_per_s"] for r in rs], MARKERS[i % len(MARKERS)] + "-",
-                    color=COLORS.get(rs[0]["code"], "k"), label=name)  # fmt: skip
-        ax.set_xscale("log")
-        ax.set_yscale("log")
-        ax.set_xlabel("tubes in the batch (20 segments each)")
-        ax.set_ylabel("simulated tube-seconds per wall second")
-        ax.set_title(_title(results, "throughput at each code's 0.2%-of-L configuration"), fontsize=9)
-        ax.legend(fontsize=7)
-        ax.grid(True, which="both", alpha=0.3)
-        paths.append(_save(fig, out_dir, "throughput.png"))
     # convergence
     fig, ax = plt.subplots(figsize=(7, 5))
     for i, (name, rs) in enumerate(sorted(_families(rows, "static", HEADLINE).items())):
@@ -115,6 +109,22 @@ def write_plots(results: dict, out_dir: str) -> list[str]:
     ax.grid(True, which="both", alpha=0.3)
     paths.append(_save(fig, out_dir, "convergence.png"))
     return paths
+
+
+def _throughput_plot(results, fam, out_dir):
+    fig, ax = plt.subplots(figsize=(7, 5))
+    for i, (name, rs) in enumerate(sorted(fam.items())):
+        rs = sorted(rs, key=lambda r: r["config"]["batch"])
+        ax.plot([r["config"]["batch"] for r in rs], [r["rod_seconds_per_s"] for r in rs], MARKERS[i % len(MARKERS)] + "-",
+                color=COLORS.get(rs[0]["code"], "k"), label=name)  # fmt: skip
+    ax.set_xscale("log")
+    ax.set_yscale("log")
+    ax.set_xlabel("tubes in the batch (20 segments each)")
+    ax.set_ylabel("simulated tube-seconds per wall second")
+    ax.set_title(_title(results, "throughput at each code's 0.2%-of-L configuration"), fontsize=9)
+    ax.legend(fontsize=7)
+    ax.grid(True, which="both", alpha=0.3)
+    return _save(fig, out_dir, "throughput.png")
 
 
 def _save(fig, out_dir, name):
