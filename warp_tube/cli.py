@@ -1,4 +1,4 @@
-"""Command line: ``warp-tube run | check | extract | preview | export | batch``.
+"""Command line: ``warp-tube run | check | extract | preview | export | batch | bench``.
 
 Exit status: 0 done; 1 internal error (a bug: the message says so, ``-v`` shows the traceback);
 2 invalid input or request (message, no traceback, nothing simulated, no output file) or an output
@@ -81,6 +81,15 @@ def _parser() -> argparse.ArgumentParser:
     from .batch.command import add_parser as add_batch_parser
 
     add_batch_parser(sub)
+
+    b = sub.add_parser("bench", help="speed against error beside peer simulators; results, report and plots")
+    b.add_argument("-o", "--output", required=True, help="folder for results.json, report.md and the plots")
+    b.add_argument("--suite", choices=("accuracy", "speed", "all"), default="all")
+    b.add_argument("--peers", help="pyelastica,newton (default: both where installed) or none")
+    b.add_argument("--device", help="cpu or cuda:N (default: CUDA when available)")
+    b.add_argument("--quick", action="store_true", help="the small problem set (tests, a first look)")
+    b.add_argument("--repeat", type=int, help="interleaved repetitions (default 3; 1 with --quick)")
+    b.add_argument("--replot", metavar="RESULTS", help="only rewrite report and plots from an earlier results.json")
     return p
 
 
@@ -234,16 +243,33 @@ def _configure_logging(verbose: bool):
     root.setLevel(logging.INFO if verbose else logging.WARNING)
 
 
+def _cmd_bench(a) -> int:
+    from .bench.command import parse_peers, replot, run_bench
+
+    if a.replot:
+        replot(a.replot, a.output)
+        return EXIT_OK
+    repeat = a.repeat if a.repeat is not None else (1 if a.quick else 3)
+    if repeat < 1:
+        raise SceneError(f"--repeat {repeat}: expected at least 1")
+    peers = parse_peers(a.peers)
+    command = "warp-tube bench " + " ".join(a.argv)
+    run_bench(a.suite, peers, a.device, a.output, repeat, a.quick, log=lambda m: print(m, file=sys.stderr), command=command)
+    print(os.path.join(a.output, "report.md"))
+    return EXIT_OK
+
+
 def main(argv=None) -> int:
     """Entry point of the ``warp-tube`` console script; returns the exit status."""
     from .runtime.warp_setup import set_verbose
 
     args = _parser().parse_args(argv)
+    args.argv = list(sys.argv[2:] if argv is None else argv[1:])
     set_verbose(args.verbose)
     _configure_logging(args.verbose)
     _RUN_WARNINGS.summary_prints_them = False
     handler = {"run": _cmd_run, "check": _cmd_check, "extract": _cmd_extract, "preview": _cmd_preview, "export": _cmd_export,
-               "batch": _cmd_batch}
+               "batch": _cmd_batch, "bench": _cmd_bench}
     try:
         return handler[args.command](args)
     except SceneError as e:
