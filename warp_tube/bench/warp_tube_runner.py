@@ -33,9 +33,9 @@ def available():
 def versions() -> dict:
     import warp as wp
 
-    import warp_tube
+    from importlib.metadata import version
 
-    return {"warp_tube": warp_tube.__version__, "warp-lang": wp.config.version}
+    return {"warp_tube": version("warp-tube"), "warp-lang": wp.config.version}
 
 
 def scene(problem: RodProblem, segments: int, damping: float, duration: float, world_frames: float = FPS, load: bool = True):
@@ -78,7 +78,7 @@ class _SolverRun:
         from ..centerline.explicit import SemiImplicitEulerSolver
         from ..centerline.stability import critical_time_step
         from ..model.tube import build_model
-        from ..sim.simulation import SAFETY
+        from ..centerline.policy import SAFETY
 
         sc = scene(problem, segments, problem.damping, duration)
         self.model = m = build_model(sc, device=device)
@@ -115,7 +115,7 @@ def frequency(problem: RodProblem, config: dict, device: str) -> dict:
     from ..centerline.explicit import SemiImplicitEulerSolver
     from ..centerline.stability import critical_time_step
     from ..model.tube import build_model
-    from ..sim.simulation import SAFETY
+    from ..centerline.policy import SAFETY
 
     n = config["segments"]
     model = build_model(scene(problem, n, 0.0, 1.0, load=False), device=device)
