@@ -8,6 +8,7 @@ import os
 
 import numpy as np
 import pytest
+import warp as wp
 
 from tests.conftest import SCENES, check_output_problems, needs_shared
 from warp_tube.batch import BatchInterrupted, run_batch
@@ -333,6 +334,9 @@ def test_points_from_files_and_variant_sets(tmp_path):
 
 def test_cpu_worker_processes_match_one_process(sweep, tmp_path):
     d, files_out, _, _ = sweep
+    if wp.get_preferred_device().is_cuda:  # the sweep ran on the GPU: the one-process reference must be on the CPU
+        files_out = tmp_path / "w1"
+        run_batch(str(DEFAULT), str(files_out), str(d / "table.csv"), frames=FRAMES, device="cpu", writers=0)
     out = tmp_path / "w2"
     result = run_batch(str(DEFAULT), str(out), str(d / "table.csv"), frames=FRAMES, device="cpu", workers=2, chunk=2, writers=1)
     assert result.devices == ["cpu", "cpu"] and result.ok == 5

@@ -31,7 +31,7 @@ SCRIPT = (
 
 def python(args, env=None, cwd=None):
     full = {k: v for k, v in os.environ.items() if k != "WARP_TUBE_VERBOSE"}
-    full.update(PYTHONPATH=str(ROOT), **(env or {}))
+    full.update(PYTHONPATH=os.pathsep.join(filter(None, [str(ROOT), os.environ.get("PYTHONPATH")])), **(env or {}))
     return subprocess.run([sys.executable, *args], env=full, cwd=cwd, capture_output=True, text=True, timeout=300)
 
 

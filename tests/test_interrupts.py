@@ -28,7 +28,7 @@ def interrupt_when(folder, marker: str, *, env=None, args=(), stream="stderr"):
     """Start `warp-tube run scene.usda -o keep.usdc`, send SIGINT once ``marker`` appears on
     ``stream``; returns (exit status, stdout, stderr)."""
     cmd = [sys.executable, "-m", "warp_tube", *args, "run", "scene.usda", "-o", "keep.usdc"]
-    full_env = dict(os.environ, PYTHONPATH=str(ROOT), **(env or {}))
+    full_env = dict(os.environ, PYTHONPATH=os.pathsep.join(filter(None, [str(ROOT), os.environ.get("PYTHONPATH")])), **(env or {}))
     p = subprocess.Popen(cmd, cwd=folder, env=full_env, stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True)
     watched = p.stderr if stream == "stderr" else p.stdout
     seen = []

@@ -33,9 +33,9 @@ def available():
 def versions() -> dict:
     import warp as wp
 
-    from importlib.metadata import version
+    from .. import __version__
 
-    return {"warp_tube": version("warp-tube"), "warp-lang": wp.config.version}
+    return {"warp_tube": __version__, "warp-lang": wp.config.version}
 
 
 def scene(problem: RodProblem, segments: int, damping: float, duration: float, world_frames: float = FPS, load: bool = True):
