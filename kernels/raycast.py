@@ -7,6 +7,22 @@ Pure functions of arrays on a ``wp.Mesh`` (id passed as ``wp.uint64``); the host
 import warp as wp
 
 
+RAY_TWIN_TURN = wp.constant(1.0e-3)
+"""Turn of the two twin rays that vouch for a ray's hit (radians); see :func:`cast_rays`."""
+RAY_AGREE = wp.constant(1.0e-3)
+"""Relative difference of hit distances within which a twin agrees with its ray."""
+
+
+@wp.func
+def ray_hit(mesh_id: wp.uint64, origin: wp.vec3, direction: wp.vec3, max_t: float):
+    """Nearest hit distance along ``direction`` from ``origin``, +inf on a miss."""
+    q = wp.mesh_query_ray(mesh_id, origin, direction, max_t)
+    t = float(wp.inf)
+    if q.result:
+        t = q.t
+    return t
+
+
 @wp.kernel(enable_backward=False)
 def cast_rays(
     # model:
@@ -20,14 +36,30 @@ def cast_rays(
 ):
     """Nearest hit of each ray: ``hit_t_out[i]`` = distance along the unit ray, or -1 on a miss.
 
-    ``ray_dir_in`` must hold unit vectors so that ``hit_t_out`` and ``max_t`` are distances.
+    A ray aimed exactly along an edge or at a vertex may slip between two triangles in float
+    arithmetic (and differently on each device): it misses, or hits a farther wall. So each ray has
+    two twins turned :data:`RAY_TWIN_TURN` to either side; the ray's own hit stands when a twin
+    agrees with it (within :data:`RAY_AGREE` of its distance), otherwise the median of the three
+    (misses counted as infinitely far) is taken. ``ray_dir_in`` must hold unit vectors so that
+    ``hit_t_out`` and ``max_t`` are distances.
     """
     i = wp.tid()
-    q = wp.mesh_query_ray(mesh_id, ray_origin_in[i], ray_dir_in[i], max_t)
-    if q.result:
-        hit_t_out[i] = q.t
-    else:
-        hit_t_out[i] = -1.0
+    o = ray_origin_in[i]
+    d = ray_dir_in[i]
+    t0 = ray_hit(mesh_id, o, d, max_t)
+    axis = wp.vec3(1.0, 0.0, 0.0)
+    if wp.abs(d[0]) > 0.6:
+        axis = wp.vec3(0.0, 1.0, 0.0)
+    u = wp.normalize(wp.cross(d, axis))
+    t1 = ray_hit(mesh_id, o, wp.normalize(d + RAY_TWIN_TURN * u), max_t)
+    t2 = ray_hit(mesh_id, o, wp.normalize(d - RAY_TWIN_TURN * u), max_t)
+    t = t0
+    tol = RAY_AGREE * wp.min(t0, max_t)
+    if not (wp.abs(t1 - t0) <= tol or wp.abs(t2 - t0) <= tol):
+        t = wp.max(wp.min(t0, t1), wp.min(wp.max(t0, t1), t2))  # the median of three
+    if t > max_t:
+        t = -1.0
+    hit_t_out[i] = t
 
 
 @wp.kernel(enable_backward=False)

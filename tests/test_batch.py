@@ -5,6 +5,7 @@ from __future__ import annotations
 
 import filecmp
 import os
+from dataclasses import replace
 
 import numpy as np
 import pytest
@@ -498,3 +499,29 @@ def test_a_scene_warning_is_given_once_not_per_variant(tmp_path, caplog):
     assert len(variants) == 4
     pinned = [r for r in caplog.records if "is pinned" in r.getMessage()]
     assert len(pinned) == 1  # point 1 is pinned in all four: one warning
+
+
+def test_critical_time_steps_of_many_parts_equal_each_part_alone():
+    """The batch plans every variant's stability bound from one launch over the group's model; each
+    part's bound must be the one its own nodes give (same float64 row sums: equal to 1e-12)."""
+    from warp_tube import load_scene
+    from warp_tube.batch.worlds import combined_scene
+    from warp_tube.centerline.stability import critical_time_step, critical_time_steps
+    from warp_tube.model.tube import build_model
+
+    base = load_scene(str(DEFAULT))
+    scenes = []
+    for e, d in ((1e5, 0.0), (4e5, 0.0), (2.5e4, 0.3)):
+        t = base.tubes[0]
+        scenes.append(replace(base, tubes=(replace(t, params=replace(t.params, youngs_modulus=e, spring_damping=d)),)))
+    h = build_model(combined_scene(scenes), world_count=1, device="cpu").host
+    n = len(h["node_mass"]) // 3
+    damping = np.array([s.tubes[0].params.spring_damping for s in scenes])
+    many = critical_time_steps(h, 3, True, damping)
+    for k in range(3):
+        own = {name: h[name][k * n : (k + 1) * n] for name in ("seg_ke", "seg_rest_length", "node_bend_k", "node_anchor_k", "node_inv_mass")}
+        own["tube_node_start"] = np.array([0, n])
+        alone = build_model(scenes[k], world_count=1, device="cpu").host
+        assert np.allclose(own["seg_ke"], alone["seg_ke"])  # the slice is the part's own model
+        assert many[k] == pytest.approx(critical_time_step(alone, True, damping[k]), rel=1e-12)
+    assert len(set(np.round(many, 12))) == 3  # the three stiffnesses give three bounds

@@ -89,27 +89,24 @@ def run_choices(scenes: list[Scene], block: int = 1024) -> list[RunChoice]:
 def _choices_of(scenes: list[Scene]) -> list[RunChoice]:
     """run_choices for scenes of one node layout, discretised in one build."""
     from ..centerline.policy import choose_integrator, implicit_cost_ratio
-    from ..centerline.stability import critical_time_step
+    from ..centerline.stability import critical_time_steps
     from ..model.tube import build_model
     from .worlds import combined_scene
 
     flat = build_model(combined_scene(scenes), world_count=1, device="cpu")
     h = flat.host
     n = len(h["node_mass"]) // len(scenes)
-    curves = (len(h["tube_node_start"]) - 1) // len(scenes)  # T + 1 entries: T curves per scene, and the end
+    damping = np.array([max((t.params.spring_damping for t in s.tubes), default=0.0) for s in scenes])
+    bounds = critical_time_steps(h, len(scenes), flat.features.assistant_line, damping)
+    seg = np.asarray(h["seg_rest_length"]).reshape(len(scenes), -1)
+    seg_min = np.where(seg > 0, seg, np.inf).min(axis=1)
+    cost = implicit_cost_ratio(flat)
     out = []
     for k, scene in enumerate(scenes):
-        nodes = slice(k * n, (k + 1) * n)
-        own = {name: h[name][nodes] for name in ("seg_ke", "seg_rest_length", "node_bend_k", "node_anchor_k", "node_inv_mass")}
-        own["tube_node_start"] = h["tube_node_start"][k * curves : (k + 1) * curves + 1] - k * n
-        spring_damping = max((t.params.spring_damping for t in scene.tubes), default=0.0)
-        bound = critical_time_step(own, flat.features.assistant_line, spring_damping)
-        choice = choose_integrator(scene.settings, bound, scene.stage.frame_dt, implicit_cost_ratio(flat))
-        integrator, reason, dt = choice.integrator, choice.reason, choice.dt
-        substeps = max(1, math.ceil(scene.stage.frame_dt / dt - 1e-9))
-        seg = own["seg_rest_length"]
-        out.append(RunChoice(integrator, reason, substeps, scene.stage.frame_dt / substeps,
-                             float(seg[seg > 0].min()) if (seg > 0).any() else 0.0))  # fmt: skip
+        choice = choose_integrator(scene.settings, float(bounds[k]), scene.stage.frame_dt, cost)
+        substeps = max(1, math.ceil(scene.stage.frame_dt / choice.dt - 1e-9))
+        out.append(RunChoice(choice.integrator, choice.reason, substeps, scene.stage.frame_dt / substeps,
+                             float(seg_min[k]) if np.isfinite(seg_min[k]) else 0.0))  # fmt: skip
     return out
 
 

@@ -24,7 +24,7 @@ import warp as wp
 
 from warp_tube.kernels.springs import StabilityArrays, stability_rows_kernel
 
-__all__ = ["max_frequency", "critical_time_step"]
+__all__ = ["max_frequency", "critical_time_step", "critical_time_steps"]
 
 
 def _row_sums(host: dict, assistant_line: bool) -> np.ndarray:
@@ -59,3 +59,20 @@ def critical_time_step(host: dict, assistant_line: bool = False, spring_damping:
         return math.inf
     z = 0.5 * spring_damping * w
     return (2.0 / w) * (math.sqrt(1.0 + z * z) - z)
+
+
+def critical_time_steps(host: dict, parts: int, assistant_line: bool, spring_damping: np.ndarray) -> np.ndarray:
+    """:func:`critical_time_step` [s] of each of ``parts`` equal node ranges of one model at once.
+
+    For a model whose nodes are ``parts`` copies of one layout (scenes of one batch group built
+    together), part ``k`` being nodes ``k * n`` to ``(k + 1) * n``; the row sums come from one
+    launch. ``spring_damping`` [1/s], shape (parts,). Returns shape (parts,), inf where a part has
+    nothing free or stiff.
+    """
+    rows = _row_sums(host, assistant_line)
+    inv_mass = np.asarray(host["node_inv_mass"], dtype=np.float64)
+    rate = np.where(inv_mass > 0, rows * inv_mass, 0.0).reshape(parts, -1)
+    w = np.sqrt(np.maximum(rate.max(axis=1), 0.0))
+    z = 0.5 * np.asarray(spring_damping, dtype=np.float64) * w
+    with np.errstate(divide="ignore"):
+        return np.where(w > 0.0, (2.0 / np.where(w > 0.0, w, 1.0)) * (np.sqrt(1.0 + z * z) - z), np.inf)

@@ -38,10 +38,6 @@ MAX_TURN = np.radians(60.0)
 make: sharper is tighter than the tube's own radius, a fold of the line, not of the tube."""
 
 
-TWIN_TURN = 1e-3
-"""Turn of the twin rays that confirm an open ray (radians); see :func:`open_rays`."""
-
-
 def ring_hits(q: MeshQueries, points: np.ndarray, dirs: np.ndarray, diag: float):
     """Wall hit distances of rays from each point and which of them belong to the tube's section.
 
@@ -68,23 +64,13 @@ def ring_hits(q: MeshQueries, points: np.ndarray, dirs: np.ndarray, diag: float)
 def open_rays(q: MeshQueries, points: np.ndarray, diag: float, rays: int = RAYS) -> np.ndarray:
     """Which of ``rays`` rays in each hub's ring plane (normal to its bisector tangent) leave the tube
     without meeting its wall: no hit on the mesh as given, or the closed mesh (every loop capped)
-    hit first, so the ray passes through an opening or hole of the mesh. Bool, shape (n, rays).
-
-    A ray counts as open only if a twin turned :data:`TWIN_TURN` radians to either side leaves too:
-    a ray aimed exactly along an edge or at a vertex of the mesh may slip between its triangles in
-    float arithmetic (differently on each device), while an opening is far wider than the turn.
-    """
+    hit first, so the ray passes through an opening or hole of the mesh. Bool, shape (n, rays)."""
     r, s = plane_basis(hub_tangents(points))
+    dirs = spoke_directions(r, s, rays)
     origins = np.repeat(points[:, None, :], rays, axis=1)
-
-    def leaves(turn: float) -> np.ndarray:
-        c, si = np.cos(turn), np.sin(turn)
-        dirs = spoke_directions(c * r + si * s, c * s - si * r, rays)
-        t = q.rays(q.raw, origins, dirs, diag)
-        tc = q.rays(q.closed, origins, dirs, diag)
-        return (t <= 0.0) | (tc < t - 1e-5 * diag)
-
-    return leaves(0.0) & (leaves(TWIN_TURN) | leaves(-TWIN_TURN))
+    t = q.rays(q.raw, origins, dirs, diag)
+    tc = q.rays(q.closed, origins, dirs, diag)
+    return (t <= 0.0) | (tc < t - 1e-5 * diag)
 
 
 def fill_around(t: np.ndarray, valid: np.ndarray, fallback: np.ndarray) -> np.ndarray:
