@@ -64,7 +64,8 @@ def main():
             out["runs"].append({
                 "layout": layout, "identical": same_outputs(f1, fn, layout), "speedup": r1.wall_s / rn.wall_s,
                 **{f"{k}_{label}": getattr(r, k) for label, (_, r) in runs.items()
-                   for k in ("wall_s", "write_wait_s", "write_s", "devices", "ok")},
+                   for k in ("wall_s", "prepare_s", "write_wait_s", "write_s", "devices", "ok")},
+                **{f"split_{label}": {k: round(v, 3) for k, v in r.timings.items()} for label, (_, r) in runs.items()},
                 "kernels_s_one_gpu": r1.timings["kernels_s"], "kernels_s_all_gpus_summed": rn.timings["kernels_s"],
             })  # fmt: skip
             for folder, _ in runs.values():

@@ -28,6 +28,7 @@ from ..scene.spec import Scene
 from .checks import WorldChecks, work_of
 from .control import WorldControl
 from .plan import RunChoice
+from .readback import HostMirror
 from .worlds import build_worlds, initial_state
 
 __all__ = ["ChunkRun", "simulate_chunk", "output_frames", "chunk_shapes"]
@@ -112,6 +113,8 @@ def simulate_chunk(scenes: list[Scene], choice: RunChoice, device: str, frames: 
     q = rest32
     qd = np.zeros_like(rest32)
     n, dt = choice.substeps, frame_dt / choice.substeps
+    q_back, qd_back = HostMirror(state.node_q, slots=2), HostMirror(state.node_qd)  # q: this frame's and the last
+    surface_back = [(HostMirror(b.points), HostMirror(b.normals), HostMirror(b.extent())) for b in worlds.surfaces] if surface else []
     f_out = 0
     for k in range(frames):
         if k > 0:
@@ -121,7 +124,8 @@ def simulate_chunk(scenes: list[Scene], choice: RunChoice, device: str, frames: 
             solver.integrate(state, nxt, control, dt, n)
             wp.synchronize_device(device)
             t2 = time.perf_counter()
-            q_new, qd = nxt.node_q.numpy(), nxt.node_qd.numpy()
+            q_new, qd = q_back.fetch(nxt.node_q), qd_back.fetch(nxt.node_qd)
+            wp.synchronize_device(device)
             t3 = time.perf_counter()
             fw = checks.frame_work(q, q_new, wc.f_ext)
             problems = checks.check(k - 1, q_new, qd, checks.work + fw, alive)
@@ -149,7 +153,7 @@ def simulate_chunk(scenes: list[Scene], choice: RunChoice, device: str, frames: 
             t = time.perf_counter()
             np.divide(q, mpu, out=arrays["centerline"][f_out])  # as Simulation.centerline_points
             if surface:
-                t_copy = _surface_frame(worlds, state, arrays, f_out, mpu, device, timings)
+                t_copy = _surface_frame(worlds, state, arrays, f_out, mpu, device, timings, surface_back)
             else:
                 t_copy = 0.0
             frames_written[alive] += 1
@@ -174,7 +178,7 @@ def _in_memory(shapes: dict) -> dict:
     return {name: np.empty(shape, dtype=np.float32) for name, shape in shapes.items()}
 
 
-def _surface_frame(worlds, state, arrays, f_out, mpu, device, timings) -> float:
+def _surface_frame(worlds, state, arrays, f_out, mpu, device, timings, back) -> float:
     """Rebuild every prim's surface into frame ``f_out`` of the arrays; returns the time spent in
     the kernels and copying back (counted there, not as copying into the arrays)."""
     spent = 0.0
@@ -184,7 +188,8 @@ def _surface_frame(worlds, state, arrays, f_out, mpu, device, timings) -> float:
         ext = b.extent()
         wp.synchronize_device(device)
         t1 = time.perf_counter()
-        pts, nrm, ext = pts.numpy(), nrm.numpy(), ext.numpy()
+        pts, nrm, ext = (mirror.fetch(a) for mirror, a in zip(back[p], (pts, nrm, ext)))
+        wp.synchronize_device(device)
         t2 = time.perf_counter()
         v0, v1 = worlds.vertex_start[p], worlds.vertex_start[p + 1]
         np.divide(pts, mpu, out=arrays["points"][f_out, :, v0:v1])  # as Simulation.surface
