@@ -20,6 +20,7 @@ ROOT = pathlib.Path(__file__).resolve().parents[1]
 STAGES = {
     "kernels": 0,
     "runtime": 0,
+    "version": 0,
     "scene": 1,
     "model": 2,
     "centerline": 3,

@@ -8,20 +8,21 @@ from __future__ import annotations
 
 import numpy as np
 
+from warp_tube.model.host import HostArrays
 from warp_tube.model.tube import curvature_binormal
 
 __all__ = ["potential_energy", "kinetic_energy", "total_energy"]
 
 
-def _kappa_targets(host: dict, q: np.ndarray) -> np.ndarray:
+def _kappa_targets(host: HostArrays, q: np.ndarray) -> np.ndarray:
     """Rest curvature carried into the current shape (same construction as the kernel)."""
     from warp_tube.model.frames import rotate_minimal
-    from warp_tube.model.tube import _first_edge_normal
+    from warp_tube.model.tube import first_edge_normal
 
     out = np.zeros_like(q)
-    start = host["tube_node_start"]
-    kr = host["node_kappa_rest"]
-    rest = host["node_rest_q"]
+    start = host.tube_node_start
+    kr = host.node_kappa_rest
+    rest = host.node_rest_q
     for t in range(len(start) - 1):
         s, e = start[t], start[t + 1]
         if e - s < 3 or not np.abs(kr[s:e]).max() > 0:
@@ -30,7 +31,7 @@ def _kappa_targets(host: dict, q: np.ndarray) -> np.ndarray:
         t_rest /= np.linalg.norm(t_rest)
         tc = q[s + 1] - q[s]
         tc /= np.linalg.norm(tc)
-        u = rotate_minimal(t_rest, tc, _first_edge_normal(t_rest))
+        u = rotate_minimal(t_rest, tc, first_edge_normal(t_rest))
         for j in range(s + 1, e - 1):
             c = kr[j]
             out[j] = tc * c[0] + u * c[1] + np.cross(tc, u) * c[2]
@@ -43,36 +44,36 @@ def _kappa_targets(host: dict, q: np.ndarray) -> np.ndarray:
     return out
 
 
-def potential_energy(host: dict, q: np.ndarray, gravity=None) -> float:
+def potential_energy(host: HostArrays, q: np.ndarray, gravity=None) -> float:
     """Elastic + gravitational potential energy [J] of positions ``q`` [m], shape (N, 3)."""
     q = np.asarray(q, dtype=np.float64)
-    start = host["tube_node_start"]
+    start = host.tube_node_start
     n = len(q)
     last = np.zeros(n, dtype=bool)
     last[start[1:] - 1] = True
     seg = np.nonzero(~last)[0]
     d = np.linalg.norm(q[seg + 1] - q[seg], axis=1)
-    e = 0.5 * np.sum(host["seg_ke"][seg] * (d - host["seg_rest_length"][seg]) ** 2)
-    bk = host["node_bend_k"]
+    e = 0.5 * np.sum(host.seg_ke[seg] * (d - host.seg_rest_length[seg]) ** 2)
+    bk = host.node_bend_k
     j = np.nonzero(bk > 0)[0]
     if len(j):
         kb = curvature_binormal(q[j] - q[j - 1], q[j + 1] - q[j])
         target = _kappa_targets(host, q)[j]
         e += 0.5 * np.sum(bk[j] * np.sum((kb - target) ** 2, axis=1))
-    ka = host["node_anchor_k"]
-    e += 0.5 * np.sum(ka * np.sum((q - host["node_rest_q"]) ** 2, axis=1))
+    ka = host.node_anchor_k
+    e += 0.5 * np.sum(ka * np.sum((q - host.node_rest_q) ** 2, axis=1))
     if gravity is not None:
-        e -= np.sum(host["node_mass"] * (q @ np.asarray(gravity, dtype=np.float64)))
+        e -= np.sum(host.node_mass * (q @ np.asarray(gravity, dtype=np.float64)))
     return float(e)
 
 
-def kinetic_energy(host: dict, qd: np.ndarray) -> float:
+def kinetic_energy(host: HostArrays, qd: np.ndarray) -> float:
     """Kinetic energy [J] of the free nodes with velocities ``qd`` [m/s], shape (N, 3)."""
-    free = host["node_inv_mass"] > 0
-    return float(0.5 * np.sum(host["node_mass"][free] * np.sum(np.asarray(qd, dtype=np.float64)[free] ** 2, axis=1)))
+    free = host.node_inv_mass > 0
+    return float(0.5 * np.sum(host.node_mass[free] * np.sum(np.asarray(qd, dtype=np.float64)[free] ** 2, axis=1)))
 
 
-def total_energy(host: dict, q: np.ndarray, qd: np.ndarray, gravity=None) -> float:
+def total_energy(host: HostArrays, q: np.ndarray, qd: np.ndarray, gravity=None) -> float:
     """Kinetic + potential energy [J]."""
     return kinetic_energy(host, qd) + potential_energy(host, q, gravity)
 

@@ -13,7 +13,7 @@ import math
 import numpy as np
 
 from warp_tube.model.frames import rotate_minimal
-from warp_tube.model.tube import _first_edge_normal, curvature_binormal
+from warp_tube.model.tube import first_edge_normal, curvature_binormal
 from warp_tube.surface.topology import RING_BODY, RING_CAP, RING_POLE, SurfaceTopology, cap_ring_count
 
 
@@ -25,7 +25,7 @@ def rest_curvature_coordinates_loop(points: np.ndarray) -> np.ndarray:
     if n < 3:
         return out
     t = (x[1] - x[0]) / np.linalg.norm(x[1] - x[0])
-    u = _first_edge_normal(t)
+    u = first_edge_normal(t)
     for j in range(1, n - 1):
         kb = curvature_binormal(x[j] - x[j - 1], x[j + 1] - x[j])
         v = np.cross(t, u)

@@ -515,13 +515,13 @@ def test_critical_time_steps_of_many_parts_equal_each_part_alone():
         t = base.tubes[0]
         scenes.append(replace(base, tubes=(replace(t, params=replace(t.params, youngs_modulus=e, spring_damping=d)),)))
     h = build_model(combined_scene(scenes), world_count=1, device="cpu").host
-    n = len(h["node_mass"]) // 3
+    n = len(h.node_mass) // 3
     damping = np.array([s.tubes[0].params.spring_damping for s in scenes])
     many = critical_time_steps(h, 3, True, damping)
     for k in range(3):
-        own = {name: h[name][k * n : (k + 1) * n] for name in ("seg_ke", "seg_rest_length", "node_bend_k", "node_anchor_k", "node_inv_mass")}
+        own = {name: getattr(h, name)[k * n : (k + 1) * n] for name in ("seg_ke", "seg_rest_length", "node_bend_k", "node_anchor_k", "node_inv_mass")}
         own["tube_node_start"] = np.array([0, n])
         alone = build_model(scenes[k], world_count=1, device="cpu").host
-        assert np.allclose(own["seg_ke"], alone["seg_ke"])  # the slice is the part's own model
+        assert np.allclose(own["seg_ke"], alone.seg_ke)  # the slice is the part's own model
         assert many[k] == pytest.approx(critical_time_step(alone, True, damping[k]), rel=1e-12)
     assert len(set(np.round(many, 12))) == 3  # the three stiffnesses give three bounds

@@ -61,7 +61,7 @@ def test_build_model_takes_each_curves_rest_curvature():
     expect = np.concatenate([rest_curvature_coordinates_loop(a.points[:12]), rest_curvature_coordinates_loop(a.points[12:]),
                              rest_curvature_coordinates_loop(b.points)])  # fmt: skip
     # the per-curve loop's values, to the transport's round-off (as above, n <= 12)
-    assert np.abs(m.host["node_kappa_rest"] - expect).max() <= 12 * 2.2e-16 * np.abs(expect).max()
+    assert np.abs(m.host.node_kappa_rest - expect).max() <= 12 * 2.2e-16 * np.abs(expect).max()
     assert m.features.curved
 
 

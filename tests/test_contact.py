@@ -25,7 +25,7 @@ def test_crossing_tubes_touch_exactly_when_closer_than_two_radii(n):
     assert (2 * n <= proximity.SMALL) == (n == 15)
     for gap_z, touching in ((0.15, True), (0.25, False)):
         host = crossing(n, gap_z)
-        mon = ContactMonitor(host, device="cpu")
+        mon = ContactMonitor(host["node_rest_q"], host["node_radius"], host["tube_node_start"], device="cpu")
         q = wp.array(host["node_rest_q"], dtype=wp.vec3, device="cpu")
         deepest = mon.deepest(q)
         # The middles (odd n: a point at s = 0 on each tube) are gap_z apart: overlap gap_z - 2 r,
@@ -44,7 +44,7 @@ def test_points_close_along_one_tube_never_count():
     s = np.linspace(0.0, 1.0, 200)
     host = {"node_rest_q": np.stack([s, 0 * s, 0 * s], axis=1), "node_radius": np.full(200, 0.05),
             "tube_node_start": np.array([0, 200])}  # fmt: skip
-    mon = ContactMonitor(host, device="cpu")
+    mon = ContactMonitor(host["node_rest_q"], host["node_radius"], host["tube_node_start"], device="cpu")
     assert mon.deepest(wp.array(host["node_rest_q"], dtype=wp.vec3, device="cpu"))[0] == 0.0
 
 
@@ -55,7 +55,7 @@ def test_groups_do_not_touch_each_other(n):
     host = crossing(n, 0.15, copies=2)
     host["node_rest_q"][2 * n + n :, 2] = 0.3  # group 1's tube B
     group = np.repeat([0, 1], 2 * n)
-    mon = ContactMonitor(host, device="cpu", node_group=group)
+    mon = ContactMonitor(host["node_rest_q"], host["node_radius"], host["tube_node_start"], device="cpu", node_group=group)
     deepest = mon.deepest(wp.array(host["node_rest_q"], dtype=wp.vec3, device="cpu"))
     np.testing.assert_allclose(deepest, [-0.05, 0.0], atol=1e-6)
     assert mon.closest(host["node_rest_q"], group=1) is None

@@ -17,7 +17,7 @@ def kernel_force(model, q, onchip):
     s0.node_q.assign(q[None].astype(np.float32))
     dt = 1e-4
     SemiImplicitEulerSolver(model, onchip=onchip).integrate(s0, s1, model.control(), dt, 1)
-    return s1.node_qd.numpy()[0].astype(np.float64) * model.host["node_mass"][:, None] / dt, s0.node_q.numpy()[0].astype(np.float64)
+    return s1.node_qd.numpy()[0].astype(np.float64) * model.host.node_mass[:, None] / dt, s0.node_q.numpy()[0].astype(np.float64)
 
 
 @pytest.mark.parametrize("shape", ["straight", "helix"])

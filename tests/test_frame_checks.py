@@ -36,13 +36,13 @@ def test_rest_frame_passes_with_zero_work():
 def test_nan_and_runaway_are_named_in_their_own_group():
     model = two_tubes()
     checks = FrameChecks(model, node_group=[0] * 6 + [1] * 6, extent=1.0)
-    q = model.host["node_rest_q"].copy()
+    q = model.host.node_rest_q.copy()
     q[8] = np.nan  # tube 1, point 2
     before, after = states(model, q, np.zeros_like(q))
     failures, _ = checks.check(before, after, model.control())
     assert [(f.group, f.node, f.what) for f in failures] == [(1, 8, "non-finite positions")]
 
-    q = model.host["node_rest_q"].copy()
+    q = model.host.node_rest_q.copy()
     q[3, 1] += 2.0 * RUNAWAY_LENGTHS  # tube 0, point 3: beyond the runaway distance of a 1 m tube
     before, after = states(model, q, np.zeros_like(q))
     failures, _ = checks.check(before, after, model.control())
@@ -57,10 +57,10 @@ def test_kinetic_energy_against_the_work_of_a_force():
     f = np.zeros((1, 12, 3), np.float32)
     f[0, 4] = (0.0, 2.0, 0.0)  # 2 N on tube 0, point 4
     control.node_f_ext.assign(f)
-    q = model.host["node_rest_q"].copy()
+    q = model.host.node_rest_q.copy()
     q[4, 1] += 0.25  # moved 0.25 m along the force: work 0.5 J exactly
     qd = np.zeros_like(q)
-    mass = model.host["node_mass"][4]
+    mass = model.host.node_mass[4]
     # Kinetic energy 0.4 J: within 10x the work (5 J), so the frame is good ...
     qd[4, 1] = np.sqrt(2.0 * 0.4 / mass)
     before, after = states(model, q, qd)
@@ -79,9 +79,9 @@ def test_kinetic_energy_against_the_work_of_a_force():
 def test_accepted_work_raises_the_budget():
     model = two_tubes()
     checks = FrameChecks(model, extent=1.0)
-    q = model.host["node_rest_q"].copy()
+    q = model.host.node_rest_q.copy()
     qd = np.zeros_like(q)
-    qd[2, 2] = np.sqrt(2.0 * 1.0 / model.host["node_mass"][2])  # 1 J
+    qd[2, 2] = np.sqrt(2.0 * 1.0 / model.host.node_mass[2])  # 1 J
     before, after = states(model, q, qd)
     assert len(checks.check(before, after, model.control())[0]) == 1
     checks.accept(np.array([[0.2]]))  # 0.2 J of earlier work: budget 2 J

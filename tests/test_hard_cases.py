@@ -41,11 +41,11 @@ def run_with_energy_bound(scene, frames, gravity=None):
     """
     sim = Simulation(scene, device="cpu", surface=False)
     h = sim.model.host
-    nodes = h["force_node"]
+    nodes = h.force_node
     e0 = total_energy(h, sim.state.node_q.numpy()[0], sim.state.node_qd.numpy()[0], gravity)
     work, e_max = 0.0, abs(e0)
-    extent = float(np.ptp(h["node_rest_q"], axis=0).max())
-    floor = float(np.sum(h["seg_ke"])) * (1e-6 * extent) ** 2
+    extent = float(np.ptp(h.node_rest_q, axis=0).max())
+    floor = float(np.sum(h.seg_ke)) * (1e-6 * extent) ** 2
     for k in range(frames):
         f = sim.controls.forces_at((sim.frame + 0.5) * sim.frame_dt)
         x0 = sim.state.node_q.numpy()[0, nodes].astype(np.float64)

@@ -97,7 +97,7 @@ def test_stiff_rod_under_gravity_stays_finite_and_pins_hold():
         state, other = other, state
     q = state.node_q.numpy()[0]
     assert np.isfinite(q).all() and np.isfinite(state.node_qd.numpy()).all()
-    assert np.array_equal(q[:2], model.host["node_rest_q"][:2].astype(np.float32))  # pins exact
+    assert np.array_equal(q[:2], model.host.node_rest_q[:2].astype(np.float32))  # pins exact
     # Static sag of a clamped beam under its weight: w L^4 / (8 EI); at 1e9 Pa, r = 0.02 m,
     # that is 9.8e-3 m. After 1 s of backward Euler (h w1 = 0.6 per step) it has settled to
     # within a few % of it (the large-step numerical damping).
@@ -149,7 +149,7 @@ def test_numerical_damping_at_60hz_matches_backward_euler():
 def test_worlds_of_a_batch_equal_the_same_run_alone():
     model, state = bent_cantilever(1e7, 0.5, world_count=3)
     q = state.node_q.numpy()
-    q[1] = model.host["node_rest_q"]  # world 1 starts at rest, worlds 0 and 2 bent
+    q[1] = model.host.node_rest_q  # world 1 starts at rest, worlds 0 and 2 bent
     state.node_q.assign(q)
     solver = ImplicitEulerSolver(model)
     control, other = model.control(), model.state()
@@ -165,7 +165,7 @@ def test_worlds_of_a_batch_equal_the_same_run_alone():
     # Same arithmetic per thread on the CPU: bitwise equal, not just close.
     assert np.array_equal(out[0], s1.node_q.numpy()[0])
     assert np.array_equal(out[2], out[0])
-    assert np.allclose(out[1], model.host["node_rest_q"], atol=0.0)
+    assert np.allclose(out[1], model.host.node_rest_q, atol=0.0)
 
 
 def test_two_tubes_in_one_world_equal_each_alone():

@@ -36,8 +36,8 @@ def batch_model(world_count=WORLDS, lengths=LENGTHS, curved=False, spring_dampin
     # Parameters per world (rows read at w % rows): both kernels must pick the world's row.
     rng = np.random.default_rng(7)
     scale = rng.uniform(0.5, 1.5, (world_count, 1))
-    model.seg_ke = wp.array(model.host["seg_ke"][None] * scale, dtype=float, device=device)
-    model.node_damping = wp.array(model.host["node_damping"][None] * scale, dtype=float, device=device)
+    model.seg_ke = wp.array(model.host.seg_ke[None] * scale, dtype=float, device=device)
+    model.node_damping = wp.array(model.host.node_damping[None] * scale, dtype=float, device=device)
     return model
 
 
@@ -49,7 +49,7 @@ def batch_inputs(model, seed=3):
     state.node_qd.assign(rng.normal(0.0, 0.05, (W, N, 3)).astype(np.float32))
     control = model.control()
     control.node_f_ext.assign(rng.normal(0.0, 2e-3, (W, N, 3)).astype(np.float32))
-    q = model.host["node_rest_q"][None].repeat(W, axis=0)
+    q = model.host.node_rest_q[None].repeat(W, axis=0)
     control.pin_q_start.assign(q.astype(np.float32))
     control.pin_q_end.assign((q + rng.normal(0.0, 5e-3, (W, 1, 3))).astype(np.float32))
     return state, control
@@ -89,7 +89,7 @@ def test_onchip_matches_per_tube(reference, block_dim):
     else:
         # One group of all 70 nodes, three worlds per block, the second block partly idle.
         assert (solver.onchip_block_dim, solver._onchip_dim, solver._onchip_worlds_per_block) == (256, (2, 1), 3)
-    moved = np.abs(q_ref - model.host["node_rest_q"][None]).max()
+    moved = np.abs(q_ref - model.host.node_rest_q[None]).max()
     assert moved > 5e-3  # it really moved
     # The same forces, each spring and stencil summed onto its nodes in another order (exchanged
     # through shared memory against added in a loop), so the runs differ by float32 round-off (a
@@ -108,7 +108,7 @@ def test_onchip_curved_and_spring_damped_matches_per_tube(block_dim):
     q_ref, qd_ref, _ = run(model, onchip=False)
     q, qd, solver = run(model, onchip=True, block_dim=block_dim)
     assert solver.onchip
-    assert np.abs(q_ref - model.host["node_rest_q"][None]).max() > 5e-3
+    assert np.abs(q_ref - model.host.node_rest_q[None]).max() > 5e-3
     # As above (measured 7e-8 m, velocities 1e-6 of their size).
     np.testing.assert_allclose(q, q_ref, rtol=0, atol=1e-6)
     np.testing.assert_allclose(qd, qd_ref, rtol=0, atol=1e-5 * np.abs(qd_ref).max())
@@ -132,7 +132,7 @@ def test_onchip_pins_reach_their_targets_and_input_is_kept():
     s1 = model.state()
     solver.integrate(s0, s1, control, 1e-4, 7)
     np.testing.assert_array_equal(s0.node_q.numpy(), before)
-    pinned = model.host["node_inv_mass"] == 0.0
+    pinned = model.host.node_inv_mass == 0.0
     # lerp(a, b, 1) = a + (b - a): within an ulp of b (positions ~0.2 m, ulp ~1.5e-8 m).
     np.testing.assert_allclose(s1.node_q.numpy()[:, pinned], control.pin_q_end.numpy()[:, pinned], rtol=0, atol=1e-7)
     np.testing.assert_array_equal(s1.node_q_lo.numpy()[:, pinned], 0.0)

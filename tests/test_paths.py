@@ -87,11 +87,11 @@ def test_onchip_equals_per_tube(name):
     worlds = 3 if name == "batch" else 1
     a, sim = run(name, "perTube", worlds=worlds)
     b, _ = run(name, "onchip", worlds=worlds)
-    motion = np.abs(a - sim.model.host["node_rest_q"][None]).max()
+    motion = np.abs(a - sim.model.host.node_rest_q[None]).max()
     assert motion > 1e-3  # it really moved
     if name == "batch":
         f = sim.model.features
-        assert all(f) and sim.model.al_lines == 2 and sim.model.host["tube_al_force"].tolist() == [[0, 1], [2, -1]]
+        assert all(f) and sim.model.al_lines == 2 and sim.model.host.tube_al_force.tolist() == [[0, 1], [2, -1]]
     # float32 round-off (~1e-7 relative per operation) carried through one second of damped
     # substeps (1,100 to 4,000 of them): measured up to 1.2e-7 m; 2e-6 m is still 1e-3 of the
     # smallest motion here and far below any missing term's effect (a missing spring damping or
@@ -106,7 +106,7 @@ def test_implicit_converges_to_semi_implicit(name):
         a, sim = run(name, "perTube", refine=refine)
         b, _ = run(name, "implicit", refine=refine)
         diffs.append(np.abs(a - b).max())
-    motion = np.abs(a - sim.model.host["node_rest_q"][None]).max()
+    motion = np.abs(a - sim.model.host.node_rest_q[None]).max()
     print(f"{name}: |implicit - semi-implicit| {diffs[0]:.2e} m at h, {diffs[1]:.2e} m at h/2 (motion {motion:.2e} m)")
     # Both are first-order: the difference is the two methods' O(h) errors, about halved when h
     # is (0.65 leaves room for the second-order part); at these steps it is a small fraction of

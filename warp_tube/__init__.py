@@ -5,6 +5,7 @@ ISBMS 2006), with USD scenes in and time-sampled USD meshes out.
 """
 
 from .scene import ForceSpec, Scene, SceneError, SimulationSettings, StageInfo, TubeParams, TubeSpec
+from .version import __version__
 
 __all__ = [
     "ForceSpec",
@@ -17,8 +18,6 @@ __all__ = [
     "load_scene",
     "Simulation",
 ]
-
-__version__ = "0.1.0"
 
 
 def load_scene(path):

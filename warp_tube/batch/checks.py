@@ -53,17 +53,17 @@ class WorldChecks:
         h = worlds.host
         W = worlds.world_count
         self.worlds = worlds
-        self.rest = h["node_rest_q"]
+        self.rest = h.node_rest_q
         self.rest32 = self.rest.astype(np.float32)
-        self.free_mass = h["node_mass"] * (h["node_inv_mass"] > 0)
+        self.free_mass = h.node_mass * (h.node_inv_mass > 0)
         extent = np.array([max(float(np.ptp(t.points, axis=0).max()) for t in s.tubes) for s in worlds.scenes])
         self.limit = RUNAWAY_LENGTHS * np.maximum(extent, 1e-9)
         # Simulation's round-off floor of the energy check, per world.
         scale = np.maximum(np.maximum(extent, np.abs(self.rest).reshape(W, -1).max(axis=1)), 1e-9)
-        self.energy_floor = np.sum(h["seg_ke"], axis=1) * (1e-6 * scale) ** 2 + 1e-30
+        self.energy_floor = np.sum(h.seg_ke, axis=1) * (1e-6 * scale) ** 2 + 1e-30
         self.allowance = np.inf if moving_pins else 0.0
         self.gravity = gravity
-        self.force_node = np.asarray(worlds.model.host["force_node"], dtype=np.int64)
+        self.force_node = np.asarray(worlds.model.host.force_node, dtype=np.int64)
         self.work = np.zeros(W)  # work done so far [J]
 
     def frame_work(self, q_before: np.ndarray, q_after: np.ndarray, f_ext: np.ndarray | None) -> np.ndarray:
@@ -89,7 +89,7 @@ class WorldChecks:
         for w in np.flatnonzero(alive & (ke > budget)):
             if int(w) in out:
                 continue
-            node = int(np.argmax(np.einsum("nk,nk->n", qd[w], qd[w]) * self.worlds.host["node_mass"][w]))
+            node = int(np.argmax(np.einsum("nk,nk->n", qd[w], qd[w]) * self.worlds.host.node_mass[w]))
             out[int(w)] = self._message(frame, "kinetic energy beyond the work the forces did (a blow-up)", w, node)
         return out
 

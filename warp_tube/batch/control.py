@@ -56,8 +56,8 @@ class WorldControl:
         self.worlds, self.control, self.frame_dt = worlds, control, frame_dt
         W = m.world_count
         h = m.host  # the topology, shared by every world
-        self.force_node = np.asarray(h["force_node"], dtype=np.int64)
-        order = np.asarray(h["force_order"], dtype=np.int64)
+        self.force_node = np.asarray(h.force_node, dtype=np.int64)
+        order = np.asarray(h.force_order, dtype=np.int64)
         # Per model force: worlds grouped by their sample times, with their values.
         self._forces = []
         for a, k in enumerate(order):
@@ -69,7 +69,7 @@ class WorldControl:
                 groups[f.times.tobytes()][2].append(f.values)
             self._forces.append([(times, np.asarray(ws), np.stack(vals)) for times, ws, vals in groups.values()])
         self.dead = np.zeros(W, dtype=bool)
-        self.uses_al = np.asarray(h["force_uses_al"], dtype=bool)
+        self.uses_al = np.asarray(h.force_uses_al, dtype=bool)
         self._al_dir = np.zeros((W, m.force_count, 3))
         self._al_active = np.zeros((W, max(m.force_count, 1)), dtype=np.int32)
         # Moving pins: per world its pinned points' track, (W, frames, pinned, 3) [m], per prim.
@@ -138,9 +138,9 @@ class WorldControl:
             if loaded is None:
                 loaded = self._load(state)
             state_q, state_qd, al_q, al_qd, lens = loaded
-            t = h["force_tube"][a]
-            s, e = h["tube_node_start"][t], h["tube_node_start"][t + 1]
-            k = h["force_node"][a]
+            t = h.force_tube[a]
+            s, e = h.tube_node_start[t], h.tube_node_start[t + 1]
+            k = h.force_node[a]
             ws = np.flatnonzero(build)
             tangent = state_q[ws, min(k + 1, e - 1)] - state_q[ws, max(k - 1, s)]
             tangent = tangent / np.maximum(np.linalg.norm(tangent, axis=-1), 1e-30)[:, None]
@@ -157,9 +157,9 @@ class WorldControl:
             if not len(ws):
                 continue
             offset_dir = across / norm_across[:, None]
-            p0 = h["al_start"][a]
+            p0 = h.al_start[a]
             sl = slice(p0, p0 + e - s)
-            off = self.worlds.host["node_radius"][ws, s:e, None] * offset_dir[:, None, :]
+            off = self.worlds.host.node_radius[ws, s:e, None] * offset_dir[:, None, :]
             x = state_q[ws, s:e]
             xp = x + off
             al_q[ws, sl] = xp

@@ -225,8 +225,8 @@ def _run_alone(scene: Scene, w: int, device: str, frames: int, every: int, surfa
     sim = Simulation(scene, device=device, surface=surface)
     h = sim.model.host
     mpu = scene.stage.meters_per_unit
-    free_mass = (h["node_mass"] * (h["node_inv_mass"] > 0))[None]
-    force_node = np.asarray(h["force_node"], dtype=np.int64)
+    free_mass = (h.node_mass * (h.node_inv_mass > 0))[None]
+    force_node = np.asarray(h.force_node, dtype=np.int64)
     g = scene.settings.gravity
     work, max_disp, simulated, written, reason = 0.0, 0.0, 0, 0, ""
     q = sim.state.node_q.numpy()

@@ -20,11 +20,26 @@ import warp as wp
 from ..model.tube import TubeModel, build_model
 from ..scene.spec import Scene
 
-__all__ = ["Worlds", "build_worlds", "combined_scene"]
+__all__ = ["Worlds", "WorldArrays", "build_worlds", "combined_scene"]
 
-#: host arrays of the combined model that hold one value (or vector) per node
-PER_NODE_HOST = ("node_rest_q", "node_mass", "node_inv_mass", "node_damping", "seg_rest_length", "seg_ke", "seg_kd",
-                 "node_bend_k", "node_kappa_rest", "node_anchor_k", "node_anchor_kd", "node_radius")  # fmt: skip
+
+@dataclass(frozen=True)
+class WorldArrays:
+    """Each world's per-node parameters as NumPy (float64) arrays [SI units], shape (W, N) or
+    (W, N, 3): :class:`warp_tube.model.host.HostArrays`' per-node fields, one row per variant."""
+
+    node_rest_q: np.ndarray  # (W, N, 3) [m]
+    node_mass: np.ndarray  # (W, N) [kg]
+    node_inv_mass: np.ndarray  # (W, N) [1/kg], 0 for pinned nodes
+    node_damping: np.ndarray  # (W, N) [1/s]
+    seg_rest_length: np.ndarray  # (W, N) [m]
+    seg_ke: np.ndarray  # (W, N) [N/m]
+    seg_kd: np.ndarray  # (W, N) [N s/m]
+    node_bend_k: np.ndarray  # (W, N) [N m]
+    node_kappa_rest: np.ndarray  # (W, N, 3) [1]
+    node_anchor_k: np.ndarray  # (W, N) [N/m]
+    node_anchor_kd: np.ndarray  # (W, N) [N s/m]
+    node_radius: np.ndarray  # (W, N) [m]
 
 
 def combined_scene(scenes: list[Scene]) -> Scene:
@@ -45,7 +60,7 @@ class Worlds:
     Attributes:
         scenes: the variants' scenes, one per world.
         model: the model, ``world_count`` = W, parameter arrays (W, N).
-        host: per-world host arrays (float64): name -> (W, N) or (W, N, 3), see :data:`PER_NODE_HOST`.
+        host: each world's per-node parameters, :class:`WorldArrays`.
         prim_start: first node of each tube prim, (prims + 1,) (the last entry: N).
         surfaces: per tube prim a ``SurfaceBuilder`` over the W worlds, or None.
         vertex_start: first surface vertex of each prim in a world's concatenated vertices,
@@ -54,7 +69,7 @@ class Worlds:
 
     scenes: list
     model: TubeModel
-    host: dict
+    host: WorldArrays
     prim_start: np.ndarray
     surfaces: list | None
     vertex_start: np.ndarray | None
@@ -65,7 +80,7 @@ class Worlds:
 
     def rest_q(self) -> np.ndarray:
         """Rest positions [m], (W, N, 3) float64."""
-        return self.host["node_rest_q"]
+        return self.host.node_rest_q
 
 
 def build_worlds(scenes: list[Scene], device: str, surface: bool) -> Worlds:
@@ -82,8 +97,9 @@ def build_worlds(scenes: list[Scene], device: str, surface: bool) -> Worlds:
         if isinstance(value, wp.array) and value.ndim == 2 and value.shape == (1, N):
             per_world[f.name] = getattr(flat, f.name).reshape((W, N))
     model = dataclasses.replace(one, features=flat.features, **per_world)
-    host = {name: flat.host[name].reshape((W, N) + flat.host[name].shape[1:]) for name in PER_NODE_HOST}
-    prim_start = np.append(one.host["prim_node_start"], N)
+    host = WorldArrays(**{f.name: getattr(flat.host, f.name).reshape((W, N) + getattr(flat.host, f.name).shape[1:])
+                          for f in dataclasses.fields(WorldArrays)})  # fmt: skip
+    prim_start = np.append(one.host.prim_node_start, N)
     surfaces = vertex_start = None
     if surface:
         surfaces = _surface_builders(scenes, prim_start, device)

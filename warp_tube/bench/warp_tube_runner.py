@@ -33,7 +33,7 @@ def available():
 def versions() -> dict:
     import warp as wp
 
-    from .. import __version__
+    from ..version import __version__
 
     return {"warp_tube": __version__, "warp-lang": wp.config.version}
 

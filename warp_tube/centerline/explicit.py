@@ -76,7 +76,7 @@ class SemiImplicitEulerSolver:
     def _setup_onchip(self) -> bool:
         """Pack tubes into blocks and build the kernel; False: a tube is too long for a block."""
         m = self.model
-        starts = np.asarray(m.host["tube_node_start"], dtype=np.int64)
+        starts = np.asarray(m.host.tube_node_start, dtype=np.int64)
         longest = int(np.diff(starts).max())
         if longest > MAX_BLOCK_DIM:
             logger.warning("onchip: a tube of %d points exceeds the %d-thread block; using the per-tube kernel", longest, MAX_BLOCK_DIM)

@@ -40,7 +40,7 @@ class ImplicitEulerSolver:
         self.model = model
         self.iterations = int(iterations)
         self.tolerance = float(tolerance)
-        seg = model.host["seg_rest_length"]
+        seg = model.host.seg_rest_length
         self._tol = self.tolerance * float(seg[seg > 0].min()) if (seg > 0).any() else 0.0
         self.device = wp.get_device(model.device)
         lines = model.al_lines if model.features.assistant_line else 0

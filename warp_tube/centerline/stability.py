@@ -24,35 +24,37 @@ import warp as wp
 
 from warp_tube.kernels.springs import StabilityArrays, stability_rows_kernel
 
+from ..model.host import HostArrays
+
 __all__ = ["max_frequency", "critical_time_step", "critical_time_steps"]
 
 
-def _row_sums(host: dict, assistant_line: bool) -> np.ndarray:
+def _row_sums(host: HostArrays, assistant_line: bool) -> np.ndarray:
     """Gershgorin row sums [N/m] of the stiffness, shape (node_count,), from each term's row
     function next to its force (``warp_tube.kernels.springs``: spring_rows, bend_rows, anchor_rows,
     al_rows), evaluated in float64 on the CPU."""
-    start = np.asarray(host["tube_node_start"], dtype=np.int32)
+    start = np.asarray(host.tube_node_start, dtype=np.int32)
     lines = 0
     if assistant_line:
-        lines = max(1, int((np.asarray(host.get("tube_al_force", np.zeros((1, 1)))) >= 0).sum(axis=1).max()))
+        lines = max(1, int((host.tube_al_force >= 0).sum(axis=1).max()))
     fields = StabilityArrays()
     for name in StabilityArrays.vars:
-        setattr(fields, name, wp.array(np.asarray(host[name], dtype=np.float64), dtype=wp.float64, device="cpu"))
-    rows = wp.zeros(len(host["seg_ke"]), dtype=wp.float64, device="cpu")
+        setattr(fields, name, wp.array(np.asarray(getattr(host, name), dtype=np.float64), dtype=wp.float64, device="cpu"))
+    rows = wp.zeros(len(host.seg_ke), dtype=wp.float64, device="cpu")
     wp.launch(stability_rows_kernel, len(start) - 1, device="cpu", inputs=[lines, wp.array(start, dtype=int, device="cpu"), fields], outputs=[rows])
     return rows.numpy()
 
 
-def max_frequency(host: dict, assistant_line: bool = False) -> float:
+def max_frequency(host: HostArrays, assistant_line: bool = False) -> float:
     """Upper bound of the highest natural frequency [rad/s] of the free nodes."""
     rows = _row_sums(host, assistant_line)
-    free = host["node_inv_mass"] > 0
+    free = host.node_inv_mass > 0
     if not free.any():
         return 0.0
-    return float(math.sqrt(np.max(rows[free] * host["node_inv_mass"][free])))
+    return float(math.sqrt(np.max(rows[free] * host.node_inv_mass[free])))
 
 
-def critical_time_step(host: dict, assistant_line: bool = False, spring_damping: float = 0.0) -> float:
+def critical_time_step(host: HostArrays, assistant_line: bool = False, spring_damping: float = 0.0) -> float:
     """Largest stable semi-implicit Euler step [s] (inf when nothing is free or stiff)."""
     w = max_frequency(host, assistant_line)
     if w <= 0.0:
@@ -61,7 +63,7 @@ def critical_time_step(host: dict, assistant_line: bool = False, spring_damping:
     return (2.0 / w) * (math.sqrt(1.0 + z * z) - z)
 
 
-def critical_time_steps(host: dict, parts: int, assistant_line: bool, spring_damping: np.ndarray) -> np.ndarray:
+def critical_time_steps(host: HostArrays, parts: int, assistant_line: bool, spring_damping: np.ndarray) -> np.ndarray:
     """:func:`critical_time_step` [s] of each of ``parts`` equal node ranges of one model at once.
 
     For a model whose nodes are ``parts`` copies of one layout (scenes of one batch group built
@@ -70,7 +72,7 @@ def critical_time_steps(host: dict, parts: int, assistant_line: bool, spring_dam
     nothing free or stiff.
     """
     rows = _row_sums(host, assistant_line)
-    inv_mass = np.asarray(host["node_inv_mass"], dtype=np.float64)
+    inv_mass = np.asarray(host.node_inv_mass, dtype=np.float64)
     rate = np.where(inv_mass > 0, rows * inv_mass, 0.0).reshape(parts, -1)
     w = np.sqrt(np.maximum(rate.max(axis=1), 0.0))
     z = 0.5 * np.asarray(spring_damping, dtype=np.float64) * w

@@ -28,13 +28,16 @@ from dataclasses import dataclass
 import numpy as np
 import warp as wp
 
+from warp_tube.kernels.springs import Features
+
 from ..scene.spec import Scene
 from .frames import least_rotation_quaternions, rotate_minimal
+from .host import HostArrays
 
-__all__ = ["TubeModel", "TubeState", "TubeControl", "build_model", "rest_curvature_coordinates", "rest_curvature_of_curves"]
+__all__ = ["TubeModel", "TubeState", "TubeControl", "HostArrays", "build_model", "first_edge_normal", "rest_curvature_coordinates", "rest_curvature_of_curves"]
 
 
-def _first_edge_normal(t: np.ndarray) -> np.ndarray:
+def first_edge_normal(t: np.ndarray) -> np.ndarray:
     """The fixed perpendicular used for the first edge's rest frame (same as the kernel)."""
     u = np.array([0.0, 1.0, 0.0]) if abs(t[0]) > 0.6 else np.array([1.0, 0.0, 0.0])
     u = u - t * np.dot(u, t)
@@ -136,7 +139,7 @@ def rest_curvature_coordinates(points: np.ndarray) -> np.ndarray:
             each, shape (..., n, 3).
 
     Row ``j`` holds the components of ``kb_j`` along (tangent, u, v) of edge ``j - 1``'s frame; the
-    first frame uses the fixed perpendicular of :func:`_first_edge_normal`, and each later frame is
+    first frame uses the fixed perpendicular of :func:`first_edge_normal`, and each later frame is
     the previous one carried by the least rotation between consecutive edges (parallel transport).
     Rows 0 and n-1 are 0. The transports are composed as quaternion products (a blocked running
     product, :func:`_cumulative_rotations`), so a tube costs O(n) array work and O(sqrt(n)) NumPy
@@ -151,7 +154,7 @@ def rest_curvature_coordinates(points: np.ndarray) -> np.ndarray:
     xc = tuple(np.ascontiguousarray(np.moveaxis(x[..., k], -1, 0)) for k in range(3))
     e = tuple(c[1:] - c[:-1] for c in xc)  # edges, (n - 1, ...)
     t = _scaled(e, 1.0 / np.sqrt(_dot(e, e)))
-    # First frame: the fixed perpendicular of _first_edge_normal, for every tube at once.
+    # First frame: the fixed perpendicular of first_edge_normal, for every tube at once.
     t0 = tuple(c[0] for c in t)
     pick_y = np.abs(t0[0]) > 0.6
     u0 = (np.where(pick_y, 0.0, 1.0), np.where(pick_y, 1.0, 0.0), np.zeros_like(t0[0]))
@@ -257,7 +260,8 @@ class TubeModel:
     """Fixed per run: rest geometry, masses, stiffnesses and topology (see module docstring).
 
     Parameter arrays are (1, node_count); ``world_count`` copies of the scene run side by side.
-    ``host`` keeps NumPy copies (float64) of the same quantities for host-side checks.
+    ``host`` keeps NumPy copies (float64) of the same quantities for host-side code
+    (:class:`warp_tube.model.host.HostArrays`).
     """
 
     device: str
@@ -287,12 +291,12 @@ class TubeModel:
     al_force_index: wp.array  # (al_slots,) int
     al_lines: int  # most assistant lines on one tube, K
     tube_al_force: wp.array  # (tube_count, max(K, 1)) int: the forces with a line on each tube, -1 padded
-    features: object  # kernels.springs.Features
-    host: dict
+    features: Features  # which force terms the scene uses
+    host: HostArrays  # NumPy (float64) copies of the above, for host-side code
 
     def state(self) -> TubeState:
         """A new state at rest."""
-        q = np.repeat(self.host["node_rest_q"][None], self.world_count, axis=0)
+        q = np.repeat(self.host.node_rest_q[None], self.world_count, axis=0)
         hi = q.astype(np.float32)
         shape_al = (self.world_count, max(self.al_slots, 1))
         # The low-order part starts at the rounding of the rest positions, so the compensated
@@ -308,7 +312,7 @@ class TubeModel:
 
     def control(self) -> TubeControl:
         """A new control: no forces, pins at rest, no assistant line."""
-        q = np.repeat(self.host["node_rest_q"][None], self.world_count, axis=0)
+        q = np.repeat(self.host.node_rest_q[None], self.world_count, axis=0)
         shape_al = (self.world_count, max(self.al_slots, 1))
         z = lambda: wp.zeros(shape_al, dtype=float, device=self.device)  # noqa: E731
         return TubeControl(
@@ -325,8 +329,6 @@ class TubeModel:
 
 def build_model(scene: Scene, world_count: int = 1, device=None) -> TubeModel:
     """Discretise ``scene`` into a :class:`TubeModel` on ``device`` (Warp device or name)."""
-    from warp_tube.kernels.springs import Features
-
     device = str(wp.get_device(device))
     pts, tube_start, node_tube = [], [0], []
     mass, inv_mass, damping, rest_len, ke, kd, bend_k, kappa, anchor_k, anchor_kd, radius = ([] for _ in range(11))
@@ -380,7 +382,7 @@ def build_model(scene: Scene, world_count: int = 1, device=None) -> TubeModel:
             t_index += 1
             tube_start.append(tube_start[-1] + cn)
     cat = lambda a: np.concatenate(a)  # noqa: E731
-    host = dict(
+    per_node = dict(
         node_rest_q=cat(pts), node_mass=cat(mass), node_inv_mass=cat(inv_mass), node_damping=cat(damping),
         seg_rest_length=cat(rest_len), seg_ke=cat(ke), seg_kd=cat(kd), node_bend_k=cat(bend_k),
         node_kappa_rest=cat(kappa), node_anchor_k=cat(anchor_k), node_anchor_kd=cat(anchor_kd), node_radius=cat(radius),
@@ -392,11 +394,10 @@ def build_model(scene: Scene, world_count: int = 1, device=None) -> TubeModel:
     for f in scene.forces:
         spec = scene.tubes[f.tube]
         c = int(np.searchsorted(spec.curve_starts, f.point, side="right") - 1)
-        t = int(host["node_tube"][prim_node_start[f.tube] + spec.curve_starts[c]])
+        t = int(per_node["node_tube"][prim_node_start[f.tube] + spec.curve_starts[c]])
         tube_of_force.append(t)
         node_of_force.append(prim_node_start[f.tube] + f.point)
     order = np.argsort(np.asarray(tube_of_force, dtype=np.int64), kind="stable")
-    host["force_order"] = order  # scene force index of each model force
     force_tube = np.asarray(tube_of_force, dtype=np.int64)[order] if len(order) else np.zeros(0, np.int64)
     force_node = np.asarray(node_of_force, dtype=np.int64)[order] if len(order) else np.zeros(0, np.int64)
     tube_force_start = np.searchsorted(force_tube, np.arange(t_index + 1)) if len(order) else np.zeros(t_index + 1, np.int64)
@@ -413,17 +414,18 @@ def build_model(scene: Scene, world_count: int = 1, device=None) -> TubeModel:
     tube_al_force = np.full((t_index, max(al_lines, 1)), -1, dtype=np.int64)
     for t, v in enumerate(lines):
         tube_al_force[t, : len(v)] = v
-    host.update(force_tube=force_tube, force_node=force_node, tube_force_start=tube_force_start,
-                al_start=np.asarray(al_start, dtype=np.int64), force_uses_al=np.asarray(uses_al, dtype=bool),
-                tube_al_force=tube_al_force)  # fmt: skip
+    host = HostArrays(**per_node, force_order=order, force_tube=force_tube, force_node=force_node,
+                      tube_force_start=np.asarray(tube_force_start, dtype=np.int64),
+                      al_start=np.asarray(al_start, dtype=np.int64), force_uses_al=np.asarray(uses_al, dtype=bool),
+                      tube_al_force=tube_al_force)  # fmt: skip
     g = scene.settings.gravity
     features = Features(
-        bending=bool((host["node_bend_k"] > 0).any()),
+        bending=bool((host.node_bend_k > 0).any()),
         curved=curved,
-        anchors=bool((host["node_anchor_k"] > 0).any()),
+        anchors=bool((host.node_anchor_k > 0).any()),
         gravity=g is not None and any(v != 0.0 for v in g),
-        mass_damping=bool((host["node_damping"] > 0).any()),
-        spring_damping=bool((host["seg_kd"] > 0).any() or (host["node_anchor_kd"] > 0).any()),
+        mass_damping=bool((host.node_damping > 0).any()),
+        spring_damping=bool((host.seg_kd > 0).any() or (host.node_anchor_kd > 0).any()),
         external=len(scene.forces) > 0,
         assistant_line=slot > 0,
     )
@@ -438,12 +440,12 @@ def build_model(scene: Scene, world_count: int = 1, device=None) -> TubeModel:
     return TubeModel(
         device=device, world_count=int(world_count), node_count=int(n_nodes), tube_count=t_index,
         force_count=len(order), al_slots=slot,
-        tube_node_start=ints(tube_start), node_tube=ints(host["node_tube"]),
-        node_rest_q=row(host["node_rest_q"], wp.vec3), node_mass=row(host["node_mass"]),
-        node_inv_mass=row(host["node_inv_mass"]), node_damping=row(host["node_damping"]),
-        seg_rest_length=row(host["seg_rest_length"]), seg_ke=row(host["seg_ke"]), seg_kd=row(host["seg_kd"]),
-        node_bend_k=row(host["node_bend_k"]), node_kappa_rest=row(host["node_kappa_rest"], wp.vec3),
-        node_anchor_k=row(host["node_anchor_k"]), node_anchor_kd=row(host["node_anchor_kd"]),
+        tube_node_start=ints(tube_start), node_tube=ints(host.node_tube),
+        node_rest_q=row(host.node_rest_q, wp.vec3), node_mass=row(host.node_mass),
+        node_inv_mass=row(host.node_inv_mass), node_damping=row(host.node_damping),
+        seg_rest_length=row(host.seg_rest_length), seg_ke=row(host.seg_ke), seg_kd=row(host.seg_kd),
+        node_bend_k=row(host.node_bend_k), node_kappa_rest=row(host.node_kappa_rest, wp.vec3),
+        node_anchor_k=row(host.node_anchor_k), node_anchor_kd=row(host.node_anchor_kd),
         gravity=wp.vec3(*(g if g is not None else (0.0, 0.0, 0.0))),
         tube_force_start=ints(tube_force_start), force_node=ints(force_node), force_tube=ints(force_tube),
         al_start=ints(al_start), al_force_index=ints(al_force_index), al_lines=al_lines,

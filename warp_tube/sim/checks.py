@@ -61,12 +61,12 @@ class FrameChecks:
         # One runaway distance for the launch: the smallest group's; a group whose own limit is
         # larger is re-checked against it on the host (rare: only when something is that far).
         self.limits = RUNAWAY_LENGTHS * np.maximum(self.extent, 1e-9)
-        self.free_mass = h["node_mass"] * (h["node_inv_mass"] > 0)
+        self.free_mass = h.node_mass * (h.node_inv_mass > 0)
         self.gravity = np.zeros(3) if gravity is None else np.asarray(gravity, dtype=np.float64)
         d = self.device
         self._group = wp.array(group, dtype=int, device=d)
         self._free_mass = wp.array(self.free_mass, dtype=float, device=d)
-        self._rest = wp.array(h["node_rest_q"], dtype=wp.vec3, device=d)
+        self._rest = wp.array(h.node_rest_q, dtype=wp.vec3, device=d)
         self._sums = wp.zeros((W, G), dtype=wp.vec3, device=d)
         self._launches = {}
         #: work of the forces and gravity so far [J], per (world, group), float64
@@ -121,7 +121,7 @@ class FrameChecks:
             finite = np.isfinite(x).all(axis=1) & np.isfinite(qd[nodes]).all(axis=1)
             if not finite.all():
                 return Failure(g, w, int(nodes[np.argmin(finite)]), "non-finite positions")
-            dist = np.linalg.norm(x - self.model.host["node_rest_q"][nodes], axis=1)
+            dist = np.linalg.norm(x - self.model.host.node_rest_q[nodes], axis=1)
             if dist.max() > self.limits[g]:
                 return Failure(g, w, int(nodes[np.argmax(dist)]), f"a point more than {RUNAWAY_LENGTHS:g} tube lengths from rest")
             # Beyond the launch's limit but within this group's own: not a failure by itself.
@@ -130,5 +130,5 @@ class FrameChecks:
             if not ke > budget:
                 return None
         v = qd[nodes]
-        hot = int(np.argmax(np.einsum("nk,nk->n", v, v) * self.model.host["node_mass"][nodes]))
+        hot = int(np.argmax(np.einsum("nk,nk->n", v, v) * self.model.host.node_mass[nodes]))
         return Failure(g, w, int(nodes[hot]), "kinetic energy beyond the work the forces did (a blow-up)")

@@ -43,7 +43,7 @@ class FrameControl:
         self._force_override: dict[int, np.ndarray] = {}
         self._pin_override: dict[int, np.ndarray] = {}
         self._al_dir = np.zeros((model.force_count, 3))
-        prim_start = model.host["prim_node_start"]
+        prim_start = model.host.prim_node_start
         self.pinned_nodes = [prim_start[k] + t.pinned for k, t in enumerate(scene.tubes)]
 
     @property
@@ -115,7 +115,7 @@ class FrameControl:
     # -- per frame -------------------------------------------------------------------------------
     def forces_at(self, t: float) -> np.ndarray:
         """Force of each model force (model order) at time t [s] [N], shape (force_count, 3)."""
-        order = self.model.host["force_order"]
+        order = self.model.host.force_order
         out = np.zeros((len(order), 3))
         for a, k in enumerate(order):
             out[a] = self._force_override.get(int(k), None) if int(k) in self._force_override else self.scene.forces[k].at(t)
@@ -129,7 +129,7 @@ class FrameControl:
         if m.force_count:
             f = self.forces_at((frame + 0.5) * self.frame_dt)
             fe = np.zeros((m.node_count, 3))
-            np.add.at(fe, m.host["force_node"], f)
+            np.add.at(fe, m.host.force_node, f)
             c.node_f_ext.assign(np.repeat(fe[None], W, axis=0))
             if m.features.assistant_line:
                 self._update_assistant_lines(f, state)
@@ -151,7 +151,7 @@ class FrameControl:
         changed = False
         state_q = state_qd = None
         for a in range(m.force_count):
-            if not h["force_uses_al"][a]:
+            if not h.force_uses_al[a]:
                 continue
             mag = float(np.linalg.norm(f[a]))
             if mag == 0.0:
@@ -167,10 +167,10 @@ class FrameControl:
                 state_qd = state.node_qd.numpy()
                 al_q, al_qd = state.al_q.numpy().astype(np.float64), state.al_qd.numpy()
                 lens = {n: getattr(c, n).numpy() for n in ("al_link_length", "al_chord_length", "al_fwd_length", "al_bwd_length")}
-            t = h["force_tube"][a]
-            s, e = h["tube_node_start"][t], h["tube_node_start"][t + 1]
+            t = h.force_tube[a]
+            s, e = h.tube_node_start[t], h.tube_node_start[t + 1]
             # Offset towards the push: the force's part across the tube at its point (world 0).
-            k = h["force_node"][a]
+            k = h.force_node[a]
             tangent = state_q[0, min(k + 1, e - 1)] - state_q[0, max(k - 1, s)]
             tangent = tangent / max(np.linalg.norm(tangent), 1e-30)
             across = d - np.dot(d, tangent) * tangent
@@ -181,9 +181,9 @@ class FrameControl:
                     changed = True
                 continue
             offset_dir = across / np.linalg.norm(across)
-            p0 = h["al_start"][a]
+            p0 = h.al_start[a]
             sl = slice(p0, p0 + e - s)
-            off = h["node_radius"][s:e, None] * offset_dir[None]
+            off = h.node_radius[s:e, None] * offset_dir[None]
             # Positions in float64 (compensated: float32 + low-order part), so the line is built
             # unstrained in the kernels' arithmetic.
             x = state_q[:, s:e]

@@ -28,17 +28,18 @@ class ContactMonitor:
     """Finds contacts between distant parts of a model's tubes, in one world.
 
     Args:
-        host: the TubeModel's host dict (rest positions ``node_rest_q`` [m], ``node_radius`` [m],
-            ``tube_node_start``).
+        rest_q: rest positions [m], shape (node_count, 3).
+        radius: tube radius at each node [m], shape (node_count,).
+        tube_node_start: first node of each tube, shape (tube_count + 1,) int.
         device: the Warp device of the positions.
         node_group: (node,) int group of each node (default: all one group).
     """
 
-    def __init__(self, host: dict, device="cpu", node_group=None):
-        rest = host["node_rest_q"]
-        start = host["tube_node_start"]
+    def __init__(self, rest_q, radius, tube_node_start, device="cpu", node_group=None):
+        rest = np.asarray(rest_q, dtype=np.float64)
+        start = np.asarray(tube_node_start, dtype=np.int64)
         n = len(rest)
-        self.radius = host["node_radius"]
+        self.radius = np.asarray(radius, dtype=np.float64)
         self.tube = np.repeat(np.arange(len(start) - 1), np.diff(start))
         seg = np.linalg.norm(np.diff(rest, axis=0), axis=1)
         arc = np.concatenate([[0.0], np.cumsum(seg)])

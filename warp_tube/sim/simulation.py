@@ -185,18 +185,18 @@ class Simulation:
         self.controls = FrameControl(scene, m, self.control)
         self.frame = 0
         self.warnings: list[str] = []
-        self._prim_start = m.host["prim_node_start"]
+        self._prim_start = m.host.prim_node_start
         self._prim_count = [len(t.points) for t in scene.tubes]
         self.surfaces = self._build_surfaces() if surface else None
         self._world_q = None  # one world's positions for the surface builders, (1, node_count)
-        self._contacts = ContactMonitor(m.host, device=self.device)
+        self._contacts = ContactMonitor(m.host.node_rest_q, m.host.node_radius, m.host.tube_node_start, device=self.device)
         self._contact_reported = False
         self._retry = self.scene.settings.integrator == "auto"
         extent = max(float(np.ptp(t.points, axis=0).max()) for t in scene.tubes)
         # float32 round-off moves points by ~1e-7 of their coordinates; springs strained that much
         # (with a 10x margin) hold the energy below which nothing counts as a blow-up.
-        scale = max(extent, float(np.abs(m.host["node_rest_q"]).max()), 1e-9)
-        energy_floor = float(np.sum(m.host["seg_ke"])) * (1e-6 * scale) ** 2 + 1e-30
+        scale = max(extent, float(np.abs(m.host.node_rest_q).max()), 1e-9)
+        energy_floor = float(np.sum(m.host.seg_ke)) * (1e-6 * scale) ** 2 + 1e-30
         gravity = scene.settings.gravity if m.features.gravity else None
         self.checks = FrameChecks(m, extent=extent, energy_floor=energy_floor, gravity=gravity)
         self.retried_frames = 0
@@ -351,7 +351,7 @@ class Simulation:
     def max_displacement(self) -> float:
         """Largest distance of a point from its rest position [m]."""
         q = self.state.node_q.numpy()
-        return float(np.linalg.norm(q - self.model.host["node_rest_q"][None], axis=-1).max())
+        return float(np.linalg.norm(q - self.model.host.node_rest_q[None], axis=-1).max())
 
     # -- whole runs ------------------------------------------------------------------------------
     def run(self, frames: int | None = None, output: str | None = None, progress=None, every: int = 1) -> RunSummary:
