@@ -1,6 +1,6 @@
 """Centerline speed, with the error of the same discretisation beside it. Prints JSON.
 
-    python benchmarks/bench_centerline.py [--device cpu|cuda:0] [--reps 7] [--worlds 65536] [--points 32] [--batch-only]
+    python benchmarks/bench_centerline.py [--device cpu|cuda:0] [--reps 7] [--worlds 65536] [--points 32] [--batch-only] [--breakdown]
 
 On the GPU machine (H100 or H200), the issue's figures::
 
@@ -19,9 +19,12 @@ Cases (each timed after a warm-up; medians of ``--reps`` repetitions, all in one
   on-chip kernel (the default on CUDA: a frame in one launch, each block keeping whole tubes in
   registers and shared memory; on the CPU it runs on cooperative fibers, a correctness path, slow);
   both at the same substeps per launch; hub-steps per second and ``all_features_over_minimal``,
-  the ratio of their times per substep. On CUDA also at 64, 256 and 512 threads per block.
+  the ratio of their times per substep. On CUDA also at 32, 64, 256 and 512 threads per block.
 - ``batch_per_tube_minimal`` / ``_all_features``: the same batches on the per-tube kernel (the CPU
   path; on CUDA the path of tubes longer than a block).
+- ``batch_onchip_only_<feature>`` / ``batch_onchip_without_<feature>`` (``--breakdown``): the
+  on-chip batch with one feature of :data:`FEATURES` alone and with all but that one, each with
+  ``over_minimal`` (its time per substep over the minimal batch's): what each feature costs.
 - ``bound``: what the on-chip kernel is judged against (see :func:`bound`): global-memory bytes per
   hub-step (the state and parameters are read and the state written once a frame), float32
   operations per hub-step (a count of the kernel's arithmetic, FMA = 2), shared-memory exchanges
@@ -59,22 +62,38 @@ E, RHO, R = 1.0e6, 1000.0, 0.02
 PEAKS = {"H100": (67.0e12, 3.35e12), "H200": (67.0e12, 4.8e12)}
 
 
-def tube(n_points, curved=False, extras=False, length=1.0):
+#: the features the all-features case turns on; ``--breakdown`` times each alone and each left out
+FEATURES = ("curved", "anchors", "gravity", "mass_damping", "spring_damping", "assistant_line")
+
+
+def _features(extras) -> frozenset:
+    """``extras``: True (every feature), False (none) or an iterable of names from FEATURES."""
+    if extras is True:
+        return frozenset(FEATURES)
+    return frozenset(extras or ())
+
+
+def tube(n_points, extras=False, length=1.0):
+    f = _features(extras)
     s = np.linspace(0.0, length, n_points)
-    pts = np.stack([s, 0.1 * np.sin(2 * s) if curved else 0 * s, 0 * s], axis=1)
+    pts = np.stack([s, 0.1 * np.sin(2 * s) if "curved" in f else 0 * s, 0 * s], axis=1)
     params = TubeParams(
-        density=RHO, youngs_modulus=E, damping=1.0 if extras else 0.0, spring_damping=1e-4 if extras else 0.0,
-        anchor_stiffness=100.0 if extras else 0.0,
+        density=RHO, youngs_modulus=E, damping=1.0 if "mass_damping" in f else 0.0,
+        spring_damping=1e-4 if "spring_damping" in f else 0.0, anchor_stiffness=100.0 if "anchors" in f else 0.0,
     )  # fmt: skip
     return TubeSpec("/World/Tube", pts, [n_points], np.full(n_points, R), params, pinned=[0, 1],
-                    anchors=[n_points // 2] if extras else [])  # fmt: skip
+                    anchors=[n_points // 2] if "anchors" in f else [])  # fmt: skip
 
 
 def scene(n_points, extras=False, fps=60.0):
-    forces = (ForceSpec("/World/Push", 0, n_points - 3, [0.0], [[0.0, 0.0, 0.01]], assistant_line=True),) if extras else ()
+    """A clamped tube; ``extras`` as in :func:`_features` (a pushed point with its assistant line
+    for "assistant_line")."""
+    f = _features(extras)
+    push = ForceSpec("/World/Push", 0, n_points - 3, [0.0], [[0.0, 0.0, 0.01]], assistant_line=True)
+    forces = (push,) if "assistant_line" in f else ()
     stage = StageInfo(meters_per_unit=1.0, time_codes_per_second=fps, frames_per_second=fps, end_time_code=fps)
-    settings = SimulationSettings(gravity=(0.0, -9.81, 0.0)) if extras else SimulationSettings()
-    return Scene((tube(n_points, curved=extras, extras=extras),), forces, settings=settings, stage=stage)
+    settings = SimulationSettings(gravity=(0.0, -9.81, 0.0)) if "gravity" in f else SimulationSettings()
+    return Scene((tube(n_points, extras=f),), forces, settings=settings, stage=stage)
 
 
 def timed(fn, reps, sync):
@@ -94,7 +113,7 @@ def substep_case(device, n_points, extras, reps, worlds=1, substeps=None, block_
     solver = SemiImplicitEulerSolver(sim.model, block_dim=block_dim, onchip=onchip)
     n = substeps or sim.substeps
     s0, s1 = sim.state, sim.next_state
-    if extras:
+    if extras is True:
         assert all(sim.model.features) and sim.control.al_active.numpy().all()
 
     def run():
@@ -198,6 +217,8 @@ def main():
     ap.add_argument("--worlds", type=int, default=None, help="batch size (default 65536 on CUDA, 256 on CPU)")
     ap.add_argument("--points", type=int, default=32, help="points per tube in the batch cases")
     ap.add_argument("--batch-only", action="store_true", help="only the batch cases and the bound")
+    ap.add_argument("--breakdown", action="store_true",
+                    help="also the on-chip batch with each feature alone and with each left out")
     a = ap.parse_args()
     wp.init()
     device = a.device or ("cuda:0" if wp.get_cuda_device_count() else "cpu")
@@ -223,12 +244,19 @@ def main():
             res[f"batch_{kernel}_{name}"] = cases[name]
         res[f"batch_{kernel}_all_features_over_minimal"] = cases["all_features"]["time_per_substep_us"] / cases["minimal"]["time_per_substep_us"]
         if dev.is_cuda and onchip:
-            for bd in (64, 256, 512):
+            for bd in (32, 64, 256, 512):
                 for name, extras in (("minimal", False), ("all_features", True)):
                     try:  # a block size the device cannot launch is reported, not fatal
                         res[f"batch_onchip_{name}_block{bd}"] = substep_case(device, P, extras, a.reps, worlds=worlds, substeps=n, block_dim=bd, onchip=True)
                     except Exception as e:  # noqa: BLE001
                         res[f"batch_onchip_{name}_block{bd}"] = {"error": f"{type(e).__name__}: {e}"}
+    if a.breakdown:
+        base = res["batch_onchip_minimal"]["time_per_substep_us"]
+        for feat in FEATURES:
+            for label, feats in (("only", {feat}), ("without", set(FEATURES) - {feat})):
+                c = substep_case(device, P, feats, a.reps, worlds=worlds, substeps=n, onchip=True)
+                c["over_minimal"] = c["time_per_substep_us"] / base
+                res[f"batch_onchip_{label}_{feat}"] = c
     rounds = math.ceil(math.log2(P))
     res["bound"] = b = bound(dev.name, n, n, 2 + 2 * (1 + rounds))
     if "bound_hub_steps_per_s" in b:
