@@ -6,10 +6,10 @@ ends with its documented exit status (or exception, for the API), raises no trac
 usd-core/Warp C++ text, leaves every file in the folder byte for byte as it was, and creates no
 file but the ones it is allowed to (``creates``).
 
-``tests/test_bad_inputs.py`` runs every case in the normal suite and checks that the README's
-table is this list's output. To refresh the table after changing a message::
+``tests/test_bad_inputs.py`` runs every case in the normal suite and checks that the table in
+BAD_INPUTS.md is this list's output. To refresh the table after changing a message::
 
-    .venv/bin/python -m tests.bad_inputs --write README.md      # or without --write: print it
+    .venv/bin/python -m tests.bad_inputs --write BAD_INPUTS.md  # or without --write: print it
 """
 
 from __future__ import annotations
@@ -456,7 +456,7 @@ def run_all(selected=None) -> list[Result]:
 
 
 def table(results: list[Result]) -> str:
-    """The README's table: command, case, exit status (or exception), message."""
+    """The BAD_INPUTS.md table: command, case, exit status (or exception), message."""
     rows = ["| command | case | exit status | message |", "|---|---|---|---|"]
     for r in results:
         msg = r.message.removeprefix("warp-tube: ").replace("|", "\\|")
@@ -466,7 +466,7 @@ def table(results: list[Result]) -> str:
 
 
 def readme_table(readme: str) -> str:
-    """The table between the README's markers."""
+    """The table between the markers of BAD_INPUTS.md."""
     start, end = readme.index(TABLE_START) + len(TABLE_START), readme.index(TABLE_END)
     return readme[start:end].strip()
 
@@ -476,8 +476,8 @@ def main(argv=None) -> int:
     import warp as wp
 
     wp.config.log_level = wp.LOG_WARNING
-    p = argparse.ArgumentParser(description="Run every bad-input case and print (or write) the README table.")
-    p.add_argument("--write", metavar="README", help="replace the table between the markers in this file")
+    p = argparse.ArgumentParser(description="Run every bad-input case and print (or write) the BAD_INPUTS.md table.")
+    p.add_argument("--write", metavar="BAD_INPUTS.md", help="replace the table between the markers in this file")
     a = p.parse_args(argv)
     results = run_all()
     text = table(results)

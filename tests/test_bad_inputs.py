@@ -1,5 +1,5 @@
 """Every case of tests/bad_inputs.py: its exit status (or exception), no traceback, no C++ text, no
-repeated ``file: prim:`` prefix, no file lost or left behind; and the README's table is their output."""
+repeated ``file: prim:`` prefix, no file lost or left behind; and the table in BAD_INPUTS.md is their output."""
 
 import pytest
 
@@ -38,12 +38,12 @@ def _rows(text):
 
 
 def test_readme_table_is_the_output_of_the_cases(results):
-    readme = bi.readme_table((ROOT / "README.md").read_text())
+    readme = bi.readme_table((ROOT / "BAD_INPUTS.md").read_text())
     generated = bi.table(results)
-    hint = "refresh it: .venv/bin/python -m tests.bad_inputs --write README.md"
+    hint = "refresh it: .venv/bin/python -m tests.bad_inputs --write BAD_INPUTS.md"
     got, want = _rows(readme), _rows(generated)
     assert len(got) == len(want), hint
     for case, g, w in zip(CASES, got, want):
         if case.machine:  # e.g. the number of CUDA devices found
             g, w = g[:3], w[:3]
-        assert g == w, f"{case.command}: {case.what}: README {g} != {w}; {hint}"
+        assert g == w, f"{case.command}: {case.what}: BAD_INPUTS.md {g} != {w}; {hint}"

@@ -106,7 +106,7 @@ def test_switch_to_implicit_is_reported_once_and_the_run_finishes(tmp_cwd, capsy
 
 
 def test_a_force_beyond_the_runaway_limit_stops_even_implicit_euler(tmp_cwd, capsys):
-    # 1e6 N is 32,000 EA: it stretches the tube far beyond 1,000 tube lengths (README, "Integrators,
+    # 1e6 N is 32,000 EA: it stretches the tube far beyond 1,000 tube lengths (docs/MODEL.md, "Integrators,
     # stability and failures"); the run stops with exit 3 after implicit Euler took over.
     (tmp_cwd / "blow.usda").write_text(scene(("24: (0, 0.02, 0)", "24: (0, 1e6, 0)"), ("assistantLine = true", "assistantLine = false"),
                                              ("endTimeCode = 2", "endTimeCode = 8")))  # fmt: skip
