@@ -25,6 +25,8 @@ Cases (each timed after a warm-up; medians of ``--reps`` repetitions, all in one
 - ``batch_onchip_only_<feature>`` / ``batch_onchip_without_<feature>`` (``--breakdown``): the
   on-chip batch with one feature of :data:`FEATURES` alone and with all but that one, each with
   ``over_minimal`` (its time per substep over the minimal batch's): what each feature costs.
+- On CUDA each on-chip case also gives its kernel's ``register_count`` (per thread) and
+  ``local_memory_size`` (bytes per thread: spilled registers and register arrays in local memory).
 - ``bound``: what the on-chip kernel is judged against (see :func:`bound`): global-memory bytes per
   hub-step (the state and parameters are read and the state written once a frame), float32
   operations per hub-step (a count of the kernel's arithmetic, FMA = 2), shared-memory exchanges
@@ -121,12 +123,16 @@ def substep_case(device, n_points, extras, reps, worlds=1, substeps=None, block_
 
     run()
     med, all_t = timed(run, reps, lambda: wp.synchronize_device(device))
+    resources = {}
+    if solver.onchip and wp.get_device(device).is_cuda:
+        # registers per thread and bytes of local memory per thread (spilled registers, arrays)
+        resources = wp.get_cuda_kernel_properties(solver.onchip_kernel, device, solver.onchip_block_dim)
     return {
         "worlds": worlds, "points": n_points, "substeps_per_launch": n, "dt_s": sim.dt,
         "onchip_kernel": solver.onchip, "block_dim": solver.onchip_block_dim,
         "time_per_substep_us": med / n * 1e6,
         "hub_steps_per_s": worlds * sim.model.node_count * n / med,
-        "reps_s": all_t,
+        "reps_s": all_t, **resources,
     }  # fmt: skip
 
 

@@ -66,9 +66,11 @@ MAX_BLOCK_DIM = 1024
 
 
 @functools.cache
-def make_onchip_kernel(features: Features, block_dim: int, al_lines: int = 0):
+def make_onchip_kernel(features: Features, block_dim: int, al_lines: int = 0, max_registers: int | None = None):
     """The on-chip substep kernel for ``features``, ``block_dim`` threads per block and at most
-    ``al_lines`` assistant lines per tube; cached."""
+    ``al_lines`` assistant lines per tube; cached. ``max_registers`` caps the registers per thread
+    on CUDA (more blocks resident per multiprocessor, at the price of spills); None: the compiler's
+    choice."""
     features = Features(*(bool(v) for v in features))
     if not 1 <= block_dim <= MAX_BLOCK_DIM:
         raise ValueError(f"block_dim must be in [1, {MAX_BLOCK_DIM}], got {block_dim}")
@@ -112,7 +114,7 @@ def make_onchip_kernel(features: Features, block_dim: int, al_lines: int = 0):
             return get3(e, off + 6)
         return wp.vec3(0.0)
 
-    @wp.kernel(enable_backward=False, module="unique", module_options=CUDA_OPTIONS)
+    @wp.kernel(enable_backward=False, module="unique", module_options=CUDA_OPTIONS, cuda_max_registers=max_registers)
     def substeps_onchip(
         substep_count: int,
         dt: float,

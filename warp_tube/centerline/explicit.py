@@ -38,6 +38,14 @@ __all__ = ["SemiImplicitEulerSolver", "ONCHIP_BLOCK_DIM", "MAX_BLOCK_DIM"]
 #: 65,536 tubes x 32 points)
 ONCHIP_BLOCK_DIM = 128
 
+#: registers per thread the on-chip kernel is held to on CUDA where the compiler would take more:
+#: fewer registers let more blocks share a multiprocessor, at the price of spills to local memory.
+#: H100, 65,536 x 32-point tubes with every feature: 203 -> 128 registers (264 bytes spilled a
+#: thread), 212 -> 156 us a substep; the assistant line alone 141 -> 128, 57 -> 50 us. A kernel
+#: that fits is left as compiled (holding the minimal kernel, 88 registers, to 128 made it 7%
+#: slower). `benchmarks/bench_centerline.py` reports each case's registers and spills.
+ONCHIP_MAX_REGISTERS = 128
+
 logger = logging.getLogger(__name__)
 
 
@@ -99,10 +107,22 @@ class SemiImplicitEulerSolver:
         self._onchip_group = wp.array(group.astype(np.int32), dtype=int, device=self.device)
         lines = m.al_lines if m.features.assistant_line else 0
         self.onchip_kernel = make_onchip_kernel(m.features, block, lines)
+        self._onchip_lines = lines
+        self._onchip_registers_checked = not self.device.is_cuda
         return True
+
+    def _hold_registers(self) -> None:
+        """On the first launch outside a graph capture (where the kernel compiles anyway): swap in
+        the variant held to :data:`ONCHIP_MAX_REGISTERS` if the compiler gave the kernel more."""
+        self._onchip_registers_checked = True
+        props = wp.get_cuda_kernel_properties(self.onchip_kernel, self.device, self.onchip_block_dim)
+        if props["register_count"] > ONCHIP_MAX_REGISTERS:
+            self.onchip_kernel = make_onchip_kernel(self.model.features, self.onchip_block_dim, self._onchip_lines, max_registers=ONCHIP_MAX_REGISTERS)
 
     def _launch_onchip(self, s_in: TubeState, s_out: TubeState, c: TubeControl, dt: float, substeps: int):
         m = self.model
+        if not self._onchip_registers_checked and not self.device.is_capturing:
+            self._hold_registers()
         with cpu_blocks():  # on the CPU a block's threads are fibers (opt-in)
             wp.launch_tiled(
                 self.onchip_kernel, dim=self._onchip_dim, block_dim=self.onchip_block_dim, device=self.device,
