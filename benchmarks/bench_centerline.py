@@ -1,6 +1,6 @@
 """Centerline speed, with the error of the same discretisation beside it. Prints JSON.
 
-    python benchmarks/bench_centerline.py [--device cpu|cuda:0] [--reps 7] [--worlds 65536] [--points 32] [--batch-only] [--breakdown]
+    python benchmarks/bench_centerline.py [--device cpu|cuda:0] [--reps 7] [--worlds 65536] [--points 32] [--batch-only] [--breakdown] [--max-registers N]
 
 On the GPU machine (H100 or H200), the issue's figures::
 
@@ -51,6 +51,7 @@ import warp as wp
 wp.config.log_level = wp.LOG_WARNING  # stdout carries the JSON only: no banner, no module messages
 
 from warp_tube.bench.references import elastica_tip
+from warp_tube.centerline import explicit
 from warp_tube.centerline.explicit import SemiImplicitEulerSolver
 from warp_tube.centerline.stability import critical_time_step
 from warp_tube.model.tube import build_model
@@ -225,7 +226,12 @@ def main():
     ap.add_argument("--batch-only", action="store_true", help="only the batch cases and the bound")
     ap.add_argument("--breakdown", action="store_true",
                     help="also the on-chip batch with each feature alone and with each left out")
+    ap.add_argument("--max-registers", type=int, default=None,
+                    help="hold the on-chip kernel to this many registers a thread where it takes more "
+                         "(default: warp_tube.centerline.explicit.ONCHIP_MAX_REGISTERS; 255: as compiled)")
     a = ap.parse_args()
+    if a.max_registers is not None:
+        explicit.ONCHIP_MAX_REGISTERS = a.max_registers
     wp.init()
     device = a.device or ("cuda:0" if wp.get_cuda_device_count() else "cpu")
     dev = wp.get_device(device)
