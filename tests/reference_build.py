@@ -3,7 +3,8 @@ for the tests (same results to round-off, see tests/test_build_vectorised.py).
 
 ``rest_curvature_coordinates_loop``: one tube's rest curvature binormals in its Bishop frames, the
 frame carried point by point with ``rotate_minimal``. ``build_topology_loop``: the surface
-topology built tube by tube and strip by strip.
+topology built tube by tube and strip by strip. ``node_parameters_loop``: the model's per-node
+masses, stiffnesses and damping built curve by curve.
 """
 
 from __future__ import annotations
@@ -13,7 +14,7 @@ import math
 import numpy as np
 
 from warp_tube.model.frames import rotate_minimal
-from warp_tube.model.tube import first_edge_normal, curvature_binormal
+from warp_tube.model.tube import curvature_binormal, first_edge_normal, rest_curvature_of_curves
 from warp_tube.surface.topology import RING_BODY, RING_CAP, RING_POLE, SurfaceTopology, cap_ring_count
 
 
@@ -172,3 +173,67 @@ def build_topology_loop(
         ring_sin=np.concatenate(ring_sin).astype(np.float32),
         ring_vertex=np.concatenate(ring_vertex).astype(np.int32),
     )
+
+
+def node_parameters_loop(scene):
+    """The per-node arrays of :func:`warp_tube.model.tube.node_parameters`, built curve by curve
+    (a few dozen NumPy calls per curve): (dict of arrays, curved)."""
+    pts, tube_start, node_tube = [], [0], []
+    mass, inv_mass, damping, rest_len, ke, kd, bend_k, kappa, anchor_k, anchor_kd, radius = ([] for _ in range(11))
+    prim_node_start = []
+    curved = False
+    t_index = 0
+    curve_kappa = iter(rest_curvature_of_curves(
+        [spec.points[c0 : c0 + cn] for spec in scene.tubes for c0, cn in zip(spec.curve_starts, spec.curve_counts)]))  # fmt: skip
+    for spec in scene.tubes:
+        prim_node_start.append(tube_start[-1])
+        p = spec.params
+        pinned = np.zeros(len(spec.points), dtype=bool)
+        pinned[spec.pinned] = True
+        anchored = np.zeros(len(spec.points), dtype=bool)
+        anchored[spec.anchors] = True
+        for c0, cn in zip(spec.curve_starts, spec.curve_counts):
+            x = spec.points[c0 : c0 + cn]
+            r = spec.radius[c0 : c0 + cn]
+            pin = pinned[c0 : c0 + cn]
+            seg = np.linalg.norm(x[1:] - x[:-1], axis=1)
+            r_seg = 0.5 * (r[1:] + r[:-1])
+            m_seg = p.density * np.pi * r_seg**2 * seg
+            m = np.zeros(cn)
+            m[:-1] += 0.5 * m_seg
+            m[1:] += 0.5 * m_seg
+            elastic = ~(pin[1:] & pin[:-1])
+            l_el = np.where(elastic, seg, 0.0)
+            l_v = np.zeros(cn)
+            l_v[1:-1] = 0.5 * (l_el[:-1] + l_el[1:])
+            ei = p.bending_stiffness(r)
+            bk = np.where(l_v > 0.0, ei / np.where(l_v > 0, l_v, 1.0), 0.0)
+            bk[0] = bk[-1] = 0.0
+            k_ax = p.axial_stiffness(r_seg) / seg
+            pts.append(x)
+            radius.append(r)
+            mass.append(m)
+            inv_mass.append(np.where(pin, 0.0, 1.0 / m))
+            damping.append(np.full(cn, p.damping))
+            rest_len.append(np.append(seg, 0.0))
+            ke.append(np.append(k_ax, 0.0))
+            kd.append(np.append(k_ax * p.spring_damping, 0.0))
+            bend_k.append(bk)
+            kap = next(curve_kappa)
+            if float(np.abs(kap).max()) > 1e-6:
+                curved = True
+            kappa.append(kap)
+            ka = np.where(anchored[c0 : c0 + cn], p.anchor_stiffness, 0.0)
+            anchor_k.append(ka)
+            anchor_kd.append(ka * p.spring_damping)
+            node_tube.append(np.full(cn, t_index))
+            t_index += 1
+            tube_start.append(tube_start[-1] + cn)
+    cat = lambda a: np.concatenate(a)  # noqa: E731
+    per_node = dict(
+        node_rest_q=cat(pts), node_mass=cat(mass), node_inv_mass=cat(inv_mass), node_damping=cat(damping),
+        seg_rest_length=cat(rest_len), seg_ke=cat(ke), seg_kd=cat(kd), node_bend_k=cat(bend_k),
+        node_kappa_rest=cat(kappa), node_anchor_k=cat(anchor_k), node_anchor_kd=cat(anchor_kd), node_radius=cat(radius),
+        tube_node_start=np.array(tube_start), node_tube=cat(node_tube), prim_node_start=np.array(prim_node_start),
+    )  # fmt: skip
+    return per_node, curved

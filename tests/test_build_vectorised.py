@@ -88,3 +88,41 @@ def test_build_topology_equals_the_tube_loop(spokes, caps, counts):
                 assert np.array_equal(g, r), name
             else:
                 assert g == r, name
+
+
+def _varied_scene() -> Scene:
+    """Prims of one and several curves, pins (one pinned pair: a rigid segment), anchors, radii
+    varying along each curve, and every way of giving the stiffnesses."""
+    rng = np.random.default_rng(3)
+    by_modulus = TubeParams(density=1050.0, youngs_modulus=2e5, damping=1.5, spring_damping=0.01, anchor_stiffness=40.0)
+    by_override = TubeParams(density=900.0, stretch_stiffness=3.0, bend_stiffness=2e-4, damping=0.0)
+    mixed = TubeParams(density=1200.0, youngs_modulus=5e4, bend_stiffness=1e-3, spring_damping=0.002)
+    tubes = []
+    for k, params in enumerate((by_modulus, by_override, mixed, by_modulus)):
+        counts = [(20, 5, 2), (7,), (3, 11), (40,)][k]
+        pts = np.concatenate([wavy(c, 0.3 * k + j) + (k, j, 0.0) for j, c in enumerate(counts)])
+        radius = 0.01 + 0.004 * rng.random(len(pts))
+        tubes.append(TubeSpec(f"/T{k}", pts, list(counts), radius, params,
+                              pinned=[0, 1, len(pts) - 1] if k != 1 else [], anchors=[2, len(pts) // 2] if k != 1 else [3]))  # fmt: skip
+    return Scene(tuple(tubes))
+
+
+@pytest.mark.parametrize("scene", ["varied", "many"])
+def test_node_parameters_equal_the_curve_loop(scene):
+    from tests.reference_build import node_parameters_loop
+    from warp_tube.model.tube import node_parameters
+
+    if scene == "varied":
+        sc = _varied_scene()
+    else:
+        params = TubeParams(density=1000.0, youngs_modulus=1e5, damping=2.0)
+        sc = Scene(tuple(TubeSpec(f"/V{k}", wavy(12, 0.01 * k), [12], np.full(12, 0.01), params, pinned=[0, 1]) for k in range(50)))
+    got, got_curved = node_parameters(sc)
+    ref, ref_curved = node_parameters_loop(sc)
+    assert got_curved == ref_curved
+    assert set(got) == set(ref)
+    for name in ref:
+        # The same float64 operations in the same order on each element, only over all curves at
+        # once: equal bit for bit, shapes and dtypes included.
+        assert got[name].dtype == ref[name].dtype and got[name].shape == ref[name].shape, name
+        assert np.array_equal(got[name], ref[name]), name

@@ -327,67 +327,93 @@ class TubeModel:
         )
 
 
+def node_parameters(scene: Scene) -> tuple[dict, bool]:
+    """The per-node arrays of every curve of ``scene`` (prims in order, each prim's curves in
+    order), for all curves at once, and whether any rest shape is curved.
+
+    Returns a dict of NumPy arrays, N = nodes, C = curves, T = prims: ``node_rest_q`` (N, 3) [m],
+    ``node_mass`` [kg] (half of each adjacent segment's cylinder), ``node_inv_mass`` [1/kg] (0
+    pinned), ``node_damping`` [1/s], ``seg_rest_length`` [m], ``seg_ke`` [N/m], ``seg_kd`` [N s/m]
+    (segment i from node i to i + 1; 0 at a curve's last node), ``node_bend_k`` [N m] (EI over the
+    node's Voronoi length of elastic segments; 0 at curve ends), ``node_kappa_rest`` (N, 3) [1],
+    ``node_anchor_k`` [N/m], ``node_anchor_kd`` [N s/m], ``node_radius`` [m], each (N,);
+    ``tube_node_start`` (C + 1,), ``node_tube`` (N,), ``prim_node_start`` (T,).
+    """
+    specs = scene.tubes
+    sizes = np.array([len(s.points) for s in specs], dtype=np.int64)
+    prim_start = np.concatenate([[0], np.cumsum(sizes)]).astype(np.int64)
+    counts = np.concatenate([s.curve_counts for s in specs]).astype(np.int64)
+    tube_start = np.concatenate([[0], np.cumsum(counts)]).astype(np.int64)
+    first, last = tube_start[:-1], tube_start[1:] - 1
+    x = np.concatenate([s.points for s in specs])
+    r = np.concatenate([s.radius for s in specs])
+    n = len(x)
+    pinned = np.zeros(n, dtype=bool)
+    pinned[np.concatenate([s.pinned + o for s, o in zip(specs, prim_start)])] = True
+    anchored = np.zeros(n, dtype=bool)
+    anchored[np.concatenate([s.anchors + o for s, o in zip(specs, prim_start)])] = True
+
+    def material(values):
+        """One value per prim [its unit] over the prim's nodes (NaN for None): an array (N,), or a
+        scalar where every prim has the same value."""
+        v = np.array([np.nan if v is None else v for v in values], dtype=np.float64)
+        if np.all((v == v[0]) | (np.isnan(v) & np.isnan(v[0]))):
+            return v[0]
+        return np.repeat(v, sizes)
+
+    def head(a):
+        """``a`` at the first node of each segment (a scalar as it is)."""
+        return a[:-1] if np.ndim(a) else a
+
+    params = [s.params for s in specs]
+    density = material(p.density for p in params)
+    youngs = material(p.youngs_modulus for p in params)
+    stretch = material(p.stretch_stiffness for p in params)
+    bend = material(p.bend_stiffness for p in params)
+    spring_damping = material(p.spring_damping for p in params)
+
+    # Segment i joins nodes i and i + 1; `inside` is False where they belong to different curves.
+    inside = np.ones(n - 1, dtype=bool)
+    inside[last[:-1]] = False
+    seg = np.linalg.norm(x[1:] - x[:-1], axis=1)
+    r_seg = 0.5 * (r[1:] + r[:-1])
+    m_seg = np.where(inside, head(density) * np.pi * r_seg**2 * seg, 0.0)
+    mass = np.zeros(n)
+    mass[:-1] += 0.5 * m_seg
+    mass[1:] += 0.5 * m_seg
+    elastic = inside & ~(pinned[1:] & pinned[:-1])
+    l_el = np.where(elastic, seg, 0.0)
+    l_v = np.zeros(n)
+    l_v[1:-1] = 0.5 * (l_el[:-1] + l_el[1:])
+    l_v[first] = 0.0
+    l_v[last] = 0.0
+    ei = np.where(np.isnan(bend), youngs * np.pi * r**4 / 4.0, bend)  # TubeParams.bending_stiffness
+    bend_k = np.where(l_v > 0.0, ei / np.where(l_v > 0, l_v, 1.0), 0.0)
+    bend_k[first] = 0.0
+    bend_k[last] = 0.0
+    ea = np.where(np.isnan(head(stretch)), head(youngs) * np.pi * r_seg**2, head(stretch))  # TubeParams.axial_stiffness
+    k_ax = np.where(inside, ea / np.where(inside, seg, 1.0), 0.0)
+    kappa = np.concatenate(rest_curvature_of_curves([x[a : b + 1] for a, b in zip(first, last)]))
+    anchor_k = np.where(anchored, material(p.anchor_stiffness for p in params), 0.0)
+    per_node = dict(
+        node_rest_q=x, node_mass=mass, node_inv_mass=np.where(pinned, 0.0, 1.0 / mass),
+        node_damping=np.broadcast_to(material(p.damping for p in params), (n,)).copy(),
+        seg_rest_length=np.append(np.where(inside, seg, 0.0), 0.0), seg_ke=np.append(k_ax, 0.0),
+        seg_kd=np.append(k_ax * head(spring_damping), 0.0), node_bend_k=bend_k, node_kappa_rest=kappa,
+        node_anchor_k=anchor_k, node_anchor_kd=anchor_k * spring_damping, node_radius=r,
+        tube_node_start=tube_start, node_tube=np.repeat(np.arange(len(counts), dtype=np.int64), counts),
+        prim_node_start=prim_start[:-1],
+    )  # fmt: skip
+    return per_node, bool(np.abs(kappa).max() > 1e-6)
+
+
 def build_model(scene: Scene, world_count: int = 1, device=None) -> TubeModel:
     """Discretise ``scene`` into a :class:`TubeModel` on ``device`` (Warp device or name)."""
     device = str(wp.get_device(device))
-    pts, tube_start, node_tube = [], [0], []
-    mass, inv_mass, damping, rest_len, ke, kd, bend_k, kappa, anchor_k, anchor_kd, radius = ([] for _ in range(11))
-    prim_node_start = []
-    curved = False
-    t_index = 0
-    curve_kappa = iter(rest_curvature_of_curves(
-        [spec.points[c0 : c0 + cn] for spec in scene.tubes for c0, cn in zip(spec.curve_starts, spec.curve_counts)]))  # fmt: skip
-    for spec in scene.tubes:
-        prim_node_start.append(tube_start[-1])
-        p = spec.params
-        pinned = np.zeros(len(spec.points), dtype=bool)
-        pinned[spec.pinned] = True
-        anchored = np.zeros(len(spec.points), dtype=bool)
-        anchored[spec.anchors] = True
-        for c0, cn in zip(spec.curve_starts, spec.curve_counts):
-            x = spec.points[c0 : c0 + cn]
-            r = spec.radius[c0 : c0 + cn]
-            pin = pinned[c0 : c0 + cn]
-            seg = np.linalg.norm(x[1:] - x[:-1], axis=1)
-            r_seg = 0.5 * (r[1:] + r[:-1])
-            m_seg = p.density * np.pi * r_seg**2 * seg
-            m = np.zeros(cn)
-            m[:-1] += 0.5 * m_seg
-            m[1:] += 0.5 * m_seg
-            elastic = ~(pin[1:] & pin[:-1])
-            l_el = np.where(elastic, seg, 0.0)
-            l_v = np.zeros(cn)
-            l_v[1:-1] = 0.5 * (l_el[:-1] + l_el[1:])
-            ei = p.bending_stiffness(r)
-            bk = np.where(l_v > 0.0, ei / np.where(l_v > 0, l_v, 1.0), 0.0)
-            bk[0] = bk[-1] = 0.0
-            k_ax = p.axial_stiffness(r_seg) / seg
-            pts.append(x)
-            radius.append(r)
-            mass.append(m)
-            inv_mass.append(np.where(pin, 0.0, 1.0 / m))
-            damping.append(np.full(cn, p.damping))
-            rest_len.append(np.append(seg, 0.0))
-            ke.append(np.append(k_ax, 0.0))
-            kd.append(np.append(k_ax * p.spring_damping, 0.0))
-            bend_k.append(bk)
-            kap = next(curve_kappa)
-            if float(np.abs(kap).max()) > 1e-6:
-                curved = True
-            kappa.append(kap)
-            ka = np.where(anchored[c0 : c0 + cn], p.anchor_stiffness, 0.0)
-            anchor_k.append(ka)
-            anchor_kd.append(ka * p.spring_damping)
-            node_tube.append(np.full(cn, t_index))
-            t_index += 1
-            tube_start.append(tube_start[-1] + cn)
-    cat = lambda a: np.concatenate(a)  # noqa: E731
-    per_node = dict(
-        node_rest_q=cat(pts), node_mass=cat(mass), node_inv_mass=cat(inv_mass), node_damping=cat(damping),
-        seg_rest_length=cat(rest_len), seg_ke=cat(ke), seg_kd=cat(kd), node_bend_k=cat(bend_k),
-        node_kappa_rest=cat(kappa), node_anchor_k=cat(anchor_k), node_anchor_kd=cat(anchor_kd), node_radius=cat(radius),
-        tube_node_start=np.array(tube_start), node_tube=cat(node_tube), prim_node_start=np.array(prim_node_start),
-    )  # fmt: skip
+    per_node, curved = node_parameters(scene)
+    tube_start = per_node["tube_node_start"]
+    prim_node_start = per_node["prim_node_start"]
+    t_index = len(tube_start) - 1
     n_nodes = tube_start[-1]
     # Forces sorted by tube, each with its global node and its assistant-line slots.
     tube_of_force, node_of_force = [], []
@@ -396,7 +422,7 @@ def build_model(scene: Scene, world_count: int = 1, device=None) -> TubeModel:
         c = int(np.searchsorted(spec.curve_starts, f.point, side="right") - 1)
         t = int(per_node["node_tube"][prim_node_start[f.tube] + spec.curve_starts[c]])
         tube_of_force.append(t)
-        node_of_force.append(prim_node_start[f.tube] + f.point)
+        node_of_force.append(int(prim_node_start[f.tube]) + f.point)
     order = np.argsort(np.asarray(tube_of_force, dtype=np.int64), kind="stable")
     force_tube = np.asarray(tube_of_force, dtype=np.int64)[order] if len(order) else np.zeros(0, np.int64)
     force_node = np.asarray(node_of_force, dtype=np.int64)[order] if len(order) else np.zeros(0, np.int64)
@@ -406,7 +432,7 @@ def build_model(scene: Scene, world_count: int = 1, device=None) -> TubeModel:
     for a, t in enumerate(force_tube):
         al_start.append(slot)
         if uses_al[a]:
-            n = tube_start[t + 1] - tube_start[t]
+            n = int(tube_start[t + 1] - tube_start[t])
             al_force_index.extend([a] * n)
             slot += n
     lines = [[a for a in range(tube_force_start[t], tube_force_start[t + 1]) if uses_al[a]] for t in range(t_index)]
