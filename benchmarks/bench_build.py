@@ -15,6 +15,8 @@ Timed, medians of ``--reps`` repetitions (seconds), measured side by side in one
   prim per tube for ``many``), CPU device, arrays included;
 - ``build_topology_s``: :func:`warp_tube.surface.topology.build_topology` of all the tubes as one
   prim (what ``SurfaceBuilder`` builds for a prim holding them);
+- ``rest_frames_s``: :func:`warp_tube.surface.builder.rest_frames`, the rest tangents and
+  normals of every hub that ``SurfaceBuilder`` computes (tubes of one length at once);
 - ``build_topology_one_tube_s`` (``many`` only): the topology of one tube, which a batch of
   variants shares across its worlds.
 
@@ -39,6 +41,7 @@ wp.config.log_level = wp.LOG_WARNING  # stdout carries the JSON only
 
 from warp_tube.model.tube import build_model, rest_curvature_coordinates
 from warp_tube.scene.spec import Scene, StageInfo, TubeParams, TubeSpec
+from warp_tube.surface.builder import rest_frames
 from warp_tube.surface.topology import build_topology
 
 
@@ -82,6 +85,7 @@ def main():
     case["build_model_s"] = median_time(lambda: build_model(scene, device="cpu"), a.reps)
     case["build_model_without_rest_curvature_s"] = case["build_model_s"] - case["rest_curvature_s"]
     case["build_topology_s"] = median_time(lambda: build_topology(starts, 16, caps=True, rest_q=flat, cap_radius=cap), a.reps)
+    case["rest_frames_s"] = median_time(lambda: rest_frames(flat, starts), a.reps)
     case["build_topology_one_tube_s"] = median_time(lambda: build_topology(starts[:2], 16, caps=True, rest_q=pts[0], cap_radius=cap[:1]), a.reps)
     out["cases"].append(case)
 
@@ -94,7 +98,9 @@ def main():
     case["rest_curvature_s"] = median_time(lambda: rest_curvature_coordinates(x), a.reps)
     case["build_model_s"] = median_time(lambda: build_model(scene, device="cpu"), a.reps)
     case["build_topology_s"] = median_time(lambda: build_topology(np.array([0, N]), 16, caps=True, rest_q=x, cap_radius=np.full((1, 2), 0.01)), a.reps)
+    case["rest_frames_s"] = median_time(lambda: rest_frames(x, np.array([0, N])), a.reps)
     case["model_and_topology_s"] = case["build_model_s"] + case["build_topology_s"]
+    case["model_topology_and_rest_frames_s"] = case["model_and_topology_s"] + case["rest_frames_s"]
     out["cases"].append(case)
     print(json.dumps(out, indent=2))
 

@@ -27,6 +27,7 @@ __all__ = [
     "hub_tangents",
     "initial_normal",
     "rotation_minimizing_frames",
+    "rotation_minimizing_frames_many",
     "minimal_rotation",
     "rotate_minimal",
     "least_rotation_quaternions",
@@ -187,3 +188,155 @@ def spoke_directions(r: np.ndarray, s: np.ndarray, spokes: int) -> np.ndarray:
     """
     phi = 2.0 * np.pi * np.arange(spokes) / spokes
     return np.cos(phi)[None, :, None] * r[:, None, :] + np.sin(phi)[None, :, None] * s[:, None, :]
+
+
+# Vectors and quaternions held as their component arrays ((x, y, z) or (w, x, y, z)), each shaped
+# like the batch: component-wise arithmetic on contiguous arrays, for frames of many hubs at once.
+
+
+def vdot(a, b):
+    """Dot product of vectors given as component tuples ``(x, y, z)`` (arrays of one shape)."""
+    return a[0] * b[0] + a[1] * b[1] + a[2] * b[2]
+
+
+def vcross(a, b):
+    """Cross product of vectors given as component tuples."""
+    return (a[1] * b[2] - a[2] * b[1], a[2] * b[0] - a[0] * b[2], a[0] * b[1] - a[1] * b[0])
+
+
+def vscale(a, k):
+    """Vector ``a`` (component tuple) times ``k`` (scalar or array of the components' shape)."""
+    return (a[0] * k, a[1] * k, a[2] * k)
+
+
+def quat_mul(a, b):
+    """Hamilton product ``a b`` of quaternions given as component tuples ``(w, x, y, z)``."""
+    aw, ax, ay, az = a
+    bw, bx, by, bz = b
+    return (
+        aw * bw - ax * bx - ay * by - az * bz,
+        aw * bx + ax * bw + ay * bz - az * by,
+        aw * by - ax * bz + ay * bw + az * bx,
+        aw * bz + ax * by - ay * bx + az * bw,
+    )
+
+
+def quat_unit(q):
+    """Quaternion ``q`` (component tuple ``(w, x, y, z)``) over its length."""
+    k = 1.0 / np.sqrt(q[0] * q[0] + q[1] * q[1] + q[2] * q[2] + q[3] * q[3])
+    return (q[0] * k, q[1] * k, q[2] * k, q[3] * k)
+
+
+#: runs of at most this many rotations are composed one after another; longer runs in blocks
+SCAN_RUN = 64
+
+
+def identity_quat(shape):
+    """Identity quaternions of ``shape``, as a component tuple."""
+    return (np.ones(shape), np.zeros(shape), np.zeros(shape), np.zeros(shape))
+
+
+def cumulative_rotations(q):
+    """Running products ``q_k ... q_1 q_0`` of unit quaternions along the first axis.
+
+    Args:
+        q: component tuple ``(w, x, y, z)``, each shaped (m, ...), C-contiguous.
+
+    Short runs are multiplied one after another (vectorised over the trailing axes, a contiguous
+    row per step); a long run is cut into about ``sqrt(m)`` blocks of about ``sqrt(m)`` rotations,
+    every block's running product found that way at once, the blocks' totals composed the same
+    way (recursively), and each block's products multiplied by the total of the blocks before it:
+    O(m) work in O(sqrt(m)) NumPy calls. Products are renormalised so that rounding does not let
+    them drift off unit length.
+    """
+    m = q[0].shape[0]
+    if m <= SCAN_RUN:
+        out = tuple(np.empty_like(c) for c in q)
+        acc = tuple(c[0] for c in q)
+        for c, v in zip(out, acc):
+            c[0] = v
+        for k in range(1, m):
+            acc = quat_unit(quat_mul(tuple(c[k] for c in q), acc))
+            for c, v in zip(out, acc):
+                c[k] = v
+        return out
+    trail = q[0].shape[1:]
+    run = int(np.ceil(np.sqrt(m)))
+    blocks = -(-m // run)
+    pad = identity_quat((blocks * run - m,) + trail)  # rotations that do nothing
+    # (run, blocks, ...): step k of every block is one contiguous row.
+    qb = tuple(np.ascontiguousarray(np.concatenate([c, p]).reshape((blocks, run) + trail).swapaxes(0, 1))
+               for c, p in zip(q, pad))  # fmt: skip
+    inner = cumulative_rotations(qb)  # running products inside each block
+    totals = cumulative_rotations(tuple(np.ascontiguousarray(c[-1]) for c in inner))  # through each block's end
+    before = tuple(np.concatenate([i, c[:-1]]) for i, c in zip(identity_quat((1,) + trail), totals))
+    out = quat_unit(quat_mul(inner, before))
+    return tuple(np.ascontiguousarray(c.swapaxes(0, 1)).reshape((blocks * run,) + trail)[:m] for c in out)
+
+
+def rotation_minimizing_frames_many(points: np.ndarray, normal0: np.ndarray | None = None) -> tuple[np.ndarray, np.ndarray]:
+    """:func:`rotation_minimizing_frames` of many polylines of ``n`` hubs at once.
+
+    Args:
+        points: hub positions, shape (B, n, 3), n >= 2.
+        normal0: reference normal of each polyline's first hub, shape (B, 3), NaN rows for none
+            (see :func:`initial_normal`); None: none for any.
+
+    Returns:
+        ``(t, r)``, each (B, n, 3): unit tangents and normals (spoke 0).
+
+    Each double-reflection step is the rotation ``q = n2 n1`` (the product of the two reflections'
+    unit plane normals as pure quaternions), and the normal of hub ``i`` is ``r_0`` carried by the
+    running product of the steps before it (:func:`cumulative_rotations`), then made unit and
+    normal to ``t_i``: O(n) array work in O(sqrt(n)) NumPy calls for all polylines together. The
+    per-hub loop re-normalises after every step instead, so the two agree to round-off growing
+    with ``n`` (about n x 1e-16). A polyline with a step where either reflection is undefined
+    (coincident hubs, or a tangent reversed across a segment) takes the loop.
+    """
+    x = np.asarray(points, dtype=np.float64)
+    B, n = x.shape[0], x.shape[1]
+    t = np.empty_like(x)
+    e = x[:, 1:] - x[:, :-1]
+    e = e / np.where((ln := np.linalg.norm(e, axis=-1, keepdims=True)) > 0.0, ln, 1.0)
+    t[:, 0] = e[:, 0]
+    t[:, -1] = e[:, -1]
+    if n > 2:
+        b = e[:, :-1] + e[:, 1:]
+        t[:, 1:-1] = b / np.where((lb := np.linalg.norm(b, axis=-1, keepdims=True)) > 0.0, lb, 1.0)
+    refs = None if normal0 is None else np.asarray(normal0, dtype=np.float64)
+    r = np.empty_like(x)
+    for k in range(B):
+        ref = refs[k] if refs is not None and np.all(np.isfinite(refs[k])) else None
+        r[k, 0] = initial_normal(t[k, 0], ref)
+    if n == 1:
+        return t, r
+    # Steps i = 0 .. n - 2, components (n - 1, B) each.
+    xc = tuple(np.ascontiguousarray(x[..., c].T) for c in range(3))
+    tc = tuple(np.ascontiguousarray(t[..., c].T) for c in range(3))
+    v1 = tuple(c[1:] - c[:-1] for c in xc)
+    c1 = vdot(v1, v1)
+    ti, tn = tuple(c[:-1] for c in tc), tuple(c[1:] for c in tc)
+    with np.errstate(divide="ignore", invalid="ignore"):
+        k1 = 2.0 / c1
+        d1 = vdot(v1, ti) * k1
+        v2 = tuple(a - (b - d1 * v) for a, b, v in zip(tn, ti, v1))  # t_{i+1} minus reflected t_i
+        c2 = vdot(v2, v2)
+        n1 = vscale(v1, 1.0 / np.sqrt(c1))
+        n2 = vscale(v2, 1.0 / np.sqrt(c2))
+    regular = np.all((c1 > 0.0) & (c2 > 1e-30), axis=0)  # (B,)
+    w = -vdot(n2, n1)
+    q = cumulative_rotations(tuple(np.ascontiguousarray(c) for c in (w, *vcross(n2, n1))))
+    r0 = tuple(r[:, 0, c] for c in range(3))
+    qv = q[1:]
+    a1 = vcross(qv, r0)
+    a2 = vcross(qv, a1)
+    rk = tuple(rc + 2.0 * (q[0] * b1 + b2) for rc, b1, b2 in zip(r0, a1, a2))
+    d = vdot(rk, tn)
+    rk = tuple(rc - tc_ * d for rc, tc_ in zip(rk, tn))
+    rk = vscale(rk, 1.0 / np.sqrt(vdot(rk, rk)))
+    for c in range(3):
+        r[:, 1:, c] = rk[c].T
+    for k in np.flatnonzero(~regular):
+        ref = refs[k] if refs is not None and np.all(np.isfinite(refs[k])) else None
+        t[k], r[k], _ = rotation_minimizing_frames(x[k], normal0=ref)
+    return t, r

@@ -31,7 +31,7 @@ import warp as wp
 from warp_tube.kernels.springs import Features
 
 from ..scene.spec import Scene
-from .frames import least_rotation_quaternions, rotate_minimal
+from .frames import cumulative_rotations, least_rotation_quaternions, rotate_minimal, vcross, vdot, vscale
 from .host import HostArrays
 
 __all__ = ["TubeModel", "TubeState", "TubeControl", "HostArrays", "build_model", "first_edge_normal", "rest_curvature_coordinates", "rest_curvature_of_curves"]
@@ -52,85 +52,6 @@ def curvature_binormal(a: np.ndarray, b: np.ndarray) -> np.ndarray:
     return 2.0 * np.cross(a, b) / den
 
 
-# The vectorised rest-frame code below works on vectors held as their three component arrays
-# (x, y, z), each shaped like the batch: component-wise arithmetic on contiguous arrays.
-
-
-def _dot(a, b):
-    return a[0] * b[0] + a[1] * b[1] + a[2] * b[2]
-
-
-def _cross(a, b):
-    return (a[1] * b[2] - a[2] * b[1], a[2] * b[0] - a[0] * b[2], a[0] * b[1] - a[1] * b[0])
-
-
-def _scaled(a, k):
-    return (a[0] * k, a[1] * k, a[2] * k)
-
-
-def _quat_mul(a, b):
-    """Hamilton product ``a b`` of quaternions given as component tuples ``(w, x, y, z)``."""
-    aw, ax, ay, az = a
-    bw, bx, by, bz = b
-    return (
-        aw * bw - ax * bx - ay * by - az * bz,
-        aw * bx + ax * bw + ay * bz - az * by,
-        aw * by - ax * bz + ay * bw + az * bx,
-        aw * bz + ax * by - ay * bx + az * bw,
-    )
-
-
-def _quat_unit(q):
-    k = 1.0 / np.sqrt(q[0] * q[0] + q[1] * q[1] + q[2] * q[2] + q[3] * q[3])
-    return (q[0] * k, q[1] * k, q[2] * k, q[3] * k)
-
-
-#: runs of at most this many rotations are composed one after another; longer runs in blocks
-_SCAN_RUN = 64
-
-
-def _identity_quat(shape):
-    return (np.ones(shape), np.zeros(shape), np.zeros(shape), np.zeros(shape))
-
-
-def _cumulative_rotations(q):
-    """Running products ``q_k ... q_1 q_0`` of unit quaternions along the first axis.
-
-    Args:
-        q: component tuple ``(w, x, y, z)``, each shaped (m, ...), C-contiguous.
-
-    Short runs are multiplied one after another (vectorised over the trailing axes, a contiguous
-    row per step); a long run is cut into about ``sqrt(m)`` blocks of about ``sqrt(m)`` rotations,
-    every block's running product found that way at once, the blocks' totals composed the same
-    way (recursively), and each block's products multiplied by the total of the blocks before it:
-    O(m) work in O(sqrt(m)) NumPy calls. Products are renormalised so that rounding does not let
-    them drift off unit length.
-    """
-    m = q[0].shape[0]
-    if m <= _SCAN_RUN:
-        out = tuple(np.empty_like(c) for c in q)
-        acc = tuple(c[0] for c in q)
-        for c, v in zip(out, acc):
-            c[0] = v
-        for k in range(1, m):
-            acc = _quat_unit(_quat_mul(tuple(c[k] for c in q), acc))
-            for c, v in zip(out, acc):
-                c[k] = v
-        return out
-    trail = q[0].shape[1:]
-    run = int(np.ceil(np.sqrt(m)))
-    blocks = -(-m // run)
-    pad = _identity_quat((blocks * run - m,) + trail)  # rotations that do nothing
-    # (run, blocks, ...): step k of every block is one contiguous row.
-    qb = tuple(np.ascontiguousarray(np.concatenate([c, p]).reshape((blocks, run) + trail).swapaxes(0, 1))
-               for c, p in zip(q, pad))  # fmt: skip
-    inner = _cumulative_rotations(qb)  # running products inside each block
-    totals = _cumulative_rotations(tuple(np.ascontiguousarray(c[-1]) for c in inner))  # through each block's end
-    before = tuple(np.concatenate([i, c[:-1]]) for i, c in zip(_identity_quat((1,) + trail), totals))
-    out = _quat_unit(_quat_mul(inner, before))
-    return tuple(np.ascontiguousarray(c.swapaxes(0, 1)).reshape((blocks * run,) + trail)[:m] for c in out)
-
-
 def rest_curvature_coordinates(points: np.ndarray) -> np.ndarray:
     """Rest curvature binormals of tubes in their rest Bishop frames, shape (..., n, 3).
 
@@ -142,7 +63,7 @@ def rest_curvature_coordinates(points: np.ndarray) -> np.ndarray:
     first frame uses the fixed perpendicular of :func:`first_edge_normal`, and each later frame is
     the previous one carried by the least rotation between consecutive edges (parallel transport).
     Rows 0 and n-1 are 0. The transports are composed as quaternion products (a blocked running
-    product, :func:`_cumulative_rotations`), so a tube costs O(n) array work and O(sqrt(n)) NumPy
+    product, :func:`cumulative_rotations`), so a tube costs O(n) array work and O(sqrt(n)) NumPy
     calls, and many tubes of equal length cost the same number of calls as one.
     """
     x = np.asarray(points, dtype=np.float64)
@@ -153,14 +74,14 @@ def rest_curvature_coordinates(points: np.ndarray) -> np.ndarray:
     # Components with the point axis first, each (n, ...) and contiguous.
     xc = tuple(np.ascontiguousarray(np.moveaxis(x[..., k], -1, 0)) for k in range(3))
     e = tuple(c[1:] - c[:-1] for c in xc)  # edges, (n - 1, ...)
-    t = _scaled(e, 1.0 / np.sqrt(_dot(e, e)))
+    t = vscale(e, 1.0 / np.sqrt(vdot(e, e)))
     # First frame: the fixed perpendicular of first_edge_normal, for every tube at once.
     t0 = tuple(c[0] for c in t)
     pick_y = np.abs(t0[0]) > 0.6
     u0 = (np.where(pick_y, 0.0, 1.0), np.where(pick_y, 1.0, 0.0), np.zeros_like(t0[0]))
-    d = _dot(u0, t0)
+    d = vdot(u0, t0)
     u0 = tuple(uc - tc * d for uc, tc in zip(u0, t0))
-    u0 = _scaled(u0, 1.0 / np.sqrt(_dot(u0, u0)))
+    u0 = vscale(u0, 1.0 / np.sqrt(vdot(u0, u0)))
     m = n - 2  # frames of edges 0 .. n - 3 serve rows 1 .. n - 2
     u = tuple(np.empty((m,) + x.shape[:-2]) for _ in range(3))
     for c, v in zip(u, u0):
@@ -168,26 +89,26 @@ def rest_curvature_coordinates(points: np.ndarray) -> np.ndarray:
     if m > 1:
         # Least rotation from edge k to edge k + 1 as a unit quaternion.
         q = least_rotation_quaternions(tuple(c[: m - 1] for c in t), tuple(c[1:m] for c in t))
-        w, *r = _cumulative_rotations(q)  # edge 0 -> edge j + 1, (m - 1, ...) each
-        ru = _cross(r, u0)
-        rru = _cross(r, ru)
+        w, *r = cumulative_rotations(q)  # edge 0 -> edge j + 1, (m - 1, ...) each
+        ru = vcross(r, u0)
+        rru = vcross(r, ru)
         uk = tuple(uc + 2.0 * (w * a1 + a2) for uc, a1, a2 in zip(u0, ru, rru))
         tk = tuple(c[1:m] for c in t)
-        d = _dot(uk, tk)
+        d = vdot(uk, tk)
         uk = tuple(uc - tc * d for uc, tc in zip(uk, tk))
-        uk = _scaled(uk, 1.0 / np.sqrt(_dot(uk, uk)))
+        uk = vscale(uk, 1.0 / np.sqrt(vdot(uk, uk)))
         for c, v in zip(u, uk):
             c[1:] = v
     tf = tuple(c[:m] for c in t)  # tangent of edge j - 1 for rows j = 1 .. n - 2
-    v = _cross(tf, u)
+    v = vcross(tf, u)
     ea = tuple(c[:-1] for c in e)
     eb = tuple(c[1:] for c in e)
     # curvature_binormal(ea, eb), in components
-    la, lb = np.sqrt(_dot(ea, ea)), np.sqrt(_dot(eb, eb))
-    den = np.maximum(la * lb + _dot(ea, eb), 1e-6 * la * lb + 1e-12)
-    kb = _scaled(_cross(ea, eb), 2.0 / den)
+    la, lb = np.sqrt(vdot(ea, ea)), np.sqrt(vdot(eb, eb))
+    den = np.maximum(la * lb + vdot(ea, eb), 1e-6 * la * lb + 1e-12)
+    kb = vscale(vcross(ea, eb), 2.0 / den)
     for k, frame in enumerate((tf, u, v)):
-        out[..., 1:-1, k] = np.moveaxis(_dot(kb, frame), 0, -1)
+        out[..., 1:-1, k] = np.moveaxis(vdot(kb, frame), 0, -1)
     return out
 
 

@@ -62,12 +62,14 @@ def rest_frames(
         refs = np.broadcast_to(refs, (n_tubes, 3)) if refs.ndim == 1 else refs
     t = np.empty_like(x)
     r = np.empty_like(x)
-    for tube in range(n_tubes):
-        a, b = starts[tube], starts[tube + 1]
-        ref = None
-        if refs is not None and np.all(np.isfinite(refs[tube])):
-            ref = refs[tube]
-        t[a:b], r[a:b], _ = ref_frames.rotation_minimizing_frames(x[a:b], normal0=ref)
+    # Tubes of one length at once (ref_frames.rotation_minimizing_frames_many).
+    counts = np.diff(starts)
+    for n in np.unique(counts):
+        tubes = np.flatnonzero(counts == n)
+        rows = starts[tubes][:, None] + np.arange(n)  # (tubes, n) hub indices
+        tt, rr = ref_frames.rotation_minimizing_frames_many(x[rows], None if refs is None else refs[tubes])
+        t[rows] = tt
+        r[rows] = rr
     return t, r
 
 
