@@ -44,17 +44,18 @@ def hub_tangents(points: np.ndarray) -> np.ndarray:
     """Unit tangents at the hubs of one polyline.
 
     Args:
-        points: hub positions [any length unit], shape (n, 3), n >= 2.
+        points: hub positions [any length unit], shape (n, 3), n >= 2, or (..., n, 3) for many
+            polylines of n hubs.
 
     Returns:
-        Unit tangents, shape (n, 3): edge bisectors inside, edge directions at the ends.
+        Unit tangents, shaped like ``points``: edge bisectors inside, edge directions at the ends.
     """
     p = np.asarray(points, dtype=np.float64)
-    e = _normalize(p[1:] - p[:-1])
+    e = _normalize(p[..., 1:, :] - p[..., :-1, :])
     t = np.empty_like(p)
-    t[0] = e[0]
-    t[-1] = e[-1]
-    t[1:-1] = _normalize(e[:-1] + e[1:])
+    t[..., 0, :] = e[..., 0, :]
+    t[..., -1, :] = e[..., -1, :]
+    t[..., 1:-1, :] = _normalize(e[..., :-1, :] + e[..., 1:, :])
     return t
 
 
@@ -221,6 +222,15 @@ def quat_mul(a, b):
     )
 
 
+def quat_rotate(q, v):
+    """Vector ``v`` (component tuple) turned by unit quaternion ``q`` (``(w, x, y, z)``):
+    ``v + 2 (w u x v + u x (u x v))`` with ``u`` the vector part."""
+    w, *u = q
+    a1 = vcross(u, v)
+    a2 = vcross(u, a1)
+    return tuple(vc + 2.0 * (w * b1 + b2) for vc, b1, b2 in zip(v, a1, a2))
+
+
 def quat_unit(q):
     """Quaternion ``q`` (component tuple ``(w, x, y, z)``) over its length."""
     k = 1.0 / np.sqrt(q[0] * q[0] + q[1] * q[1] + q[2] * q[2] + q[3] * q[3])
@@ -294,22 +304,16 @@ def rotation_minimizing_frames_many(points: np.ndarray, normal0: np.ndarray | No
     (coincident hubs, or a tangent reversed across a segment) takes the loop.
     """
     x = np.asarray(points, dtype=np.float64)
-    B, n = x.shape[0], x.shape[1]
-    t = np.empty_like(x)
-    e = x[:, 1:] - x[:, :-1]
-    e = e / np.where((ln := np.linalg.norm(e, axis=-1, keepdims=True)) > 0.0, ln, 1.0)
-    t[:, 0] = e[:, 0]
-    t[:, -1] = e[:, -1]
-    if n > 2:
-        b = e[:, :-1] + e[:, 1:]
-        t[:, 1:-1] = b / np.where((lb := np.linalg.norm(b, axis=-1, keepdims=True)) > 0.0, lb, 1.0)
+    B = len(x)
+    t = hub_tangents(x)
     refs = None if normal0 is None else np.asarray(normal0, dtype=np.float64)
+
+    def ref(k):
+        return refs[k] if refs is not None and np.all(np.isfinite(refs[k])) else None
+
     r = np.empty_like(x)
     for k in range(B):
-        ref = refs[k] if refs is not None and np.all(np.isfinite(refs[k])) else None
-        r[k, 0] = initial_normal(t[k, 0], ref)
-    if n == 1:
-        return t, r
+        r[k, 0] = initial_normal(t[k, 0], ref(k))
     # Steps i = 0 .. n - 2, components (n - 1, B) each.
     xc = tuple(np.ascontiguousarray(x[..., c].T) for c in range(3))
     tc = tuple(np.ascontiguousarray(t[..., c].T) for c in range(3))
@@ -326,17 +330,12 @@ def rotation_minimizing_frames_many(points: np.ndarray, normal0: np.ndarray | No
     regular = np.all((c1 > 0.0) & (c2 > 1e-30), axis=0)  # (B,)
     w = -vdot(n2, n1)
     q = cumulative_rotations(tuple(np.ascontiguousarray(c) for c in (w, *vcross(n2, n1))))
-    r0 = tuple(r[:, 0, c] for c in range(3))
-    qv = q[1:]
-    a1 = vcross(qv, r0)
-    a2 = vcross(qv, a1)
-    rk = tuple(rc + 2.0 * (q[0] * b1 + b2) for rc, b1, b2 in zip(r0, a1, a2))
+    rk = quat_rotate(q, tuple(r[:, 0, c] for c in range(3)))
     d = vdot(rk, tn)
     rk = tuple(rc - tc_ * d for rc, tc_ in zip(rk, tn))
     rk = vscale(rk, 1.0 / np.sqrt(vdot(rk, rk)))
     for c in range(3):
         r[:, 1:, c] = rk[c].T
     for k in np.flatnonzero(~regular):
-        ref = refs[k] if refs is not None and np.all(np.isfinite(refs[k])) else None
-        t[k], r[k], _ = rotation_minimizing_frames(x[k], normal0=ref)
+        t[k], r[k], _ = rotation_minimizing_frames(x[k], normal0=ref(k))
     return t, r

@@ -31,7 +31,7 @@ import warp as wp
 from warp_tube.kernels.springs import Features
 
 from ..scene.spec import Scene
-from .frames import cumulative_rotations, least_rotation_quaternions, rotate_minimal, vcross, vdot, vscale
+from .frames import cumulative_rotations, least_rotation_quaternions, quat_rotate, rotate_minimal, vcross, vdot, vscale
 from .host import HostArrays
 
 __all__ = ["TubeModel", "TubeState", "TubeControl", "HostArrays", "build_model", "first_edge_normal", "rest_curvature_coordinates", "rest_curvature_of_curves"]
@@ -89,10 +89,7 @@ def rest_curvature_coordinates(points: np.ndarray) -> np.ndarray:
     if m > 1:
         # Least rotation from edge k to edge k + 1 as a unit quaternion.
         q = least_rotation_quaternions(tuple(c[: m - 1] for c in t), tuple(c[1:m] for c in t))
-        w, *r = cumulative_rotations(q)  # edge 0 -> edge j + 1, (m - 1, ...) each
-        ru = vcross(r, u0)
-        rru = vcross(r, ru)
-        uk = tuple(uc + 2.0 * (w * a1 + a2) for uc, a1, a2 in zip(u0, ru, rru))
+        uk = quat_rotate(cumulative_rotations(q), u0)  # carried from edge 0 to edge j + 1, (m - 1, ...) each
         tk = tuple(c[1:m] for c in t)
         d = vdot(uk, tk)
         uk = tuple(uc - tc * d for uc, tc in zip(uk, tk))
