@@ -394,6 +394,46 @@ def test_every_feature_of_the_intestine_scene_per_world(tmp_path):
     assert _alone_equal(tmp_path, scene, {header[0]: 120.0, header[1]: 4.0, header[2]: 1050.0}, out / "variant_00001.usdc", 6)
 
 
+def test_an_axial_push_beside_an_assisted_one(tmp_path):
+    """A push along the tube's axis gets no assistant line and is looked at again every frame; a
+    world beside it whose line is built keeps its line's state (the low-order parts of its
+    positions included) exactly as when run alone: the files are the same bytes."""
+    from pxr import Gf
+
+    table = write_table(tmp_path / "t.csv", [FORCE], [("(0.03, 0, 0)",), ("(0, 0.02, 0.01)",)])
+    out = tmp_path / "out"
+    result = run_batch(str(DEFAULT), str(out), str(table), frames=FRAMES, writers=0)
+    assert result.ok == 2
+    assert _alone_equal(tmp_path, DEFAULT, {FORCE: Gf.Vec3f(0, 0.02, 0.01)}, out / "variant_00001.usdc", FRAMES)
+
+
+def test_a_frame_that_builds_no_line_leaves_the_lines_state_as_it_is():
+    """Simulation's control with two assisted pushes on one tube: one along the axis (no line,
+    looked at again each frame), one across (its line built at the first frame). Updating the
+    control for the next frame builds nothing, so the built line's state stays bit for bit what
+    the kernels left, the low-order parts of its positions included."""
+    import dataclasses
+
+    from warp_tube import Simulation, load_scene
+    from warp_tube.scene.spec import ForceSpec
+
+    scene = load_scene(str(DEFAULT))
+    push = scene.forces[0]
+    forces = (
+        dataclasses.replace(push, times=np.zeros(1), values=np.array([[0.0, 0.03, 0.01]])),
+        ForceSpec(path="/World/Along", tube=push.tube, point=8, times=np.zeros(1), values=np.array([[0.02, 0.0, 0.0]])),
+    )
+    sim = Simulation(dataclasses.replace(scene, forces=forces), device="cpu", surface=False)
+    sim.step()
+    sim.step()
+    before = [a.numpy().copy() for a in (sim.state.al_q, sim.state.al_q_lo, sim.state.al_qd)]
+    assert np.abs(before[1]).max() > 0  # the line's positions carry a low-order part
+    sim.controls.update(2, sim.state)
+    after = [a.numpy() for a in (sim.state.al_q, sim.state.al_q_lo, sim.state.al_qd)]
+    for x, y in zip(before, after):
+        np.testing.assert_array_equal(x, y)
+
+
 def test_several_prims_and_curves_per_variant(tmp_path):
     from warp_tube.scene.spec import ForceSpec, Scene, StageInfo, TubeParams, TubeSpec
     from warp_tube.scene.usd import save_scene

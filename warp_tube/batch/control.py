@@ -15,7 +15,7 @@ import math
 
 import numpy as np
 
-from ..sim.control import AL_MIN_ANGLE, AL_REBUILD_ANGLE
+from ..sim.control import AL_MIN_ANGLE, AL_REBUILD_ANGLE, AssistantLineArrays
 from .worlds import Worlds
 
 __all__ = ["WorldControl", "interpolate"]
@@ -119,7 +119,7 @@ class WorldControl:
         m, c, h = self.worlds.model, self.control, self.worlds.model.host
         active = self._al_active
         changed = False
-        loaded = None
+        positions = lines = None
         cos_rebuild, sin_min = math.cos(AL_REBUILD_ANGLE), math.sin(AL_MIN_ANGLE)
         for a in range(m.force_count):
             if not self.uses_al[a]:
@@ -135,9 +135,10 @@ class WorldControl:
             build = ~zero & ~keep
             if not build.any():
                 continue
-            if loaded is None:
-                loaded = self._load(state)
-            state_q, state_qd, al_q, al_qd, lens = loaded
+            if positions is None:
+                # float64, compensated (float32 + low-order part), as Simulation builds lines
+                positions = (state.node_q.numpy().astype(np.float64) + state.node_q_lo.numpy(), state.node_qd.numpy())
+            state_q, state_qd = positions
             t = h.force_tube[a]
             s, e = h.tube_node_start[t], h.tube_node_start[t + 1]
             k = h.force_node[a]
@@ -156,34 +157,16 @@ class WorldControl:
             ws, across, norm_across = ws[~axial], across[~axial], norm_across[~axial]
             if not len(ws):
                 continue
+            if lines is None:
+                lines = AssistantLineArrays.read(state, c)
             offset_dir = across / norm_across[:, None]
             p0 = h.al_start[a]
-            sl = slice(p0, p0 + e - s)
             off = self.worlds.host.node_radius[ws, s:e, None] * offset_dir[:, None, :]
             x = state_q[ws, s:e]
-            xp = x + off
-            al_q[ws, sl] = xp
-            al_qd[ws, sl] = state_qd[ws, s:e]
-            lens["al_link_length"][ws, sl] = np.linalg.norm(xp - x, axis=-1)
-            lens["al_chord_length"][ws, p0 : p0 + e - s - 1] = np.linalg.norm(xp[:, 1:] - xp[:, :-1], axis=-1)
-            lens["al_fwd_length"][ws, p0 : p0 + e - s - 1] = np.linalg.norm(x[:, 1:] - xp[:, :-1], axis=-1)
-            lens["al_bwd_length"][ws, p0 + 1 : p0 + e - s] = np.linalg.norm(x[:, :-1] - xp[:, 1:], axis=-1)
+            lines.build(ws, slice(p0, p0 + e - s), x, x + off, state_qd[ws, s:e])
             active[ws, a] = 1
             changed = True
-        if loaded is not None:
-            _, _, al_q, al_qd, lens = loaded
-            hi = al_q.astype(np.float32)
-            state.al_q.assign(hi)
-            state.al_q_lo.assign((al_q - hi).astype(np.float32))
-            state.al_qd.assign(al_qd)
-            for n, v in lens.items():
-                getattr(c, n).assign(v)
+        if lines is not None:
+            lines.write(state, c)
         if changed:
             c.al_active.assign(active)
-
-    def _load(self, state):
-        """The state and assistant-line arrays on the host: positions in float64 (compensated)."""
-        c = self.control
-        state_q = state.node_q.numpy().astype(np.float64) + state.node_q_lo.numpy()
-        lens = {n: getattr(c, n).numpy() for n in ("al_link_length", "al_chord_length", "al_fwd_length", "al_bwd_length")}
-        return state_q, state.node_qd.numpy(), state.al_q.numpy().astype(np.float64), state.al_qd.numpy(), lens

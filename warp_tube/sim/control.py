@@ -20,12 +20,57 @@ import numpy as np
 
 from ..scene.spec import Scene
 
-__all__ = ["FrameControl", "AL_REBUILD_ANGLE", "AL_MIN_ANGLE"]
+__all__ = ["FrameControl", "AssistantLineArrays", "AL_REBUILD_ANGLE", "AL_MIN_ANGLE"]
 
 #: the assistant line is rebuilt when its force turns by more than this [rad].
 AL_REBUILD_ANGLE = math.radians(45.0)
 #: no assistant line is built for a force within this angle of the tube's axis [rad].
 AL_MIN_ANGLE = math.radians(15.0)
+
+
+class AssistantLineArrays:
+    """The assistant lines' state and rest lengths, read to the host to build lines and written back
+    whole: entries of lines not rebuilt keep their values bit for bit (the low-order part of the
+    positions included).
+
+    Shapes (W worlds, L line slots): ``q_hi``, ``q_lo``, ``qd`` (W, L, 3) float32 [m, m/s];
+    ``lengths`` by name (W, L) float32 [m] (``al_link_length``, ``al_chord_length``,
+    ``al_fwd_length``, ``al_bwd_length``, as :class:`~warp_tube.model.tube.TubeControl`).
+    """
+
+    LENGTHS = ("al_link_length", "al_chord_length", "al_fwd_length", "al_bwd_length")
+
+    def __init__(self, q_hi: np.ndarray, q_lo: np.ndarray, qd: np.ndarray, lengths: dict):
+        self.q_hi, self.q_lo, self.qd, self.lengths = q_hi, q_lo, qd, lengths
+
+    @classmethod
+    def read(cls, state, control) -> AssistantLineArrays:
+        """Copy the lines' state and rest lengths of ``state`` and ``control`` to the host."""
+        lengths = {n: getattr(control, n).numpy() for n in cls.LENGTHS}
+        return cls(state.al_q.numpy(), state.al_q_lo.numpy(), state.al_qd.numpy(), lengths)
+
+    def build(self, worlds, slots: slice, x: np.ndarray, xp: np.ndarray, xd: np.ndarray) -> None:
+        """Lay a line: slots ``slots`` of ``worlds`` (an index or a slice) at ``xp`` beside the tube
+        points ``x``, both float64 (w, n, 3) [m], moving with the tube's velocities ``xd`` [m/s];
+        its links, chords and diagonals get their rest lengths from these positions (unstrained)."""
+        hi = xp.astype(np.float32)
+        self.q_hi[worlds, slots] = hi
+        self.q_lo[worlds, slots] = (xp - hi).astype(np.float32)
+        self.qd[worlds, slots] = xd
+        p0, n = slots.start, slots.stop - slots.start
+        L = self.lengths
+        L["al_link_length"][worlds, slots] = np.linalg.norm(xp - x, axis=-1)
+        L["al_chord_length"][worlds, p0 : p0 + n - 1] = np.linalg.norm(xp[:, 1:] - xp[:, :-1], axis=-1)
+        L["al_fwd_length"][worlds, p0 : p0 + n - 1] = np.linalg.norm(x[:, 1:] - xp[:, :-1], axis=-1)
+        L["al_bwd_length"][worlds, p0 + 1 : p0 + n] = np.linalg.norm(x[:, :-1] - xp[:, 1:], axis=-1)
+
+    def write(self, state, control) -> None:
+        """Copy the lines back into ``state`` and ``control``."""
+        state.al_q.assign(self.q_hi)
+        state.al_q_lo.assign(self.q_lo)
+        state.al_qd.assign(self.qd)
+        for n, v in self.lengths.items():
+            getattr(control, n).assign(v)
 
 
 class FrameControl:
@@ -149,7 +194,7 @@ class FrameControl:
         m, c, h = self.model, self.control, self.model.host
         active = c.al_active.numpy()
         changed = False
-        state_q = state_qd = None
+        state_q = state_qd = lines = None
         for a in range(m.force_count):
             if not h.force_uses_al[a]:
                 continue
@@ -163,10 +208,10 @@ class FrameControl:
             if active[0, a] and float(np.dot(d, self._al_dir[a])) >= math.cos(AL_REBUILD_ANGLE):
                 continue
             if state_q is None:
+                # Positions in float64 (compensated: float32 + low-order part), so the line is
+                # built unstrained in the kernels' arithmetic.
                 state_q = state.node_q.numpy().astype(np.float64) + state.node_q_lo.numpy()
                 state_qd = state.node_qd.numpy()
-                al_q, al_qd = state.al_q.numpy().astype(np.float64), state.al_qd.numpy()
-                lens = {n: getattr(c, n).numpy() for n in ("al_link_length", "al_chord_length", "al_fwd_length", "al_bwd_length")}
             t = h.force_tube[a]
             s, e = h.tube_node_start[t], h.tube_node_start[t + 1]
             # Offset towards the push: the force's part across the tube at its point (world 0).
@@ -180,29 +225,16 @@ class FrameControl:
                     active[:, a] = 0
                     changed = True
                 continue
+            if lines is None:
+                lines = AssistantLineArrays.read(state, c)
             offset_dir = across / np.linalg.norm(across)
             p0 = h.al_start[a]
-            sl = slice(p0, p0 + e - s)
             off = h.node_radius[s:e, None] * offset_dir[None]
-            # Positions in float64 (compensated: float32 + low-order part), so the line is built
-            # unstrained in the kernels' arithmetic.
             x = state_q[:, s:e]
-            xp = x + off[None]
-            al_q[:, sl] = xp
-            al_qd[:, sl] = state_qd[:, s:e]
-            lens["al_link_length"][:, sl] = np.linalg.norm(xp - x, axis=-1)
-            chord = np.linalg.norm(xp[:, 1:] - xp[:, :-1], axis=-1)
-            lens["al_chord_length"][:, p0 : p0 + e - s - 1] = chord
-            lens["al_fwd_length"][:, p0 : p0 + e - s - 1] = np.linalg.norm(x[:, 1:] - xp[:, :-1], axis=-1)
-            lens["al_bwd_length"][:, p0 + 1 : p0 + e - s] = np.linalg.norm(x[:, :-1] - xp[:, 1:], axis=-1)
+            lines.build(slice(None), slice(p0, p0 + e - s), x, x + off[None], state_qd[:, s:e])
             active[:, a] = 1
             changed = True
-        if state_q is not None:
-            hi = al_q.astype(np.float32)
-            state.al_q.assign(hi)
-            state.al_q_lo.assign((al_q - hi).astype(np.float32))
-            state.al_qd.assign(al_qd)
-            for n, v in lens.items():
-                getattr(c, n).assign(v)
+        if lines is not None:
+            lines.write(state, c)
         if changed:
             c.al_active.assign(active)
