@@ -11,11 +11,14 @@ per (world, group), into ``sums[w, g]``:
 - ``[1]`` kinetic: the kinetic energy of the free nodes, ``sum m |v|^2 / 2`` [J];
 - ``[2]`` work: the work of the point forces and gravity over the frame,
   ``sum (f_ext + m_free g) . (x_after - x_before)`` [J] (forces are held over a frame, so this is
-  exact for them).
+  exact for them);
 
-Shapes: positions and velocities (world, node) vec3 [m, m/s]; ``node_group`` (node,) int;
-``node_free_mass`` (node,) [kg], 0 for pinned nodes; ``sums`` (world, group) vec3, zeroed by the
-host before the launch.
+and into ``far_out[w, g]`` the largest distance of a finite node from its rest position [m].
+
+Shapes: positions and velocities (world, node) vec3 [m, m/s]; ``rest_q`` (rows, node) vec3 [m] and
+``node_free_mass`` (rows, node) [kg] (0 for pinned nodes), world ``w`` reading row ``w % rows``
+(one row shared by every world, or one per world); ``node_group`` (node,) int; ``sums`` (world,
+group) vec3 and ``far_out`` (world, group) float, zeroed by the host before the launch.
 """
 
 from __future__ import annotations
@@ -29,24 +32,27 @@ def frame_sums_kernel(
     q_after: wp.array2d[wp.vec3],
     qd_after: wp.array2d[wp.vec3],
     f_ext: wp.array2d[wp.vec3],
-    rest_q: wp.array[wp.vec3],
+    rest_q: wp.array2d[wp.vec3],
     node_group: wp.array[int],
-    node_free_mass: wp.array[float],
+    node_free_mass: wp.array2d[float],
     gravity: wp.vec3,
     limit: float,
     sums: wp.array2d[wp.vec3],
+    far_out: wp.array2d[float],
 ):
     w, n = wp.tid()
     g = node_group[n]
+    row = w % rest_q.shape[0]
     x = q_after[w, n]
     v = qd_after[w, n]
-    d = x - rest_q[n]
+    d = x - rest_q[row, n]
     far = wp.dot(d, d)
     # A NaN fails every comparison: count what is not provably finite and near.
     finite = far < limit * limit and wp.dot(v, v) < 1.0e30
     if not finite:
         wp.atomic_add(sums, w, g, wp.vec3(1.0, 0.0, 0.0))
         return
-    m = node_free_mass[n]
+    wp.atomic_max(far_out, w, g, wp.sqrt(far))
+    m = node_free_mass[row, n]
     f = f_ext[w, n] + m * gravity
     wp.atomic_add(sums, w, g, wp.vec3(0.0, 0.5 * m * wp.dot(v, v), wp.dot(f, x - q_before[w, n])))

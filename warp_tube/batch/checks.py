@@ -1,18 +1,18 @@
 """Per-world frame checks of a batch: ``Simulation``'s checks, world by world, so one variant can
 fail while the others go on.
 
-A world fails a frame when a position is not finite, a free point is farther than
+A world fails a frame when a position or velocity is not finite, a free point is farther than
 ``RUNAWAY_LENGTHS`` tube lengths from its rest position, or its kinetic energy exceeds ten times
 the work its forces and gravity did plus a round-off floor (moving pins: no energy check), as in
-``Simulation._check``. The checks run on the host from the positions and velocities the batch
-copies back each frame (device-side checks are a later step).
+``Simulation``. The sums run on the device (:class:`warp_tube.sim.checks.FrameChecks`, with each
+world's own rest shape, masses, runaway distance and energy floor): the host reads four numbers
+per world a frame, and whole arrays only to name the point of a world that failed.
 """
-
 from __future__ import annotations
 
 import numpy as np
 
-from ..sim.checks import RUNAWAY_LENGTHS
+from ..sim.checks import FrameChecks
 from .worlds import Worlds
 
 __all__ = ["WorldChecks", "work_of"]
@@ -57,44 +57,38 @@ class WorldChecks:
         self.rest32 = self.rest.astype(np.float32)
         self.free_mass = h.node_mass * (h.node_inv_mass > 0)
         extent = np.array([max(float(np.ptp(t.points, axis=0).max()) for t in s.tubes) for s in worlds.scenes])
-        self.limit = RUNAWAY_LENGTHS * np.maximum(extent, 1e-9)
         # Simulation's round-off floor of the energy check, per world.
         scale = np.maximum(np.maximum(extent, np.abs(self.rest).reshape(W, -1).max(axis=1)), 1e-9)
-        self.energy_floor = np.sum(h.seg_ke, axis=1) * (1e-6 * scale) ** 2 + 1e-30
-        self.allowance = np.inf if moving_pins else 0.0
-        self.gravity = gravity
-        self.force_node = np.asarray(worlds.model.host.force_node, dtype=np.int64)
-        self.work = np.zeros(W)  # work done so far [J]
+        energy_floor = np.sum(h.seg_ke, axis=1) * (1e-6 * scale) ** 2 + 1e-30
+        self.device_checks = FrameChecks(worlds.model, extent=extent[:, None], energy_floor=energy_floor[:, None],
+                                         gravity=gravity, rest_q=h.node_rest_q, node_mass=h.node_mass,
+                                         node_inv_mass=h.node_inv_mass)  # fmt: skip
+        self.device_checks.pin_allowance[:] = np.inf if moving_pins else 0.0
 
-    def frame_work(self, q_before: np.ndarray, q_after: np.ndarray, f_ext: np.ndarray | None) -> np.ndarray:
-        """Work [J] of the forces and gravity over a frame, per world: ``f . dq`` at the force
-        nodes (forces are held over a frame) and ``g . (sum m x_after - sum m x_before)``."""
-        return work_of(self.force_node, f_ext, q_before, q_after, self.free_mass, self.gravity)
+    @property
+    def work(self) -> np.ndarray:
+        """Work of the forces and gravity so far [J], per world (W,)."""
+        return self.device_checks.work[:, 0]
 
-    def check(self, frame: int, q: np.ndarray, qd: np.ndarray, work: np.ndarray, alive: np.ndarray) -> dict:
-        """Problems of the frame ending at output frame ``frame``, ``{world: message}``, among the
-        ``alive`` worlds; ``work``: per-world work up to the frame's end [J]."""
+    @property
+    def distance(self) -> np.ndarray:
+        """Largest distance of a point from its rest position in the last checked frame [m], (W,)."""
+        return self.device_checks.distance[:, 0]
+
+    def check(self, frame: int, before, after, control, alive: np.ndarray) -> dict:
+        """Problems of the frame from state ``before`` to ``after`` (output frame ``frame`` to
+        ``frame + 1``), ``{world: message}``, among the ``alive`` worlds; the frame's work is
+        counted for every world."""
+        failures, work = self.device_checks.check(before, after, control)
+        self.device_checks.accept(work)
         out = {}
-        dev = np.abs(q - self.rest32).reshape(len(q), -1).max(axis=1)
-        suspect = np.flatnonzero(alive & ~(dev < self.limit))  # NaN fails the comparison
-        for w in suspect:
-            bad = ~np.isfinite(q[w]).all(axis=-1)
-            far = ~bad & (np.linalg.norm(q[w] - self.rest[w], axis=-1) > self.limit[w])
-            if bad.any() or far.any():
-                node = int(np.argmax(bad | far))
-                what = "non-finite positions" if bad.any() else f"a point more than {RUNAWAY_LENGTHS:g} tube lengths from rest"
-                out[int(w)] = self._message(frame, what, w, node)
-        ke = self.kinetic_energy(qd)
-        budget = 10.0 * np.maximum(work, 0.0) + self.energy_floor + self.allowance
-        for w in np.flatnonzero(alive & (ke > budget)):
-            if int(w) in out:
-                continue
-            node = int(np.argmax(np.einsum("nk,nk->n", qd[w], qd[w]) * self.worlds.host.node_mass[w]))
-            out[int(w)] = self._message(frame, "kinetic energy beyond the work the forces did (a blow-up)", w, node)
+        for f in failures:
+            if alive[f.world] and f.world not in out:
+                out[f.world] = self._message(frame, f.what, f.world, f.node)
         return out
 
     def kinetic_energy(self, qd: np.ndarray) -> np.ndarray:
-        """Kinetic energy of the free points [J], per world."""
+        """Kinetic energy of the free points [J], per world, from velocities (W, N, 3) [m/s]."""
         return 0.5 * np.einsum("wn,wnk,wnk->w", self.free_mass, qd, qd, dtype=np.float64)
 
     def _message(self, frame: int, what: str, world: int, node: int) -> str:

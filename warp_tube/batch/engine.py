@@ -28,7 +28,7 @@ from ..scene.spec import Scene
 from .checks import WorldChecks, work_of
 from .control import WorldControl
 from .plan import RunChoice
-from .readback import HostMirror
+from .framestore import FrameStore
 from .worlds import build_worlds, initial_state
 
 __all__ = ["ChunkRun", "simulate_chunk", "output_frames", "chunk_shapes"]
@@ -102,6 +102,7 @@ def simulate_chunk(scenes: list[Scene], choice: RunChoice, device: str, frames: 
     checks = WorldChecks(worlds, scenes[0].settings.gravity, wc.moving_pins)
     shapes = chunk_shapes(scenes, frames, every, surface, int(worlds.vertex_start[-1]) if surface else None)
     arrays = (allocate or _in_memory)(shapes)
+    store = FrameStore(arrays, device)
     timings["build_s"] += time.perf_counter() - t0
 
     alive = np.ones(W, dtype=bool)
@@ -109,12 +110,7 @@ def simulate_chunk(scenes: list[Scene], choice: RunChoice, device: str, frames: 
     frames_simulated = np.zeros(W, dtype=np.int64)
     frames_written = np.zeros(W, dtype=np.int64)
     max_disp = np.zeros(W)
-    rest32 = checks.rest32
-    q = rest32
-    qd = np.zeros_like(rest32)
     n, dt = choice.substeps, frame_dt / choice.substeps
-    q_back, qd_back = HostMirror(state.node_q, slots=2), HostMirror(state.node_qd)  # q: this frame's and the last
-    surface_back = [(HostMirror(b.points), HostMirror(b.normals), HostMirror(b.extent())) for b in worlds.surfaces] if surface else []
     f_out = 0
     for k in range(frames):
         if k > 0:
@@ -124,41 +120,41 @@ def simulate_chunk(scenes: list[Scene], choice: RunChoice, device: str, frames: 
             solver.integrate(state, nxt, control, dt, n)
             wp.synchronize_device(device)
             t2 = time.perf_counter()
-            q_new, qd = q_back.fetch(nxt.node_q), qd_back.fetch(nxt.node_qd)
-            wp.synchronize_device(device)
-            t3 = time.perf_counter()
-            fw = checks.frame_work(q, q_new, wc.f_ext)
-            problems = checks.check(k - 1, q_new, qd, checks.work + fw, alive)
-            checks.work += fw
+            problems = checks.check(k - 1, state, nxt, control, alive)
             state, nxt = nxt, state
-            q = q_new
             if problems:
                 for w, msg in problems.items():
                     alive[w] = False
                     failed[w] = msg
                 wc.dead[~alive] = True
-                q = _reset_worlds(state, q, rest32, worlds.rest_q(), ~alive)
-                qd[~alive] = 0.0
-            disp = np.linalg.norm(q - worlds.rest_q(), axis=-1).max(axis=1)
-            max_disp = np.where(alive, np.maximum(max_disp, disp), max_disp)
+                _reset_worlds(state, checks.rest32, worlds.rest_q(), ~alive)
+            max_disp = np.where(alive, np.maximum(max_disp, checks.distance), max_disp)
             frames_simulated[alive] += 1
-            t4 = time.perf_counter()
+            t3 = time.perf_counter()
             timings["control_s"] += t1 - t
             timings["kernels_s"] += t2 - t1
-            timings["readback_s"] += t3 - t2
-            timings["checks_s"] += t4 - t3
+            timings["checks_s"] += t3 - t2
             if progress is not None:
                 progress(W)
         if k % every == 0:
             t = time.perf_counter()
-            np.divide(q, mpu, out=arrays["centerline"][f_out])  # as Simulation.centerline_points
+            store.store(f_out, "centerline", state.node_q, mpu)  # as Simulation.centerline_points
             if surface:
-                t_copy = _surface_frame(worlds, state, arrays, f_out, mpu, device, timings, surface_back)
-            else:
-                t_copy = 0.0
+                _surface_frame(worlds, state, store, f_out, mpu)
+            wp.synchronize_device(device)
+            t1 = time.perf_counter()
+            if store.count == store.window and f_out + 1 < store.frames:
+                store.flush()
             frames_written[alive] += 1
             f_out += 1
-            timings["copy_s"] += time.perf_counter() - t - t_copy
+            timings["kernels_s"] += t1 - t
+            timings["copy_s"] += time.perf_counter() - t1
+    t = time.perf_counter()
+    store.flush()
+    timings["copy_s"] += time.perf_counter() - t
+    t = time.perf_counter()
+    q, qd = state.node_q.numpy(), state.node_qd.numpy()
+    timings["readback_s"] += time.perf_counter() - t
     ke = checks.kinetic_energy(qd)
     first_tip = int(np.cumsum(scenes[0].tubes[0].curve_counts)[0]) - 1
     rows = []
@@ -178,32 +174,19 @@ def _in_memory(shapes: dict) -> dict:
     return {name: np.empty(shape, dtype=np.float32) for name, shape in shapes.items()}
 
 
-def _surface_frame(worlds, state, arrays, f_out, mpu, device, timings, back) -> float:
-    """Rebuild every prim's surface into frame ``f_out`` of the arrays; returns the time spent in
-    the kernels and copying back (counted there, not as copying into the arrays)."""
-    spent = 0.0
+def _surface_frame(worlds, state, store: FrameStore, f_out: int, mpu: float) -> None:
+    """Rebuild every prim's surface and store it as written frame ``f_out``."""
     for p, b in enumerate(worlds.surfaces):
-        t = time.perf_counter()
         pts, nrm = b.compute(state.node_q)
-        ext = b.extent()
-        wp.synchronize_device(device)
-        t1 = time.perf_counter()
-        pts, nrm, ext = (mirror.fetch(a) for mirror, a in zip(back[p], (pts, nrm, ext)))
-        wp.synchronize_device(device)
-        t2 = time.perf_counter()
-        v0, v1 = worlds.vertex_start[p], worlds.vertex_start[p + 1]
-        np.divide(pts, mpu, out=arrays["points"][f_out, :, v0:v1])  # as Simulation.surface
-        arrays["normals"][f_out, :, v0:v1] = nrm
-        np.divide(ext, mpu, out=arrays["extent"][f_out, :, p])
-        timings["kernels_s"] += t1 - t
-        timings["readback_s"] += t2 - t1
-        spent += t2 - t
-    return spent
+        cols = slice(int(worlds.vertex_start[p]), int(worlds.vertex_start[p + 1]))
+        store.store(f_out, "points", pts, mpu, columns=cols)  # as Simulation.surface
+        store.store(f_out, "normals", nrm, 1.0, columns=cols)
+        store.store(f_out, "extent", b.extent(), mpu, prim=p)
 
 
-def _reset_worlds(state, q, rest32, rest, dead):
-    """Put dead worlds back at rest with no velocity (so they stay finite); returns the positions."""
-    q = q.copy()
+def _reset_worlds(state, rest32, rest, dead) -> None:
+    """Put dead worlds back at rest with no velocity (so they stay finite)."""
+    q = state.node_q.numpy()
     q[dead] = rest32[dead]
     lo = state.node_q_lo.numpy()
     lo[dead] = (rest[dead] - rest32[dead]).astype(np.float32)
@@ -215,7 +198,6 @@ def _reset_worlds(state, q, rest32, rest, dead):
     al = state.al_qd.numpy()
     al[dead] = 0.0
     state.al_qd.assign(al)
-    return q
 
 
 def _run_alone(scene: Scene, w: int, device: str, frames: int, every: int, surface: bool, arrays: dict, tip: int) -> dict:

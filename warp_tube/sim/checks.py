@@ -42,12 +42,19 @@ class FrameChecks:
     Args:
         model: the :class:`~warp_tube.model.tube.TubeModel`.
         node_group: (node_count,) int, the group of each node (default: one group).
-        extent: size of each group's tubes [m], shape (groups,), for the runaway distance.
-        energy_floor: (groups,) [J]: kinetic energy that never counts as a blow-up (round-off).
+        extent: size of each group's tubes [m], shape (groups,), or (worlds, groups) where each
+            world's differ, for the runaway distance.
+        energy_floor: [J], (groups,) or (worlds, groups): kinetic energy that never counts as a
+            blow-up (round-off).
         gravity: (3,) [m/s^2] or None.
+        rest_q: rest positions [m], (worlds, node_count, 3), where each world has its own (a
+            batch's variants); default: the model's, shared by every world.
+        node_mass, node_inv_mass: node masses [kg] and their inverses [1/kg] (0 where pinned),
+            (worlds, node_count), with ``rest_q``; default: the model's.
     """
 
-    def __init__(self, model, node_group=None, extent=None, energy_floor=None, gravity=None):
+    def __init__(self, model, node_group=None, extent=None, energy_floor=None, gravity=None, rest_q=None, node_mass=None,
+                 node_inv_mass=None):  # fmt: skip
         h = model.host
         n = model.node_count
         self.model = model
@@ -56,23 +63,32 @@ class FrameChecks:
         self.group_count = int(group.max()) + 1 if n else 1
         self.node_group = group
         G, W = self.group_count, model.world_count
-        self.extent = np.broadcast_to(np.asarray(1.0 if extent is None else extent, dtype=np.float64), (G,)).copy()
-        self.energy_floor = np.broadcast_to(np.asarray(0.0 if energy_floor is None else energy_floor, dtype=np.float64), (G,)).copy()
-        # One runaway distance for the launch: the smallest group's; a group whose own limit is
+        extent = np.asarray(1.0 if extent is None else extent, dtype=np.float64)
+        self.extent = np.broadcast_to(extent, (W, G) if extent.ndim == 2 else (G,)).copy()
+        floor = np.asarray(0.0 if energy_floor is None else energy_floor, dtype=np.float64)
+        self.energy_floor = np.broadcast_to(floor, (W, G) if floor.ndim == 2 else (G,)).copy()
+        # One runaway distance for the launch: the smallest; a group (or world) whose own limit is
         # larger is re-checked against it on the host (rare: only when something is that far).
         self.limits = RUNAWAY_LENGTHS * np.maximum(self.extent, 1e-9)
-        self.free_mass = h.node_mass * (h.node_inv_mass > 0)
+        #: rest positions [m] (rows, N, 3) and masses [kg] (rows, N): one row, or one per world
+        self.rest_q = (h.node_rest_q if rest_q is None else np.asarray(rest_q, dtype=np.float64)).reshape(-1, n, 3)
+        self.node_mass = (h.node_mass if node_mass is None else np.asarray(node_mass, dtype=np.float64)).reshape(-1, n)
+        inv_mass = (h.node_inv_mass if node_inv_mass is None else np.asarray(node_inv_mass)).reshape(-1, n)
+        self.free_mass = self.node_mass * (inv_mass > 0)
         self.gravity = np.zeros(3) if gravity is None else np.asarray(gravity, dtype=np.float64)
         d = self.device
         self._group = wp.array(group, dtype=int, device=d)
         self._free_mass = wp.array(self.free_mass, dtype=float, device=d)
-        self._rest = wp.array(h.node_rest_q, dtype=wp.vec3, device=d)
+        self._rest = wp.array(self.rest_q, dtype=wp.vec3, device=d)
         self._sums = wp.zeros((W, G), dtype=wp.vec3, device=d)
+        self._far = wp.zeros((W, G), dtype=float, device=d)
         self._launches = {}
         #: work of the forces and gravity so far [J], per (world, group), float64
         self.work = np.zeros((W, G))
         #: energy moving pins may put in [J] per group: not measured, so unbounded where they move
         self.pin_allowance = np.zeros(G)
+        #: largest distance of a finite node from rest in the last measured frame [m], (W, G)
+        self.distance = np.zeros((W, G))
 
     def measure(self, before, after, control):
         """Per (world, group): ``(bad, kinetic [J], work of this frame [J])`` as NumPy arrays."""
@@ -86,12 +102,14 @@ class FrameChecks:
                 frame_sums_kernel, dim=(W, N), device=self.device,
                 inputs=[before.node_q, after.node_q, after.node_qd, control.node_f_ext, self._rest, self._group,
                         self._free_mass, wp.vec3(*self.gravity), float(self.limits.min())],
-                outputs=[self._sums], record_cmd=True,
+                outputs=[self._sums, self._far], record_cmd=True,
             )  # fmt: skip
             self._launches[key] = launch
         self._sums.zero_()
+        self._far.zero_()
         launch.launch()
         s = self._sums.numpy().astype(np.float64)
+        self.distance = self._far.numpy().astype(np.float64)
         return s[..., 0], s[..., 1], s[..., 2]
 
     def check(self, before, after, control) -> tuple[list[Failure], np.ndarray]:
@@ -116,19 +134,21 @@ class FrameChecks:
 
     def _locate(self, w, g, q, qd, flagged, budget) -> Failure | None:
         nodes = np.flatnonzero(self.node_group == g)
+        row = w % len(self.rest_q)
         x = q[nodes]
         if flagged:
             finite = np.isfinite(x).all(axis=1) & np.isfinite(qd[nodes]).all(axis=1)
             if not finite.all():
                 return Failure(g, w, int(nodes[np.argmin(finite)]), "non-finite positions")
-            dist = np.linalg.norm(x - self.model.host.node_rest_q[nodes], axis=1)
-            if dist.max() > self.limits[g]:
+            dist = np.linalg.norm(x - self.rest_q[row, nodes], axis=1)
+            limit = self.limits[w, g] if self.limits.ndim == 2 else self.limits[g]
+            if dist.max() > limit:
                 return Failure(g, w, int(nodes[np.argmax(dist)]), f"a point more than {RUNAWAY_LENGTHS:g} tube lengths from rest")
             # Beyond the launch's limit but within this group's own: not a failure by itself.
             v = qd[nodes].astype(np.float64)
-            ke = 0.5 * float(np.einsum("n,nk,nk->", self.free_mass[nodes], v, v))
+            ke = 0.5 * float(np.einsum("n,nk,nk->", self.free_mass[row, nodes], v, v))
             if not ke > budget:
                 return None
         v = qd[nodes]
-        hot = int(np.argmax(np.einsum("nk,nk->n", v, v) * self.model.host.node_mass[nodes]))
+        hot = int(np.argmax(np.einsum("nk,nk->n", v, v) * self.node_mass[row, nodes]))
         return Failure(g, w, int(nodes[hot]), "kinetic energy beyond the work the forces did (a blow-up)")
