@@ -79,6 +79,7 @@ class Journal:
     @staticmethod
     def _atomic(path: str, data: dict) -> None:
         tmp = f"{path}.partial-{os.getpid()}"
+        text = json.dumps(data)  # one string from the C encoder (json.dump encodes piece by piece in Python)
         with open(tmp, "w", encoding="utf-8") as f:
-            json.dump(data, f)
+            f.write(text)
         os.replace(tmp, path)
