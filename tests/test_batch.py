@@ -151,6 +151,23 @@ def test_arrays_and_grid_layouts_hold_the_same_frames(sweep, tmp_path):
     assert m.ExtractTranslation()[1] == 0.0  # the grid lies across the up axis (Y)
 
 
+def test_chunks_written_while_the_next_simulates_reuse_no_live_buffer(sweep, tmp_path):
+    """One variant per chunk and a pool of writers: each chunk's frames go into buffers an earlier
+    chunk used (two in turn) while that chunk may still be written; every variant must still
+    come out as in the batch written in one process (the same bytes; arrays: the same values)."""
+    d, files_out, _, _ = sweep
+    table = d / "table.csv"
+    files = tmp_path / "files"
+    run_batch(str(DEFAULT), str(files), str(table), frames=FRAMES, chunk=1, writers=2)  # writer processes
+    for k in range(5):
+        assert filecmp.cmp(files / f"variant_{k:05d}.usdc", files_out / f"variant_{k:05d}.usdc", shallow=False), k
+    one, pooled = tmp_path / "one", tmp_path / "pooled"
+    run_batch(str(DEFAULT), str(one), str(table), frames=FRAMES, layout="arrays", surface=True, writers=0)
+    run_batch(str(DEFAULT), str(pooled), str(table), frames=FRAMES, layout="arrays", surface=True, chunk=1, writers=2)  # threads
+    for name in ("centerline.npy", "surface.npy"):
+        assert np.array_equal(np.load(one / name), np.load(pooled / name), equal_nan=True), name
+
+
 def test_failed_variant_is_marked_and_the_others_go_on(tmp_path):
     # One forced substep for all: stable for the soft tubes, beyond the stiff one's bound (its
     # bound shrinks as 1/sqrt(E)), so that world blows up while the others run on.
