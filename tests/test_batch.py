@@ -510,6 +510,11 @@ def test_a_large_table_read_by_several_processes(sweep, tmp_path, monkeypatch, c
     for k in range(5):
         assert filecmp.cmp(files_out / f"variant_{k:05d}.usdc", out / f"variant_{k:05d}.usdc", shallow=False)
     assert filecmp.cmp(files_out / "summary.csv", out / "summary.csv", shallow=False)
+    # read by the batch's writer processes (started first, idle until a chunk is simulated)
+    by_writers = tmp_path / "by_writers"
+    assert run_batch(str(DEFAULT), str(by_writers), str(d / "table.csv"), frames=FRAMES, writers=2).ok == 5
+    for name in [f"variant_{k:05d}.usdc" for k in range(5)] + ["summary.csv"]:
+        assert filecmp.cmp(files_out / name, by_writers / name, shallow=False), name
     table = write_table(tmp_path / "bad.csv", [E], [("1e5",), ("x",), ("1e5",), ("2e5",), ("-1",)])
     status = cli(["batch", str(DEFAULT), "--variants", str(table), "-o", str(tmp_path / "bad"), "--frames", "2"])
     err = capsys.readouterr().err

@@ -2,7 +2,9 @@
 
 A large table (at least :data:`PREPARE_ROWS_PER_PROCESS` rows per process) is read by several
 processes, each opening the scene and reading a part of the rows; problems from all parts are
-reported together, in row order, before anything runs.
+reported together, in row order, before anything runs. The batch's writer processes do this
+reading when it has them (they are started first and are idle until the first chunk is
+simulated); otherwise processes are started for it.
 """
 
 from __future__ import annotations
@@ -53,13 +55,22 @@ def _prepare_part(scene: str, table, variant_sets):
         return variants, [(table.first_row, str(e))], None
 
 
-def prepare_batch(scene: str, table, variant_sets, bar):
+def prepare_batch(scene: str, table, variant_sets, bar, pool: cf.ProcessPoolExecutor | None = None, pool_size: int = 0):
     """Every variant and its run choice, read by one process or, for a large table, several
-    (each opening the scene and reading a part of the rows); all problems reported together."""
+    (each opening the scene and reading a part of the rows); all problems reported together.
+
+    Args:
+        scene, table, variant_sets: the batch's scene file, its :class:`~warp_tube.batch.table.Table`
+            (or None) and variant-set selection.
+        bar: the batch's :class:`~warp_tube.batch.progress.Progress`.
+        pool, pool_size: running worker processes to read with (the writers) and how many they
+            are, or None to start some.
+    """
     from .variants import Variants, name_width, prepare_variants, raise_problems
 
     rows = len(table.rows) if table is not None else 1
-    parts = min(PREPARE_PROCESSES, os.cpu_count() or 1, rows // PREPARE_ROWS_PER_PROCESS)
+    width = pool_size if pool is not None else (os.cpu_count() or 1)
+    parts = min(PREPARE_PROCESSES, width, rows // PREPARE_ROWS_PER_PROCESS)
     if parts < 2:
         variants = prepare_variants(scene, table, variant_sets, extract=_extract, progress=bar.reading)
         return variants, checked_run_choices(variants)
@@ -67,13 +78,18 @@ def prepare_batch(scene: str, table, variant_sets, bar):
 
     open_stage(scene)  # a missing or unreadable scene: one message, before any process starts
     bounds = np.linspace(0, rows, parts + 1).round().astype(int)
-    ctx = multiprocessing.get_context("spawn")
-    with cf.ProcessPoolExecutor(parts, mp_context=ctx, initializer=ignore_sigint) as ex:
-        futures = [ex.submit(_prepare_part, scene, table.part(a, b), variant_sets) for a, b in zip(bounds[:-1], bounds[1:])]
+    own = None
+    if pool is None:
+        own = pool = cf.ProcessPoolExecutor(parts, mp_context=multiprocessing.get_context("spawn"), initializer=ignore_sigint)
+    try:
+        futures = [pool.submit(_prepare_part, scene, table.part(a, b), variant_sets) for a, b in zip(bounds[:-1], bounds[1:])]
         results = []
         for f in futures:
             results.append(f.result())
             bar.reading(sum(len(r[0].variants) for r in results))
+    finally:
+        if own is not None:
+            own.shutdown(wait=True, cancel_futures=True)
     raise_problems([p for _, probs, _ in results for p in probs])
     width = name_width(sum(len(r[0].variants) for r in results))
     merged, choices = [], []

@@ -238,7 +238,8 @@ def _run_batch(scene, out_dir, table, tab, devices, writer_pool, t_start, *, var
                device, chunk, scheduler, resume, progress, on_chunk) -> BatchResult:  # fmt: skip
 
     bar = Progress(progress)
-    variants, choices = prepare_batch(scene, tab, variant_sets, bar)
+    readers = writer_pool.pool if writer_pool.processes else None  # idle until the first chunk is simulated
+    variants, choices = prepare_batch(scene, tab, variant_sets, bar, readers, writer_pool.count)
     bar.close_reading()
     first = variants.variants[0].scene
     n_frames = first.stage.frame_count if frames is None else int(frames)
