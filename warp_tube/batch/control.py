@@ -78,7 +78,7 @@ class WorldControl:
             if t.pin_track is not None:
                 track = np.stack([s.tubes[k].pin_track for s in worlds.scenes])
                 self._pins.append((worlds.prim_start[k] + t.pinned, track))
-        self.f_ext = None  # the last frame's applied forces at the force nodes, float32 (W, F, 3) [N]
+        self._f_last = None  # the forces last written to the control, (W, F, 3) [N]
 
     @property
     def moving_pins(self) -> bool:
@@ -100,11 +100,12 @@ class WorldControl:
         W, N = m.world_count, m.node_count
         if m.force_count:
             f = self.forces_at((frame + 0.5) * self.frame_dt)
-            fe = np.zeros((W, N, 3))
-            for a, node in enumerate(self.force_node):  # in force order, as np.add.at sums them
-                fe[:, node] += f[:, a]
-            c.node_f_ext.assign(fe)
-            self.f_ext = fe[:, self.force_node].astype(np.float32)
+            if self._f_last is None or not np.array_equal(f, self._f_last):  # held forces: written once
+                fe = np.zeros((W, N, 3))
+                for a, node in enumerate(self.force_node):  # in force order, as np.add.at sums them
+                    fe[:, node] += f[:, a]
+                c.node_f_ext.assign(fe)
+                self._f_last = f
             if m.features.assistant_line:
                 self._update_assistant_lines(f, state)
         if self._pins:
