@@ -1,0 +1,51 @@
+"""Output frames gathered on the device and copied back in windows (warp_tube.batch.framestore),
+against the same arrays computed with NumPy."""
+
+import numpy as np
+import warp as wp
+
+import warp_tube.batch.framestore as framestore
+from warp_tube.batch.framestore import FrameStore
+
+
+def frames(seed, F, W, V):
+    rng = np.random.default_rng(seed)
+    return rng.normal(size=(F, W, V, 3)).astype(np.float32) * 10.0
+
+
+def run_store(monkeypatch, staged, window_bytes, staging_bytes):
+    monkeypatch.setattr(framestore, "STAGING_BYTES", staging_bytes)
+    monkeypatch.setattr(framestore, "COPY_THREADS", 3)
+    monkeypatch.setattr(framestore, "PARALLEL_COPY_MIN", 1000)
+    F, W, V, P = 7, 5, 300, 2
+    pts, nrm = frames(0, F, W, V), frames(1, F, W, V)
+    ext = frames(2, F, W, P * 2).reshape(F, W, P, 2, 3)
+    cl = frames(3, F, W, 11)
+    host = {"centerline": np.zeros_like(cl), "points": np.zeros_like(pts), "normals": np.zeros_like(nrm), "extent": np.zeros_like(ext)}
+    store = FrameStore(host, "cpu", window_bytes=window_bytes, staged=staged)
+    unit = 0.01
+    for f in range(F):
+        store.store(f, "centerline", wp.array(cl[f] * unit, dtype=wp.vec3, device="cpu"), unit)
+        for p, cols in enumerate((slice(0, 120), slice(120, V))):
+            store.store(f, "points", wp.array(np.ascontiguousarray(pts[f][:, cols]) * unit, dtype=wp.vec3, device="cpu"), unit, columns=cols)
+            store.store(f, "normals", wp.array(np.ascontiguousarray(nrm[f][:, cols]), dtype=wp.vec3, device="cpu"), 1.0, columns=cols)
+            store.store(f, "extent", wp.array(ext[f, :, p] * unit, dtype=wp.vec3, device="cpu"), unit, prim=p)
+    store.flush()
+    # The stored frames are src / unit in float32, as NumPy divides: exactly those values.
+    for name, ref in (("centerline", cl), ("points", pts), ("extent", ext)):
+        np.testing.assert_array_equal(host[name], (ref * np.float32(unit)) / unit)
+    np.testing.assert_array_equal(host["normals"], nrm)
+    return store
+
+
+def test_frames_straight_into_the_host_arrays(monkeypatch):
+    store = run_store(monkeypatch, staged=False, window_bytes=1 << 30, staging_bytes=1 << 20)
+    assert store.window == 7
+
+
+def test_windows_copied_back_through_a_small_staging_buffer(monkeypatch):
+    # windows of 5 frames (one frame of all four outputs is 36.9 kB) and staging pieces of 3
+    # frames of the largest output: every path of the copy (a full window, a short last piece and
+    # a short last window, the threads' slices) is taken
+    store = run_store(monkeypatch, staged=True, window_bytes=200_000, staging_bytes=60_000)
+    assert store.window == 5
