@@ -11,6 +11,7 @@ worlds, with per-world spoke lengths.
 
 from __future__ import annotations
 
+import copy
 import dataclasses
 from dataclasses import dataclass
 
@@ -42,13 +43,20 @@ class WorldArrays:
     node_radius: np.ndarray  # (W, N) [m]
 
 
+def _retargeted(f, tube: int):
+    """Force ``f`` on tube ``tube``: a copy, its values already checked (no ``__post_init__``)."""
+    g = copy.copy(f)
+    object.__setattr__(g, "tube", tube)
+    return g
+
+
 def combined_scene(scenes: list[Scene]) -> Scene:
     """One scene holding every scene's tubes and forces, scene after scene (forces re-targeted)."""
     tubes, forces = [], []
     for s in scenes:
         offset = len(tubes)
         tubes.extend(s.tubes)
-        forces.extend(dataclasses.replace(f, tube=f.tube + offset) if offset else f for f in s.forces)
+        forces.extend(_retargeted(f, f.tube + offset) if offset else f for f in s.forces)
     first = scenes[0]
     return Scene(tubes=tuple(tubes), forces=tuple(forces), settings=first.settings, stage=first.stage, source=first.source)
 
