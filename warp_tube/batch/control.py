@@ -14,6 +14,7 @@ from __future__ import annotations
 import math
 
 import numpy as np
+import warp as wp
 
 from ..sim.control import AL_MIN_ANGLE, AL_REBUILD_ANGLE, AssistantLineArrays
 from .worlds import Worlds
@@ -79,6 +80,20 @@ class WorldControl:
                 track = np.stack([s.tubes[k].pin_track for s in worlds.scenes])
                 self._pins.append((worlds.prim_start[k] + t.pinned, track))
         self._f_last = None  # the forces last written to the control, (W, F, 3) [N]
+        self._host = {}  # device array address -> its reused page-locked host copy
+
+    def _fetch(self, a):
+        """Device array ``a`` copied to the host: into a page-locked buffer kept for it (on CUDA;
+        fresh pageable memory and its page faults made each copy cost ~0.25 ms), as a NumPy view
+        valid until the next fetch of ``a``."""
+        if not a.device.is_cuda:
+            return a.numpy()
+        buf = self._host.get(a.ptr)
+        if buf is None:
+            buf = self._host[a.ptr] = wp.empty(a.shape, dtype=a.dtype, device="cpu", pinned=True)
+        wp.copy(buf, a)
+        wp.synchronize_device(a.device)
+        return buf.numpy()
 
     @property
     def moving_pins(self) -> bool:
@@ -138,7 +153,8 @@ class WorldControl:
                 continue
             if positions is None:
                 # float64, compensated (float32 + low-order part), as Simulation builds lines
-                positions = (state.node_q.numpy().astype(np.float64) + state.node_q_lo.numpy(), state.node_qd.numpy())
+                q = self._fetch(state.node_q).astype(np.float64) + self._fetch(state.node_q_lo)
+                positions = (q, self._fetch(state.node_qd))
             state_q, state_qd = positions
             t = h.force_tube[a]
             s, e = h.tube_node_start[t], h.tube_node_start[t + 1]
@@ -159,7 +175,7 @@ class WorldControl:
             if not len(ws):
                 continue
             if lines is None:
-                lines = AssistantLineArrays.read(state, c)
+                lines = AssistantLineArrays.read(state, c, self._fetch)
             offset_dir = across / norm_across[:, None]
             p0 = h.al_start[a]
             off = self.worlds.host.node_radius[ws, s:e, None] * offset_dir[:, None, :]

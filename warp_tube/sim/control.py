@@ -44,10 +44,12 @@ class AssistantLineArrays:
         self.q_hi, self.q_lo, self.qd, self.lengths = q_hi, q_lo, qd, lengths
 
     @classmethod
-    def read(cls, state, control) -> AssistantLineArrays:
-        """Copy the lines' state and rest lengths of ``state`` and ``control`` to the host."""
-        lengths = {n: getattr(control, n).numpy() for n in cls.LENGTHS}
-        return cls(state.al_q.numpy(), state.al_q_lo.numpy(), state.al_qd.numpy(), lengths)
+    def read(cls, state, control, fetch=None) -> AssistantLineArrays:
+        """Copy the lines' state and rest lengths of ``state`` and ``control`` to the host
+        (``fetch``: a device array to a writable NumPy array; default ``wp.array.numpy``)."""
+        fetch = fetch or (lambda a: a.numpy())
+        lengths = {n: fetch(getattr(control, n)) for n in cls.LENGTHS}
+        return cls(fetch(state.al_q), fetch(state.al_q_lo), fetch(state.al_qd), lengths)
 
     def build(self, worlds, slots: slice, x: np.ndarray, xp: np.ndarray, xd: np.ndarray) -> None:
         """Lay a line: slots ``slots`` of ``worlds`` (an index or a slice) at ``xp`` beside the tube
