@@ -9,14 +9,23 @@ hub exceeds what its ring's inner extent allows, and the frame-0 surface loses t
 ring: a flat cut, or a spike between rings that keep their length.
 
 :func:`keep_guard_clear` rebuilds the rest surface with the simulator's own builder, finds the hubs
-whose rings the guard changes by more than :data:`TOLERANCE` of the mean radius, and for each run
-of them tries smoothing the axis over a window around it (Gaussian, smoothing lengths
-:data:`SCALES` mean radii, blended in and out over one length): this spreads the turn over a longer
-arc and takes the hubs towards the inside of the bend, both of which lower ``extent x curvature``.
-The spokes are measured again from the moved hubs (so their ends stay on the mesh), the surface is
-rebuilt, and each window keeps the candidate whose guarded ring vertices lie nearest the mesh
-(the largest distance over the window), the unchanged axis included. A few rounds repeat this
-for the windows still cut.
+whose rings the guard changes by more than :data:`TOLERANCE` of the mean radius, and around them
+(each run of them and about one mean radius either side) tries two kinds of moves of the hubs:
+
+- smoothing the axis (Gaussian, smoothing lengths :data:`SCALES` mean radii, blended in and out
+  over one length): this spreads a turn over a longer arc and takes the hubs towards the inside of
+  the bend, both of which lower ``extent x curvature`` (a centred axis that zigzags from hub to hub
+  where the sections are irregular, or turns a sharp corner);
+- pushing the hubs away from the axis's centre of curvature (:data:`PUSHES` mean radii, the full
+  push within a mean radius of a cut ring, tapering off over the next): where the two legs of a
+  hairpin lie pressed together or their lumens merge at its apex, the centred axis turns about a
+  line inside the lumen, which no ring planes through it can fan around without crossing; pushed
+  out, the legs part and the apex widens, so the turn's axis moves towards the wall between them.
+
+The spokes are measured again from the moved hubs (so their rings follow the mesh), the surface is
+rebuilt, and each hub takes the trial whose guarded rings lie nearest the mesh around it (the
+unchanged axis included), with the choices blended along the tube. A few rounds repeat this for
+the rings still cut.
 
 Lengths are in the mesh's units.
 """
@@ -26,6 +35,7 @@ from __future__ import annotations
 from dataclasses import dataclass
 
 import numpy as np
+from scipy.ndimage import maximum_filter1d, uniform_filter1d
 from scipy.spatial import cKDTree
 
 from ..model.frames import hub_tangents, initial_normal
@@ -34,7 +44,7 @@ from .polyline import smooth
 from .queries import MeshQueries
 from .sections import measure_spokes
 
-__all__ = ["TOLERANCE", "MOVE_WEIGHT", "GAIN", "SCALES", "ROUNDS", "Rings", "rest_rings", "keep_guard_clear"]
+__all__ = ["TOLERANCE", "MOVE_WEIGHT", "GAIN", "SCALES", "ROUNDS", "PUSHES", "Rings", "rest_rings", "keep_guard_clear"]
 
 TOLERANCE = 0.02
 """Largest move of a ring vertex by the guard at rest, as a fraction of the mean radius, left alone."""
@@ -42,10 +52,13 @@ MOVE_WEIGHT = 0.5
 """Weight of the largest move of a hub off the centred axis in a window's score."""
 GAIN = 0.02
 """Least improvement of a window's score, as a fraction of the mean radius, for a trial to be kept."""
-SCALES = (0.5, 1.0)
+SCALES = (0.5, 1.0, 2.0)
 """Smoothing lengths tried over a cut window, in mean radii."""
-ROUNDS = 2
+ROUNDS = 4
 """Rounds of trials at most."""
+PUSHES = (0.25, 0.5)
+"""Moves of the hubs near a cut ring away from the centre of curvature of the axis (smoothed over a
+mean radius), tried as well, in mean radii."""
 
 
 @dataclass
@@ -109,18 +122,41 @@ def _blend(p: np.ndarray, target: np.ndarray, window: tuple[int, int], taper: in
     return p + w[:, None] * (target - p)
 
 
+def _outward(p: np.ndarray, radius: float) -> np.ndarray:
+    """Unit directions away from the local centre of curvature of the polyline ``p`` (n, 3), zero
+    where it bends less than by a twentieth of ``radius`` per ``radius`` and at the ends, (n, 3)."""
+    out = np.zeros_like(p)
+    e = np.diff(p, axis=0)
+    length = np.linalg.norm(e, axis=1)
+    u = e / np.maximum(length, 1e-300)[:, None]
+    kappa = (u[1:] - u[:-1]) / np.maximum(0.5 * (length[1:] + length[:-1]), 1e-300)[:, None]
+    k = np.linalg.norm(kappa, axis=1)
+    bent = k * radius > 0.05
+    out[1:-1][bent] = -kappa[bent] / k[bent, None]
+    return out
+
+
+def _around(values: np.ndarray, margin: int) -> np.ndarray:
+    """Largest of ``values`` (n,) over each hub and ``margin`` hubs either side, shape (n,)."""
+    return maximum_filter1d(values, size=2 * margin + 1, mode="nearest")
+
+
 def keep_guard_clear(q: MeshQueries, rings: Rings, caps: bool, diag: float, vertices: np.ndarray,
                      device=None) -> Rings:  # fmt: skip
     """Smooth the axis where the guard would cut the rest rings (see the module).
 
-    A window's score is the sum of the largest distance of its guarded ring vertices from the mesh,
-    the largest distance from the surface of the mesh's vertices nearest to its hubs and
-    :data:`MOVE_WEIGHT` times the largest move of a hub off the centred axis; a trial is kept when it
-    lowers the score by :data:`GAIN` of the mean radius or more.
+    Each hub's score, for the hubs as they are and for each trial, is the largest, over the hub
+    and ``margin`` hubs either side (about one mean radius), of the distance of its guarded ring
+    vertices from the mesh plus the largest distance from the surface of the mesh's vertices
+    nearest to it, plus :data:`MOVE_WEIGHT` times the largest move of a hub there off the centred
+    axis. Each hub takes the position of the trial with the lowest score (the hubs as they are
+    unless a trial lowers it by :data:`GAIN` of the mean radius or more), and the choices are
+    blended along the tube over the same ``margin``, so that neighbouring hubs move together.
 
     Args:
         q: the mesh's queries; rings: the hubs as measured (:func:`rest_rings`); caps: the scene's
-        caps; diag: the mesh's bounding-box diagonal; vertices: the mesh's vertices (V, 3).
+        caps; diag: the mesh's bounding-box diagonal; vertices: the mesh's vertices that the
+        fidelity counts (V, 3) (side branches and the ends left out).
 
     Returns:
         The rings kept, unchanged where the guard leaves them alone.
@@ -130,43 +166,46 @@ def keep_guard_clear(q: MeshQueries, rings: Rings, caps: bool, diag: float, vert
         return rings
     radius = float(np.mean(rings.lengths))
     spacing = float(np.mean(np.linalg.norm(np.diff(rings.points, axis=0), axis=1)))
+    margin = max(2, int(np.ceil(radius / spacing)))
     best = rings
     for _ in range(ROUNDS):
         bad = best.cut > TOLERANCE * radius
         if not bad.any():
             break
-        margin = max(2, int(np.ceil(radius / spacing)))
         windows = _windows(bad, n, margin)
+        inside = np.zeros(n, dtype=bool)
+        for a, b in windows:
+            inside[a:b] = True
         owner = cKDTree(best.points).query(vertices)[1]
 
-        def scores(r: Rings) -> dict:
-            cover = mesh_distances(vertices, *r.surface, device)
+        def score(r: Rings) -> np.ndarray:
             worst = np.zeros(n)
-            np.maximum.at(worst, owner, cover)
+            np.maximum.at(worst, owner, mesh_distances(vertices, *r.surface, device))
             moved = np.linalg.norm(r.points - rings.points, axis=1)
-            return {w: float(r.error[w[0] : w[1]].max() + worst[w[0] : w[1]].max()
-                             + MOVE_WEIGHT * moved[w[0] : w[1]].max()) for w in windows}  # fmt: skip
+            return _around(r.error + worst, margin) + MOVE_WEIGHT * _around(moved, margin)
 
-        choice = {w: (sc - GAIN * radius, None) for w, sc in scores(best).items()}
-        trials = []
+        scores, points = [score(best) - GAIN * radius], [best.points]
         for scale in SCALES:
-            sigma = scale * radius / spacing
             taper = max(1, int(np.ceil(scale * radius / spacing)))
-            target = smooth(best.points, sigma)
+            target = smooth(best.points, scale * radius / spacing)
             p = best.points
             for w in windows:
                 p = _blend(p, target, w, taper)
-            trial = rest_rings(q, p, spokes, caps, diag, device)
-            trials.append((trial, taper, target))
-            for w, score in scores(trial).items():
-                if score < choice[w][0]:
-                    choice[w] = (score, len(trials) - 1)
-        if all(c[1] is None for c in choice.values()):
+            scores.append(score(rest_rings(q, p, spokes, caps, diag, device)))
+            points.append(p)
+        outward = _outward(smooth(best.points, radius / spacing), radius)
+        reach = uniform_filter1d(maximum_filter1d(bad.astype(float), size=2 * margin + 1), size=2 * margin + 1)
+        reach[[0, -1]] = 0.0
+        for push in PUSHES:
+            p = best.points + (push * radius * reach)[:, None] * outward
+            scores.append(score(rest_rings(q, p, spokes, caps, diag, device)))
+            points.append(p)
+        pick = np.argmin(np.stack(scores), axis=0)
+        pick[~inside] = 0
+        if not pick.any():
             break
-        p = best.points
-        for w, (_, k) in choice.items():
-            if k is not None:
-                _, taper, target = trials[k]
-                p = _blend(p, target, w, taper)
+        weight = uniform_filter1d(np.eye(len(points))[pick].T, size=2 * margin + 1, axis=1, mode="nearest")
+        p = np.einsum("kn,knd->nd", weight, np.stack(points))
+        p[[0, -1]] = best.points[[0, -1]]
         best = rest_rings(q, p, spokes, caps, diag, device)
     return best
