@@ -362,8 +362,8 @@ def extract_centerline(
             break  # more hubs stopped helping: what is left, more do not change
         n = min(int(np.ceil(1.5 * n)), max_hubs)
     _, n, points = min(tried, key=lambda x: x[:2])
-    kept = rings.keep_guard_clear(q, rings.rest_rings(q, points, spokes, caps, diag, device), caps, diag, verts[counted],
-                                  device)  # fmt: skip
+    kept = rings.keep_guard_clear(q, rings.rest_rings(q, points, spokes, caps, diag, device), caps, diag,
+                                  verts[counted], device)  # fmt: skip
     points, spoke_len, ref, valid = kept.points, kept.lengths, kept.reference_normal, kept.valid
     fid = fidelity_of(points, spoke_len, ref, caps, m.vertices, m.faces, tips=tips, branch_paths=branch_paths,
                       seals=seals, device=device, wall=cap_loops(m, choice.others))  # fmt: skip

@@ -31,8 +31,8 @@ from ..model.frames import hub_tangents, initial_normal, rotation_minimizing_fra
 from .polyline import resample_spline, smooth, tangents
 from .queries import MeshQueries
 
-__all__ = ["OUTLIER_RATIO", "ring_hits", "open_rays", "fill_around", "section_offsets", "recentre", "measure_spokes", "plane_basis", "recentre_hubs",
-           "fit_polygon", "FIT_RAYS"]
+__all__ = ["OUTLIER_RATIO", "ring_hits", "open_rays", "fill_around", "section_offsets", "recentre", "measure_spokes",
+           "plane_basis", "recentre_hubs", "fit_polygon", "FIT_RAYS"]
 
 OUTLIER_RATIO = 2.5
 """A hit longer than this times the median of its ring's valid hits does not belong to the section."""
