@@ -18,11 +18,13 @@ rings made so that the simulator rebuilds the input at rest:
    its own ring plane (the simulator's, normal to the bisector tangent); spoke lengths by rays along
    the simulator's spoke directions (:func:`warp_tube.model.frames.rotation_minimizing_frames`,
    :func:`warp_tube.model.frames.spoke_directions`, reference normal
-   :func:`warp_tube.model.frames.initial_normal` of the first tangent). By default the hub count
+   :func:`warp_tube.model.frames.initial_normal` of the first tangent), fitted to rays between
+   them too (:func:`warp_tube.extract.sections.fit_polygon`). By default the hub count
    grows until the measured rings cover the mesh to :data:`AUTO_FIDELITY`.
 6. Rest surface: where the simulator's inner-bend guard would cut a ring at rest, the axis is
-   smoothed there (:mod:`warp_tube.extract.rings`); the simulator's own rebuild (guard and caps
-   included, :mod:`warp_tube.extract.fidelity`) is then compared with the mesh both ways.
+   smoothed there, or its hubs pushed away from the bend's centre (:mod:`warp_tube.extract.rings`);
+   the simulator's own rebuild (guard and caps included, :mod:`warp_tube.extract.fidelity`) is then
+   compared with the mesh both ways.
 
 Side branches (e.g. of a coronary artery) are the parts of the inside farther than their own
 diameter beyond the main tube's surface; each is reported with its junction hub and length. The
@@ -62,8 +64,12 @@ _DENSE_SPACING = 0.5  # spacing of the dense axis, in median distances from the 
 AUTO_FIDELITY = (0.03, 0.12, 0.35)
 """Default hub count: from one hub per mean radius, 1.5 times more until the mesh's vertices (ends
 and side branches left out) lie within these fractions of the mean radius (mean, 99th percentile,
-largest) of the surface of the measured rings, or more hubs stop helping (by 5 %), or the least hub
-spacing is reached; the count that came closest is kept."""
+largest) of the surface of the measured rings and the end rings are as round as the mesh allows
+(:data:`END_RATIO_SLACK`), or more hubs stop helping (by 5 %), or the least hub spacing is reached;
+the count that came closest is kept."""
+END_RATIO_SLACK = 1.25
+"""Default hub count: the end rings' spoke ratios (longest over shortest) are to stay within this
+factor of those of the rings one hub in (the mesh's own section there), like the fidelity."""
 MAX_AUTO_HUBS = 1000
 _MIN_SPACING = 0.3  # least automatic hub spacing, in median tube radii
 
@@ -346,7 +352,8 @@ def extract_centerline(
         lengths, _ = measure_spokes(q, points, ref, spokes, diag)
         cover = Distances.of(mesh_distances(verts[counted], *plain_surface(points, lengths, ref), device),
                              float(lengths.mean()))  # fmt: skip
-        score = max(cover.mean / AUTO_FIDELITY[0], cover.p99 / AUTO_FIDELITY[1], cover.max / AUTO_FIDELITY[2])
+        score = max(cover.mean / AUTO_FIDELITY[0], cover.p99 / AUTO_FIDELITY[1], cover.max / AUTO_FIDELITY[2],
+                    _end_excess(lengths))  # fmt: skip
         tried.append((score, n, points))
         log.debug("hubs %d: coverage %.4f %.4f %.4f", n, cover.mean, cover.p99, cover.max)
         if hubs is not None or score <= 1.0 or n >= max_hubs:
@@ -355,8 +362,8 @@ def extract_centerline(
             break  # more hubs stopped helping: what is left, more do not change
         n = min(int(np.ceil(1.5 * n)), max_hubs)
     _, n, points = min(tried, key=lambda x: x[:2])
-    kept = rings.keep_guard_clear(q, rings.rest_rings(q, points, spokes, caps, diag, device), caps, diag, verts,
-                                  device)  # fmt: skip
+    kept = rings.keep_guard_clear(q, rings.rest_rings(q, points, spokes, caps, diag, device), caps, diag,
+                                  verts[counted], device)  # fmt: skip
     points, spoke_len, ref, valid = kept.points, kept.lengths, kept.reference_normal, kept.valid
     fid = fidelity_of(points, spoke_len, ref, caps, m.vertices, m.faces, tips=tips, branch_paths=branch_paths,
                       seals=seals, device=device, wall=cap_loops(m, choice.others))  # fmt: skip
@@ -399,6 +406,18 @@ def extract_centerline(
             raise SceneError(f"{src}: {problems[0]} (--strict)")
     timings["total"] = time.perf_counter() - t_start
     return tube
+
+
+def _end_excess(lengths: np.ndarray) -> float:
+    """How far the end rings are more lopsided than the mesh's section next to them: the larger, over
+    the two ends, of the end ring's longest over shortest spoke divided by :data:`END_RATIO_SLACK`
+    times the same of the ring one hub in (1 or less: as round as the mesh allows). A ring normal to
+    its edge leans against the axis where the hubs are sparse for the bend, and at a flat cut its
+    spokes on one side meet the cut's face early. ``lengths``: spoke lengths (hubs, spokes)."""
+    if len(lengths) < 4:
+        return 0.0
+    ratio = lengths.max(axis=1) / np.maximum(lengths.min(axis=1), 1e-300)
+    return float(max(ratio[0] / (END_RATIO_SLACK * ratio[1]), ratio[-1] / (END_RATIO_SLACK * ratio[-2])))
 
 
 def _open_or_cut(path: np.ndarray, d: np.ndarray, loop, h: float):

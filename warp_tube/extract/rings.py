@@ -9,14 +9,23 @@ hub exceeds what its ring's inner extent allows, and the frame-0 surface loses t
 ring: a flat cut, or a spike between rings that keep their length.
 
 :func:`keep_guard_clear` rebuilds the rest surface with the simulator's own builder, finds the hubs
-whose rings the guard changes by more than :data:`TOLERANCE` of the mean radius, and for each run
-of them tries smoothing the axis over a window around it (Gaussian, smoothing lengths
-:data:`SCALES` mean radii, blended in and out over one length): this spreads the turn over a longer
-arc and takes the hubs towards the inside of the bend, both of which lower ``extent x curvature``.
-The spokes are measured again from the moved hubs (so their ends stay on the mesh), the surface is
-rebuilt, and each window keeps the candidate whose guarded ring vertices lie nearest the mesh
-(the largest distance over the window), the unchanged axis included. A few rounds repeat this
-for the windows still cut.
+whose rings the guard changes by more than :data:`TOLERANCE` of the mean radius, and around them
+(each run of them and about one mean radius either side) tries two kinds of moves of the hubs:
+
+- smoothing the axis (Gaussian, smoothing lengths :data:`SCALES` mean radii, blended in and out
+  over one length): this spreads a turn over a longer arc and takes the hubs towards the inside of
+  the bend, both of which lower ``extent x curvature`` (a centred axis that zigzags from hub to hub
+  where the sections are irregular, or turns a sharp corner);
+- pushing the hubs away from the axis's centre of curvature (:data:`PUSHES` mean radii, the full
+  push within a mean radius of a cut ring, tapering off over the next): where the two legs of a
+  hairpin lie pressed together or their lumens merge at its apex, the centred axis turns about a
+  line inside the lumen, which no ring planes through it can fan around without crossing; pushed
+  out, the legs part and the apex widens, so the turn's axis moves towards the wall between them.
+
+The spokes are measured again from the moved hubs (so their rings follow the mesh), the surface is
+rebuilt, and each hub takes the trial whose guarded rings lie nearest the mesh around it (the
+unchanged axis included), with the choices blended along the tube. A few rounds repeat this for
+the rings still cut.
 
 Lengths are in the mesh's units.
 """
@@ -26,6 +35,7 @@ from __future__ import annotations
 from dataclasses import dataclass
 
 import numpy as np
+from scipy.ndimage import maximum_filter1d, uniform_filter1d
 from scipy.spatial import cKDTree
 
 from ..model.frames import hub_tangents, initial_normal
@@ -34,18 +44,29 @@ from .polyline import smooth
 from .queries import MeshQueries
 from .sections import measure_spokes
 
-__all__ = ["TOLERANCE", "MOVE_WEIGHT", "GAIN", "SCALES", "ROUNDS", "Rings", "rest_rings", "keep_guard_clear"]
+__all__ = ["TOLERANCE", "MOVE_WEIGHT", "GAIN", "SCALES", "ROUNDS", "PUSHES", "FIXED_ENDS", "END_RATIO_SLACK", "Rings",
+           "rest_rings", "keep_guard_clear"]
 
 TOLERANCE = 0.02
 """Largest move of a ring vertex by the guard at rest, as a fraction of the mean radius, left alone."""
-MOVE_WEIGHT = 0.5
-"""Weight of the largest move of a hub off the centred axis in a window's score."""
+MOVE_WEIGHT = 0.25
+"""Weight of the largest move of a hub off the centred axis in a hub's score."""
 GAIN = 0.02
-"""Least improvement of a window's score, as a fraction of the mean radius, for a trial to be kept."""
+"""Least improvement of a hub's score, as a fraction of the mean radius, for a trial to be chosen."""
 SCALES = (0.5, 1.0)
-"""Smoothing lengths tried over a cut window, in mean radii."""
-ROUNDS = 2
+"""Smoothing lengths tried over the hubs near a cut ring, in mean radii."""
+ROUNDS = 6
 """Rounds of trials at most."""
+FIXED_ENDS = 1
+"""Hubs at either end that stay (the end hubs: open and cut ends were trimmed to where their rings
+fit, :mod:`warp_tube.extract.ends`)."""
+END_RATIO_SLACK = 1.25
+"""An end ring's spoke ratio (longest over shortest) beyond this factor of that of the ring one hub
+in counts as a miss at the end hub (its excess, in mean radii): moving the hub next to it tilts the
+end ring, normal to the end edge, against the mesh's section."""
+PUSHES = (0.25, 0.5)
+"""Moves of the hubs near a cut ring away from the centre of curvature of the axis (smoothed over a
+mean radius), tried as well, in mean radii."""
 
 
 @dataclass
@@ -88,15 +109,25 @@ def rest_rings(q: MeshQueries, points: np.ndarray, spokes: int, caps: bool, diag
 
 def _windows(bad: np.ndarray, n: int, margin: int) -> list[tuple[int, int]]:
     """Index ranges ``[a, b)`` covering each run of ``bad`` hubs and ``margin`` hubs either side,
-    merged where they overlap; the end hubs are never inside (they stay)."""
+    merged where they overlap; the :data:`FIXED_ENDS` hubs at either end are never inside (they stay)."""
     out: list[list[int]] = []
     for i in np.flatnonzero(bad):
-        a, b = max(1, i - margin), min(n - 1, i + margin + 1)
+        a, b = max(FIXED_ENDS, i - margin), min(n - FIXED_ENDS, i + margin + 1)
         if out and a <= out[-1][1]:
             out[-1][1] = max(out[-1][1], b)
         else:
             out.append([a, b])
     return [(a, b) for a, b in out if b > a]
+
+
+def _pieces(windows: list[tuple[int, int]], size: int) -> list[tuple[int, int]]:
+    """``windows`` split into about equal pieces of at most ``size`` hubs, ``[a, b)`` each."""
+    out = []
+    for a, b in windows:
+        count = max(1, int(np.ceil((b - a) / size)))
+        edges = np.linspace(a, b, count + 1).round().astype(int)
+        out += [(int(x), int(y)) for x, y in zip(edges[:-1], edges[1:]) if y > x]
+    return out
 
 
 def _blend(p: np.ndarray, target: np.ndarray, window: tuple[int, int], taper: int) -> np.ndarray:
@@ -105,68 +136,126 @@ def _blend(p: np.ndarray, target: np.ndarray, window: tuple[int, int], taper: in
     idx = np.arange(len(p))
     inside = np.minimum(idx - (a - taper) + 1, (b - 1 + taper) - idx + 1) / float(taper + 1)
     w = np.clip(inside, 0.0, 1.0)
-    w[[0, -1]] = 0.0
+    w[:FIXED_ENDS] = 0.0
+    w[len(w) - FIXED_ENDS :] = 0.0
     return p + w[:, None] * (target - p)
+
+
+def _outward(p: np.ndarray, radius: float) -> np.ndarray:
+    """Unit directions away from the local centre of curvature of the polyline ``p`` (n, 3), zero
+    where it bends less than by a twentieth of ``radius`` per ``radius`` and at the ends, (n, 3)."""
+    out = np.zeros_like(p)
+    e = np.diff(p, axis=0)
+    length = np.linalg.norm(e, axis=1)
+    u = e / np.maximum(length, 1e-300)[:, None]
+    kappa = (u[1:] - u[:-1]) / np.maximum(0.5 * (length[1:] + length[:-1]), 1e-300)[:, None]
+    k = np.linalg.norm(kappa, axis=1)
+    bent = k * radius > 0.05
+    out[1:-1][bent] = -kappa[bent] / k[bent, None]
+    return out
+
+
+def _around(values: np.ndarray, margin: int) -> np.ndarray:
+    """Largest of ``values`` (n,) over each hub and ``margin`` hubs either side, shape (n,)."""
+    return maximum_filter1d(values, size=2 * margin + 1, mode="nearest")
 
 
 def keep_guard_clear(q: MeshQueries, rings: Rings, caps: bool, diag: float, vertices: np.ndarray,
                      device=None) -> Rings:  # fmt: skip
-    """Smooth the axis where the guard would cut the rest rings (see the module).
+    """Smooth the axis or push its hubs out of the bend where the guard would cut the rest rings
+    (see the module).
 
-    A window's score is the sum of the largest distance of its guarded ring vertices from the mesh,
-    the largest distance from the surface of the mesh's vertices nearest to its hubs and
-    :data:`MOVE_WEIGHT` times the largest move of a hub off the centred axis; a trial is kept when it
-    lowers the score by :data:`GAIN` of the mean radius or more.
+    A hub's *miss* is the largest distance of its guarded ring vertices from the mesh plus the
+    largest distance from the surface of the mesh's vertices nearest to it (at an end, plus the end
+    ring's lopsidedness beyond the mesh's, :data:`END_RATIO_SLACK`). Each hub's score, for the hubs
+    as they are and for each trial, is the largest miss over the hub and ``margin`` hubs either side
+    (about one mean radius), plus :data:`MOVE_WEIGHT` times the largest move of a hub there off the
+    centred axis. Each hub near a cut ring takes the position of the trial with the lowest score
+    (the hubs as they are unless a trial lowers it by :data:`GAIN` of the mean radius or more), and
+    the choices are blended along the tube over the same ``margin``, so that neighbouring hubs move
+    together. The next round starts from there; the rings returned are those, among all rounds'
+    blends and trials and the hubs as given, with the least largest plus mean miss.
 
     Args:
         q: the mesh's queries; rings: the hubs as measured (:func:`rest_rings`); caps: the scene's
-        caps; diag: the mesh's bounding-box diagonal; vertices: the mesh's vertices (V, 3).
+        caps; diag: the mesh's bounding-box diagonal; vertices: the mesh's vertices that the
+        fidelity counts (V, 3) (side branches and the ends left out).
 
     Returns:
         The rings kept, unchanged where the guard leaves them alone.
     """
     n, spokes = rings.lengths.shape
-    if n < 3:
+    if n < 2 * FIXED_ENDS + 1:
         return rings
     radius = float(np.mean(rings.lengths))
     spacing = float(np.mean(np.linalg.norm(np.diff(rings.points, axis=0), axis=1)))
+    margin = max(2, int(np.ceil(radius / spacing)))
+    owner = cKDTree(rings.points).query(vertices)[1]
+
+    def miss(r: Rings) -> np.ndarray:
+        """Per hub [mesh units]: its guarded rings' largest distance from the mesh plus the largest
+        distance from the surface of the mesh's vertices nearest to it (plus, at an end, the end
+        ring's lopsidedness beyond the mesh's, see :data:`END_RATIO_SLACK`), shape (n,)."""
+        worst = np.zeros(n)
+        np.maximum.at(worst, owner, mesh_distances(vertices, *r.surface, device))
+        ratio = r.lengths.max(axis=1) / np.maximum(r.lengths.min(axis=1), 1e-300)
+        worst[[0, -1]] += radius * np.maximum(ratio[[0, -1]] / (END_RATIO_SLACK * ratio[[1, -2]]) - 1.0, 0.0)
+        return r.error + worst
+
+    def overall(m: np.ndarray) -> float:
+        return float(m.max() + m.mean())
+
+    def score(r: Rings, m: np.ndarray) -> np.ndarray:
+        moved = np.linalg.norm(r.points - rings.points, axis=1)
+        return _around(m, margin) + MOVE_WEIGHT * _around(moved, margin)
+
     best = rings
+    m_best = miss(best)
+    kept, kept_value = best, overall(m_best)
     for _ in range(ROUNDS):
         bad = best.cut > TOLERANCE * radius
         if not bad.any():
             break
-        margin = max(2, int(np.ceil(radius / spacing)))
         windows = _windows(bad, n, margin)
-        owner = cKDTree(best.points).query(vertices)[1]
+        inside = np.zeros(n, dtype=bool)
+        for a, b in windows:
+            inside[a:b] = True
 
-        def scores(r: Rings) -> dict:
-            cover = mesh_distances(vertices, *r.surface, device)
-            worst = np.zeros(n)
-            np.maximum.at(worst, owner, cover)
-            moved = np.linalg.norm(r.points - rings.points, axis=1)
-            return {w: float(r.error[w[0] : w[1]].max() + worst[w[0] : w[1]].max()
-                             + MOVE_WEIGHT * moved[w[0] : w[1]].max()) for w in windows}  # fmt: skip
-
-        choice = {w: (sc - GAIN * radius, None) for w, sc in scores(best).items()}
-        trials = []
-        for scale in SCALES:
-            sigma = scale * radius / spacing
-            taper = max(1, int(np.ceil(scale * radius / spacing)))
-            target = smooth(best.points, sigma)
-            p = best.points
-            for w in windows:
-                p = _blend(p, target, w, taper)
+        scores, points, trials = [score(best, m_best) - GAIN * radius], [best.points], []
+        outward = _outward(smooth(best.points, radius / spacing), radius)
+        reach = uniform_filter1d(maximum_filter1d(bad.astype(float), size=2 * margin + 1), size=2 * margin + 1)
+        reach[:FIXED_ENDS] = 0.0
+        reach[n - FIXED_ENDS :] = 0.0
+        moves = [("smooth", scale) for scale in SCALES] + [("push", push) for push in PUSHES]
+        for kind, amount in moves:
+            if kind == "smooth":
+                taper = max(1, int(np.ceil(amount * radius / spacing)))
+                target = smooth(best.points, amount * radius / spacing)
+                p = best.points
+                for w in windows:
+                    p = _blend(p, target, w, taper)
+            else:
+                p = best.points + (amount * radius * reach)[:, None] * outward
             trial = rest_rings(q, p, spokes, caps, diag, device)
-            trials.append((trial, taper, target))
-            for w, score in scores(trial).items():
-                if score < choice[w][0]:
-                    choice[w] = (score, len(trials) - 1)
-        if all(c[1] is None for c in choice.values()):
+            m_trial = miss(trial)
+            scores.append(score(trial, m_trial))
+            points.append(p)
+            trials.append((m_trial, trial))
+        pick = np.argmin(np.stack(scores), axis=0)
+        pick[~inside] = 0
+        if not pick.any():
             break
-        p = best.points
-        for w, (_, k) in choice.items():
-            if k is not None:
-                _, taper, target = trials[k]
-                p = _blend(p, target, w, taper)
-        best = rest_rings(q, p, spokes, caps, diag, device)
-    return best
+        weight = uniform_filter1d(np.eye(len(points))[pick].T, size=2 * margin + 1, axis=1, mode="nearest")
+        p = np.einsum("kn,knd->nd", weight, np.stack(points))
+        p[:FIXED_ENDS] = best.points[:FIXED_ENDS]
+        p[n - FIXED_ENDS :] = best.points[n - FIXED_ENDS :]
+        current = rest_rings(q, p, spokes, caps, diag, device)
+        # The hubs' choices, each made on its own neighbourhood, may do worse blended than apart, and
+        # the next round may undo what this one did: the rounds go on from where they are, and the
+        # rings kept are those with the least largest plus mean miss seen.
+        m_current = miss(current)
+        value, found = min([(overall(m_current), current)] + [(overall(m), r) for m, r in trials], key=lambda x: x[0])
+        if value < kept_value:
+            kept_value, kept = value, found
+        best, m_best = current, m_current
+    return kept

@@ -13,6 +13,10 @@ tube filled in by interpolating the lengths of their valid neighbours around the
 branch's mouth is closed over as the kept tube's wall would run), moved to iteratively in the plane
 normal to the line. On a tube swept by circles normal to a curve this converges to the curve.
 
+Spokes: the lengths along the simulator's spoke directions, least-squares fitted to the section
+measured by :data:`FIT_RAYS` rays per gap between spokes (:func:`fit_polygon`), so that the ring's
+polygon runs through the wall between its spokes rather than inside it.
+
 Lengths are in the mesh's units.
 """
 
@@ -27,12 +31,19 @@ from ..model.frames import hub_tangents, initial_normal, rotation_minimizing_fra
 from .polyline import resample_spline, smooth, tangents
 from .queries import MeshQueries
 
-__all__ = ["OUTLIER_RATIO", "ring_hits", "open_rays", "fill_around", "section_offsets", "recentre", "measure_spokes", "plane_basis", "recentre_hubs"]
+__all__ = ["OUTLIER_RATIO", "ring_hits", "open_rays", "fill_around", "section_offsets", "recentre", "measure_spokes",
+           "plane_basis", "recentre_hubs", "fit_polygon", "FIT_RAYS"]
 
 OUTLIER_RATIO = 2.5
 """A hit longer than this times the median of its ring's valid hits does not belong to the section."""
 RAYS = 32
 """Rays per cross-section when centring."""
+FIT_RAYS = 4
+"""Rays per gap between two spokes that measure a ring's section for :func:`fit_polygon`."""
+FIT_MAX_RAYS = 128
+"""Most rays per ring for the fit (more spokes: fewer rays per gap)."""
+FIT_PULL = 0.05
+"""Weight of a spoke's own ray-hit length in :func:`fit_polygon`, against 1 per ray of the section."""
 MAX_TURN = np.radians(60.0)
 """Largest turn at a point of the dense axis (half a tube radius between points) that centring may
 make: sharper is tighter than the tube's own radius, a fold of the line, not of the tube."""
@@ -180,19 +191,25 @@ def recentre(q: MeshQueries, line: np.ndarray, diag: float, *, iterations: int =
     return p
 
 
-def measure_spokes(q: MeshQueries, points: np.ndarray, reference_normal: np.ndarray, spokes: int, diag: float):
+def measure_spokes(q: MeshQueries, points: np.ndarray, reference_normal: np.ndarray, spokes: int, diag: float,
+                   *, fit: int = FIT_RAYS):  # fmt: skip
     """Spoke lengths by ray hits along the package's spoke directions at each hub.
 
     Spoke ``j`` of hub ``i`` points along ``spoke_directions(*rotation_minimizing_frames(points, None,
     reference_normal)[1:], spokes)[i, j]`` (the simulator's ring). Rays whose hit does not belong to
     the section (see the module) take the length of the same spoke interpolated along the tube from
-    the hubs where it does; a spoke valid at no hub takes its ring's mean.
+    the hubs where it does; a spoke valid at no hub takes its ring's mean. With ``fit`` > 1, ``fit``
+    rays per gap between spokes (at most :data:`FIT_MAX_RAYS` per ring) measure the section between
+    the spokes too, and the lengths are fitted to them (:func:`fit_polygon`).
 
     Returns:
-        ``(lengths (hubs, spokes), valid (hubs, spokes) bool)``.
+        ``(lengths (hubs, spokes), valid (hubs, spokes) bool)``: lengths [mesh units]; ``valid``:
+        the spoke's own ray hit the section.
     """
     _, r, s = rotation_minimizing_frames(points, None, reference_normal)
-    t, valid, dfb = ring_hits(q, points, spoke_directions(r, s, spokes), diag)
+    m = max(1, min(int(fit), FIT_MAX_RAYS // spokes))
+    t_all, valid_all, dfb = ring_hits(q, points, spoke_directions(r, s, spokes * m), diag)
+    t, valid = t_all[:, ::m], valid_all[:, ::m]
     t = np.where(valid, t, np.nan)
     idx = np.arange(len(points))
     for j in range(spokes):
@@ -205,7 +222,70 @@ def measure_spokes(q: MeshQueries, points: np.ndarray, reference_normal: np.ndar
             fill = np.nanmean(t, axis=1)
         fill = np.where(np.isnan(fill), dfb, fill)
         t = np.where(np.isnan(t), fill[:, None], t)
-    return np.maximum(t, 1e-6 * diag), valid
+    t = np.maximum(t, 1e-6 * diag)
+    if m > 1:
+        t = np.maximum(fit_polygon(t_all, valid_all, t, m), 1e-6 * diag)
+    return t, valid
+
+
+def fit_polygon(t: np.ndarray, valid: np.ndarray, lengths: np.ndarray, m: int) -> np.ndarray:
+    """Spoke lengths whose ring polygon runs through the section measured by ``m`` rays per gap.
+
+    A ring's polygon joins its spoke ends by straight edges. Spoke ends on the wall (the rays'
+    hits) give a polygon inscribed in the section: where the wall bulges between two spokes, the
+    mesh lies outside the edge by up to the bulge. Here the lengths are fitted instead, least
+    squares over all the section's rays, to the radial distance between the polygon and the wall
+    along each ray. In polar coordinates an edge from spoke ``j`` (length ``l_j``) to spoke ``j + 1``
+    is ``1 / r(phi_j + a D) = (sin((1 - a) D) / l_j + sin(a D) / l_{j+1}) / sin D`` (``D`` the angle
+    between spokes): linear in ``w = 1 / l``, so with the residual weighted by ``r^2`` (a radial
+    distance) the fit is a linear, cyclic tridiagonal system per ring. A small pull towards the
+    spoke's own measure (:data:`FIT_PULL` per ray) keeps it determined where rays miss the section
+    (branch mouths, open ends); a fitted length stays within the range of the rays from spoke ``j - 1`` to
+    spoke ``j + 1`` and of its own measure, widened by the factor ``1 / cos(D / 2)`` by which the
+    corners of a polygon fitted to a circle lie outside it.
+
+    Args:
+        t: hit distances of ``spokes * m`` rays per ring [mesh units], shape (n, S m); ray ``k`` at
+            angle ``2 pi k / (S m)``, so ray ``j m`` is spoke ``j``.
+        valid: which rays belong to the section, bool (n, S m).
+        lengths: the spokes as measured [mesh units], shape (n, S).
+        m: rays per gap between spokes.
+
+    Returns:
+        Fitted lengths [mesh units], shape (n, S).
+    """
+    n, spokes = lengths.shape
+    k = np.arange(spokes * m)
+    j0, j1 = k // m, (k // m + 1) % spokes
+    gap = 2.0 * np.pi / spokes
+    frac = (k % m) / m
+    a = np.sin((1.0 - frac) * gap) / np.sin(gap)
+    b = np.sin(frac * gap) / np.sin(gap)
+    weight = np.where(valid & (t > 0.0), np.square(np.square(np.where(valid, t, 0.0))), 0.0)  # (r^2)^2
+    inv = np.where(valid & (t > 0.0), 1.0 / np.where(t > 0.0, t, 1.0), 0.0)
+    mat = np.zeros((n, spokes, spokes))
+    rhs = np.zeros((n, spokes))
+    for (ja, ca), (jb, cb) in (((j0, a), (j0, a)), ((j0, a), (j1, b)), ((j1, b), (j0, a)), ((j1, b), (j1, b))):
+        np.add.at(mat, (slice(None), ja, jb), weight * (ca * cb))
+    np.add.at(rhs, (slice(None), j0), weight * inv * a)
+    np.add.at(rhs, (slice(None), j1), weight * inv * b)
+    pull = FIT_PULL * np.square(np.square(lengths))
+    diag = np.arange(spokes)
+    mat[:, diag, diag] += pull
+    rhs += pull / lengths
+    w = np.linalg.solve(mat, rhs[..., None])[..., 0]
+    with np.errstate(divide="ignore", invalid="ignore"):
+        out = np.where(w > 0.0, 1.0 / w, lengths)
+    out = np.where(np.isfinite(out), out, lengths)
+    # Within the rays of the two gaps next to the spoke (its own measure included).
+    hit = np.where(valid & (t > 0.0), t, np.nan).reshape(n, spokes, m)
+    near = np.concatenate([np.roll(hit, 1, axis=1), hit, np.roll(hit, -1, axis=1)[..., :1]], axis=2)  # spokes j +- 1
+    with warnings.catch_warnings():  # a spoke with no ray of the section near it: its own measure
+        warnings.simplefilter("ignore", RuntimeWarning)
+        lo = np.fmin(np.nanmin(near, axis=2), lengths)
+        hi = np.fmax(np.nanmax(near, axis=2), lengths)
+    slack = np.cos(0.5 * gap)  # a polygon fitted to a circle has its corners outside it by 1 / cos - 1
+    return np.clip(out, slack * lo, hi / slack)
 
 
 def recentre_hubs(q: MeshQueries, points: np.ndarray, diag: float, scale: float, *, iterations: int = 2,
