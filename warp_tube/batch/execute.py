@@ -127,8 +127,8 @@ class BufferRing:
 
     A chunk's frames are copied into memory an earlier chunk used, already mapped, instead of
     fresh pages that the kernel must fault in and zero on first touch (which held those copies to
-    about 1 GB/s). ``slots`` chunks' arrays exist at once: the caller makes sure a slot's writers
-    are done before the slot comes round again.
+    about 1 GB/s). ``slots`` chunks' arrays exist at once: before a slot comes round again, the
+    caller waits until the writers of the chunk that used it (:meth:`owner`) are done.
 
     Args:
         slots: chunks' arrays kept.
@@ -138,13 +138,19 @@ class BufferRing:
 
     def __init__(self, slots: int, folder: str | None = None):
         self.held: list = [None] * slots
+        self.owners: list = [None] * slots
         self.folder = folder
         self.turn = 0
 
-    def allocator(self):
-        """The allocator of the next chunk (``{name: shape} -> {name: float32 array}``)."""
+    def owner(self):
+        """The chunk whose arrays the next allocator reuses (None: a slot never used)."""
+        return self.owners[self.turn]
+
+    def allocator(self, chunk: int):
+        """The allocator of chunk ``chunk``'s arrays (``{name: shape} -> {name: float32 array}``)."""
         k = self.turn
         self.turn = (self.turn + 1) % len(self.held)
+        self.owners[k] = chunk
 
         def allocate(shapes: dict) -> dict:
             held = self.held[k]
@@ -214,7 +220,7 @@ def run_here(todo, device, context, result) -> None:
     pool = writers.pool
     buffers = None
     pending: dict = {}  # chunk id -> (futures, rows, paths)
-    ring = None  # at most two chunks' arrays are in use: one being written, one being simulated
+    ring = None  # the chunks' arrays, two in turn: one being written while the next is simulated
     bar = context["bar"]
 
     def settle(block: bool):
@@ -243,7 +249,10 @@ def run_here(todo, device, context, result) -> None:
                     buffers = _buffer_folder(sum(4 * math.prod(s) for s in shapes.values()), context["spec"].work_dir)
                 ring = BufferRing(2, buffers)
             if ring is not None:
-                allocate = ring.allocator()
+                while ring.owner() in pending:  # its slot's last chunk is still being written
+                    cf.wait(pending[ring.owner()][0])
+                    settle(block=False)
+                allocate = ring.allocator(chunk.id)
             t0 = time.perf_counter()
             run = simulate_chunk(scenes, choice, device, context["frames"], context["every"], context["surface"],
                                  allocate=allocate, progress=bar.frames)  # fmt: skip
@@ -271,7 +280,7 @@ def run_here(todo, device, context, result) -> None:
             pending[chunk.id] = (futures, run.rows, paths)
             settle(block=False)
             t0 = time.perf_counter()
-            while len(pending) >= 2:  # one chunk is written while the next simulates (the ring's two slots)
+            while len(pending) >= 2:  # at most two chunks wait for writers
                 cf.wait([f for fs, _, _ in pending.values() for f in fs], return_when=cf.FIRST_COMPLETED)
                 settle(block=False)
             result.write_wait_s += time.perf_counter() - t0

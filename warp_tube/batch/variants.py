@@ -5,7 +5,10 @@ The scene is opened once. For each combination of variant selections, and then f
 row, the selections and the row's values are authored in the stage's session layer (the
 strongest layer: a value there replaces the attribute's value and any time samples of the scene's
 layers), and the scene is read again through :class:`~warp_tube.scene.usd.SceneReader`, which
-re-reads only the prims the table overrides (and the tubes below them, and forces on them). Every
+re-reads only the prims the table overrides (and the tubes below them, and forces on them). A
+table that sets only tubes' scalar parameters and forces' vectors makes its variants from the
+base scene instead (:mod:`warp_tube.batch.fastread`), reading the stage only for a row whose
+values the reader would refuse or warn about. Every
 cell is parsed and every variant read before anything is simulated; all problems found are
 reported together, each naming the row, the column and what is wrong.
 """
@@ -20,6 +23,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from ..scene.spec import Scene, SceneError
+from .fastread import PlainColumns
 from .table import Table
 from .values import CONTRACT_TYPES, parse_value
 
@@ -148,6 +152,14 @@ def _usd_value(value, type_name: str):
         elem = base.rstrip("234")
     cls = Sdf.ValueTypeNames.Find(type_name).type.pythonClass
     return cls.FromNumpy(np.ascontiguousarray(value, dtype=_ELEMENT_DTYPES[elem]))
+
+
+def _is_mesh(stage, path: str) -> bool:
+    """Whether the prim at ``path`` is a Mesh (a tube extracted when read: read it again)."""
+    from pxr import UsdGeom
+
+    prim = stage.GetPrimAtPath(path)
+    return bool(prim) and prim.IsA(UsdGeom.Mesh)
 
 
 def _resolve_columns(stage, table: Table, context: str):
@@ -280,6 +292,8 @@ def _collect(scene_path, table, variant_sets, extract, progress):
             problems += [(-1, msg) for msg in bad_cols]
             continue
         changed = sorted({col.prim for col in table.columns})
+        plain = PlainColumns.of(base, [(None if _is_mesh(stage, col.prim) else col.prim, col.attribute, type_name)
+                                       for col, (_, type_name, _) in zip(table.columns, columns)])  # fmt: skip
         seen_rows: dict = {}
         for r, cells in enumerate(table.rows, start=table.first_row):
             here = (r - table.first_row) * len(combos) + c  # in this (part of the) table
@@ -301,6 +315,14 @@ def _collect(scene_path, table, variant_sets, extract, progress):
                     problems.append((r, f"{table.where(r, col)}: {e}"))
                     ok = False
             if not ok:
+                continue
+            scene = plain.scene([v for _, v in values]) if plain is not None else None
+            if scene is not None:  # made from the base scene: no need to read the stage
+                seen_rows[cells] = scene
+                out[here] = Variant(index, name, r, cells, combo, scene)
+                done += 1
+                if progress is not None:
+                    progress(done)
                 continue
             for attr, value in values:
                 if not attr.Set(value):

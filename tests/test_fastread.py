@@ -1,0 +1,87 @@
+"""Variants made from the base scene (warp_tube.batch.fastread) against the same rows authored in
+the stage and read through usd-core: the same scenes, field for field, bit for bit."""
+
+import dataclasses
+from pathlib import Path
+
+import numpy as np
+import pytest
+
+import warp_tube.batch.variants as variants_mod
+from warp_tube.batch.table import read_table
+from warp_tube.batch.variants import collect_variants
+
+SCENE = Path(__file__).resolve().parents[1] / "scenes" / "intestine.usda"
+HEADER = ["/World/Bowel.warptube:youngsModulus", "/World/Bowel.warptube:density", "/World/Bowel.warptube:damping",
+          "/World/Bowel.warptube:anchorStiffness", "/World/Push.warptube:force"]  # fmt: skip
+ROWS = [
+    ("20000", "1050", "8", "60", "(0, 0.02, 0)"),
+    ("31234.5678", "999.25", "0", "0.1", "(0.0123456789, -0.02, 1e-9)"),  # float3: float32-rounded
+    ("20000", "1050", "8", "0", "(0, 0.02, 0)"),  # anchorStiffness 0 with anchors: the reader warns
+    ("-5", "1050", "8", "60", "(0, 0.02, 0)"),  # refused: a bad row, named by the reader
+    ("1e14", "1050", "8", "60", "(0, 0.02, 0)"),  # beyond the physical range: refused
+    ("20000", "1050", "8", "60", "(0, 1e39, 0)"),  # not a float32: refused
+    ("5e4", "1100", "2.5", "30", "(0.01, 0, 0.03)"),
+]
+
+
+def same(a, b, where="scene"):
+    """Recursive equality of scene dataclasses, arrays bit for bit."""
+    if dataclasses.is_dataclass(a):
+        assert type(a) is type(b), where
+        for f in dataclasses.fields(a):
+            same(getattr(a, f.name), getattr(b, f.name), f"{where}.{f.name}")
+    elif isinstance(a, (tuple, list)):
+        assert len(a) == len(b), where
+        for k, (x, y) in enumerate(zip(a, b)):
+            same(x, y, f"{where}[{k}]")
+    elif isinstance(a, np.ndarray) or isinstance(b, np.ndarray):
+        assert np.asarray(a).dtype == np.asarray(b).dtype and np.array_equal(a, b), where
+    else:
+        assert a == b and type(a) is type(b), f"{where}: {a!r} != {b!r}"
+
+
+def collect(tmp_path, monkeypatch, plain: bool):
+    table = tmp_path / "t.csv"
+    table.write_text(",".join(HEADER) + "\n" + "\n".join(",".join(f'"{c}"' if "," in c else c for c in r) for r in ROWS) + "\n")
+    if not plain:
+        monkeypatch.setattr(variants_mod.PlainColumns, "of", classmethod(lambda cls, base, targets: None))
+    return collect_variants(str(SCENE), read_table(str(table)))
+
+
+def test_plain_columns_give_the_scenes_the_stage_gives(tmp_path, monkeypatch, caplog):
+    made = []
+    scene_of = variants_mod.PlainColumns.scene
+    monkeypatch.setattr(variants_mod.PlainColumns, "scene", lambda self, values: made.append(scene_of(self, values)) or made[-1])
+    fast, fast_problems = collect(tmp_path, monkeypatch, plain=True)
+    # rows 0, 1 and 6 made from the base scene; the others read through the stage
+    assert [m is not None for m in made] == [True, True, False, False, False, False, True]
+    fast_log = [r.getMessage() for r in caplog.records]
+    caplog.clear()
+    with monkeypatch.context() as m:
+        slow, slow_problems = collect(tmp_path, m, plain=False)
+    slow_log = [r.getMessage() for r in caplog.records]
+    assert fast_problems == slow_problems and [p[0] for p in slow_problems] == [3, 4, 5]
+    assert fast_log == slow_log and any("anchorStiffness 0" in msg for msg in slow_log)
+    for k, (a, b) in enumerate(zip(fast.variants, slow.variants)):
+        assert (a is None) == (b is None), k
+        if a is not None:
+            same(a, b, f"row {k}")
+    # the float3 force was stored as float32 and read back as such
+    assert fast.variants[1].scene.forces[0].values[0, 0] == float(np.float32(0.0123456789))
+
+
+def test_columns_not_taken_fall_back_to_the_stage():
+    from warp_tube import load_scene
+    from warp_tube.batch.fastread import PlainColumns
+
+    base = load_scene(str(SCENE))
+    assert PlainColumns.of(base, [("/World/Bowel", "warptube:youngsModulus", "double")]) is not None
+    for target in [("/World/Bowel", "warptube:spokes", "int"), ("/World/Bowel", "widths", "float[]"),
+                   ("/World/Bowel", "warptube:damping", "half"), (None, "warptube:damping", "double"),
+                   ("/World/Push", "warptube:point", "int"), ("/World", "warptube:density", "double")]:  # fmt: skip
+        assert PlainColumns.of(base, [target]) is None, target
+
+
+if __name__ == "__main__":
+    pytest.main([__file__])

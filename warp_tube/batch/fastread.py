@@ -1,0 +1,123 @@
+"""Variants made from the scene read once, for tables that set plain values only.
+
+Most parameter studies vary a tube's material (Young's modulus, density, damping, ...) and the
+forces' vectors. For such a table the variant scenes follow from the base scene without reading
+the stage again: :class:`PlainColumns` replaces the parameters and force vectors in copies of the
+base scene's specs (a few microseconds a row, against ~0.5 ms for authoring the row in the stage
+and reading it through usd-core).
+
+It takes a row only where the result is certain to be what :class:`~warp_tube.scene.usd.SceneReader`
+would read: values rounded as the attribute's type stores them (``float`` to float32), and every
+check of the reader passed with no warning due. Any other row (a value the reader would refuse or
+warn about) returns None, and the caller reads it through the stage as before, so every message
+still comes from the reader.
+"""
+
+from __future__ import annotations
+
+import copy
+import dataclasses
+import math
+
+import numpy as np
+
+from ..scene.spec import Scene, SceneError
+
+__all__ = ["PlainColumns"]
+
+#: tube attributes taken here: TubeParams field, and whether the value must be > 0 (else >= 0)
+TUBE_SCALARS = {
+    "warptube:youngsModulus": ("youngs_modulus", True),
+    "warptube:density": ("density", True),
+    "warptube:damping": ("damping", False),
+    "warptube:springDamping": ("spring_damping", False),
+    "warptube:anchorStiffness": ("anchor_stiffness", False),
+}
+#: the reader's physical range (scene.usd): density <= 1e6 kg/m^3, youngsModulus <= 1e13 Pa
+MAX_DENSITY, MAX_YOUNGS, MAX_FORCE = 1e6, 1e13, 1e9
+SCALAR_TYPES = {"double": np.float64, "float": np.float32}
+VECTOR_TYPES = {"double3": np.float64, "float3": np.float32}
+
+
+def _stored(value, type_name: str):
+    """``value`` as the stage stores an attribute of ``type_name`` and the reader reads it back
+    (float64), or None for a type not taken here."""
+    with np.errstate(over="ignore"):  # beyond float32: inf, refused by the caller's checks
+        if type_name in SCALAR_TYPES:
+            return float(SCALAR_TYPES[type_name](value))
+        if type_name in VECTOR_TYPES:
+            return np.asarray(np.asarray(value, dtype=VECTOR_TYPES[type_name]), dtype=np.float64).reshape(3)
+    return None
+
+
+class PlainColumns:
+    """The table's columns, when each sets a tube's scalar parameter or a force's vector.
+
+    Args:
+        base: the scene as read with no override.
+        targets: per column, (prim path, attribute name, USD type name); the path None for a Mesh
+            (a tube extracted from it when read, not taken here).
+    """
+
+    def __init__(self, base: Scene, targets: list):
+        self.base = base
+        self.targets = targets
+        self.tube_of = {t.path: k for k, t in enumerate(base.tubes)}
+        self.force_of = {f.path: k for k, f in enumerate(base.forces)}
+
+    @classmethod
+    def of(cls, base: Scene, targets: list) -> PlainColumns | None:
+        """The columns as :class:`PlainColumns`, or None where one sets anything else."""
+        tubes = {t.path for t in base.tubes}
+        forces = {f.path for f in base.forces}
+        for prim, attr, type_name in targets:
+            if prim is None:  # an extracted Mesh
+                return None
+            if prim in tubes and attr in TUBE_SCALARS and type_name in SCALAR_TYPES:
+                continue
+            if prim in forces and attr == "warptube:force" and type_name in VECTOR_TYPES:
+                continue
+            return None
+        return cls(base, targets)
+
+    def scene(self, values: list) -> Scene | None:
+        """The variant with ``values`` (one per column, as parsed for the stage), or None where
+        the stage must be read (a value the reader refuses or warns about)."""
+        tube_changes: dict = {}
+        force_values: dict = {}
+        for (prim, attr, type_name), value in zip(self.targets, values):
+            v = _stored(value, type_name)
+            if attr == "warptube:force":
+                if not (np.isfinite(v).all() and np.abs(v).max() <= MAX_FORCE):
+                    return None
+                force_values[self.force_of[prim]] = v
+                continue
+            field, positive = TUBE_SCALARS[attr]
+            if not math.isfinite(v) or v < 0.0 or (positive and v == 0.0):
+                return None
+            tube_changes.setdefault(self.tube_of[prim], {})[field] = v
+        tubes = list(self.base.tubes)
+        for k, changes in tube_changes.items():
+            t = tubes[k]
+            try:
+                params = dataclasses.replace(t.params, **changes)
+            except SceneError:
+                return None
+            E = params.youngs_modulus
+            if params.density > MAX_DENSITY or (E is not None and E > MAX_YOUNGS):
+                return None
+            if len(t.anchors) and params.anchor_stiffness == 0.0:
+                return None  # the reader warns of it
+            u = copy.copy(t)  # the points, radii and indices are the base's: checked already
+            object.__setattr__(u, "params", params)
+            tubes[k] = u
+        forces = list(self.base.forces)
+        for k, v in force_values.items():
+            f = copy.copy(forces[k])
+            object.__setattr__(f, "times", np.zeros(1))
+            object.__setattr__(f, "values", v[None].copy())
+            forces[k] = f
+        out = copy.copy(self.base)
+        object.__setattr__(out, "tubes", tuple(tubes))
+        object.__setattr__(out, "forces", tuple(forces))
+        return out
