@@ -202,10 +202,18 @@ def _write_tasks(chunk, context, parts: int) -> list[WriteTask]:
     return out
 
 
-def writer_count(writers, sims: int) -> int:
+#: writer threads for the arrays layout by default: its writes wait on the disk, not the cores, and
+#: more threads only contend with the simulating thread for the GIL between their copies
+ARRAY_WRITER_THREADS = 4
+
+
+def writer_count(writers, sims: int, layout: str = "files") -> int:
+    """Writers by default: the cores the simulating processes leave (at most 32), or for arrays at
+    most :data:`ARRAY_WRITER_THREADS` threads; ``writers`` when given."""
     if writers is not None:
         return writers
-    return max(1, min(32, (os.cpu_count() or 2) - sims))
+    cores = max(1, min(32, (os.cpu_count() or 2) - sims))
+    return min(cores, ARRAY_WRITER_THREADS) if layout == "arrays" else cores
 
 
 def run_here(todo, device, context, result) -> None:

@@ -203,10 +203,9 @@ def _write_arrays(task: WriteTask, arrays: dict) -> list[str]:
                 data = arrays[source][:, p]
                 block[:, : data.shape[1]] = data
                 block[:, data.shape[1] :] = np.nan
-                buf = block.tobytes()
-                written = os.pwrite(fd, buf, offset + index * len(buf))
-                if written != len(buf):
-                    raise OSError(f"{path}: short write ({written} of {len(buf)} bytes)")
+                written = os.pwrite(fd, block, offset + index * block.nbytes)  # the buffer itself: no copy under the GIL
+                if written != block.nbytes:
+                    raise OSError(f"{path}: short write ({written} of {block.nbytes} bytes)")
         finally:
             os.close(fd)
     return ["centerline.npy" + (" surface.npy" if spec.surface else "")] * len(task.variants)

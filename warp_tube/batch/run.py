@@ -190,8 +190,8 @@ def run_batch(scene: str, out_dir: str, table: str | None = None, *, variant_set
         surface: write the Surface (default: yes for files and grid, no for arrays).
         device: "cpu" or "cuda:N" (default: every GPU, else the CPU).
         workers: processes on the CPU, or how many GPUs (default: 1 on the CPU, all GPUs).
-        writers: writer processes (default: the host's cores left over, at least 1; 0: write
-            in the simulating process).
+        writers: writer processes, threads for ``arrays`` (default: the host's cores left over,
+            at least 1, at most 4 threads for ``arrays``; 0: write in the simulating process).
         chunk: variants per chunk (default :data:`DEFAULT_CHUNK_CPU` / :data:`DEFAULT_CHUNK_CUDA`,
             fewer so that every worker gets two chunks).
         scheduler: a Dask scheduler address, to run the chunks on a Dask cluster.
@@ -225,7 +225,7 @@ def run_batch(scene: str, out_dir: str, table: str | None = None, *, variant_set
     devices = _devices(device, workers, scheduler)
     tab = read_table(table) if table is not None else None
     sims = 0 if scheduler else len(devices)
-    writer_pool = Writers(layout, 0 if scheduler else writer_count(writers, sims))
+    writer_pool = Writers(layout, 0 if scheduler else writer_count(writers, sims, layout))
     try:
         return _run_batch(scene, out_dir, table, tab, devices, writer_pool, t_start, variant_sets=variant_sets,
                           layout=layout, every=every, frames=frames, surface=surface, device=device, chunk=chunk,
