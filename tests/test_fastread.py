@@ -85,3 +85,32 @@ def test_columns_not_taken_fall_back_to_the_stage():
 
 if __name__ == "__main__":
     pytest.main([__file__])
+
+
+def test_a_plain_table_is_read_in_this_process(tmp_path, monkeypatch):
+    """Rows made from the base scene cost too little to start processes for a table of this size;
+    a table that needs the stage read row by row gets them (both at 2 rows a process here)."""
+    import types
+
+    import warp_tube.batch.prepare as prepare
+
+    monkeypatch.setattr(prepare, "PREPARE_ROWS_PER_PROCESS", 2)
+    monkeypatch.setattr(prepare.os, "cpu_count", lambda: 2)
+    started = []
+
+    class NoPool:
+        def __init__(self, *a, **k):
+            started.append(a)
+            raise RuntimeError("processes started")
+
+    monkeypatch.setattr(prepare.cf, "ProcessPoolExecutor", NoPool)
+    bar = types.SimpleNamespace(reading=lambda n: None)
+    good = [r for r in ROWS if not r[0].startswith("-") and r[0] != "1e14" and "1e39" not in r[4] and r[3] != "0"]
+    table = tmp_path / "plain.csv"
+    table.write_text(",".join(HEADER) + "\n" + "\n".join(",".join(f'"{c}"' if "," in c else c for c in r) for r in good) + "\n")
+    variants, choices = prepare.prepare_batch(str(SCENE), read_table(str(table)), None, bar)
+    assert len(variants.variants) == len(good) == len(choices) and not started
+    other = tmp_path / "other.csv"
+    other.write_text("/World/Bowel.warptube:spokes\n" + "\n".join(["8", "12", "16", "10"]) + "\n")
+    with pytest.raises(RuntimeError, match="processes started"):
+        prepare.prepare_batch(str(SCENE), read_table(str(other)), None, bar)

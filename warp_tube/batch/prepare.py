@@ -30,6 +30,10 @@ PREPARE_ROWS_PER_PROCESS = 1024
 #: at most this many processes read a table
 PREPARE_PROCESSES = 16
 
+#: a table of plain values (:mod:`warp_tube.batch.fastread`) costs about this many times less a row,
+#: so processes started for it need this many times more rows to pay for their start
+PLAIN_ROWS_FACTOR = 8
+
 
 def _extract(file, prim, info):
     """The extraction hook for Mesh tubes, imported only when a scene has one."""
@@ -66,11 +70,14 @@ def prepare_batch(scene: str, table, variant_sets, bar, pool: cf.ProcessPoolExec
         pool, pool_size: running worker processes to read with (the writers) and how many they
             are, or None to start some.
     """
-    from .variants import Variants, name_width, prepare_variants, raise_problems
+    from .variants import Variants, name_width, plain_table, prepare_variants, raise_problems
 
     rows = len(table.rows) if table is not None else 1
     width = pool_size if pool is not None else (os.cpu_count() or 1)
-    parts = min(PREPARE_PROCESSES, width, rows // PREPARE_ROWS_PER_PROCESS)
+    per_process = PREPARE_ROWS_PER_PROCESS
+    if pool is None and rows >= 2 * per_process and not variant_sets and plain_table(scene, table):
+        per_process *= PLAIN_ROWS_FACTOR  # rows made from the base scene: new processes pay less often
+    parts = min(PREPARE_PROCESSES, width, rows // per_process)
     if parts < 2:
         variants = prepare_variants(scene, table, variant_sets, extract=_extract, progress=bar.reading)
         return variants, checked_run_choices(variants)

@@ -28,7 +28,7 @@ from .table import Table
 from .values import CONTRACT_TYPES, parse_value
 
 __all__ = ["VariantSetAxis", "Variant", "Variants", "find_variant_sets", "select_variant_sets", "prepare_variants",
-           "collect_variants", "raise_problems"]
+           "collect_variants", "raise_problems", "plain_table"]
 
 #: at most this many problems are listed in one message
 MAX_PROBLEMS = 10
@@ -154,6 +154,12 @@ def _usd_value(value, type_name: str):
     return cls.FromNumpy(np.ascontiguousarray(value, dtype=_ELEMENT_DTYPES[elem]))
 
 
+def _targets(stage, table: Table, columns) -> list:
+    """Per column (prim path, or None for a Mesh; attribute; USD type name), as PlainColumns takes them."""
+    return [(None if _is_mesh(stage, col.prim) else col.prim, col.attribute, type_name)
+            for col, (_, type_name, _) in zip(table.columns, columns)]  # fmt: skip
+
+
 def _is_mesh(stage, path: str) -> bool:
     """Whether the prim at ``path`` is a Mesh (a tube extracted when read: read it again)."""
     from pxr import UsdGeom
@@ -193,6 +199,28 @@ def prepare_variants(scene_path: str, table: Table | None = None, variant_sets: 
     variants, problems = collect_variants(scene_path, table, variant_sets, extract, progress)
     raise_problems(problems)
     return variants
+
+
+def plain_table(scene_path: str, table: Table | None) -> bool:
+    """Whether ``table`` sets plain values only (its variants made from the base scene, see
+    :mod:`warp_tube.batch.fastread`); False for anything that does not read cleanly."""
+    if table is None:
+        return False
+    from ..scene.usd import SceneReader, open_stage
+
+    logger, quiet = logging.getLogger("warp_tube.scene.usd"), logging.Filter("nothing")  # warnings: once, by the real read
+    logger.addFilter(quiet)
+    try:
+        stage = open_stage(scene_path)
+        base = SceneReader(stage, scene_path).read()
+    except SceneError:
+        return False
+    finally:
+        logger.removeFilter(quiet)
+    columns = _resolve_columns(stage, table, scene_path)
+    if any(msg for _, _, msg in columns):
+        return False
+    return PlainColumns.of(base, _targets(stage, table, columns)) is not None
 
 
 def raise_problems(problems: list) -> None:
@@ -292,8 +320,7 @@ def _collect(scene_path, table, variant_sets, extract, progress):
             problems += [(-1, msg) for msg in bad_cols]
             continue
         changed = sorted({col.prim for col in table.columns})
-        plain = PlainColumns.of(base, [(None if _is_mesh(stage, col.prim) else col.prim, col.attribute, type_name)
-                                       for col, (_, type_name, _) in zip(table.columns, columns)])  # fmt: skip
+        plain = PlainColumns.of(base, _targets(stage, table, columns))
         seen_rows: dict = {}
         for r, cells in enumerate(table.rows, start=table.first_row):
             here = (r - table.first_row) * len(combos) + c  # in this (part of the) table
