@@ -204,7 +204,7 @@ def _write_tasks(chunk, context, parts: int) -> list[WriteTask]:
 
 #: writer threads for the arrays layout by default: its writes wait on the disk, not the cores, and
 #: more threads only contend with the simulating thread for the GIL between their copies
-ARRAY_WRITER_THREADS = 4
+ARRAY_WRITER_THREADS = 8
 
 
 def writer_count(writers, sims: int, layout: str = "files") -> int:

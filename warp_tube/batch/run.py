@@ -191,7 +191,7 @@ def run_batch(scene: str, out_dir: str, table: str | None = None, *, variant_set
         device: "cpu" or "cuda:N" (default: every GPU, else the CPU).
         workers: processes on the CPU, or how many GPUs (default: 1 on the CPU, all GPUs).
         writers: writer processes, threads for ``arrays`` (default: the host's cores left over,
-            at least 1, at most 4 threads for ``arrays``; 0: write in the simulating process).
+            at least 1, at most 8 threads for ``arrays``; 0: write in the simulating process).
         chunk: variants per chunk (default :data:`DEFAULT_CHUNK_CPU` / :data:`DEFAULT_CHUNK_CUDA`,
             fewer so that every worker gets two chunks).
         scheduler: a Dask scheduler address, to run the chunks on a Dask cluster.
