@@ -15,7 +15,6 @@ still comes from the reader.
 
 from __future__ import annotations
 
-import copy
 import dataclasses
 import math
 
@@ -37,6 +36,13 @@ TUBE_SCALARS = {
 MAX_DENSITY, MAX_YOUNGS, MAX_FORCE = 1e6, 1e13, 1e9
 SCALAR_TYPES = {"double": np.float64, "float": np.float32}
 VECTOR_TYPES = {"double3": np.float64, "float3": np.float32}
+
+
+def _copy(spec):
+    """A shallow copy of a frozen spec, without its checks (its values are the checked original's)."""
+    out = object.__new__(type(spec))
+    out.__dict__.update(spec.__dict__)
+    return out
 
 
 def _stored(value, type_name: str):
@@ -108,16 +114,16 @@ class PlainColumns:
                 return None
             if len(t.anchors) and params.anchor_stiffness == 0.0:
                 return None  # the reader warns of it
-            u = copy.copy(t)  # the points, radii and indices are the base's: checked already
+            u = _copy(t)  # the points, radii and indices are the base's: checked already
             object.__setattr__(u, "params", params)
             tubes[k] = u
         forces = list(self.base.forces)
         for k, v in force_values.items():
-            f = copy.copy(forces[k])
+            f = _copy(forces[k])
             object.__setattr__(f, "times", np.zeros(1))
             object.__setattr__(f, "values", v[None].copy())
             forces[k] = f
-        out = copy.copy(self.base)
+        out = _copy(self.base)
         object.__setattr__(out, "tubes", tuple(tubes))
         object.__setattr__(out, "forces", tuple(forces))
         return out
