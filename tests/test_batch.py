@@ -358,12 +358,16 @@ def test_cpu_worker_processes_match_one_process(sweep, tmp_path):
     if wp.get_preferred_device().is_cuda:  # the sweep ran on the GPU: the one-process reference must be on the CPU
         files_out = tmp_path / "w1"
         run_batch(str(DEFAULT), str(files_out), str(d / "table.csv"), frames=FRAMES, device="cpu", writers=0)
-    out = tmp_path / "w2"
-    result = run_batch(str(DEFAULT), str(out), str(d / "table.csv"), frames=FRAMES, device="cpu", workers=2, chunk=2, writers=1)
-    assert result.devices == ["cpu", "cpu"] and result.ok == 5
-    for k in range(5):
-        # same kernels, same inputs, another process: the same bytes
-        assert filecmp.cmp(files_out / f"variant_{k:05d}.usdc", out / f"variant_{k:05d}.usdc", shallow=False)
+    # chunk=1: five chunks through four buffer slots, so a slot's files are written again by a
+    # later chunk (once the chunk before has been written)
+    for chunk in (2, 1):
+        out = tmp_path / f"w2_{chunk}"
+        result = run_batch(str(DEFAULT), str(out), str(d / "table.csv"), frames=FRAMES, device="cpu", workers=2, chunk=chunk,
+                           writers=1)  # fmt: skip
+        assert result.devices == ["cpu", "cpu"] and result.ok == 5
+        for k in range(5):
+            # same kernels, same inputs, another process: the same bytes
+            assert filecmp.cmp(files_out / f"variant_{k:05d}.usdc", out / f"variant_{k:05d}.usdc", shallow=False)
 
 
 def test_local_dask_cluster_of_two_workers_matches_one_process(sweep, tmp_path):

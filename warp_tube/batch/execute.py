@@ -49,8 +49,8 @@ def _sim_task(payload):
     import warp as wp
 
     wp.config.log_level = wp.LOG_WARNING
-    scenes, choice, frames, every, surface, buffer_dir, chunk = payload
-    run = simulate_chunk(scenes, choice, _worker_device, frames, every, surface, allocate=_file_allocator(buffer_dir, chunk))
+    scenes, choice, frames, every, surface, buffer_dir, slot = payload
+    run = simulate_chunk(scenes, choice, _worker_device, frames, every, surface, allocate=_slot_allocator(buffer_dir, slot))
     paths = {name: a.filename for name, a in run.arrays.items()}
     for a in run.arrays.values():
         a.flush()
@@ -118,6 +118,25 @@ def _file_allocator(folder: str, chunk: int):
     def allocate(shapes: dict) -> dict:
         return {name: open_memmap(os.path.join(folder, f"chunk_{chunk:05d}.{name}.npy"), mode="w+", dtype=np.float32, shape=shape)
                 for name, shape in shapes.items()}  # fmt: skip
+
+    return allocate
+
+
+def _slot_allocator(folder: str, slot: int):
+    """Memory-mapped arrays in buffer slot ``slot`` of ``folder``: the slot's files as an earlier
+    chunk left them when their shapes match (pages already there, not faulted in and zeroed
+    again), new ones otherwise."""
+    from numpy.lib.format import open_memmap
+
+    def allocate(shapes: dict) -> dict:
+        out = {}
+        for name, shape in shapes.items():
+            path = os.path.join(folder, f"slot_{slot:03d}.{name}.npy")
+            a = np.load(path, mmap_mode="r+") if os.path.exists(path) else None
+            if a is None or a.shape != tuple(shape) or a.dtype != np.float32:
+                a = open_memmap(path, mode="w+", dtype=np.float32, shape=shape)
+            out[name] = a
+        return out
 
     return allocate
 
@@ -326,14 +345,18 @@ def run_pooled(todo, devices, context, result) -> None:
     queue_chunks = list(todo)
     simulating: dict = {}  # future -> chunk
     writing: dict = {}  # chunk id -> (futures, rows, paths)
+    free_slots = list(range(2 * len(devices)))  # buffer slots; a chunk's is free again once it is written
+    slot_of: dict = {}  # chunk id -> its buffer slot
     bar = context["bar"]
     t0 = time.perf_counter()
 
     def submit_sim():
-        while queue_chunks and len(simulating) + len(writing) < 2 * len(devices):
+        while queue_chunks and free_slots and len(simulating) + len(writing) < 2 * len(devices):
             c = queue_chunks.pop(0)
             scenes = [context["variants"].variants[i].scene for i in c.indices]
-            payload = (scenes, context["choices"][c.indices[0]], context["frames"], context["every"], context["surface"], buffers, c.id)
+            slot_of[c.id] = free_slots.pop()
+            payload = (scenes, context["choices"][c.indices[0]], context["frames"], context["every"], context["surface"], buffers,
+                       slot_of[c.id])  # fmt: skip
             simulating[sims.submit(_sim_task, payload)] = c
 
     try:
@@ -355,8 +378,7 @@ def run_pooled(todo, devices, context, result) -> None:
                     out, spent = f.result()
                     outputs += out
                     result.write_s += spent
-                for p in paths:
-                    os.remove(p)
+                free_slots.append(slot_of.pop(cid))  # its files stay for the next chunk
                 context["finish"](cid, rows, outputs)
             submit_sim()
         result.simulate_s += result.timings["build_s"] + sum(result.timings[k] for k in TIMERS if k != "build_s")
