@@ -115,11 +115,24 @@ def run_choice(scene: Scene) -> RunChoice:
     return run_choices([scene])[0]
 
 
+_mean_spokes: dict = {}  # (lengths' bytes, spokes) -> mean spoke length [m]
+
+
 def mean_spoke_length(t) -> float:
-    """The surface builder's guard window scale for a tube prim: its mean spoke length [m]."""
-    if t.spoke_lengths is not None:
-        return float(t.spoke_lengths.mean())
-    return float(np.repeat(t.radius[:, None], t.params.spokes, axis=1).mean())
+    """The surface builder's guard window scale for a tube prim: its mean spoke length [m]
+    (remembered by content: the variants of a batch mostly share their radii)."""
+    lengths = t.spoke_lengths if t.spoke_lengths is not None else t.radius
+    key = (lengths.tobytes(), t.params.spokes, t.spoke_lengths is None)
+    value = _mean_spokes.get(key)
+    if value is None:
+        if t.spoke_lengths is not None:
+            value = float(t.spoke_lengths.mean())
+        else:
+            value = float(np.repeat(t.radius[:, None], t.params.spokes, axis=1).mean())
+        if len(_mean_spokes) > 4096:
+            _mean_spokes.clear()
+        _mean_spokes[key] = value
+    return value
 
 
 def group_key(scene: Scene, choice: RunChoice, surface: bool) -> tuple:

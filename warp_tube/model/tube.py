@@ -337,7 +337,7 @@ def build_model(scene: Scene, world_count: int = 1, device=None) -> TubeModel:
     tube_of_force, node_of_force = [], []
     for f in scene.forces:
         spec = scene.tubes[f.tube]
-        c = int(np.searchsorted(spec.curve_starts, f.point, side="right") - 1)
+        c = 0 if len(spec.curve_counts) == 1 else int(np.searchsorted(spec.curve_starts, f.point, side="right") - 1)
         t = int(per_node["node_tube"][prim_node_start[f.tube] + spec.curve_starts[c]])
         tube_of_force.append(t)
         node_of_force.append(int(prim_node_start[f.tube]) + f.point)
