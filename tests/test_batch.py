@@ -594,3 +594,26 @@ def test_critical_time_steps_of_many_parts_equal_each_part_alone():
         assert np.allclose(own["seg_ke"], alone.seg_ke)  # the slice is the part's own model
         assert many[k] == pytest.approx(critical_time_step(alone, True, damping[k]), rel=1e-12)
     assert len(set(np.round(many, 12))) == 3  # the three stiffnesses give three bounds
+
+
+def test_a_script_piped_to_python_reads_its_table_in_one_process(sweep, tmp_path):
+    """Processes started by spawn cannot import a main module read from stdin; reading falls back
+    to the batch's own process, with a warning, and the batch completes."""
+    import subprocess
+    import sys
+
+    d, files_out, _, _ = sweep
+    out = tmp_path / "piped"
+    script = f"""
+import warp_tube.batch.prepare as prepare
+prepare.PREPARE_ROWS_PER_PROCESS = 2
+prepare.os.cpu_count = lambda: 2
+from warp_tube.batch import run_batch
+r = run_batch({str(DEFAULT)!r}, {str(out)!r}, {str(d / "table.csv")!r}, frames={FRAMES}, device="cpu", writers=0)
+print("ok", r.ok)
+"""
+    p = subprocess.run([sys.executable, "-"], input=script, capture_output=True, text=True, timeout=300)
+    assert p.returncode == 0, p.stderr[-2000:]
+    assert "ok 5" in p.stdout and "reading it in this process" in p.stderr
+    for k in range(5):
+        assert filecmp.cmp(files_out / f"variant_{k:05d}.usdc", out / f"variant_{k:05d}.usdc", shallow=False)

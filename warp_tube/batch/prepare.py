@@ -11,14 +11,18 @@ from __future__ import annotations
 
 import concurrent.futures as cf
 import dataclasses
+import logging
 import multiprocessing
 import os
+from concurrent.futures.process import BrokenProcessPool
 
 import numpy as np
 
 from ..scene.spec import SceneError
 from .execute import ignore_sigint
 from .plan import run_choice, run_choices
+
+log = logging.getLogger(__name__)
 
 __all__ = ["prepare_batch", "checked_run_choices", "PREPARE_ROWS_PER_PROCESS", "PREPARE_PROCESSES"]
 
@@ -94,6 +98,11 @@ def prepare_batch(scene: str, table, variant_sets, bar, pool: cf.ProcessPoolExec
         for f in futures:
             results.append(f.result())
             bar.reading(sum(len(r[0].variants) for r in results))
+    except BrokenProcessPool:
+        # e.g. a main module the processes cannot import (a script piped to python): read here
+        log.warning("the processes reading the table stopped; reading it in this process")
+        variants = prepare_variants(scene, table, variant_sets, extract=_extract, progress=bar.reading)
+        return variants, checked_run_choices(variants)
     finally:
         if own is not None:
             own.shutdown(wait=True, cancel_futures=True)
