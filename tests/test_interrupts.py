@@ -84,7 +84,10 @@ def test_interrupt_of_a_real_kernel_compile(folder, tmp_path_factory):
     # -v makes Warp print "Module ... (compiled)" after each module it compiles; with an empty cache
     # the next module is compiling when the first line appears.
     cache = tmp_path_factory.mktemp("empty_kernel_cache")
-    rc, out, err = interrupt_when(folder, "(compiled)", env={"WARP_CACHE_PATH": str(cache)}, args=("-v",), stream="stdout")
+    # unbuffered: Warp prints that line to a pipe, which Python would otherwise hold back, so the
+    # signal could come after the last compile (or the end of the run) instead of during the next
+    env = {"WARP_CACHE_PATH": str(cache), "PYTHONUNBUFFERED": "1"}
+    rc, out, err = interrupt_when(folder, "(compiled)", env=env, args=("-v",), stream="stdout")
     assert "(compiled)" in out, "no kernel was compiled: the cache was not empty"
     assert rc == 130, err
     assert (folder / "keep.usdc").read_bytes() == KEEP and leftovers(folder) == []
