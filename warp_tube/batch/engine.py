@@ -24,6 +24,7 @@ from dataclasses import dataclass, field
 import numpy as np
 import warp as wp
 
+from ..runtime.interrupts import raise_if_interrupted
 from ..scene.spec import Scene
 from .checks import WorldChecks, work_of
 from .control import WorldControl
@@ -113,6 +114,7 @@ def simulate_chunk(scenes: list[Scene], choice: RunChoice, device: str, frames: 
     n, dt = choice.substeps, frame_dt / choice.substeps
     f_out = 0
     for k in range(frames):
+        raise_if_interrupted()  # a Ctrl-C dropped in a finalizer stops the chunk here
         if k > 0:
             t = time.perf_counter()
             wc.update(k - 1, state)

@@ -28,6 +28,7 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
+from ..runtime.interrupts import kept_interrupts
 from ..scene.spec import SceneError
 from .engine import TIMERS, output_frames
 from .execute import Writers, run_dask, run_here, run_pooled, writer_count
@@ -227,9 +228,10 @@ def run_batch(scene: str, out_dir: str, table: str | None = None, *, variant_set
     sims = 0 if scheduler else len(devices)
     writer_pool = Writers(layout, 0 if scheduler else writer_count(writers, sims, layout))
     try:
-        return _run_batch(scene, out_dir, table, tab, devices, writer_pool, t_start, variant_sets=variant_sets,
-                          layout=layout, every=every, frames=frames, surface=surface, device=device, chunk=chunk,
-                          scheduler=scheduler, resume=resume, progress=progress, on_chunk=on_chunk)  # fmt: skip
+        with kept_interrupts():  # a Ctrl-C dropped in a finalizer stops the batch at the next frame
+            return _run_batch(scene, out_dir, table, tab, devices, writer_pool, t_start, variant_sets=variant_sets,
+                              layout=layout, every=every, frames=frames, surface=surface, device=device, chunk=chunk,
+                              scheduler=scheduler, resume=resume, progress=progress, on_chunk=on_chunk)  # fmt: skip
     finally:
         writer_pool.shutdown()
 

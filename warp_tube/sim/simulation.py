@@ -28,6 +28,7 @@ import warp as wp
 from ..centerline.explicit import SemiImplicitEulerSolver
 from ..centerline.policy import IMPLICIT_COST_RATIO, RUN_WARNING, choose_integrator, implicit_cost_ratio, implicit_substeps
 from ..centerline.stability import critical_time_step
+from ..runtime.interrupts import kept_interrupts, raise_if_interrupted
 from ..model.tube import build_model
 from ..scene.spec import Scene, SceneError
 from .checks import FrameChecks
@@ -417,8 +418,11 @@ class Simulation:
         startup = Phase("compiling kernels (first run only) and simulating frame 1", enabled=bool(progress), after=0.5)
         startup.__enter__()
         t0 = time.perf_counter()
+        interrupts = kept_interrupts()
+        interrupts.__enter__()
         try:
             for k in range(first, end):
+                raise_if_interrupted()  # a Ctrl-C dropped in a finalizer stops the run here
                 if k > first:
                     steps_before = self.substeps
                     self.step()
@@ -451,6 +455,7 @@ class Simulation:
             if writer:
                 summary.output = writer.close()
         finally:
+            interrupts.__exit__(None, None, None)
             summary.wall_time = time.perf_counter() - t0
             startup.__exit__(None, None, None)
             if beat is not None:
