@@ -87,8 +87,6 @@ class FrameChecks:
         self.work = np.zeros((W, G))
         #: energy moving pins may put in [J] per group: not measured, so unbounded where they move
         self.pin_allowance = np.zeros(G)
-        #: largest distance of a finite node from rest in the last measured frame [m], (W, G)
-        self.distance = np.zeros((W, G))
 
     def measure(self, before, after, control):
         """Per (world, group): ``(bad, kinetic [J], work of this frame [J])`` as NumPy arrays."""
@@ -109,8 +107,13 @@ class FrameChecks:
         self._far.zero_()
         launch.launch()
         s = self._sums.numpy().astype(np.float64)
-        self.distance = self._far.numpy().astype(np.float64)
         return s[..., 0], s[..., 1], s[..., 2]
+
+    @property
+    def distance(self) -> np.ndarray:
+        """Largest distance of a finite node from rest in the last measured frame [m], (W, G)
+        (read from the device when asked; zero before the first frame)."""
+        return self._far.numpy().astype(np.float64)
 
     def check(self, before, after, control) -> tuple[list[Failure], np.ndarray]:
         """Failures of the frame from ``before`` to ``after`` (empty when it is good), and its
