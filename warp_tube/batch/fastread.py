@@ -20,7 +20,7 @@ import math
 
 import numpy as np
 
-from ..scene.spec import Scene, SceneError
+from ..scene.spec import Scene, SceneError, replace_checked
 
 __all__ = ["PlainColumns"]
 
@@ -36,13 +36,6 @@ TUBE_SCALARS = {
 MAX_DENSITY, MAX_YOUNGS, MAX_FORCE = 1e6, 1e13, 1e9
 SCALAR_TYPES = {"double": np.float64, "float": np.float32}
 VECTOR_TYPES = {"double3": np.float64, "float3": np.float32}
-
-
-def _copy(spec):
-    """A shallow copy of a frozen spec, without its checks (its values are the checked original's)."""
-    out = object.__new__(type(spec))
-    out.__dict__.update(spec.__dict__)
-    return out
 
 
 def _stored(value, type_name: str):
@@ -114,16 +107,8 @@ class PlainColumns:
                 return None
             if len(t.anchors) and params.anchor_stiffness == 0.0:
                 return None  # the reader warns of it
-            u = _copy(t)  # the points, radii and indices are the base's: checked already
-            object.__setattr__(u, "params", params)
-            tubes[k] = u
+            tubes[k] = replace_checked(t, params=params)  # the points, radii and indices are the base's
         forces = list(self.base.forces)
         for k, v in force_values.items():
-            f = _copy(forces[k])
-            object.__setattr__(f, "times", np.zeros(1))
-            object.__setattr__(f, "values", v[None].copy())
-            forces[k] = f
-        out = _copy(self.base)
-        object.__setattr__(out, "tubes", tuple(tubes))
-        object.__setattr__(out, "forces", tuple(forces))
-        return out
+            forces[k] = replace_checked(forces[k], times=np.zeros(1), values=v[None].copy())
+        return replace_checked(self.base, tubes=tuple(tubes), forces=tuple(forces))

@@ -11,7 +11,6 @@ worlds, with per-world spoke lengths.
 
 from __future__ import annotations
 
-import copy
 import dataclasses
 from dataclasses import dataclass
 
@@ -19,7 +18,7 @@ import numpy as np
 import warp as wp
 
 from ..model.tube import TubeModel, build_model
-from ..scene.spec import Scene
+from ..scene.spec import Scene, replace_checked
 
 __all__ = ["Worlds", "WorldArrays", "build_worlds", "combined_scene"]
 
@@ -43,20 +42,13 @@ class WorldArrays:
     node_radius: np.ndarray  # (W, N) [m]
 
 
-def _retargeted(f, tube: int):
-    """Force ``f`` on tube ``tube``: a copy, its values already checked (no ``__post_init__``)."""
-    g = copy.copy(f)
-    object.__setattr__(g, "tube", tube)
-    return g
-
-
 def combined_scene(scenes: list[Scene]) -> Scene:
     """One scene holding every scene's tubes and forces, scene after scene (forces re-targeted)."""
     tubes, forces = [], []
     for s in scenes:
         offset = len(tubes)
         tubes.extend(s.tubes)
-        forces.extend(_retargeted(f, f.tube + offset) if offset else f for f in s.forces)
+        forces.extend(replace_checked(f, tube=f.tube + offset) if offset else f for f in s.forces)
     first = scenes[0]
     return Scene(tubes=tuple(tubes), forces=tuple(forces), settings=first.settings, stage=first.stage, source=first.source)
 

@@ -22,6 +22,7 @@ __all__ = [
     "ForceSpec",
     "Scene",
     "SceneError",
+    "replace_checked",
     "INTEGRATORS",
     "FRAME_MODES",
 ]
@@ -32,6 +33,16 @@ FRAME_MODES = ("rotationMinimizing", "local")
 
 class SceneError(ValueError):
     """Invalid scene or request; the message names where and what (CLI exit status 2)."""
+
+
+def replace_checked(spec, **changes):
+    """A copy of frozen spec ``spec`` with ``changes``, without running its checks again: for
+    values known to pass them (taken from specs already checked, or checked by the caller), where
+    thousands of variants would pay for the checks (arrays, indices) over and over."""
+    out = object.__new__(type(spec))
+    out.__dict__.update(spec.__dict__)
+    out.__dict__.update(changes)
+    return out
 
 
 @dataclass(frozen=True)
