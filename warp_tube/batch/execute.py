@@ -112,16 +112,6 @@ def _timed_write(task: WriteTask):
     return out, time.perf_counter() - t0
 
 
-def _file_allocator(folder: str, chunk: int):
-    from numpy.lib.format import open_memmap
-
-    def allocate(shapes: dict) -> dict:
-        return {name: open_memmap(os.path.join(folder, f"chunk_{chunk:05d}.{name}.npy"), mode="w+", dtype=np.float32, shape=shape)
-                for name, shape in shapes.items()}  # fmt: skip
-
-    return allocate
-
-
 def _slot_allocator(folder: str, slot: int):
     """Memory-mapped arrays in buffer slot ``slot`` of ``folder``: the slot's files as an earlier
     chunk left them when their shapes match (pages already there, not faulted in and zeroed
@@ -144,15 +134,16 @@ def _slot_allocator(folder: str, slot: int):
 class BufferRing:
     """Output arrays for the chunks of one process, reused in turn.
 
-    A chunk's frames are copied into memory an earlier chunk used, already mapped, instead of
-    fresh pages that the kernel must fault in and zero on first touch (which held those copies to
-    about 1 GB/s). ``slots`` chunks' arrays exist at once: before a slot comes round again, the
-    caller waits until the writers of the chunk that used it (:meth:`owner`) are done.
+    A chunk's frames are copied into memory an earlier chunk used instead of fresh pages that the
+    kernel must fault in and zero on first touch (which held those copies to about 1 GB/s):
+    arrays kept in this process's memory (writer threads), or the slot files of
+    :func:`_slot_allocator` (writer processes open them by name). ``slots`` chunks' arrays exist at
+    once: before a slot comes round again, the caller waits until the writers of the chunk that
+    used it (:meth:`owner`) are done.
 
     Args:
         slots: chunks' arrays kept.
-        folder: a folder for memory-mapped ``.npy`` files (writer processes open them by name), or
-            None for arrays in this process's memory (writer threads).
+        folder: the folder of the slot files, or None for arrays in memory.
     """
 
     def __init__(self, slots: int, folder: str | None = None):
@@ -170,16 +161,13 @@ class BufferRing:
         k = self.turn
         self.turn = (self.turn + 1) % len(self.held)
         self.owners[k] = chunk
+        if self.folder is not None:
+            return _slot_allocator(self.folder, k)
 
         def allocate(shapes: dict) -> dict:
             held = self.held[k]
             if held is None or {name: a.shape for name, a in held.items()} != {n: tuple(s) for n, s in shapes.items()}:
-                self.held[k] = None  # release the old mapping first
-                if self.folder is None:
-                    held = {name: np.empty(shape, dtype=np.float32) for name, shape in shapes.items()}
-                else:
-                    held = _file_allocator(self.folder, k)(shapes)
-                self.held[k] = held
+                held = self.held[k] = {name: np.empty(shape, dtype=np.float32) for name, shape in shapes.items()}
             return held
 
         return allocate
@@ -246,13 +234,13 @@ def run_here(todo, device, context, result) -> None:
     writers: Writers = context["writers"]
     pool = writers.pool
     buffers = None
-    pending: dict = {}  # chunk id -> (futures, rows, paths)
+    pending: dict = {}  # chunk id -> (futures, rows)
     ring = None  # the chunks' arrays, two in turn: one being written while the next is simulated
     bar = context["bar"]
 
     def settle(block: bool):
         for cid in list(pending):
-            futures, rows, paths = pending[cid]
+            futures, rows = pending[cid]
             if not block and not all(f.done() for f in futures):
                 continue
             outputs = []
@@ -261,8 +249,6 @@ def run_here(todo, device, context, result) -> None:
                 outputs += out
                 result.write_s += spent
             del pending[cid]
-            for p in paths:
-                os.remove(p)
             context["finish"](cid, rows, outputs)
 
     try:
@@ -295,7 +281,6 @@ def run_here(todo, device, context, result) -> None:
                 result.write_wait_s += time.perf_counter() - t0  # written here: the simulation waits
                 context["finish"](chunk.id, run.rows, outputs)
                 continue
-            paths = []  # the ring's buffers stay until the end
             if writers.processes:
                 for a in run.arrays.values():
                     a.flush()
@@ -304,11 +289,11 @@ def run_here(todo, device, context, result) -> None:
                 arrays = run.arrays
             del run.arrays
             futures = [pool.submit(_timed_write, t) for t in _with_rows(tasks, run.rows, arrays)]
-            pending[chunk.id] = (futures, run.rows, paths)
+            pending[chunk.id] = (futures, run.rows)
             settle(block=False)
             t0 = time.perf_counter()
             while len(pending) >= 2:  # at most two chunks wait for writers
-                cf.wait([f for fs, _, _ in pending.values() for f in fs], return_when=cf.FIRST_COMPLETED)
+                cf.wait([f for fs, _ in pending.values() for f in fs], return_when=cf.FIRST_COMPLETED)
                 settle(block=False)
             result.write_wait_s += time.perf_counter() - t0
         t0 = time.perf_counter()
@@ -321,8 +306,6 @@ def run_here(todo, device, context, result) -> None:
         finally:
             raise
     finally:
-        if ring is not None:
-            ring.held = []  # close the mappings before their files go
         if buffers is not None:
             shutil.rmtree(buffers, ignore_errors=True)
 
@@ -344,7 +327,7 @@ def run_pooled(todo, devices, context, result) -> None:
     buffers = _buffer_folder(sum(4 * math.prod(s) for s in shapes.values()) * len(devices), context["spec"].work_dir)
     queue_chunks = list(todo)
     simulating: dict = {}  # future -> chunk
-    writing: dict = {}  # chunk id -> (futures, rows, paths)
+    writing: dict = {}  # chunk id -> (futures, rows)
     free_slots = list(range(2 * len(devices)))  # buffer slots; a chunk's is free again once it is written
     slot_of: dict = {}  # chunk id -> its buffer slot
     bar = context["bar"]
@@ -362,7 +345,7 @@ def run_pooled(todo, devices, context, result) -> None:
     try:
         submit_sim()
         while simulating or writing:
-            waiting = list(simulating) + [f for fs, _, _ in writing.values() for f in fs]
+            waiting = list(simulating) + [f for fs, _ in writing.values() for f in fs]
             cf.wait(waiting, return_when=cf.FIRST_COMPLETED)
             for fut in [f for f in simulating if f.done()]:
                 c = simulating.pop(fut)
@@ -370,9 +353,9 @@ def run_pooled(todo, devices, context, result) -> None:
                 _add_timings(result, timings)
                 bar.frames(len(c.indices) * max(context["frames"] - 1, 1))
                 tasks = _with_rows(_write_tasks(c, context, max(1, writers.count // len(devices))), rows, paths)
-                writing[c.id] = ([pool.submit(_timed_write, t) for t in tasks], rows, list(paths.values()))
-            for cid in [cid for cid, (fs, _, _) in writing.items() if all(f.done() for f in fs)]:
-                fs, rows, paths = writing.pop(cid)
+                writing[c.id] = ([pool.submit(_timed_write, t) for t in tasks], rows)
+            for cid in [cid for cid, (fs, _) in writing.items() if all(f.done() for f in fs)]:
+                fs, rows = writing.pop(cid)
                 outputs = []
                 for f in fs:
                     out, spent = f.result()
@@ -390,7 +373,7 @@ def run_pooled(todo, devices, context, result) -> None:
         for proc in list(getattr(sims, "_processes", {}).values()):
             proc.terminate()
         try:
-            for cid, (fs, rows, paths) in list(writing.items()):
+            for cid, (fs, rows) in list(writing.items()):
                 outputs = []
                 for f in fs:
                     outputs += f.result()[0]
