@@ -8,6 +8,7 @@ the work its forces and gravity did plus a round-off floor (moving pins: no ener
 world's own rest shape, masses, runaway distance and energy floor): the host reads four numbers
 per world a frame, and whole arrays only to name the point of a world that failed.
 """
+
 from __future__ import annotations
 
 import numpy as np
@@ -15,29 +16,7 @@ import numpy as np
 from ..sim.checks import FrameChecks
 from .worlds import Worlds
 
-__all__ = ["WorldChecks", "work_of"]
-
-
-def work_of(force_node, f_ext, q_before, q_after, free_mass, gravity) -> np.ndarray:
-    """Work [J] of the point forces and gravity over one frame, per world (``Simulation``'s
-    bookkeeping): ``f . dq`` at the force nodes (forces are held over a frame, so that is exact)
-    and ``g . (sum m x_after - sum m x_before)``.
-
-    Args:
-        force_node: node of each force, (F,).
-        f_ext: the frame's forces at those nodes [N], (W, F, 3), or None.
-        q_before, q_after: positions [m], (W, N, 3).
-        free_mass: mass of the free nodes [kg], (W, N) (0 where pinned).
-        gravity: [m/s^2], or None.
-    """
-    w = np.zeros(len(q_after))
-    if f_ext is not None and len(force_node):
-        dq = q_after[:, force_node].astype(np.float64) - q_before[:, force_node]
-        w += np.einsum("wnk,wnk->w", f_ext.astype(np.float64), dq)
-    if gravity is not None and any(gravity):
-        g = np.asarray(gravity, dtype=np.float64)
-        w += (np.einsum("wn,wnk->wk", free_mass, q_after) - np.einsum("wn,wnk->wk", free_mass, q_before)) @ g
-    return w
+__all__ = ["WorldChecks"]
 
 
 class WorldChecks:
@@ -55,7 +34,6 @@ class WorldChecks:
         self.worlds = worlds
         self.rest = h.node_rest_q
         self.rest32 = self.rest.astype(np.float32)
-        self.free_mass = h.node_mass * (h.node_inv_mass > 0)
         extent = np.array([max(float(np.ptp(t.points, axis=0).max()) for t in s.tubes) for s in worlds.scenes])
         # Simulation's round-off floor of the energy check, per world.
         scale = np.maximum(np.maximum(extent, np.abs(self.rest).reshape(W, -1).max(axis=1)), 1e-9)
@@ -89,7 +67,7 @@ class WorldChecks:
 
     def kinetic_energy(self, qd: np.ndarray) -> np.ndarray:
         """Kinetic energy of the free points [J], per world, from velocities (W, N, 3) [m/s]."""
-        return 0.5 * np.einsum("wn,wnk,wnk->w", self.free_mass, qd, qd, dtype=np.float64)
+        return 0.5 * np.einsum("wn,wnk,wnk->w", self.device_checks.free_mass, qd, qd, dtype=np.float64)
 
     def _message(self, frame: int, what: str, world: int, node: int) -> str:
         starts = self.worlds.prim_start

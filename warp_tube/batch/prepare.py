@@ -82,9 +82,13 @@ def prepare_batch(scene: str, table, variant_sets, bar, pool: cf.ProcessPoolExec
     if pool is None and rows >= 2 * per_process and not variant_sets and plain_table(scene, table):
         per_process *= PLAIN_ROWS_FACTOR  # rows made from the base scene: new processes pay less often
     parts = min(PREPARE_PROCESSES, width, rows // per_process)
-    if parts < 2:
+
+    def read_here():
         variants = prepare_variants(scene, table, variant_sets, extract=_extract, progress=bar.reading)
         return variants, checked_run_choices(variants)
+
+    if parts < 2:
+        return read_here()
     from ..scene.usd import open_stage
 
     open_stage(scene)  # a missing or unreadable scene: one message, before any process starts
@@ -101,8 +105,7 @@ def prepare_batch(scene: str, table, variant_sets, bar, pool: cf.ProcessPoolExec
     except BrokenProcessPool:
         # e.g. a main module the processes cannot import (a script piped to python): read here
         log.warning("the processes reading the table stopped; reading it in this process")
-        variants = prepare_variants(scene, table, variant_sets, extract=_extract, progress=bar.reading)
-        return variants, checked_run_choices(variants)
+        return read_here()
     finally:
         if own is not None:
             own.shutdown(wait=True, cancel_futures=True)

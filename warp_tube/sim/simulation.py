@@ -28,8 +28,8 @@ import warp as wp
 from ..centerline.explicit import SemiImplicitEulerSolver
 from ..centerline.policy import IMPLICIT_COST_RATIO, RUN_WARNING, choose_integrator, implicit_cost_ratio, implicit_substeps
 from ..centerline.stability import critical_time_step
-from ..runtime.interrupts import kept_interrupts, raise_if_interrupted
 from ..model.tube import build_model
+from ..runtime.interrupts import kept_interrupts, raise_if_interrupted
 from ..scene.spec import Scene, SceneError
 from .checks import FrameChecks
 from .control import FrameControl
