@@ -121,6 +121,8 @@ def _devices(device, workers, scheduler) -> list[str]:
         return ["dask"]
     import warp as wp
 
+    from ..runtime.warp_setup import init_warp
+
     if device is not None:
         dev = resolve_device(device)
         if dev == "cpu":
@@ -128,7 +130,7 @@ def _devices(device, workers, scheduler) -> list[str]:
         if workers not in (None, 1):
             raise SceneError(f"--workers {workers} with --device {device}: one device runs one worker; leave out --device to use every GPU")
         return [dev]
-    wp.init()
+    init_warp()  # quietly, as every command starts Warp
     gpus = wp.get_cuda_device_count()
     if gpus:
         n = workers or gpus
