@@ -48,8 +48,8 @@ import numpy as np
 HUBS, SPOKES, RADIUS, LENGTH = 20, 16, 0.01, 0.2
 
 
-def write_scene(folder: str) -> str:
-    """A curved, clamped, pushed tube [cm units], 60 frames per second."""
+def write_scene(folder: str, substeps: int = 30) -> str:
+    """A curved, clamped, pushed tube [cm units], 60 frames per second, ``substeps`` a frame."""
     theta = np.linspace(0.0, 0.5 * np.pi, HUBS)
     r = LENGTH / (0.5 * np.pi)
     pts = np.stack([r * np.sin(theta), r * (1 - np.cos(theta)), 0 * theta], 1) / 0.01  # cm
@@ -70,7 +70,7 @@ def Xform "World"
     def Scope "Simulation"
     {{
         token warptube:integrator = "auto"
-        double warptube:timeStep = {1.0 / 1800.0!r}
+        double warptube:timeStep = {1.0 / (60.0 * substeps)!r}
     }}
 
     def BasisCurves "Tube"

@@ -1,8 +1,11 @@
 """warp-tube batch on one GPU against all GPUs of the host: identical results, speed-up. Prints JSON.
 
     python benchmarks/bench_batch_gpus.py [--variants 16384] [--frames 61] [--layouts files,arrays]
+                                          [--substeps 30]
 
-The batch of ``bench_batch.py`` (curved, clamped, pushed 20 x 16 tube, 30 substeps a frame), run
+The batch of ``bench_batch.py`` (curved, clamped, pushed 20 x 16 tube, 30 substeps a frame, or
+``--substeps``: more substeps make the same outputs cost more simulation, as a stiffer material
+or a finer tube would), run
 with ``--workers 1`` (one GPU) and then on every GPU (one worker process each), output writing
 included. Results are compared file by file (``files``: every ``variant_*.usdc`` byte for byte;
 ``arrays``: ``centerline.npy`` and ``surface.npy`` element for element, NaN equal) and the
@@ -40,6 +43,7 @@ def main():
     ap.add_argument("--variants", type=int, default=16384)
     ap.add_argument("--frames", type=int, default=61)
     ap.add_argument("--layouts", default="files,arrays")
+    ap.add_argument("--substeps", type=int, default=30, help="substeps a frame (the scene's timeStep: 1/(60 substeps) s)")
     a = ap.parse_args()
     import warp as wp
 
@@ -48,10 +52,11 @@ def main():
     from warp_tube.batch import run_batch
 
     gpus = wp.get_cuda_device_count()
-    out = {"benchmark": "batch_gpus", "gpus": gpus, "variants": a.variants, "frames": a.frames, "runs": []}
+    out = {"benchmark": "batch_gpus", "gpus": gpus, "variants": a.variants, "frames": a.frames, "substeps": a.substeps,
+           "runs": []}  # fmt: skip
     tmp = tempfile.mkdtemp(prefix="bench-batch-gpus-")
     try:
-        scene, table = write_scene(tmp), write_table(tmp, a.variants)
+        scene, table = write_scene(tmp, a.substeps), write_table(tmp, a.variants)
         for w in (1, None):  # warm-up, untimed: each GPU's kernels compiled or loaded before the runs
             run_batch(scene, os.path.join(tmp, f"warm{w}"), write_table(tmp, 4, "warm.csv"), frames=2, workers=w, chunk=1)
         for layout in a.layouts.split(","):

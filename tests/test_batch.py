@@ -510,6 +510,7 @@ def test_a_large_table_read_by_several_processes(sweep, tmp_path, monkeypatch, c
     import warp_tube.batch.prepare as prepare
 
     monkeypatch.setattr(prepare, "PREPARE_ROWS_PER_PROCESS", 2)
+    monkeypatch.setattr(prepare, "PLAIN_ROWS_FACTOR", 1)  # plain rows too: split at 2 rows a process
     monkeypatch.setattr(prepare.os, "cpu_count", lambda: 2)
     d, files_out, _, _ = sweep
     out = tmp_path / "split"

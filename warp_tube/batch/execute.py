@@ -3,7 +3,8 @@
 - :func:`run_here`: one device, in this process; a pool of writers (:class:`Writers`) writes each
   chunk while the next one is simulated;
 - :func:`run_pooled`: one worker process per device (the GPUs of a host, or N CPU processes), each
-  simulating chunks into memory-mapped arrays that the writers read;
+  simulating chunks into memory-mapped arrays that the writers read (``arrays``: each writing its
+  own chunks);
 - :func:`run_dask`: each chunk a task of a Dask distributed cluster, simulating and writing there.
 
 Each calls ``context["finish"](chunk_id, rows, outputs)`` when a chunk's outputs are complete, and
@@ -27,7 +28,7 @@ from ..scene.spec import SceneError
 from .engine import TIMERS, chunk_shapes, simulate_chunk
 from .outputs import WriteTask, write
 
-__all__ = ["Writers", "writer_count", "run_here", "run_pooled", "run_dask", "ignore_sigint"]
+__all__ = ["Writers", "SimWorkers", "writer_count", "run_here", "run_pooled", "run_dask", "ignore_sigint"]
 
 
 def ignore_sigint():
@@ -39,9 +40,54 @@ _worker_device = None
 
 
 def _init_sim_worker(devices):
+    """Take a device and get ready to simulate on it: import the simulation and start Warp and
+    the device (a CUDA context), while the batch's variants are still being read."""
     global _worker_device
     ignore_sigint()
     _worker_device = devices.get()
+    import warp as wp
+
+    from ..runtime.warp_setup import init_warp
+    from ..sim.simulation import resolve_device  # noqa: F401  (the simulation's imports)
+    from ..surface import builder  # noqa: F401
+
+    init_warp()
+    wp.config.log_level = wp.LOG_WARNING
+    wp.synchronize_device(wp.get_device(_worker_device))
+
+
+def _ready():
+    return _worker_device
+
+
+class SimWorkers:
+    """One simulating process per device, started (and each device made ready) when the batch
+    starts, so that they are up by the time its variants are read.
+
+    Args:
+        devices: one device name per process ("cuda:0", "cuda:1", ... or "cpu" each).
+    """
+
+    def __init__(self, devices: list[str]):
+        ctx = multiprocessing.get_context("spawn")
+        self.manager = ctx.Manager()
+        queue = self.manager.Queue()
+        for d in devices:
+            queue.put(d)
+        self.pool = cf.ProcessPoolExecutor(len(devices), mp_context=ctx, initializer=_init_sim_worker, initargs=(queue,))
+        for _ in devices:  # start them now (one new process per waiting task)
+            self.pool.submit(_ready)
+
+    def terminate(self):
+        """Stop simulating at once (an interrupted batch)."""
+        for proc in list(getattr(self.pool, "_processes", {}).values()):
+            proc.terminate()
+
+    def shutdown(self):
+        if self.pool is not None:
+            self.pool.shutdown(wait=True, cancel_futures=True)
+            self.manager.shutdown()
+            self.pool = None
 
 
 def _sim_task(payload):
@@ -55,6 +101,33 @@ def _sim_task(payload):
     for a in run.arrays.values():
         a.flush()
     return run.rows, paths, run.timings
+
+
+_worker_held: dict = {}  # a simulating process's output arrays, reused chunk after chunk
+_worker_writers = None  # and its writer threads
+
+
+def _sim_write_task(payload):
+    """A worker process simulates one chunk and writes it itself (the arrays layout: each
+    variant's frames go straight into the batch's arrays, from this process's memory)."""
+    global _worker_writers
+    import warp as wp
+
+    wp.config.log_level = wp.LOG_WARNING
+    scenes, choice, frames, every, surface, tasks, threads = payload
+
+    def allocate(shapes: dict) -> dict:
+        if {n: a.shape for n, a in _worker_held.items()} != {n: tuple(s) for n, s in shapes.items()}:
+            _worker_held.clear()
+            _worker_held.update({n: np.empty(s, dtype=np.float32) for n, s in shapes.items()})
+        return dict(_worker_held)
+
+    run = simulate_chunk(scenes, choice, _worker_device, frames, every, surface, allocate=allocate)
+    t0 = time.perf_counter()
+    if _worker_writers is None:
+        _worker_writers = cf.ThreadPoolExecutor(threads, thread_name_prefix="batch-writer")
+    outputs = [o for out in _worker_writers.map(write, _with_rows(tasks, run.rows, run.arrays)) for o in out]
+    return run.rows, outputs, run.timings, time.perf_counter() - t0
 
 
 def _dask_task(payload):
@@ -310,21 +383,24 @@ def run_here(todo, device, context, result) -> None:
             shutil.rmtree(buffers, ignore_errors=True)
 
 
-def run_pooled(todo, devices, context, result) -> None:
-    """One worker process per device simulates chunks; a pool of writer processes writes them."""
-    ctx = multiprocessing.get_context("spawn")
-    queue = ctx.Manager().Queue()
-    for d in devices:
-        queue.put(d)
+def run_pooled(todo, devices, workers: SimWorkers, context, result) -> None:
+    """The simulating processes ``workers`` (one per device) simulate chunks. USD layouts: into
+    memory-mapped slot files that the pool of writer processes writes from; ``arrays``: each
+    process writes its chunks itself, with its own writer threads, from its own memory (no copy
+    through files, and the writing is spread over the processes)."""
     writers: Writers = context["writers"]
+    by_workers = context["spec"].layout == "arrays"
+    threads = max(2, writers.count // len(devices))
     own = None
-    if writers.pool is None:  # the simulating processes hand their arrays over: someone writes them
+    if writers.pool is None and not by_workers:  # the simulating processes hand their arrays over: someone writes them
         own = writers = Writers(context["spec"].layout, 1)
     pool = writers.pool
-    sims = cf.ProcessPoolExecutor(len(devices), mp_context=ctx, initializer=_init_sim_worker, initargs=(queue,))
-    first = [context["variants"].variants[i].scene for i in todo[0].indices]
-    shapes = chunk_shapes(first, context["frames"], context["every"], context["surface"], context["spec"].vertices)
-    buffers = _buffer_folder(sum(4 * math.prod(s) for s in shapes.values()) * len(devices), context["spec"].work_dir)
+    sims = workers.pool
+    buffers = None
+    if not by_workers:
+        first = [context["variants"].variants[i].scene for i in todo[0].indices]
+        shapes = chunk_shapes(first, context["frames"], context["every"], context["surface"], context["spec"].vertices)
+        buffers = _buffer_folder(sum(4 * math.prod(s) for s in shapes.values()) * len(devices), context["spec"].work_dir)
     queue_chunks = list(todo)
     simulating: dict = {}  # future -> chunk
     writing: dict = {}  # chunk id -> (futures, rows)
@@ -334,6 +410,13 @@ def run_pooled(todo, devices, context, result) -> None:
     t0 = time.perf_counter()
 
     def submit_sim():
+        while by_workers and queue_chunks and len(simulating) < 2 * len(devices):
+            c = queue_chunks.pop(0)
+            scenes = [context["variants"].variants[i].scene for i in c.indices]
+            tasks = _write_tasks(c, context, threads)
+            payload = (scenes, context["choices"][c.indices[0]], context["frames"], context["every"], context["surface"], tasks,
+                       threads)  # fmt: skip
+            simulating[sims.submit(_sim_write_task, payload)] = c
         while queue_chunks and free_slots and len(simulating) + len(writing) < 2 * len(devices):
             c = queue_chunks.pop(0)
             scenes = [context["variants"].variants[i].scene for i in c.indices]
@@ -349,6 +432,13 @@ def run_pooled(todo, devices, context, result) -> None:
             cf.wait(waiting, return_when=cf.FIRST_COMPLETED)
             for fut in [f for f in simulating if f.done()]:
                 c = simulating.pop(fut)
+                if by_workers:
+                    rows, outputs, timings, spent = fut.result()
+                    _add_timings(result, timings)
+                    result.write_s += spent
+                    bar.frames(len(c.indices) * max(context["frames"] - 1, 1))
+                    context["finish"](c.id, rows, outputs)
+                    continue
                 rows, paths, timings = fut.result()
                 _add_timings(result, timings)
                 bar.frames(len(c.indices) * max(context["frames"] - 1, 1))
@@ -370,8 +460,7 @@ def run_pooled(todo, devices, context, result) -> None:
         queue_chunks.clear()
         for f in simulating:
             f.cancel()
-        for proc in list(getattr(sims, "_processes", {}).values()):
-            proc.terminate()
+        workers.terminate()
         try:
             for cid, (fs, rows) in list(writing.items()):
                 outputs = []
@@ -381,10 +470,10 @@ def run_pooled(todo, devices, context, result) -> None:
         finally:
             raise
     finally:
-        sims.shutdown(wait=True, cancel_futures=True)
         if own is not None:
             own.shutdown()
-        shutil.rmtree(buffers, ignore_errors=True)
+        if buffers is not None:
+            shutil.rmtree(buffers, ignore_errors=True)
         result.write_wait_s += 0.0 if not result.simulate_s else max(0.0, time.perf_counter() - t0 - result.simulate_s / len(devices))
 
 

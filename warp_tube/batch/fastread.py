@@ -17,6 +17,7 @@ from __future__ import annotations
 
 import dataclasses
 import math
+import struct
 
 import numpy as np
 
@@ -36,14 +37,20 @@ TUBE_SCALARS = {
 MAX_DENSITY, MAX_YOUNGS, MAX_FORCE = 1e6, 1e13, 1e9
 SCALAR_TYPES = {"double": np.float64, "float": np.float32}
 VECTOR_TYPES = {"double3": np.float64, "float3": np.float32}
+_F32 = struct.Struct("f")
 
 
 def _stored(value, type_name: str):
     """``value`` as the stage stores an attribute of ``type_name`` and the reader reads it back
     (float64), or None for a type not taken here."""
-    with np.errstate(over="ignore"):  # beyond float32: inf, refused by the caller's checks
-        if type_name in SCALAR_TYPES:
-            return float(SCALAR_TYPES[type_name](value))
+    if type_name == "double":
+        return float(value)
+    if type_name == "float":
+        try:
+            return _F32.unpack(_F32.pack(value))[0]
+        except OverflowError:  # beyond float32: inf, refused by the caller's checks
+            return math.copysign(math.inf, value)
+    with np.errstate(over="ignore"):
         if type_name in VECTOR_TYPES:
             return np.asarray(np.asarray(value, dtype=VECTOR_TYPES[type_name]), dtype=np.float64).reshape(3)
     return None

@@ -34,9 +34,10 @@ PREPARE_ROWS_PER_PROCESS = 1024
 #: at most this many processes read a table
 PREPARE_PROCESSES = 16
 
-#: a table of plain values (:mod:`warp_tube.batch.fastread`) costs about this many times less a row,
-#: so processes started for it need this many times more rows to pay for their start
-PLAIN_ROWS_FACTOR = 8
+#: a table of plain values (:mod:`warp_tube.batch.fastread`) costs about this many times less a row
+#: (~0.1 ms against a few ms), so a process reading part of it, which pays for its start (importing
+#: usd-core and Warp, ~2 s) and for handing its variants back, needs this many times more rows
+PLAIN_ROWS_FACTOR = 32
 
 
 def _extract(file, prim, info):
@@ -79,7 +80,7 @@ def prepare_batch(scene: str, table, variant_sets, bar, pool: cf.ProcessPoolExec
     rows = len(table.rows) if table is not None else 1
     width = pool_size if pool is not None else (os.cpu_count() or 1)
     per_process = PREPARE_ROWS_PER_PROCESS
-    if pool is None and rows >= 2 * per_process and not variant_sets and plain_table(scene, table):
+    if rows >= 2 * per_process and not variant_sets and plain_table(scene, table):
         per_process *= PLAIN_ROWS_FACTOR  # rows made from the base scene: new processes pay less often
     parts = min(PREPARE_PROCESSES, width, rows // per_process)
 

@@ -31,7 +31,7 @@ import numpy as np
 from ..runtime.interrupts import kept_interrupts
 from ..scene.spec import SceneError
 from .engine import TIMERS, output_frames
-from .execute import Writers, run_dask, run_here, run_pooled, writer_count
+from .execute import SimWorkers, Writers, run_dask, run_here, run_pooled, writer_count
 from .journal import Journal, file_digest
 from .outputs import LAYOUTS, OutputSpec, finish_arrays, prepare_arrays, surface_topology, write_grid_root, write_summary
 from .plan import group_key, plan_chunks
@@ -228,18 +228,28 @@ def run_batch(scene: str, out_dir: str, table: str | None = None, *, variant_set
     devices = _devices(device, workers, scheduler)
     tab = read_table(table) if table is not None else None
     sims = 0 if scheduler else len(devices)
-    writer_pool = Writers(layout, 0 if scheduler else writer_count(writers, sims, layout))
+    sim_workers = SimWorkers(devices) if sims > 1 else None  # up while the variants are read
+    writer_pool = None
     try:
+        writer_pool = Writers(layout, 0 if scheduler else writer_count(writers, sims, layout))
         with kept_interrupts():  # a Ctrl-C dropped in a finalizer stops the batch at the next frame
-            return _run_batch(scene, out_dir, table, tab, devices, writer_pool, t_start, variant_sets=variant_sets,
-                              layout=layout, every=every, frames=frames, surface=surface, device=device, chunk=chunk,
-                              scheduler=scheduler, resume=resume, progress=progress, on_chunk=on_chunk)  # fmt: skip
+            return _run_batch(scene, out_dir, table, tab, devices, writer_pool, sim_workers, t_start,
+                              variant_sets=variant_sets, layout=layout, every=every, frames=frames, surface=surface,
+                              device=device, chunk=chunk, scheduler=scheduler, resume=resume, progress=progress,
+                              on_chunk=on_chunk)  # fmt: skip
+    except BaseException:
+        if sim_workers is not None:  # bad input or interrupted: do not wait for them
+            sim_workers.terminate()
+        raise
     finally:
-        writer_pool.shutdown()
+        if writer_pool is not None:
+            writer_pool.shutdown()
+        if sim_workers is not None:
+            sim_workers.shutdown()
 
 
-def _run_batch(scene, out_dir, table, tab, devices, writer_pool, t_start, *, variant_sets, layout, every, frames, surface,
-               device, chunk, scheduler, resume, progress, on_chunk) -> BatchResult:  # fmt: skip
+def _run_batch(scene, out_dir, table, tab, devices, writer_pool, sim_workers, t_start, *, variant_sets, layout, every,
+               frames, surface, device, chunk, scheduler, resume, progress, on_chunk) -> BatchResult:  # fmt: skip
 
     bar = Progress(progress)
     readers = writer_pool.pool if writer_pool.processes else None  # idle until the first chunk is simulated
@@ -305,7 +315,7 @@ def _run_batch(scene, out_dir, table, tab, devices, writer_pool, t_start, *, var
         elif len(devices) == 1:
             run_here(todo, devices[0], context, result)
         else:
-            run_pooled(todo, devices, context, result)
+            run_pooled(todo, devices, sim_workers, context, result)
     except KeyboardInterrupt:
         bar.close()
         _tally(result, records, variants)

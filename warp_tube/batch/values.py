@@ -18,6 +18,7 @@ as a default value in a stronger layer).
 
 from __future__ import annotations
 
+import functools
 import os
 import re
 
@@ -43,6 +44,7 @@ CONTRACT_TYPES = {
 }  # fmt: skip
 
 
+@functools.lru_cache(maxsize=None)
 def _shape(type_name: str):
     """(element kind, components, is_array) of a USD type name; kind in real, int, bool, text."""
     array = type_name.endswith("[]")
@@ -63,6 +65,7 @@ def _shape(type_name: str):
     return None, 0, array
 
 
+@functools.lru_cache(maxsize=None)
 def _describe(type_name: str) -> str:
     kind, n, array = _shape(type_name)
     if array:

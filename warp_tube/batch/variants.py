@@ -322,6 +322,7 @@ def _collect(scene_path, table, variant_sets, extract, progress):
         changed = sorted({col.prim for col in table.columns})
         plain = PlainColumns.of(base, _targets(stage, table, columns))
         seen_rows: dict = {}
+        folder = table.folder
         for r, cells in enumerate(table.rows, start=table.first_row):
             here = (r - table.first_row) * len(combos) + c  # in this (part of the) table
             index = r * len(combos) + c  # in the batch
@@ -336,7 +337,7 @@ def _collect(scene_path, table, variant_sets, extract, progress):
                 try:
                     if key not in parsed_cache:
                         parsed_cache[key] = _usd_value(
-                            parse_value(text, type_name, folder=table.folder, is_file=col.files, files=files), type_name)
+                            parse_value(text, type_name, folder=folder, is_file=col.files, files=files), type_name)
                     values.append((attr, parsed_cache[key]))
                 except ValueError as e:
                     problems.append((r, f"{table.where(r, col)}: {e}"))
