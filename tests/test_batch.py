@@ -370,6 +370,33 @@ def test_cpu_worker_processes_match_one_process(sweep, tmp_path):
             assert filecmp.cmp(files_out / f"variant_{k:05d}.usdc", out / f"variant_{k:05d}.usdc", shallow=False)
 
 
+def test_cpu_worker_processes_writing_arrays_themselves_match_one_process(tmp_path):
+    """With ``arrays`` each simulating process writes its own chunks (two chunks' arrays in turn,
+    written while the next simulates): seven one-variant chunks through two processes give the
+    bytes one process gives, and a batch interrupted after its first chunk resumes to them too."""
+    table = write_table(tmp_path / "t.csv", [E, FORCE], [(str(80000 + 7000 * k), f"(0, {0.01 + 0.002 * k}, 0)") for k in range(7)])
+    kw = dict(frames=5, layout="arrays", surface=True, device="cpu")
+    one = tmp_path / "one"
+    run_batch(str(DEFAULT), str(one), str(table), writers=0, **kw)
+    two = tmp_path / "two"
+    result = run_batch(str(DEFAULT), str(two), str(table), workers=2, chunk=1, **kw)
+    assert result.devices == ["cpu", "cpu"] and result.ok == 7 and result.chunks == 7
+    names = ["centerline.npy", "surface.npy", "summary.csv", "arrays.json"]
+    for n in names:
+        assert filecmp.cmp(one / n, two / n, shallow=False), n  # same kernels, same inputs: the same bytes
+    cut = tmp_path / "cut"
+
+    def stop(chunk_id):
+        raise KeyboardInterrupt
+
+    with pytest.raises(BatchInterrupted) as e:
+        run_batch(str(DEFAULT), str(cut), str(table), workers=2, chunk=1, on_chunk=stop, **kw)
+    assert 1 <= 7 - e.value.result.pending < 7 and not (cut / "summary.csv").exists()
+    assert run_batch(str(DEFAULT), str(cut), str(table), workers=2, resume=True, **kw).ok == 7
+    for n in names:
+        assert filecmp.cmp(one / n, cut / n, shallow=False), n
+
+
 def test_local_dask_cluster_of_two_workers_matches_one_process(sweep, tmp_path):
     distributed = pytest.importorskip("distributed")
     d, _, _, _ = sweep

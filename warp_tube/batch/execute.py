@@ -20,6 +20,7 @@ import os
 import shutil
 import signal
 import tempfile
+import threading
 import time
 
 import numpy as np
@@ -37,14 +38,15 @@ def ignore_sigint():
 
 
 _worker_device = None
+_worker_done = None  # the queue a simulating process reports its written chunks on
 
 
-def _init_sim_worker(devices):
+def _init_sim_worker(devices, done):
     """Take a device and get ready to simulate on it: import the simulation and start Warp and
     the device (a CUDA context), while the batch's variants are still being read."""
-    global _worker_device
+    global _worker_device, _worker_done
     ignore_sigint()
-    _worker_device = devices.get()
+    _worker_device, _worker_done = devices.get(), done
     import warp as wp
 
     from ..runtime.warp_setup import init_warp
@@ -66,15 +68,20 @@ class SimWorkers:
 
     Args:
         devices: one device name per process ("cuda:0", "cuda:1", ... or "cpu" each).
+
+    Attributes:
+        done: where a process that writes its own chunks reports each one written:
+            ``(chunk id, outputs, seconds)``, or ``(chunk id, None, message)`` if writing failed.
     """
 
     def __init__(self, devices: list[str]):
         ctx = multiprocessing.get_context("spawn")
-        self.manager = ctx.Manager()
-        queue = self.manager.Queue()
+        queue = ctx.Queue()
         for d in devices:
             queue.put(d)
-        self.pool = cf.ProcessPoolExecutor(len(devices), mp_context=ctx, initializer=_init_sim_worker, initargs=(queue,))
+        self.done = ctx.Queue()
+        self.pool = cf.ProcessPoolExecutor(len(devices), mp_context=ctx, initializer=_init_sim_worker,
+                                           initargs=(queue, self.done))  # fmt: skip
         for _ in devices:  # start them now (one new process per waiting task)
             self.pool.submit(_ready)
 
@@ -86,7 +93,6 @@ class SimWorkers:
     def shutdown(self):
         if self.pool is not None:
             self.pool.shutdown(wait=True, cancel_futures=True)
-            self.manager.shutdown()
             self.pool = None
 
 
@@ -103,31 +109,50 @@ def _sim_task(payload):
     return run.rows, paths, run.timings
 
 
-_worker_held: dict = {}  # a simulating process's output arrays, reused chunk after chunk
+_worker_ring = None  # a simulating process's output arrays, two chunks' in turn
+_worker_writing: dict = {}  # chunk id -> its write futures, in a simulating process
 _worker_writers = None  # and its writer threads
 
 
 def _sim_write_task(payload):
     """A worker process simulates one chunk and writes it itself (the arrays layout: each
-    variant's frames go straight into the batch's arrays, from this process's memory)."""
-    global _worker_writers
+    variant's frames go straight into the batch's arrays, from this process's memory). The task
+    returns once the chunk is simulated; the chunk's writing goes on in this process's writer
+    threads while the next chunk simulates, and is reported on the done queue when complete."""
+    global _worker_ring, _worker_writers
     import warp as wp
 
     wp.config.log_level = wp.LOG_WARNING
-    scenes, choice, frames, every, surface, tasks, threads = payload
-
-    def allocate(shapes: dict) -> dict:
-        if {n: a.shape for n, a in _worker_held.items()} != {n: tuple(s) for n, s in shapes.items()}:
-            _worker_held.clear()
-            _worker_held.update({n: np.empty(s, dtype=np.float32) for n, s in shapes.items()})
-        return dict(_worker_held)
-
-    run = simulate_chunk(scenes, choice, _worker_device, frames, every, surface, allocate=allocate)
-    t0 = time.perf_counter()
-    if _worker_writers is None:
+    chunk_id, scenes, choice, frames, every, surface, tasks, threads = payload
+    if _worker_ring is None:
+        _worker_ring = BufferRing(2)
         _worker_writers = cf.ThreadPoolExecutor(threads, thread_name_prefix="batch-writer")
-    outputs = [o for out in _worker_writers.map(write, _with_rows(tasks, run.rows, run.arrays)) for o in out]
-    return run.rows, outputs, run.timings, time.perf_counter() - t0
+    owner = _worker_ring.owner()
+    if owner in _worker_writing:  # its arrays are still being written
+        cf.wait(_worker_writing[owner])
+    run = simulate_chunk(scenes, choice, _worker_device, frames, every, surface, allocate=_worker_ring.allocator(chunk_id))
+    t0 = time.perf_counter()
+    futures = [_worker_writers.submit(write, t) for t in _with_rows(tasks, run.rows, run.arrays)]
+    _worker_writing[chunk_id] = futures
+    left = [len(futures)]
+    lock = threading.Lock()
+
+    def written(_):
+        with lock:
+            left[0] -= 1
+            if left[0]:
+                return
+        _worker_writing.pop(chunk_id, None)
+        try:
+            outputs = [o for f in futures for o in f.result()]
+        except Exception as e:  # reported to the batch, which stops with it
+            _worker_done.put((chunk_id, None, f"writing chunk {chunk_id}: {type(e).__name__}: {e}"))
+            return
+        _worker_done.put((chunk_id, outputs, time.perf_counter() - t0))
+
+    for f in futures:
+        f.add_done_callback(written)
+    return run.rows, run.timings
 
 
 def _dask_task(payload):
@@ -409,13 +434,33 @@ def run_pooled(todo, devices, workers: SimWorkers, context, result) -> None:
     bar = context["bar"]
     t0 = time.perf_counter()
 
+    def settle_written(block: bool):
+        """Finish the chunks the simulating processes report written (waiting for one if ``block``)."""
+        import queue
+
+        while writing:
+            try:
+                cid, outputs, spent = workers.done.get(timeout=1.0) if block else workers.done.get_nowait()
+            except queue.Empty:
+                if block and not any(p.is_alive() for p in getattr(sims, "_processes", {}).values()):
+                    raise SceneError("the simulating processes stopped before writing their chunks") from None
+                if block:
+                    continue
+                return
+            if outputs is None:
+                raise RuntimeError(spent)
+            _, rows = writing.pop(cid)
+            result.write_s += spent
+            context["finish"](cid, rows, outputs)
+            block = False
+
     def submit_sim():
-        while by_workers and queue_chunks and len(simulating) < 2 * len(devices):
+        while by_workers and queue_chunks and len(simulating) + len(writing) < 3 * len(devices):
             c = queue_chunks.pop(0)
             scenes = [context["variants"].variants[i].scene for i in c.indices]
             tasks = _write_tasks(c, context, threads)
-            payload = (scenes, context["choices"][c.indices[0]], context["frames"], context["every"], context["surface"], tasks,
-                       threads)  # fmt: skip
+            payload = (c.id, scenes, context["choices"][c.indices[0]], context["frames"], context["every"], context["surface"],
+                       tasks, threads)  # fmt: skip
             simulating[sims.submit(_sim_write_task, payload)] = c
         while queue_chunks and free_slots and len(simulating) + len(writing) < 2 * len(devices):
             c = queue_chunks.pop(0)
@@ -428,23 +473,26 @@ def run_pooled(todo, devices, workers: SimWorkers, context, result) -> None:
     try:
         submit_sim()
         while simulating or writing:
-            waiting = list(simulating) + [f for fs, _ in writing.values() for f in fs]
-            cf.wait(waiting, return_when=cf.FIRST_COMPLETED)
+            if by_workers:
+                cf.wait(list(simulating), timeout=0.05, return_when=cf.FIRST_COMPLETED)
+                settle_written(block=not simulating)
+            else:
+                waiting = list(simulating) + [f for fs, _ in writing.values() for f in fs]
+                cf.wait(waiting, return_when=cf.FIRST_COMPLETED)
             for fut in [f for f in simulating if f.done()]:
                 c = simulating.pop(fut)
                 if by_workers:
-                    rows, outputs, timings, spent = fut.result()
+                    rows, timings = fut.result()
                     _add_timings(result, timings)
-                    result.write_s += spent
                     bar.frames(len(c.indices) * max(context["frames"] - 1, 1))
-                    context["finish"](c.id, rows, outputs)
+                    writing[c.id] = ((), rows)  # reported on the done queue once written
                     continue
                 rows, paths, timings = fut.result()
                 _add_timings(result, timings)
                 bar.frames(len(c.indices) * max(context["frames"] - 1, 1))
                 tasks = _with_rows(_write_tasks(c, context, max(1, writers.count // len(devices))), rows, paths)
                 writing[c.id] = ([pool.submit(_timed_write, t) for t in tasks], rows)
-            for cid in [cid for cid, (fs, _) in writing.items() if all(f.done() for f in fs)]:
+            for cid in [cid for cid, (fs, _) in writing.items() if fs and all(f.done() for f in fs)]:
                 fs, rows = writing.pop(cid)
                 outputs = []
                 for f in fs:
@@ -456,10 +504,14 @@ def run_pooled(todo, devices, workers: SimWorkers, context, result) -> None:
             submit_sim()
         result.simulate_s += result.timings["build_s"] + sum(result.timings[k] for k in TIMERS if k != "build_s")
     except KeyboardInterrupt:
-        # Stop simulating at once; the chunks already simulated are written to the end and kept.
+        # Stop simulating at once; the chunks already simulated are written to the end and kept
+        # (those the simulating processes write themselves: the ones they report written).
         queue_chunks.clear()
         for f in simulating:
             f.cancel()
+        if by_workers:
+            settle_written(block=False)
+            writing.clear()
         workers.terminate()
         try:
             for cid, (fs, rows) in list(writing.items()):
