@@ -1,7 +1,7 @@
 """warp-tube batch on one GPU against all GPUs of the host: identical results, speed-up. Prints JSON.
 
     python benchmarks/bench_batch_gpus.py [--variants 16384] [--frames 61] [--layouts files,arrays]
-                                          [--substeps 30]
+                                          [--substeps 30] [--every 1] [--chunk C]
 
 The batch of ``bench_batch.py`` (curved, clamped, pushed 20 x 16 tube, 30 substeps a frame, or
 ``--substeps``: more substeps make the same outputs cost more simulation, as a stiffer material
@@ -44,6 +44,8 @@ def main():
     ap.add_argument("--frames", type=int, default=61)
     ap.add_argument("--layouts", default="files,arrays")
     ap.add_argument("--substeps", type=int, default=30, help="substeps a frame (the scene's timeStep: 1/(60 substeps) s)")
+    ap.add_argument("--every", type=int, default=1, help="write every K-th frame (more simulation for the same output)")
+    ap.add_argument("--chunk", type=int, help="variants per chunk, both runs (default: the batch's own choice for each)")
     a = ap.parse_args()
     import warp as wp
 
@@ -53,7 +55,7 @@ def main():
 
     gpus = wp.get_cuda_device_count()
     out = {"benchmark": "batch_gpus", "gpus": gpus, "variants": a.variants, "frames": a.frames, "substeps": a.substeps,
-           "runs": []}  # fmt: skip
+           "every": a.every, "chunk": a.chunk, "runs": []}  # fmt: skip
     tmp = tempfile.mkdtemp(prefix="bench-batch-gpus-")
     try:
         scene, table = write_scene(tmp, a.substeps), write_table(tmp, a.variants)
@@ -63,7 +65,8 @@ def main():
             runs = {}
             for label, workers in (("one_gpu", 1), ("all_gpus", None)):
                 folder = os.path.join(tmp, f"{layout}_{label}")
-                r = run_batch(scene, folder, table, layout=layout, frames=a.frames, surface=True, workers=workers)
+                r = run_batch(scene, folder, table, layout=layout, frames=a.frames, every=a.every, surface=True, workers=workers,
+                              chunk=a.chunk)  # fmt: skip
                 runs[label] = (folder, r)
             (f1, r1), (fn, rn) = runs["one_gpu"], runs["all_gpus"]
             out["runs"].append({
