@@ -458,6 +458,63 @@ def test_an_axial_push_beside_an_assisted_one(tmp_path):
     assert _alone_equal(tmp_path, DEFAULT, {FORCE: Gf.Vec3f(0, 0.02, 0.01)}, out / "variant_00001.usdc", FRAMES)
 
 
+FRAMES_BENT = 24
+
+
+def near_axis_batches(tmp_path, device: str):
+    """Pushes at 6-20 degrees from the tube's axis, most inside the 15-degree cone where no line
+    is built, and a side push that bends the tube away from them: eight variants run as one chunk
+    and as chunks of one on ``device``. Returns the pushes, the scene, the two batch folders and
+    which variants got their line after the first frame."""
+    from pxr import Gf, Sdf, Usd
+
+    stage = Usd.Stage.Open(str(DEFAULT))
+    side = stage.DefinePrim("/World/Side", "Scope")
+    side.CreateRelationship("warptube:target").SetTargets([Sdf.Path("/World/Tube")])
+    side.CreateAttribute("warptube:point", Sdf.ValueTypeNames.Int).Set(10)
+    side.CreateAttribute("warptube:force", Sdf.ValueTypeNames.Float3).Set(Gf.Vec3f(0, 0.03, 0))
+    side.CreateAttribute("warptube:assistantLine", Sdf.ValueTypeNames.Bool).Set(False)
+    scene = tmp_path / "side.usda"
+    stage.GetRootLayer().Export(str(scene))
+    angles = np.radians([6, 8, 10, 11, 12, 13, 14, 20])
+    pushes = [f"({0.02 * np.cos(a):.6f}, {-0.02 * np.sin(a):.6f}, 0)" for a in angles]
+    table = write_table(tmp_path / "t.csv", [FORCE], [(p,) for p in pushes])
+    together, apart = tmp_path / "together", tmp_path / "apart"
+    seen = []
+    import warp_tube.batch.control as control
+
+    update = control.WorldControl._update_assistant_lines
+
+    def spy(self, f, state):
+        update(self, f, state)
+        seen.append(self._al_active[:, 0].copy())
+
+    control.WorldControl._update_assistant_lines = spy
+    try:
+        assert run_batch(str(scene), str(together), str(table), frames=FRAMES_BENT, writers=0, chunk=8, device=device).ok == 8
+    finally:
+        control.WorldControl._update_assistant_lines = update
+    assert run_batch(str(scene), str(apart), str(table), frames=FRAMES_BENT, writers=0, chunk=1, device=device).ok == 8
+    return pushes, scene, together, apart, (seen[-1] != 0) & (seen[0] == 0)
+
+
+def test_pushes_near_the_axis_get_their_lines_as_each_world_alone(tmp_path):
+    """Worlds whose push is inside the cone are looked at again each frame (only their rows read
+    back) and get their line once the tube has turned away: as one chunk the same bytes as each
+    alone in its chunk (no world's rows mixed up with another's), and two of them the bytes of a
+    run alone."""
+    from pxr import Gf
+
+    pushes, scene, together, apart, late = near_axis_batches(tmp_path, "cpu")
+    assert late.sum() >= 2, late  # the case exercises lines built after the first frame
+    for k in range(8):
+        name = f"variant_{k:05d}.usdc"
+        assert filecmp.cmp(together / name, apart / name, shallow=False), name
+    for k in np.flatnonzero(late)[:2]:
+        x, y, z = (float(v) for v in pushes[k].strip("()").split(","))
+        assert _alone_equal(tmp_path, scene, {FORCE: Gf.Vec3f(x, y, z)}, together / f"variant_{k:05d}.usdc", FRAMES_BENT)
+
+
 def test_a_frame_that_builds_no_line_leaves_the_lines_state_as_it_is():
     """Simulation's control with two assisted pushes on one tube: one along the axis (no line,
     looked at again each frame), one across (its line built at the first frame). Updating the

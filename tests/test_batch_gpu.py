@@ -6,7 +6,7 @@ import numpy as np
 import pytest
 import warp as wp
 
-from tests.test_batch import DEFAULT, E, FORCE, stage_samples, variant_scene, write_table
+from tests.test_batch import DEFAULT, E, FORCE, near_axis_batches, stage_samples, variant_scene, write_table
 from warp_tube.batch import run_batch
 from warp_tube.cli import main as cli
 
@@ -49,3 +49,15 @@ def test_batch_on_cuda_arrays_match_files(tmp_path):
         s = stage_samples(files / f"variant_{k:05d}.usdc")["/World/Tube/Centerline.points"][1]
         # chunks of 3 against one chunk of 8: each world computes the same either way
         assert np.abs(cl[k] - np.stack(s)).max() <= 2e-5
+
+
+def test_batch_on_cuda_lines_built_late_per_world(tmp_path):
+    """Assistant lines built after the first frame, only the worlds concerned gathered from and
+    scattered back to the device: one chunk of eight against chunks of one, on CUDA."""
+    _, _, together, apart, late = near_axis_batches(tmp_path, "cuda:0")
+    assert late.sum() >= 2, late
+    for k in range(8):
+        a, b = stage_samples(together / f"variant_{k:05d}.usdc"), stage_samples(apart / f"variant_{k:05d}.usdc")
+        for name in a:
+            # each world computes the same in either chunk; 2e-5 as above (float32 round-off)
+            assert max(np.abs(x - y).max() for x, y in zip(a[name][1], b[name][1])) <= 2e-5, (k, name)
