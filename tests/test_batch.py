@@ -499,10 +499,9 @@ def near_axis_batches(tmp_path, device: str):
 
 
 def test_pushes_near_the_axis_get_their_lines_as_each_world_alone(tmp_path):
-    """Worlds whose push is inside the cone are looked at again each frame (only their rows read
-    back) and get their line once the tube has turned away: as one chunk the same bytes as each
-    alone in its chunk (no world's rows mixed up with another's), and two of them the bytes of a
-    run alone."""
+    """Worlds whose push is inside the cone are looked at again each frame and get their line once
+    the tube has turned away: as one chunk the same bytes as each alone in its chunk (no world's
+    line mixed up with another's), and two of them the bytes of a run alone."""
     from pxr import Gf
 
     pushes, scene, together, apart, late = near_axis_batches(tmp_path, "cpu")

@@ -52,8 +52,8 @@ def test_batch_on_cuda_arrays_match_files(tmp_path):
 
 
 def test_batch_on_cuda_lines_built_late_per_world(tmp_path):
-    """Assistant lines built after the first frame, only the worlds concerned gathered from and
-    scattered back to the device: one chunk of eight against chunks of one, on CUDA."""
+    """Assistant lines built after the first frame: one chunk of eight against chunks of one, on
+    CUDA."""
     _, _, together, apart, late = near_axis_batches(tmp_path, "cuda:0")
     assert late.sum() >= 2, late
     for k in range(8):

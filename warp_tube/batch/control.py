@@ -73,11 +73,6 @@ class WorldControl:
         self.uses_al = np.asarray(h.force_uses_al, dtype=bool)
         self._al_dir = np.zeros((W, m.force_count, 3))
         self._al_active = np.zeros((W, max(m.force_count, 1)), dtype=np.int32)
-        self._al_f = None  # the forces the lines were last updated for, (W, F, 3) [N]
-        self._al_unit = [None] * m.force_count  # per force, its unit direction in each world (W, 3)
-        self._al_nonzero = [None] * m.force_count  # per force, the worlds where it is not zero (W,)
-        self._al_pending = [None] * m.force_count  # per force, worlds with a force and no line
-        self._al_changed = False
         # Moving pins: per world its pinned points' track, (W, frames, pinned, 3) [m], per prim.
         self._pins = []
         for k, t in enumerate(worlds.scenes[0].tubes):
@@ -85,6 +80,20 @@ class WorldControl:
                 track = np.stack([s.tubes[k].pin_track for s in worlds.scenes])
                 self._pins.append((worlds.prim_start[k] + t.pinned, track))
         self._f_last = None  # the forces last written to the control, (W, F, 3) [N]
+        self._host = {}  # device array address -> its reused page-locked host copy
+
+    def _fetch(self, a):
+        """Device array ``a`` copied to the host: into a page-locked buffer kept for it (on CUDA;
+        fresh pageable memory and its page faults made each copy cost ~0.25 ms), as a NumPy view
+        valid until the next fetch of ``a``."""
+        if not a.device.is_cuda:
+            return a.numpy()
+        buf = self._host.get(a.ptr)
+        if buf is None:
+            buf = self._host[a.ptr] = wp.empty(a.shape, dtype=a.dtype, device="cpu", pinned=True)
+        wp.copy(buf, a)
+        wp.synchronize_device(a.device)
+        return buf.numpy()
 
     @property
     def moving_pins(self) -> bool:
@@ -122,114 +131,59 @@ class WorldControl:
             c.pin_q_start.assign(q0)
             c.pin_q_end.assign(q1)
 
-    @staticmethod
-    def _rows(a, ws: np.ndarray, idx=None) -> np.ndarray:
-        """Rows ``ws`` (world indices) of device array ``a`` on the host, (len(ws), ...): gathered on
-        the device first (on CUDA; ``idx``: ``ws`` as a device array), so that only those rows
-        cross to the host."""
-        if not a.device.is_cuda:
-            return a.numpy()[ws]
-        rows = wp.empty(shape=(len(ws), *a.shape[1:]), dtype=a.dtype, device=a.device)
-        wp.copy(rows, wp.indexedarray(a, [idx]))
-        return rows.numpy()
-
-    @staticmethod
-    def _write_rows(a, ws: np.ndarray, values: np.ndarray, idx=None) -> None:
-        """Write ``values`` (len(ws), ...) into rows ``ws`` of device array ``a`` (``idx`` as for
-        :meth:`_rows`)."""
-        if not a.device.is_cuda:
-            a.numpy()[ws] = values  # a view of the array's memory on the CPU
-            return
-        wp.copy(wp.indexedarray(a, [idx]), wp.array(values, dtype=a.dtype, device=a.device))
-
-    def _index(self, ws: np.ndarray):
-        """``ws`` as a device index array (None on the CPU, where rows are taken on the host)."""
-        device = self.worlds.model.device
-        return wp.array(ws.astype(np.int32), dtype=wp.int32, device=device) if wp.get_device(device).is_cuda else None
-
-    def _al_builds(self, f: np.ndarray) -> list:
-        """Per model force, the worlds whose assistant line is to be (re)built now, (indices, unit
-        directions); drops the lines of forces that became zero."""
+    def _update_assistant_lines(self, f: np.ndarray, state) -> None:
+        m, c, h = self.worlds.model, self.control, self.worlds.model.host
         active = self._al_active
-        out = []
-        same = self._al_f is not None and np.array_equal(f, self._al_f)
-        for a in range(self.worlds.model.force_count):
+        changed = False
+        positions = lines = None
+        cos_rebuild, sin_min = math.cos(AL_REBUILD_ANGLE), math.sin(AL_MIN_ANGLE)
+        for a in range(m.force_count):
             if not self.uses_al[a]:
-                out.append(None)
-                continue
-            if same:  # every world with a force has its line, or had it refused near the axis: those are tried again
-                ws = self._al_pending[a]
-                out.append((ws, self._al_unit[a][ws]))
                 continue
             mag = np.linalg.norm(f[:, a], axis=-1)
             zero = mag == 0.0
             drop = zero & (active[:, a] != 0)
             if drop.any():
                 active[drop, a] = 0
-                self._al_changed = True
+                changed = True
             d = f[:, a] / np.where(zero, 1.0, mag)[:, None]
-            self._al_unit[a] = d
-            self._al_nonzero[a] = ~zero
-            keep = (active[:, a] != 0) & (np.sum(d * self._al_dir[:, a], axis=-1) >= math.cos(AL_REBUILD_ANGLE))
-            ws = np.flatnonzero(~zero & ~keep)
-            out.append((ws, d[ws]))
-        self._al_f = f.copy()
-        return out
-
-    def _update_assistant_lines(self, f: np.ndarray, state) -> None:
-        """Build, keep or remove each world's assistant lines for forces ``f`` (W, F, 3) [N], as
-        ``Simulation`` does for its scene. Only the worlds concerned cross to the host: their
-        rows of the state, and of the lines where one is built."""
-        c, h = self.control, self.worlds.model.host
-        active = self._al_active
-        self._al_changed = False
-        builds = self._al_builds(f)
-        todo = [b[0] for b in builds if b is not None and len(b[0])]
-        if todo:
-            U = np.unique(np.concatenate(todo))  # the worlds any line is tried for
-            # float64, compensated (float32 + low-order part), as Simulation builds lines
-            iU = self._index(U)
-            q_all = self._rows(state.node_q, U, iU).astype(np.float64) + self._rows(state.node_q_lo, U, iU)
-            qd_all = self._rows(state.node_qd, U, iU)
-            sin_min = math.sin(AL_MIN_ANGLE)
-            laid = []  # (force, worlds, their rows in U, offset directions)
-            for a, b in enumerate(builds):
-                if b is None or not len(b[0]):
-                    continue
-                ws, dw = b
-                r = np.searchsorted(U, ws)
-                t = h.force_tube[a]
-                s, e = h.tube_node_start[t], h.tube_node_start[t + 1]
-                k = h.force_node[a]
-                tangent = q_all[r, min(k + 1, e - 1)] - q_all[r, max(k - 1, s)]
-                tangent = tangent / np.maximum(np.linalg.norm(tangent, axis=-1), 1e-30)[:, None]
-                across = dw - np.sum(dw * tangent, axis=-1)[:, None] * tangent
-                self._al_dir[ws, a] = dw
-                norm_across = np.linalg.norm(across, axis=-1)
-                axial = norm_across < sin_min
-                off_axis = ws[axial & (active[ws, a] != 0)]
-                if len(off_axis):
-                    active[off_axis, a] = 0
-                    self._al_changed = True
-                ok = ~axial
-                if ok.any():
-                    laid.append((a, ws[ok], r[ok], across[ok] / norm_across[ok][:, None]))
-                    active[ws[ok], a] = 1
-                    self._al_changed = True
-            if laid:
-                B = np.unique(np.concatenate([ws for _, ws, _, _ in laid]))  # the worlds a line is laid in
-                iB = self._index(B)
-                lines = AssistantLineArrays.read(state, c, lambda arr: self._rows(arr, B, iB))
-                for a, ws, r, offset_dir in laid:
-                    t = h.force_tube[a]
-                    s, e = h.tube_node_start[t], h.tube_node_start[t + 1]
-                    p0 = h.al_start[a]
-                    off = self.worlds.host.node_radius[ws, s:e, None] * offset_dir[:, None, :]
-                    x = q_all[r, s:e]
-                    lines.build(np.searchsorted(B, ws), slice(p0, p0 + e - s), x, x + off, qd_all[r, s:e])
-                lines.write(state, c, lambda arr, v: self._write_rows(arr, B, v, iB))
-        for a, b in enumerate(builds):  # the worlds to try again next frame if the forces stay
-            if b is not None:
-                self._al_pending[a] = np.flatnonzero(self._al_nonzero[a] & (active[:, a] == 0))
-        if self._al_changed:
+            keep = (active[:, a] != 0) & (np.sum(d * self._al_dir[:, a], axis=-1) >= cos_rebuild)
+            build = ~zero & ~keep
+            if not build.any():
+                continue
+            if positions is None:
+                # float64, compensated (float32 + low-order part), as Simulation builds lines
+                q = self._fetch(state.node_q).astype(np.float64) + self._fetch(state.node_q_lo)
+                positions = (q, self._fetch(state.node_qd))
+            state_q, state_qd = positions
+            t = h.force_tube[a]
+            s, e = h.tube_node_start[t], h.tube_node_start[t + 1]
+            k = h.force_node[a]
+            ws = np.flatnonzero(build)
+            tangent = state_q[ws, min(k + 1, e - 1)] - state_q[ws, max(k - 1, s)]
+            tangent = tangent / np.maximum(np.linalg.norm(tangent, axis=-1), 1e-30)[:, None]
+            dw = d[ws]
+            across = dw - np.sum(dw * tangent, axis=-1)[:, None] * tangent
+            self._al_dir[ws, a] = dw
+            norm_across = np.linalg.norm(across, axis=-1)
+            axial = norm_across < sin_min
+            off_axis = ws[axial & (active[ws, a] != 0)]
+            if len(off_axis):
+                active[off_axis, a] = 0
+                changed = True
+            ws, across, norm_across = ws[~axial], across[~axial], norm_across[~axial]
+            if not len(ws):
+                continue
+            if lines is None:
+                lines = AssistantLineArrays.read(state, c, self._fetch)
+            offset_dir = across / norm_across[:, None]
+            p0 = h.al_start[a]
+            off = self.worlds.host.node_radius[ws, s:e, None] * offset_dir[:, None, :]
+            x = state_q[ws, s:e]
+            lines.build(ws, slice(p0, p0 + e - s), x, x + off, state_qd[ws, s:e])
+            active[ws, a] = 1
+            changed = True
+        if lines is not None:
+            lines.write(state, c)
+        if changed:
             c.al_active.assign(active)

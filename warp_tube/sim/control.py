@@ -30,8 +30,8 @@ AL_MIN_ANGLE = math.radians(15.0)
 
 class AssistantLineArrays:
     """The assistant lines' state and rest lengths, read to the host to build lines and written back
-    (whole, or the rows of the worlds concerned): entries of lines not rebuilt keep their values
-    bit for bit (the low-order part of the positions included).
+    whole: entries of lines not rebuilt keep their values bit for bit (the low-order part of the
+    positions included).
 
     Shapes (W worlds, L line slots): ``q_hi``, ``q_lo``, ``qd`` (W, L, 3) float32 [m, m/s];
     ``lengths`` by name (W, L) float32 [m] (``al_link_length``, ``al_chord_length``,
@@ -66,15 +66,13 @@ class AssistantLineArrays:
         L["al_fwd_length"][worlds, p0 : p0 + n - 1] = np.linalg.norm(x[:, 1:] - xp[:, :-1], axis=-1)
         L["al_bwd_length"][worlds, p0 + 1 : p0 + n] = np.linalg.norm(x[:, :-1] - xp[:, 1:], axis=-1)
 
-    def write(self, state, control, store=None) -> None:
-        """Copy the lines back into ``state`` and ``control`` (``store``: ``(device array, values)``
-        writes them; default ``assign``)."""
-        store = store or (lambda a, v: a.assign(v))
-        store(state.al_q, self.q_hi)
-        store(state.al_q_lo, self.q_lo)
-        store(state.al_qd, self.qd)
+    def write(self, state, control) -> None:
+        """Copy the lines back into ``state`` and ``control``."""
+        state.al_q.assign(self.q_hi)
+        state.al_q_lo.assign(self.q_lo)
+        state.al_qd.assign(self.qd)
         for n, v in self.lengths.items():
-            store(getattr(control, n), v)
+            getattr(control, n).assign(v)
 
 
 class FrameControl:
