@@ -259,6 +259,7 @@ def cases() -> list[Case]:
     bad("force targets a prim that does not exist", scene(("</World/Tube>", "</World/Nothing>")))
     bad("force value NaN", scene(("24: (0, 0.02, 0)", "24: (0, nan, 0)")))
     bad("metersPerUnit 0", scene(("metersPerUnit = 0.01", "metersPerUnit = 0")))
+    bad("upAxis neither Y nor Z", scene(('upAxis = "Y"', 'upAxis = "Q"')))
     bad("endTimeCode before startTimeCode", scene(("endTimeCode = 2", "endTimeCode = -5")))
     run("forced time step that blows up, over an existing output", [BAD, "-o", "keep.usdc"], 3, files={BAD: FORCED_BLOWUP}, creates=("keep.partial.usdc",))
     # -- run: the output and the flags
@@ -276,6 +277,8 @@ def cases() -> list[Case]:
     run("--every 0", ["scene.usda", "--every", "0"])
     run("--device tpu", ["scene.usda", "--device", "tpu", "-o", "o.usdc"])
     run("--device cuda:99", ["scene.usda", "--device", "cuda:99", "-o", "o.usdc"], machine=True)
+    run("--device cuda:abc", ["scene.usda", "--device", "cuda:abc", "-o", "o.usdc"])
+    run("--device cuda:-1", ["scene.usda", "--device", "cuda:-1", "-o", "o.usdc"])
     run("unknown option", ["scene.usda", "--fast"])
 
     # -- check

@@ -13,6 +13,7 @@ import warp as wp
 
 from tests.conftest import SCENES, check_output_problems, needs_shared
 from warp_tube.batch import BatchInterrupted, run_batch
+from warp_tube.scene.spec import SceneError
 from warp_tube.cli import main as cli
 
 DEFAULT = SCENES / "default.usda"
@@ -186,8 +187,8 @@ def test_failed_variant_is_marked_and_the_others_go_on(tmp_path):
     assert [r["status"] for r in rows] == ["ok", "failed", "ok"]
     assert "numerical failure at frame" in rows[1]["reason"] and rows[1]["output"] == "variant_00001.partial.usdc"
     assert int(rows[1]["frames"]) < 6 and int(rows[0]["frames"]) == 6
-    assert sorted(p.name for p in out.iterdir()) == ["summary.csv", "variant_00000.usdc", "variant_00001.partial.usdc",
-                                                     "variant_00002.usdc"]  # fmt: skip
+    assert sorted(p.name for p in out.iterdir()) == [".batch-finished.json", "summary.csv", "variant_00000.usdc",
+                                                     "variant_00001.partial.usdc", "variant_00002.usdc"]  # fmt: skip
     # the ones that ran on are what they are alone
     scene = variant_scene(tmp_path, "v2", {E: 80000.0, "/World/Simulation.warptube:integrator": "semiImplicitEuler"})
     from pxr import Sdf, Usd
@@ -232,6 +233,13 @@ def test_interrupt_and_resume_end_with_the_same_files(tmp_path):
     # resuming a finished batch does nothing
     again = run_batch(str(DEFAULT), str(part), str(table), frames=5, writers=1, resume=True)
     assert (again.resumed, again.ok) == (6, 6)
+    assert sorted(p.name for p in part.iterdir()) == names
+    # ... but with other options or another table it is refused, and nothing changes
+    other = write_table(tmp_path / "other.csv", [E], [("90000",), ("95000",)])
+    for kw, what in ((dict(frames=4), "frames"), (dict(frames=5, layout="arrays"), "layout"), (dict(frames=5, table=str(other)), "table")):
+        args = dict(dict(table=str(table)), **kw)
+        with pytest.raises(SceneError, match=f"finished and was made with other .*{what}"):
+            run_batch(str(DEFAULT), str(part), args.pop("table"), writers=1, resume=True, **args)
     assert sorted(p.name for p in part.iterdir()) == names
 
 
@@ -395,6 +403,19 @@ def test_cpu_worker_processes_writing_arrays_themselves_match_one_process(tmp_pa
     assert run_batch(str(DEFAULT), str(cut), str(table), workers=2, resume=True, **kw).ok == 7
     for n in names:
         assert filecmp.cmp(one / n, cut / n, shallow=False), n
+
+
+def test_scheduler_without_dask_fails_before_writing(tmp_path, monkeypatch):
+    """--scheduler where Dask is not installed: exit status 2 and no batch folder left behind
+    (it would block the same command without --scheduler)."""
+    import sys
+
+    monkeypatch.setitem(sys.modules, "distributed", None)  # import distributed -> ImportError
+    table = write_table(tmp_path / "t.csv", [E], [("90000",), ("95000",)])
+    out = tmp_path / "out"
+    with pytest.raises(SceneError, match="needs Dask distributed"):
+        run_batch(str(DEFAULT), str(out), str(table), frames=3, scheduler="tcp://127.0.0.1:1")
+    assert not out.exists()
 
 
 def test_local_dask_cluster_of_two_workers_matches_one_process(sweep, tmp_path):

@@ -24,8 +24,8 @@ from .conftest import ROOT, check_output_problems, needs_shared
 TIMEOUT = 300  # s: a whole compile on a loaded CPU fits well within this
 
 
-def interrupt_when(folder, marker: str, *, env=None, args=(), stream="stderr"):
-    """Start `warp-tube run scene.usda -o keep.usdc`, send SIGINT once ``marker`` appears on
+def interrupt_when(folder, marker: str, *, env=None, args=(), stream="stderr", sig=signal.SIGINT):
+    """Start `warp-tube run scene.usda -o keep.usdc`, send ``sig`` once ``marker`` appears on
     ``stream``; returns (exit status, stdout, stderr)."""
     cmd = [sys.executable, "-m", "warp_tube", *args, "run", "scene.usda", "-o", "keep.usdc"]
     full_env = dict(os.environ, PYTHONPATH=os.pathsep.join(filter(None, [str(ROOT), os.environ.get("PYTHONPATH")])), **(env or {}))
@@ -36,7 +36,7 @@ def interrupt_when(folder, marker: str, *, env=None, args=(), stream="stderr"):
         for line in watched:
             seen.append(line)
             if marker in line:
-                p.send_signal(signal.SIGINT)
+                p.send_signal(sig)
                 break
         out, err = p.communicate(timeout=TIMEOUT)
     finally:
@@ -78,6 +78,33 @@ def test_interrupt_mid_run_keeps_the_output_and_the_finished_frames(folder):
     assert list(times) == [0.0, 1.0, 2.0, 3.0, 4.0] and st.GetEndTimeCode() == 4.0
     assert check_output_problems(partial) == []
     assert "Traceback" not in err
+
+
+@needs_shared
+@pytest.mark.parametrize("sig", [signal.SIGTERM, signal.SIGHUP])
+def test_sigterm_and_sighup_stop_a_run_as_ctrl_c_does(folder, sig):
+    """A job scheduler's SIGTERM or a closed terminal's SIGHUP: exit status 128 + the signal, the
+    finished frames kept, the output as it was, no temporary file left."""
+    rc, _, err = interrupt_when(folder, "paused at frame:3", env={PAUSE_ENV: "frame:3"}, sig=sig)
+    assert rc == 128 + sig, err
+    assert f"terminated ({signal.Signals(sig).name})" in err
+    partial = folder / "keep.partial.usdc"
+    assert f"kept in {partial}" in err and (folder / "keep.usdc").read_bytes() == KEEP and leftovers(folder) == []
+    assert check_output_problems(partial) == []
+    assert "Traceback" not in err
+
+
+@needs_shared
+def test_a_partial_result_never_writes_over_a_file_there(folder):
+    """A file already at the partial name (a user's, or an earlier run's partial result) is left
+    alone: the finished frames go to the next free name, which the message names."""
+    (folder / "keep.partial.usdc").write_bytes(b"mine")
+    rc, _, err = interrupt_when(folder, "paused at frame:2", env={PAUSE_ENV: "frame:2"})
+    assert rc == 130, err
+    assert (folder / "keep.partial.usdc").read_bytes() == b"mine"
+    second = folder / "keep.partial-2.usdc"
+    assert f"kept in {second}" in err and check_output_problems(second) == []
+    assert (folder / "keep.usdc").read_bytes() == KEEP
 
 
 def test_interrupt_of_a_real_kernel_compile(folder, tmp_path_factory):

@@ -2,7 +2,7 @@
 
 Exit status: 0 done; 1 internal error (a bug: the message says so, ``-v`` shows the traceback);
 2 invalid input or request (message, no traceback, nothing simulated, no output file) or an output
-that cannot be written; 3 numerical failure; 130 interrupted. A run that stops early keeps the
+that cannot be written; 3 numerical failure; 130 interrupted (Ctrl-C; 143 SIGTERM, 129 SIGHUP). A run that stops early keeps the
 frames finished so far in ``OUT.partial.usdc`` beside ``OUT`` and says so; ``OUT`` is left as it was.
 """
 
@@ -15,6 +15,7 @@ import sys
 import traceback
 from importlib import resources
 
+from .runtime.interrupts import Terminated, exit_status, terminate_as_interrupt
 from .scene.spec import SceneError
 
 EXIT_OK, EXIT_INTERNAL, EXIT_INPUT, EXIT_NUMERICAL, EXIT_INTERRUPTED = 0, 1, 2, 3, 130
@@ -49,8 +50,8 @@ def _parser() -> argparse.ArgumentParser:
     r.add_argument("-o", "--output", help="output stage (.usdc, .usda); default: <scene name>.out.usdc here "
                    "(tube.usdc for the embedded scene)")
     r.add_argument("--device", help="cpu or cuda:N (default: CUDA when available)")
-    r.add_argument("--frames", type=int, help="frames to write, frame 0 (rest) included")
-    r.add_argument("--every", type=int, default=1, help="write every K-th frame")
+    r.add_argument("--frames", type=int, help="frames to simulate, frame 0 (rest) included (default: the scene's)")
+    r.add_argument("--every", type=int, default=1, help="write every K-th of them (frame 0 always)")
     r.add_argument("--no-surface", action="store_true", help="write the Centerline only")
     r.add_argument("--quiet", action="store_true", help="no progress bar, no summary")
 
@@ -110,7 +111,7 @@ def _cmd_run(a) -> int:
     with Phase("reading the scene", enabled=tty):
         held = open_stage(scene_path)  # held open while loading: its layers are read once
         inputs = [scene_path, *usd_layer_files(held)]
-        out = check_output_path(a.output or default_run_output(a.scene), inputs)
+        out = check_output_path(a.output if a.output is not None else default_run_output(a.scene), inputs)
         scene = load_scene(scene_path)
         del held
     points = sum(len(t.points) for t in scene.tubes)
@@ -126,13 +127,14 @@ def _cmd_run(a) -> int:
         summary = sim.run(frames=a.frames, output=out, progress=tty, every=a.every)
     except NumericalError as e:
         return _stopped(sim, out, f"{e}", EXIT_NUMERICAL, a.quiet)
-    except KeyboardInterrupt:
+    except KeyboardInterrupt as e:
         s = sim.last_summary
+        how = f"terminated ({e})" if isinstance(e, Terminated) else "interrupted"
         if s.frames == 0 and s.frames_simulated == 0:
-            why = "interrupted during start-up (kernel compilation), before any frame was finished"
+            why = f"{how} during start-up (kernel compilation), before any frame was finished"
         else:
-            why = f"interrupted while simulating frame {s.first_frame + s.frames_simulated + 1}"
-        return _stopped(sim, out, why, EXIT_INTERRUPTED, a.quiet)
+            why = f"{how} while simulating frame {s.first_frame + s.frames_simulated + 1}"
+        return _stopped(sim, out, why, exit_status(e), a.quiet)
     except SceneError:
         raise
     except OSError as e:
@@ -271,13 +273,15 @@ def main(argv=None) -> int:
     handler = {"run": _cmd_run, "check": _cmd_check, "extract": _cmd_extract, "preview": _cmd_preview, "export": _cmd_export,
                "batch": _cmd_batch, "bench": _cmd_bench}
     try:
-        return handler[args.command](args)
+        with terminate_as_interrupt():  # SIGTERM, SIGHUP: stop as after Ctrl-C, keeping what is finished
+            return handler[args.command](args)
     except SceneError as e:
         print(f"warp-tube: {e}", file=sys.stderr)
         return EXIT_INPUT
-    except KeyboardInterrupt:
-        print("warp-tube: interrupted; nothing was written", file=sys.stderr)
-        return EXIT_INTERRUPTED
+    except KeyboardInterrupt as e:
+        print(f"warp-tube: {'terminated (' + str(e) + ')' if isinstance(e, Terminated) else 'interrupted'}; nothing was written",
+              file=sys.stderr)  # fmt: skip
+        return exit_status(e)
     except Exception as e:
         if args.verbose:
             traceback.print_exc()

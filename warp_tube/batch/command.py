@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import signal
 import sys
 
 __all__ = ["add_parser", "run"]
@@ -48,8 +49,9 @@ def run(a) -> int:
         )  # fmt: skip
     except BatchInterrupted as e:
         print(e.result.text(), file=sys.stderr)
-        print("warp-tube: interrupted; the finished variants are kept: --resume goes on", file=sys.stderr)
-        return 130
+        how = f"terminated ({e.signal_name})" if e.signum != signal.SIGINT else "interrupted"
+        print(f"warp-tube: {how}; the finished variants are kept: --resume goes on", file=sys.stderr)
+        return 128 + e.signum
     except OSError as e:
         print(f"warp-tube: batch: {e}", file=sys.stderr)
         return 2

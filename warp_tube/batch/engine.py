@@ -204,9 +204,11 @@ def _reset_worlds(state, rest32, rest, dead) -> None:
 
 def _run_alone(scene: Scene, w: int, device: str, frames: int, every: int, surface: bool, arrays: dict, tip: int) -> dict:
     """Run variant ``scene`` alone as ``warp-tube run`` does, into world ``w`` of the arrays."""
+    from ..centerline.policy import silenced
     from ..sim.simulation import NumericalError, Simulation
 
-    sim = Simulation(scene, device=device, surface=surface)
+    with silenced():  # its integrator was warned of with the batch's
+        sim = Simulation(scene, device=device, surface=surface)
     h = sim.model.host
     mpu = scene.stage.meters_per_unit
     free_mass = (h.node_mass * (h.node_inv_mass > 0))[None]

@@ -29,7 +29,8 @@ from ..scene.spec import SceneError
 from .engine import TIMERS, chunk_shapes, simulate_chunk
 from .outputs import WriteTask, write
 
-__all__ = ["Writers", "SimWorkers", "writer_count", "run_here", "run_pooled", "run_dask", "ignore_sigint"]
+__all__ = ["Writers", "SimWorkers", "writer_count", "run_here", "run_pooled", "run_dask", "dask_client", "check_dask",
+           "ignore_sigint"]
 
 
 def ignore_sigint():
@@ -529,16 +530,34 @@ def run_pooled(todo, devices, workers: SimWorkers, context, result) -> None:
         result.write_wait_s += 0.0 if not result.simulate_s else max(0.0, time.perf_counter() - t0 - result.simulate_s / len(devices))
 
 
-def run_dask(todo, context, result) -> None:
-    """Each chunk a task of the Dask cluster at ``scheduler``, simulating and writing there."""
+def check_dask() -> None:
+    """Raise SceneError if Dask distributed is not installed (before a batch writes anything)."""
     try:
-        from distributed import Client, as_completed
+        import distributed  # noqa: F401
     except ImportError:
         raise SceneError("--scheduler needs Dask distributed: pip install 'warp-tube[dask]'") from None
+
+
+def dask_client(scheduler: str):
+    """A client of the Dask scheduler at ``scheduler``.
+
+    Raises:
+        SceneError: Dask is not installed, or the scheduler cannot be reached.
+    """
+    check_dask()
+    from distributed import Client
+
     try:
-        client = Client(context["scheduler"], timeout="20s")
+        return Client(scheduler, timeout="20s")
     except (OSError, TimeoutError) as e:
-        raise SceneError(f"--scheduler {context['scheduler']}: cannot reach the Dask scheduler ({e})") from None
+        raise SceneError(f"--scheduler {scheduler}: cannot reach the Dask scheduler ({e})") from None
+
+
+def run_dask(todo, context, result) -> None:
+    """Each chunk a task of the Dask cluster at ``scheduler``, simulating and writing there."""
+    from distributed import as_completed
+
+    client = dask_client(context["scheduler"])
     bar = context["bar"]
     futures = {}
     try:

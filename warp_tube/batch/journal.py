@@ -4,7 +4,9 @@
 outputs, the chunk size); ``chunks/chunk_00003.json`` is written (atomically) when every output of
 chunk 3 is complete, with its variants' summary fields. Resuming checks the signature and skips
 the recorded chunks; chunks are planned the same way again, so the resumed batch ends with the
-same files as an uninterrupted one. The folder is removed when the batch completes.
+same files as an uninterrupted one. The folder is removed when the batch completes, and its
+signature kept in ``DIR/.batch-finished.json``, so that ``--resume`` of a finished batch with other
+inputs or options is refused as for an unfinished one.
 """
 
 from __future__ import annotations
@@ -43,6 +45,32 @@ class Journal:
     def exists(self) -> bool:
         return os.path.exists(self.state_path)
 
+    @property
+    def finished_path(self) -> str:
+        return os.path.join(self.out_dir, ".batch-finished.json")
+
+    @staticmethod
+    def _differ(old: dict, signature: dict, ignore=()) -> list[str]:
+        return sorted(k for k in set(old) | set(signature) if k not in ignore and old.get(k) != signature.get(k))
+
+    def check_finished(self, signature: dict) -> None:
+        """For ``--resume`` of a batch that finished: refuse where it was made with other inputs
+        or options (its chunk size aside: it does not change the outputs).
+
+        Raises:
+            SceneError: naming what differs.
+        """
+        if not os.path.exists(self.finished_path):
+            return  # finished before its signature was kept: nothing to compare
+        with open(self.finished_path, encoding="utf-8") as f:
+            old = json.load(f)
+        differ = self._differ(old, signature, ignore=("chunk",))
+        if differ:
+            raise SceneError(
+                f"{self.out_dir}: --resume: the batch there is finished and was made with other {', '.join(differ)}; "
+                "write to another folder"
+            )
+
     def begin(self, signature: dict, resume: bool) -> dict[int, dict]:
         """Start a new record, or (``resume``) check the old one's signature and return its
         finished chunks, ``{chunk id: record}``.
@@ -53,7 +81,7 @@ class Journal:
         if resume and self.exists():
             with open(self.state_path, encoding="utf-8") as f:
                 old = json.load(f)
-            differ = sorted(k for k in set(old) | set(signature) if old.get(k) != signature.get(k))
+            differ = self._differ(old, signature)
             if differ:
                 raise SceneError(
                     f"{self.out_dir}: --resume: the batch there was made with other {', '.join(differ)}; "
@@ -73,7 +101,11 @@ class Journal:
         """Mark chunk ``chunk`` finished (all its outputs complete)."""
         self._atomic(os.path.join(self.chunk_dir, f"chunk_{chunk:05d}.json"), dict(record, chunk=chunk))
 
-    def remove(self) -> None:
+    def finish(self) -> None:
+        """The batch is complete: keep its signature beside the outputs, remove the record."""
+        with open(self.state_path, encoding="utf-8") as f:
+            signature = json.load(f)
+        self._atomic(self.finished_path, signature)
         shutil.rmtree(self.dir, ignore_errors=True)
 
     @staticmethod

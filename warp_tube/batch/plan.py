@@ -95,7 +95,6 @@ def _choices_of(scenes: list[Scene]) -> list[RunChoice]:
 
     flat = build_model(combined_scene(scenes), world_count=1, device="cpu")
     h = flat.host
-    n = len(h.node_mass) // len(scenes)
     damping = np.array([max((t.params.spring_damping for t in s.tubes), default=0.0) for s in scenes])
     bounds = critical_time_steps(h, len(scenes), flat.features.assistant_line, damping)
     seg = np.asarray(h.seg_rest_length).reshape(len(scenes), -1)

@@ -18,6 +18,7 @@ from concurrent.futures.process import BrokenProcessPool
 
 import numpy as np
 
+from ..centerline.policy import silenced
 from ..scene.spec import SceneError
 from .execute import ignore_sigint
 from .plan import run_choice, run_choices
@@ -86,7 +87,9 @@ def prepare_batch(scene: str, table, variant_sets, bar, pool: cf.ProcessPoolExec
 
     def read_here():
         variants = prepare_variants(scene, table, variant_sets, extract=_extract, progress=bar.reading)
-        return variants, checked_run_choices(variants)
+        choices = checked_run_choices(variants)
+        warn_forced(variants, choices)
+        return variants, choices
 
     if parts < 2:
         return read_here()
@@ -117,12 +120,30 @@ def prepare_batch(scene: str, table, variant_sets, bar, pool: cf.ProcessPoolExec
         merged += [dataclasses.replace(v, name=f"variant_{v.index:0{width}d}") for v in part.variants]
         choices += part_choices
     first = results[0][0]
-    return Variants(scene_path=scene, table=table, axes=first.axes, variants=tuple(merged)), choices
+    out = Variants(scene_path=scene, table=table, axes=first.axes, variants=tuple(merged))
+    warn_forced(out, choices)
+    return out, choices
+
+
+def warn_forced(variants, choices) -> None:
+    """One warning for the variants whose forced timeStep exceeds their stability bound (the
+    policy would give one per variant), naming how many and the first of them."""
+    forced = [(v, c) for v, c in zip(variants.variants, choices) if c.reason.startswith("forced; timeStep")]
+    if forced:
+        v, c = forced[0]
+        more = f" and {len(forced) - 1} other variant(s)" if len(forced) > 1 else ""
+        log.warning("%s%s: %s: expect a blow-up (of %d variants)", v.name, more, c.reason.removeprefix("forced; "),
+                    len(variants.variants))  # fmt: skip
 
 
 def checked_run_choices(variants) -> list:
     """Each variant's integrator and substeps alone; a variant whose settings no integrator takes
     (e.g. implicit Euler with an assistant line) is a bad row, reported with the others."""
+    with silenced():  # one warning for the batch instead (warn_forced)
+        return _checked_run_choices(variants)
+
+
+def _checked_run_choices(variants) -> list:
     from .variants import MAX_PROBLEMS
 
     scenes = [v.scene for v in variants.variants]

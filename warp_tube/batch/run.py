@@ -23,6 +23,7 @@ from __future__ import annotations
 
 import math
 import os
+import signal
 import time
 from dataclasses import dataclass, field
 
@@ -31,7 +32,7 @@ import numpy as np
 from ..runtime.interrupts import kept_interrupts
 from ..scene.spec import SceneError
 from .engine import TIMERS, output_frames
-from .execute import SimWorkers, Writers, run_dask, run_here, run_pooled, writer_count
+from .execute import SimWorkers, Writers, check_dask, dask_client, run_dask, run_here, run_pooled, writer_count
 from .journal import Journal, file_digest
 from .outputs import LAYOUTS, OutputSpec, finish_arrays, prepare_arrays, surface_topology, write_grid_root, write_summary
 from .plan import group_key, plan_chunks
@@ -45,15 +46,21 @@ __all__ = ["run_batch", "BatchResult", "BatchInterrupted", "DEFAULT_CHUNK_CPU", 
 DEFAULT_CHUNK_CPU = 1024
 DEFAULT_CHUNK_CUDA = 4096
 #: files a batch writes into its folder (an existing one means a batch is there already)
-BATCH_FILES = ("summary.csv", "centerline.npy", "surface.npy", "arrays.json", "grid.usda")
+BATCH_FILES = ("summary.csv", "centerline.npy", "surface.npy", "arrays.json", "grid.usda", ".batch-finished.json")
 
 
 class BatchInterrupted(KeyboardInterrupt):
-    """The batch was interrupted; ``result`` says what was finished (kept for ``--resume``)."""
+    """The batch was interrupted; ``result`` says what was finished (kept for ``--resume``),
+    ``signum`` by which signal (SIGINT for Ctrl-C; SIGTERM, SIGHUP)."""
 
-    def __init__(self, result):
+    def __init__(self, result, signum: int = signal.SIGINT):
         super().__init__("interrupted")
         self.result = result
+        self.signum = int(signum)
+
+    @property
+    def signal_name(self) -> str:
+        return signal.Signals(self.signum).name
 
 
 @dataclass
@@ -117,11 +124,13 @@ def _devices(device, workers, scheduler) -> list[str]:
 
     if workers is not None and workers < 1:
         raise SceneError(f"--workers {workers}: expected at least 1")
+    from ..runtime.warp_setup import init_warp
+
+    init_warp()  # quietly, as every command starts Warp
     if scheduler:
+        check_dask()
         return ["dask"]
     import warp as wp
-
-    from ..runtime.warp_setup import init_warp
 
     if device is not None:
         dev = resolve_device(device)
@@ -130,7 +139,6 @@ def _devices(device, workers, scheduler) -> list[str]:
         if workers not in (None, 1):
             raise SceneError(f"--workers {workers} with --device {device}: one device runs one worker; leave out --device to use every GPU")
         return [dev]
-    init_warp()  # quietly, as every command starts Warp
     gpus = wp.get_cuda_device_count()
     if gpus:
         n = workers or gpus
@@ -281,7 +289,10 @@ def _run_batch(scene, out_dir, table, tab, devices, writer_pool, sim_workers, t_
     result.prepare_s = time.perf_counter() - t_start
 
     if resume and not journal.exists():  # the batch there finished: nothing to do
+        journal.check_finished(signature)
         return _finished(out_dir, result, t_start)
+    if scheduler:
+        dask_client(scheduler).close()  # the scheduler answers: checked before anything is written
     os.makedirs(out_dir, exist_ok=True)
     done = journal.begin(signature, resume)
     _remove_stray_partials(out_dir)
@@ -316,15 +327,15 @@ def _run_batch(scene, out_dir, table, tab, devices, writer_pool, sim_workers, t_
             run_here(todo, devices[0], context, result)
         else:
             run_pooled(todo, devices, sim_workers, context, result)
-    except KeyboardInterrupt:
+    except KeyboardInterrupt as e:
         bar.close()
         _tally(result, records, variants)
         result.pending = len(variants) - sum(len(r["rows"]) for r in records.values())
         result.wall_s = time.perf_counter() - t_start
-        raise BatchInterrupted(result) from None
+        raise BatchInterrupted(result, getattr(e, "signum", signal.SIGINT)) from None
     bar.close()
     _finish_outputs(spec, variants, records, first, out_dir)
-    journal.remove()
+    journal.finish()
     _tally(result, records, variants)
     result.wall_s = time.perf_counter() - t_start
     return result

@@ -86,6 +86,7 @@ def extract_to_scene(mesh_path, output, *, hubs=None, spokes=16, scale=None, dev
     warnings += found
     with Phase(f"writing {os.path.basename(output)}", enabled=progress):
         write_scene(tube, output, meters_per_unit=1.0, inputs=[mesh_path])
-    log.info("%s: %d hubs x %d spokes, %.4g m, %d side branches -> %s (%.2f s)", mesh_path, tube.hubs,
-             tube.spokes, tube.length, len(tube.branches), output, tube.timings["total"])
+    nb = len(tube.branches)
+    log.info("%s: %d hubs x %d spokes, %.4g m, %d side branch%s -> %s (%.2f s)", mesh_path, tube.hubs,
+             tube.spokes, tube.length, nb, "" if nb == 1 else "es", output, tube.timings["total"])  # fmt: skip
     return Extraction(tube, fid, output, warnings, given)

@@ -114,6 +114,10 @@ def load_mesh(path, scale=(1.0, 1.0, 1.0)) -> trimesh.Trimesh:
     path = os.fspath(path)
     if not os.path.isfile(path):
         raise SceneError(f"{path}: no such file")
+    ext = os.path.splitext(path)[1].lower()
+    if ext in (".usd", ".usda", ".usdc", ".usdz"):
+        raise SceneError(f"{path}: a USD stage, not a mesh file: extract reads STL, PLY or OBJ; a USD Mesh prim is "
+                         "extracted when its scene loads, with warptube:extract = true (see the README)")  # fmt: skip
     try:
         mesh = trimesh.load(path, force="mesh", process=False)
     except Exception as e:  # trimesh raises many kinds (ValueError, KeyError, struct.error, ...)

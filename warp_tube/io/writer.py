@@ -20,7 +20,7 @@ import os
 import numpy as np
 
 from ..scene.spec import Scene
-from ..scene.files import USD_EXTENSIONS, output_path, partial_path, temp_path
+from ..scene.files import USD_EXTENSIONS, free_partial_path, output_path, partial_path, temp_path
 
 __all__ = ["StageWriter", "check_output_path", "points_extent", "vec3f_array"]
 
@@ -225,6 +225,7 @@ class StageWriter:
         if self.frames_written == 0:
             self.abort()
             return None
+        self.partial = free_partial_path(self.path)  # an existing file of that name is left alone
         self._save_to(self.partial)
         return self.partial
 

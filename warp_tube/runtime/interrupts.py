@@ -5,6 +5,11 @@ Inside a finalizer (``__del__``, e.g. of a Warp array being freed) the exception
 "Exception ignored in ..." and dropped, and a run would go on as if nothing happened. While
 :func:`kept_interrupts` is active, SIGINT also sets a flag, and :func:`raise_if_interrupted`,
 called between frames and between a batch's chunks, raises the interrupt that was dropped.
+
+SIGTERM and SIGHUP (``timeout``, a job scheduler, a closed terminal) stop a command the same way
+while :func:`terminate_as_interrupt` is active: they raise :class:`Terminated`, a
+``KeyboardInterrupt``, so a run keeps its finished frames and removes its temporary file as after
+Ctrl-C; :func:`exit_status` gives 128 + the signal's number.
 """
 
 from __future__ import annotations
@@ -13,15 +18,63 @@ import contextlib
 import signal
 import threading
 
-__all__ = ["kept_interrupts", "raise_if_interrupted"]
+__all__ = ["kept_interrupts", "raise_if_interrupted", "terminate_as_interrupt", "Terminated", "exit_status"]
 
-_pending = False  # a SIGINT arrived that may not have been delivered
+_pending = None  # the signal (SIGINT, SIGTERM, SIGHUP) that arrived and may not have been delivered
+
+
+class Terminated(KeyboardInterrupt):
+    """SIGTERM or SIGHUP, raised where the main thread is, as Ctrl-C is.
+
+    Attributes:
+        signum: the signal's number.
+    """
+
+    def __init__(self, signum: int):
+        super().__init__(signal.Signals(signum).name)
+        self.signum = int(signum)
+
+
+def exit_status(e: BaseException) -> int:
+    """The exit status of a command stopped by ``e``: 128 + the signal's number (130 for Ctrl-C)."""
+    return 128 + int(getattr(e, "signum", signal.SIGINT))
+
+
+def _interrupt(signum: int) -> KeyboardInterrupt:
+    return KeyboardInterrupt() if signum == signal.SIGINT else Terminated(signum)
 
 
 def _on_sigint(signum, frame):
     global _pending
-    _pending = True
+    _pending = signum
     raise KeyboardInterrupt
+
+
+def _on_terminate(signum, frame):
+    global _pending
+    _pending = signum
+    raise Terminated(signum)
+
+
+_TERMINATING = tuple(getattr(signal, name) for name in ("SIGTERM", "SIGHUP") if hasattr(signal, name))
+
+
+@contextlib.contextmanager
+def terminate_as_interrupt():
+    """SIGTERM and SIGHUP raise :class:`Terminated` in the main thread (where their handlers are
+    the default; a program with its own keeps them)."""
+    if threading.current_thread() is not threading.main_thread():
+        yield
+        return
+    old = {}
+    for sig in _TERMINATING:
+        if signal.getsignal(sig) is signal.SIG_DFL:
+            old[sig] = signal.signal(sig, _on_terminate)
+    try:
+        yield
+    finally:
+        for sig, handler in old.items():
+            signal.signal(sig, handler)
 
 
 @contextlib.contextmanager
@@ -32,19 +85,19 @@ def kept_interrupts():
     if threading.current_thread() is not threading.main_thread() or signal.getsignal(signal.SIGINT) is not signal.default_int_handler:
         yield
         return
-    _pending = False
+    _pending = None
     signal.signal(signal.SIGINT, _on_sigint)
     try:
         yield
     finally:
         signal.signal(signal.SIGINT, signal.default_int_handler)
-        _pending = False
+        _pending = None
 
 
 def raise_if_interrupted() -> None:
-    """Raise ``KeyboardInterrupt`` if a SIGINT arrived since the last call (or since
-    :func:`kept_interrupts` began) and may have been dropped."""
+    """Raise ``KeyboardInterrupt`` (:class:`Terminated` for SIGTERM or SIGHUP) if the signal arrived
+    since the last call (or since :func:`kept_interrupts` began) and may have been dropped."""
     global _pending
-    if _pending:
-        _pending = False
-        raise KeyboardInterrupt
+    if _pending is not None:
+        signum, _pending = _pending, None
+        raise _interrupt(signum)

@@ -7,7 +7,8 @@ is replaced only by a complete one, and unfinished work is kept under a name tha
 - :func:`temp_path` is the hidden name a file is written under (same folder, so the final
   :func:`os.replace` is atomic); :func:`write_atomically` writes through it.
 - :func:`partial_path` is where the finished part of an interrupted or failed run goes:
-  ``OUT.partial.usdc`` beside ``OUT.usdc``; the complete output at ``OUT.usdc`` is left alone.
+  ``OUT.partial.usdc`` beside ``OUT.usdc`` (:func:`free_partial_path`: ``OUT.partial-2.usdc``, ...
+  where a file has that name already); the complete output at ``OUT.usdc`` is left alone.
 - :func:`default_run_output` names a run's output when ``-o`` is not given, so that it can never be
   the scene itself.
 
@@ -26,6 +27,7 @@ __all__ = [
     "default_run_output",
     "output_path",
     "partial_path",
+    "free_partial_path",
     "refuse_existing",
     "same_file",
     "temp_path",
@@ -53,6 +55,19 @@ def partial_path(path) -> str:
     return f"{stem}.partial{ext}"
 
 
+def free_partial_path(path) -> str:
+    """:func:`partial_path` of ``path``, or where a file is there already (a user's, or an earlier
+    run's partial result) the first free ``dir/name.partial-2.ext``, ``-3``, ...: never written over."""
+    first = partial_path(path)
+    if not os.path.lexists(first):
+        return first
+    stem, ext = os.path.splitext(first)
+    k = 2
+    while os.path.lexists(f"{stem}-{k}{ext}"):
+        k += 1
+    return f"{stem}-{k}{ext}"
+
+
 def temp_path(path) -> str:
     """Hidden temporary name beside ``path`` (same folder and extension, process id in it)."""
     folder, name = os.path.split(os.fspath(path))
@@ -75,6 +90,8 @@ def output_path(path, extensions: Iterable[str], *, inputs: Iterable = (), what:
             or an input given as the output.
     """
     raw = os.fspath(path)
+    if not raw:
+        raise SceneError(f"an empty {what} name: expected a file name ({', '.join(extensions)})")
     path = os.path.abspath(raw)
     ext = os.path.splitext(path)[1].lower()
     extensions = tuple(extensions)

@@ -236,6 +236,8 @@ def _stage_info(stage) -> StageInfo:
         raise SceneError(f"{path}: startTimeCode {start}, endTimeCode {end}: expected end >= start")
     if end - start > 1e6:
         raise SceneError(f"{path}: {end - start:.0f} frames: expected at most 1,000,000")
+    if "upAxis" in authored and str(stage.GetMetadata("upAxis")) not in ("Y", "Z"):
+        raise SceneError(f"{path}: upAxis {str(stage.GetMetadata('upAxis'))!r}: expected \"Y\" or \"Z\"")
     return StageInfo(
         meters_per_unit=mpu, up_axis=str(UsdGeom.GetStageUpAxis(stage)), time_codes_per_second=tcps,
         frames_per_second=fps, start_time_code=start, end_time_code=end, authored=authored,

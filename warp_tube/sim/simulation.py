@@ -18,6 +18,7 @@ from __future__ import annotations
 import logging
 import math
 import os
+import re
 import sys
 import time
 from dataclasses import dataclass, field
@@ -67,7 +68,10 @@ def resolve_device(device=None) -> str:
     name = str(device)
     if name.startswith("cuda"):
         count = wp.get_cuda_device_count()
-        idx = int(name.split(":")[1]) if ":" in name else 0
+        m = re.fullmatch(r"cuda(?::(\d+))?", name)
+        if m is None:
+            raise SceneError(f"device {name!r}: expected cpu, cuda or cuda:N with N = 0, 1, ...")
+        idx = int(m.group(1) or 0)
         if idx >= count:
             raise SceneError(f"device {name}: no such CUDA device ({count} found): use --device cpu")
         return f"cuda:{idx}"
