@@ -84,7 +84,8 @@ def _parser() -> argparse.ArgumentParser:
     add_batch_parser(sub)
 
     b = sub.add_parser("bench", help="speed against error beside peer simulators; results, report and plots")
-    b.add_argument("-o", "--output", required=True, help="folder for results.json, report.md and the plots")
+    b.add_argument("-o", "--output", help="folder for results.json, report.md and the plots (with --replot: default "
+                   "the results' own folder)")
     b.add_argument("--suite", choices=("accuracy", "speed", "all"), default="all")
     b.add_argument("--peers", help="pyelastica,newton (default: both where installed) or none")
     b.add_argument("--device", help="cpu or cuda:N (default: CUDA when available)")
@@ -249,8 +250,10 @@ def _cmd_bench(a) -> int:
     from .bench.command import parse_peers, replot, run_bench
 
     if a.replot:
-        replot(a.replot, a.output)
+        replot(a.replot, a.output if a.output is not None else (os.path.dirname(a.replot) or "."))
         return EXIT_OK
+    if a.output is None:
+        raise SceneError("bench: -o DIR is needed: the folder for results.json, report.md and the plots")
     repeat = a.repeat if a.repeat is not None else (1 if a.quick else 3)
     if repeat < 1:
         raise SceneError(f"--repeat {repeat}: expected at least 1")

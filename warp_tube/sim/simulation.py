@@ -404,6 +404,8 @@ class Simulation:
         writer = None
         if output and not written:
             raise SceneError(f"every {every}: none of frames {first} to {end - 1} is a multiple of it: nothing to write")
+        if output and len(written) == 1 and end - first > 1:
+            self._warn(f"every {every}: of frames {first} to {end - 1} only frame {written[0]} is written")
         if output:
             inputs = [self.scene.source] if self.scene.source and os.path.exists(self.scene.source) else []
             start_tc = info.start_time_code + (written[0] if written else first)
