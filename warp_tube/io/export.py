@@ -159,7 +159,9 @@ def export(usd_path, fmt: str = "obj", out=None, frame=None, overwrite: bool = F
         else:
             folder = usd_path.parent / f"{usd_path.stem}_{fmt}"
         if folder.exists() and not folder.is_dir():
-            raise SceneError(f"{folder}: exists and is not a folder")
+            if same_file(folder, usd_path):
+                raise SceneError(f"{folder}: is the input stage: -o takes a folder, or one .{fmt} file with --frame")
+            raise SceneError(f"{folder}: exists and is not a folder: -o takes a folder, or one .{fmt} file with --frame")
         paths = [folder / f"{usd_path.stem}.{_frame_name(t)}.{fmt}" for t in times]
     for p in paths:
         if same_file(p, usd_path):
