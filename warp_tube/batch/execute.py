@@ -435,11 +435,18 @@ def run_pooled(todo, devices, workers: SimWorkers, context, result) -> None:
     bar = context["bar"]
     t0 = time.perf_counter()
 
+    early: dict = {}  # chunk id -> (outputs, seconds): reported written before its simulation's result was seen
+
+    def finish_written(cid: int, outputs: list, spent: float):
+        _, rows = writing.pop(cid)
+        result.write_s += spent
+        context["finish"](cid, rows, outputs)
+
     def settle_written(block: bool):
         """Finish the chunks the simulating processes report written (waiting for one if ``block``)."""
         import queue
 
-        while writing:
+        while writing or not block:
             try:
                 cid, outputs, spent = workers.done.get(timeout=1.0) if block else workers.done.get_nowait()
             except queue.Empty:
@@ -450,9 +457,10 @@ def run_pooled(todo, devices, workers: SimWorkers, context, result) -> None:
                 return
             if outputs is None:
                 raise RuntimeError(spent)
-            _, rows = writing.pop(cid)
-            result.write_s += spent
-            context["finish"](cid, rows, outputs)
+            if cid not in writing:  # its simulation's result is not in yet: finished when it is
+                early[cid] = (outputs, spent)
+                continue
+            finish_written(cid, outputs, spent)
             block = False
 
     def submit_sim():
@@ -487,6 +495,8 @@ def run_pooled(todo, devices, workers: SimWorkers, context, result) -> None:
                     _add_timings(result, timings)
                     bar.frames(len(c.indices) * max(context["frames"] - 1, 1))
                     writing[c.id] = ((), rows)  # reported on the done queue once written
+                    if c.id in early:
+                        finish_written(c.id, *early.pop(c.id))
                     continue
                 rows, paths, timings = fut.result()
                 _add_timings(result, timings)
