@@ -9,6 +9,10 @@ first needs Warp (``Simulation``, extraction, preview).
 Asking for the messages: ``warp-tube -v``, :func:`set_verbose`, or ``WARP_TUBE_VERBOSE=1`` in the
 environment. A program that initialises Warp itself before using warp_tube keeps Warp's own
 settings, and a log level set in ``warp.config`` other than Warp's default is left alone.
+
+Every call also flushes subnormal floats to zero on the calling thread (:mod:`.float_mode`): Warp
+runs CPU kernels on the thread that launches them, and a settled tube's subnormal velocities would
+otherwise slow them down several times.
 """
 
 from __future__ import annotations
@@ -50,11 +54,18 @@ def _warp_started() -> bool:
 
 
 def init_warp() -> None:
-    """Initialise Warp if it is not yet, quietly unless verbose (see the module docstring)."""
+    """Initialise Warp if it is not yet, quietly unless verbose (see the module docstring), and
+    flush subnormals to zero on the calling thread (:mod:`.float_mode`; once per thread)."""
+    from .float_mode import flush_subnormals_on_this_thread
+
+    if not _warp_started():
+        _start_warp()
+    flush_subnormals_on_this_thread()
+
+
+def _start_warp() -> None:
     import warp as wp
 
-    if _warp_started():
-        return
     if _is_verbose():
         wp.config.log_level = wp.LOG_INFO
         wp.init()
