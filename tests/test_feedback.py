@@ -181,7 +181,7 @@ def test_extraction_of_a_tube_has_no_warnings_and_a_summary(tmp_path):
     done = extract_to_scene(tmp_path / "t.ply", tmp_path / "t.usda")
     assert done.warnings == []
     line = done.summary()
-    assert "0.2 m long" in line and "ends open/open" in line and "0 side branch(es)" in line and "surface within" in line
+    assert "0.2 m long" in line and "ends open/open" in line and "0 side branches" in line and "surface within" in line
 
 
 def test_extraction_of_a_sphere_and_of_a_bare_cylinder_warns(tmp_path):

@@ -181,7 +181,26 @@ def _cmd_extract(a) -> int:
     done = extract_to_scene(a.mesh, a.output, hubs=a.hubs, spokes=a.spokes, scale=a.scale,
                             progress=stderr_is_terminal(), strict=a.strict)  # fmt: skip
     print(done.summary())
+    _size_push(done.output, stderr_is_terminal())
     return EXIT_OK
+
+
+def _size_push(scene: str, progress: bool) -> None:
+    """Size the extracted scene's push by simulating it (see :mod:`warp_tube.sim.calibrate`)."""
+    from .runtime.progress import Phase
+    from .sim.calibrate import PUSH_FRAMES, size_push
+    from .sim.simulation import NumericalError
+
+    try:
+        with Phase("sizing the push (simulating the ramp and hold)", enabled=progress):
+            size = size_push(scene)
+    except NumericalError as e:
+        logging.getLogger("warp_tube.extract").warning("%s: the push was not sized (the scene failed: %s)", scene, e)
+        return
+    if size is not None:
+        print(f"{os.path.basename(scene)}: push {size.force_n:.3g} N on the middle hub: the tube moves by about "
+              f"{size.target_m * 1e3:.3g} mm (2 mean radii) by frame {PUSH_FRAMES - 1} (x{size.factor:.3g} of the "
+              "straight-beam estimate)")  # fmt: skip
 
 
 def _cmd_preview(a) -> int:

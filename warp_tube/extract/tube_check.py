@@ -90,5 +90,5 @@ def summary_line(tube, fidelity, output: str, units: str = "m") -> str:
     return (
         f"{output}: {tube.hubs} hubs x {tube.spokes} spokes, {reach:.4g} {units} long, radius "
         f"{tube.radius.min():.3g}-{tube.radius.max():.3g} {units}, ends {ends}, {len(tube.branches)} side "
-        f"branch(es) left out, {fit}"
+        f"branch{'' if len(tube.branches) == 1 else 'es'} left out, {fit}"
     )
