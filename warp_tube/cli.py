@@ -40,9 +40,16 @@ class _Parser(argparse.ArgumentParser):
         sys.exit(EXIT_INPUT)
 
 
+def _version() -> str:
+    from .version import __version__
+
+    return __version__
+
+
 def _parser() -> argparse.ArgumentParser:
     p = _Parser(prog="warp-tube", description="Simulate tube-shaped soft bodies: USD scene in, time-sampled USD out.")
     p.add_argument("-v", "--verbose", action="store_true", help="log details")
+    p.add_argument("--version", action="version", version=f"%(prog)s {_version()}")
     sub = p.add_subparsers(dest="command", required=True, parser_class=_Parser)
 
     r = sub.add_parser("run", help="simulate a scene and write a time-sampled USD stage")
@@ -56,23 +63,23 @@ def _parser() -> argparse.ArgumentParser:
     r.add_argument("--quiet", action="store_true", help="no progress bar, no summary")
 
     c = sub.add_parser("check", help="validate a scene without simulating")
-    c.add_argument("scene")
+    c.add_argument("scene", help="scene .usda/.usdc to validate")
 
     e = sub.add_parser("extract", help="extract a tube scene from a surface mesh (STL, PLY, OBJ)")
-    e.add_argument("mesh")
+    e.add_argument("mesh", help="tube surface mesh: .stl, .ply or .obj")
     e.add_argument("-o", "--output", required=True, help="scene to write: .usda (text), .usdc or .usd (binary)")
     e.add_argument("--hubs", type=int, help="centerline points (default: from length and radius)")
-    e.add_argument("--spokes", type=int, default=16, help="spokes per hub")
+    e.add_argument("--spokes", type=int, default=16, help="spokes per hub (default 16)")
     e.add_argument("--scale", type=float, nargs="+", metavar="F", help="F, or FX FY FZ: mesh units to metres")
     e.add_argument("--strict", action="store_true", help="refuse a mesh that is not tube-like instead of warning")
 
     v = sub.add_parser("preview", help="render a contact sheet of an output stage to PNG")
-    v.add_argument("stage")
+    v.add_argument("stage", help="output stage written by run or batch (.usdc, .usda)")
     v.add_argument("-o", "--output", required=True, help="PNG to write")
-    v.add_argument("--frames", type=int, default=4, help="frames on the sheet")
+    v.add_argument("--frames", type=int, default=4, help="frames on the sheet (default 4)")
 
     x = sub.add_parser("export", help="export an output stage's Surface as OBJ or glTF binary")
-    x.add_argument("stage")
+    x.add_argument("stage", help="output stage written by run or batch (.usdc, .usda)")
     x.add_argument("--format", choices=("obj", "glb"), default="obj")
     x.add_argument("-o", "--output", help="folder for the files, or one file with --frame (default: a folder "
                    "<stage name>_<format> beside the stage; with --frame, the file beside the stage)")

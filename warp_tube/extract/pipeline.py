@@ -398,12 +398,12 @@ def extract_centerline(
         source=src,
     )
     tube.warnings = tubelike.check(tube, open_rays(q, points, diag), hubs_given=hubs is not None)
+    refused = [w for w in tube.warnings if w.startswith(tubelike.NOT_A_TUBE)] if strict else []
     for w in tube.warnings:
-        log.warning("%s: %s", src, w)
-    if strict:
-        problems = [w for w in tube.warnings if w.startswith(tubelike.NOT_A_TUBE)]
-        if problems:
-            raise SceneError(f"{src}: {problems[0]} (--strict)")
+        if not refused or w != refused[0]:  # the refusal itself is the error message, not a warning too
+            log.warning("%s: %s", src, w)
+    if refused:
+        raise SceneError(f"{src}: {refused[0]} (--strict)")
     timings["total"] = time.perf_counter() - t_start
     return tube
 
