@@ -128,9 +128,9 @@ def _sim_write_task(payload):
     if _worker_ring is None:
         _worker_ring = BufferRing(2)
         _worker_writers = cf.ThreadPoolExecutor(threads, thread_name_prefix="batch-writer")
-    owner = _worker_ring.owner()
-    if owner in _worker_writing:  # its arrays are still being written
-        cf.wait(_worker_writing[owner])
+    pending = _worker_writing.get(_worker_ring.owner())  # (a writer thread removes it when done)
+    if pending is not None:  # the arrays this chunk reuses are still being written
+        cf.wait(pending)
     run = simulate_chunk(scenes, choice, _worker_device, frames, every, surface, allocate=_worker_ring.allocator(chunk_id))
     t0 = time.perf_counter()
     futures = [_worker_writers.submit(write, t) for t in _with_rows(tasks, run.rows, run.arrays)]
