@@ -311,6 +311,10 @@ def main(argv=None) -> int:
         print(f"warp-tube: {'terminated (' + str(e) + ')' if isinstance(e, Terminated) else 'interrupted'}; nothing was written",
               file=sys.stderr)  # fmt: skip
         return exit_status(e)
+    except BrokenPipeError:  # stdout closed by the reader (`| head`): stop quietly, as other tools do
+        devnull = os.open(os.devnull, os.O_WRONLY)
+        os.dup2(devnull, sys.stdout.fileno())  # so that Python's own flush at exit does not fail again
+        return 128 + 13  # SIGPIPE
     except Exception as e:
         if args.verbose:
             traceback.print_exc()

@@ -136,7 +136,8 @@ def write_scene(
     ends = ", ".join(e.kind for e in extracted.ends)
     stage.GetRootLayer().documentation = (
         f"warp_tube scene extracted from {os.path.basename(str(extracted.source))}: {n} hubs x {spokes} spokes, "
-        f"{extracted.length:.4g} units long, ends {ends}, {len(extracted.branches)} side branch{'' if len(extracted.branches) == 1 else 'es'} left out.\n"
+        f"{extracted.length + sum(e.trimmed for e in extracted.ends):.4g} units long tip to tip ({extracted.length:.4g} "
+        f"between its end hubs), ends {ends}, {len(extracted.branches)} side branch{'' if len(extracted.branches) == 1 else 'es'} left out.\n"
         "Success criteria: the tube bends smoothly under the push on its middle hub (frames 0-48), is "
         "released at frame 60 and returns to its extracted rest shape, held by its anchored ends.\n"
         f"Runs: `warp-tube run {os.path.basename(path_usda)}`."
