@@ -319,6 +319,34 @@ def test_bad_requests(tmp_path, capsys):
     assert not (tmp_path / "o").exists()
 
 
+def test_a_column_that_sets_what_a_crossed_variant_set_sets_is_warned_of(tmp_path, caplog):
+    """The table's value wins in every choice of the variantSet (identical variants): said once."""
+    from pxr import Sdf, Usd
+
+    scene = tmp_path / "sets.usda"
+    Sdf.Layer.FindOrOpen(str(DEFAULT)).Export(str(scene))
+    st = Usd.Stage.Open(str(scene))
+    vset = st.GetPrimAtPath("/World/Tube").GetVariantSets().AddVariantSet("stiffness")
+    for name, e in (("soft", 6e4), ("stiff", 3e5)):
+        vset.AddVariant(name)
+        vset.SetVariantSelection(name)
+        with vset.GetVariantEditContext():
+            st.GetPrimAtPath("/World/Tube").GetAttribute("warptube:youngsModulus").Set(e)
+    st.GetRootLayer().Save()
+    from warp_tube.batch.table import read_table
+    from warp_tube.batch.variants import prepare_variants
+
+    for header, warned in (([E], True), (["/World/Tube.warptube:density"], False)):
+        caplog.clear()
+        table = write_table(tmp_path / "t.csv", header, [("90000",), ("95000",)] if warned else [("1000",), ("1100",)])
+        with caplog.at_level("WARNING", logger="warp_tube.batch.variants"):
+            assert len(prepare_variants(str(scene), read_table(str(table)), "all")) == 4
+        said = [r.getMessage() for r in caplog.records if "set what variantSet" in r.getMessage()]
+        assert len(said) == (1 if warned else 0), said
+        if warned:
+            assert E in said[0] and "/World/Tube{stiffness}" in said[0]
+
+
 def test_points_from_files_and_variant_sets(tmp_path):
     """A file column gives each variant its own rest shape; a scene's variantSet crossed with the
     table gives rows x variants, row-major; each equals its variant run alone."""

@@ -27,6 +27,8 @@ from .fastread import PlainColumns
 from .table import Table
 from .values import CONTRACT_TYPES, parse_value
 
+log = logging.getLogger(__name__)
+
 __all__ = ["VariantSetAxis", "Variant", "Variants", "find_variant_sets", "select_variant_sets", "prepare_variants",
            "collect_variants", "raise_problems", "plain_table"]
 
@@ -102,6 +104,31 @@ def find_variant_sets(stage) -> list[VariantSetAxis]:
             if choices:
                 out.append(VariantSetAxis(prim=str(prim.GetPath()), name=name, choices=choices))
     return out
+
+
+def _authored_in(stage, axis: VariantSetAxis) -> set[str]:
+    """``PRIM_PATH.ATTRIBUTE`` of every attribute some variant of ``axis`` authors."""
+    out: set[str] = set()
+    for spec in stage.GetPrimAtPath(axis.prim).GetPrimStack():
+        if axis.name not in spec.variantSets:
+            continue
+        for variant in spec.variantSets[axis.name].variantList:
+            todo = [(variant.primSpec, axis.prim)]
+            while todo:
+                prim_spec, path = todo.pop()
+                out.update(f"{path}.{a.name}" for a in prim_spec.attributes)
+                todo += [(child, f"{path}/{child.name}".replace("//", "/")) for child in prim_spec.nameChildren]
+    return out
+
+
+def _warn_overridden(stage, axes: list[VariantSetAxis], table: Table) -> None:
+    """Warn of table columns that set an attribute a crossed variantSet also sets: the table's
+    value wins in every combination, so the variantSet's choices give the same scenes."""
+    for axis in axes:
+        both = [col.target for col in table.columns if col.target in _authored_in(stage, axis)]
+        if both:
+            log.warning("%s: column(s) %s set what variantSet %s sets: the table's value wins in every one of its %d "
+                        "choices", table.path, ", ".join(both), axis.label, len(axis.choices))  # fmt: skip
 
 
 def select_variant_sets(axes: list[VariantSetAxis], spec: str, scene_path: str) -> list[VariantSetAxis]:
@@ -290,6 +317,8 @@ def _collect(scene_path, table, variant_sets, extract, progress):
     reader = SceneReader(stage, scene_path, extract)
     reader.read()  # the scene as it is must be valid
     axes = select_variant_sets(find_variant_sets(stage), variant_sets, scene_path) if variant_sets else []
+    if table is not None and axes and table.first_row == 0:  # (once, not per part of the table)
+        _warn_overridden(stage, axes, table)
     combos = list(itertools.product(*[a.choices for a in axes]))
     n_rows = len(table.rows) if table is not None else 1
     total_rows = (table.first_row + n_rows) if table is not None else 1
