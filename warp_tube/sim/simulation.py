@@ -47,6 +47,8 @@ MAX_RETRY_FACTOR = 16
 #: long run only (implicit substeps cost IMPLICIT_COST_RATIO times more); benchmarks/bench_estimates.py
 #: measures it (0.18 us for the 21 points and assistant line of the default scene on a busy core).
 CPU_SEMI_STEP_COST = 0.15e-6
+#: a run whose output is estimated to hold more than this [bytes] is announced before it starts.
+LARGE_OUTPUT_BYTES = 4e9
 #: a run estimated to take longer than this [s] is announced with its estimate before it starts.
 LONG_RUN_SECONDS = 60.0
 #: environment variable that pauses a run at a known point, for the interrupt tests:
@@ -419,6 +421,8 @@ class Simulation:
         )  # fmt: skip
         self.last_summary = summary
         self._announce_long_run(end - 1 - first)
+        if writer:
+            self._announce_large_output(len(written))
         pause = os.environ.get(PAUSE_ENV, "")
         bar = beat = None
         startup = Phase("compiling kernels (first run only) and simulating frame 1", enabled=bool(progress), after=0.5)
@@ -512,6 +516,23 @@ class Simulation:
         log.warning(
             "this run will take about %s: %s frames x %s substeps a frame (%s) x %s points; --frames N runs fewer frames",
             format_seconds(seconds), f"{frames:,}", f"{self.substeps:,}", self.reason, f"{self.model.node_count:,}",
+        )  # fmt: skip
+
+
+    def output_bytes_per_frame(self) -> int:
+        """Bytes a written frame adds to the output (float32 centerline points, and surface points
+        and normals)."""
+        vertices = sum(b.vertex_count for b in self.surfaces) if self.surfaces else 0
+        return 12 * (self.model.node_count + 2 * vertices)
+
+    def _announce_large_output(self, frames: int) -> None:
+        """Warn before a run whose output gets large (usd-core holds it in memory until it is saved)."""
+        size = frames * self.output_bytes_per_frame()
+        if size < LARGE_OUTPUT_BYTES:
+            return
+        log.warning(
+            "the output will hold about %.1f GB (%s frames x %s bytes), kept in memory until the run ends; "
+            "--every K or --frames N write fewer frames", size / 1e9, f"{frames:,}", f"{self.output_bytes_per_frame():,}",
         )  # fmt: skip
 
 
