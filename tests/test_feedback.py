@@ -161,6 +161,22 @@ def test_a_long_run_is_announced_with_its_estimate_and_why(caplog):
     assert caplog.records == []
 
 
+def test_a_large_output_is_announced_with_its_size(caplog):
+    """Bytes per frame from the exact geometry: 12 bytes per float32 point, the centerline's 21
+    points and the surface's points and normals; the warning only above the limit."""
+    from warp_tube.sim.simulation import LARGE_OUTPUT_BYTES
+
+    sim = Simulation(warp_tube.load_scene(str(SCENES / "default.usda")), device="cpu")
+    vertices = sum(b.vertex_count for b in sim.surfaces)
+    assert sim.output_bytes_per_frame() == 12 * (21 + 2 * vertices)
+    frames = int(np.ceil(1.5 * LARGE_OUTPUT_BYTES / sim.output_bytes_per_frame()))
+    with caplog.at_level(logging.WARNING):
+        sim._announce_large_output(frames)
+        sim._announce_large_output(10)
+    (msg,) = [r.getMessage() for r in caplog.records]
+    assert "the output will hold about 6.0 GB" in msg and f"{frames:,} frames" in msg and "--every K" in msg
+
+
 def test_phase_status_line_appears_only_for_long_phases(capsys):
     import time
 
