@@ -38,6 +38,10 @@ TABLE_END = "<!-- end of the bad-input table -->"
 FORBIDDEN = ("Traceback (most recent call last)", "pxrInternal", "Error in '", "Warning: in ")
 
 
+POINT_CLOUD = (b"ply\nformat ascii 1.0\nelement vertex 3\nproperty float x\nproperty float y\nproperty float z\n"
+               b"end_header\n0 0 0\n1 0 0\n0 1 0\n")
+
+
 def scene(*edits: tuple[str, str]) -> str:
     """The default scene (two frames) with text replacements; each ``old`` must occur."""
     text = DEFAULT_SCENE.replace("endTimeCode = 96", "endTimeCode = 2")
@@ -296,6 +300,7 @@ def cases() -> list[Case]:
     ext("no such mesh", ["gone.stl", "-o", "s.usda"])
     ext("text that is not a mesh", ["bad.ply", "-o", "s.usda"], files={"bad.ply": "not a mesh\n"})
     ext("empty mesh file", ["empty.stl", "-o", "s.usda"], files={"empty.stl": b""})
+    ext("a point cloud (no faces)", ["pts.ply", "-o", "s.usda"], files={"pts.ply": POINT_CLOUD})
     ext("-o the mesh itself", ["mesh.ply", "-o", "mesh.ply"])
     ext("-o a .usda link to the mesh", ["mesh.ply", "-o", "alias.usda"], files={"alias.usda": _symlink_to("mesh.ply")})
     ext("-o with a non-USD extension", ["mesh.ply", "-o", "scene.json"])

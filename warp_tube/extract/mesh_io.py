@@ -124,6 +124,13 @@ def load_mesh(path, scale=(1.0, 1.0, 1.0)) -> trimesh.Trimesh:
         raise SceneError(f"{path}: cannot read as a mesh ({type(e).__name__}: {e})") from None
     if isinstance(mesh, trimesh.Scene) or not hasattr(mesh, "faces"):
         raise SceneError(f"{path}: holds no triangle faces: expected a surface mesh")
+    if len(mesh.faces) == 0:
+        try:
+            points = len(trimesh.load(path, process=False).vertices)  # as the file has them (a point cloud)
+        except Exception:
+            points = 0
+        if points:
+            raise SceneError(f"{path}: {points} points and no faces (a point cloud): expected a surface mesh")
     return clean_mesh(mesh, path, scale)
 
 
