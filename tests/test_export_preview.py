@@ -109,3 +109,14 @@ def test_preview_contact_sheet(stage_path, tmp_path):
     rows = [np.nonzero(t)[0].mean() for t in tiles]
     moved = np.hypot(np.diff(cols), np.diff(rows))
     assert np.all(moved > 2.0)  # pixels; the fitted scale is ~64 px per 27 units, so ~10 px per frame
+
+
+def test_preview_tiles_carry_their_frame(stage_path, tmp_path):
+    """Tiles of 96 pixels or more name their time code at the bottom left (dark text on the
+    background); the rest of the tile is as without it."""
+    size = 128
+    img = np.asarray(Image.open(preview(stage_path, tmp_path / "sheet.png", frames=2, size=size, device="cpu")).convert("RGB")).astype(int)
+    for k in range(2):
+        corner = img[size - 18 :, k * size : k * size + 60]
+        dark = np.all(np.abs(corner - [70, 70, 70]) < 40, axis=2)
+        assert dark.sum() > 10  # the label's strokes

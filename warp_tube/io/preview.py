@@ -21,6 +21,8 @@ __all__ = ["preview"]
 
 BACKGROUND = np.array([245, 245, 242], dtype=np.float64)
 TISSUE = np.array([214, 120, 112], dtype=np.float64)
+LABEL = (70, 70, 70)  # the frame label's colour (RGB)
+LABEL_MIN_TILE = 96  # tiles smaller than this [pixels] get no label
 
 
 def _pick_frames(times: list[float], count: int) -> list[float]:
@@ -109,5 +111,12 @@ def preview(usd_path, png_path, frames: int = 4, size: int = 320, device=None) -
         shade = image.numpy()[..., None].astype(np.float64)
         tile = np.where(shade < 0.0, BACKGROUND, TISSUE * np.clip(shade, 0.0, 1.0))
         sheet[:, k * size : (k + 1) * size] = np.clip(np.round(tile), 0, 255).astype(np.uint8)
-    write_atomically(png_path, lambda tmp: Image.fromarray(sheet).save(tmp, format="PNG"))
+    picture = Image.fromarray(sheet)
+    if size >= LABEL_MIN_TILE:  # each tile's time code at its bottom left (too small a tile: none)
+        from PIL import ImageDraw
+
+        draw = ImageDraw.Draw(picture)
+        for k, time in enumerate(shown):
+            draw.text((k * size + 6, size - 16), f"frame {time:g}", fill=LABEL)
+    write_atomically(png_path, lambda tmp: picture.save(tmp, format="PNG"))
     return png_path
