@@ -273,6 +273,11 @@ def test_bad_header_and_rows(tmp_path, capsys):
     assert "row 1 (line 3): 1 cells for 2 columns" in err
     err = _bad(tmp_path, capsys, [E, E], [("1e5", "2e5")])
     assert "both set /World/Tube.warptube:youngsModulus" in err
+    raw = tmp_path / "unquoted.csv"  # a vector cell left unquoted: its commas split it
+    raw.write_text(f"{FORCE}\n(0, 0.02, 0)\n")
+    assert cli(["batch", str(DEFAULT), "--variants", str(raw), "-o", str(tmp_path / "o2"), "--frames", "2"]) == 2
+    err = capsys.readouterr().err
+    assert "3 cells for 1 columns" in err and 'quote its cell, e.g. "(0, 0.02, 0)"' in err
 
 
 def test_bad_columns(tmp_path, capsys):

@@ -121,7 +121,10 @@ def read_table(path: str) -> Table:
     for line, row in records[1:]:
         if len(row) != len(columns):
             r = len(rows)
-            raise SceneError(f"{path}: row {r} (line {line}): {len(row)} cells for {len(columns)} columns")
+            hint = ""
+            if len(row) > len(columns) and any(c.strip()[:1] in "([" or c.strip()[-1:] in ")]" for c in row):
+                hint = ': a vector or array holds commas, so quote its cell, e.g. "(0, 0.02, 0)"'
+            raise SceneError(f"{path}: row {r} (line {line}): {len(row)} cells for {len(columns)} columns{hint}")
         rows.append(tuple(cell.strip() for cell in row))
         lines.append(line)
     if not rows:
