@@ -324,8 +324,9 @@ def test_bad_requests(tmp_path, capsys):
     assert not (tmp_path / "o").exists()
 
 
-def test_a_column_that_sets_what_a_crossed_variant_set_sets_is_warned_of(tmp_path, caplog):
-    """The table's value wins in every choice of the variantSet (identical variants): said once."""
+def stiffness_sets_scene(tmp_path):
+    """The default scene with a variantSet ``stiffness`` on /World/Tube: ``soft`` (youngsModulus
+    6e4 Pa, selected) and ``stiff`` (3e5 Pa)."""
     from pxr import Sdf, Usd
 
     scene = tmp_path / "sets.usda"
@@ -337,7 +338,14 @@ def test_a_column_that_sets_what_a_crossed_variant_set_sets_is_warned_of(tmp_pat
         vset.SetVariantSelection(name)
         with vset.GetVariantEditContext():
             st.GetPrimAtPath("/World/Tube").GetAttribute("warptube:youngsModulus").Set(e)
+    vset.SetVariantSelection("soft")
     st.GetRootLayer().Save()
+    return scene
+
+
+def test_a_column_that_sets_what_a_crossed_variant_set_sets_is_warned_of(tmp_path, caplog):
+    """The table's value wins in every choice of the variantSet (identical variants): said once."""
+    scene = stiffness_sets_scene(tmp_path)
     from warp_tube.batch.table import read_table
     from warp_tube.batch.variants import prepare_variants
 
@@ -357,17 +365,7 @@ def test_points_from_files_and_variant_sets(tmp_path):
     table gives rows x variants, row-major; each equals its variant run alone."""
     from pxr import Sdf, Usd
 
-    scene = tmp_path / "sets.usda"
-    Sdf.Layer.FindOrOpen(str(DEFAULT)).Export(str(scene))
-    st = Usd.Stage.Open(str(scene))
-    vset = st.GetPrimAtPath("/World/Tube").GetVariantSets().AddVariantSet("stiffness")
-    for name, e in (("soft", 6e4), ("stiff", 3e5)):
-        vset.AddVariant(name)
-        vset.SetVariantSelection(name)
-        with vset.GetVariantEditContext():
-            st.GetPrimAtPath("/World/Tube").GetAttribute("warptube:youngsModulus").Set(e)
-    vset.SetVariantSelection("soft")
-    st.GetRootLayer().Save()
+    scene = stiffness_sets_scene(tmp_path)
     x = np.linspace(0, 20, 21)
     np.save(tmp_path / "bent.npy", np.stack([x, 0.02 * (x - 10) ** 2 - 2, 0 * x], 1))
     table = write_table(tmp_path / "t.csv", ["@/World/Tube.points"], [("bent.npy",), ("straight.csv",)])
