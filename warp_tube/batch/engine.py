@@ -204,10 +204,10 @@ def _reset_worlds(state, rest32, rest, dead) -> None:
 
 def _run_alone(scene: Scene, w: int, device: str, frames: int, every: int, surface: bool, arrays: dict, tip: int) -> dict:
     """Run variant ``scene`` alone as ``warp-tube run`` does, into world ``w`` of the arrays."""
-    from ..centerline.policy import silenced
+    from ..runtime.log_filters import silenced
     from ..sim.simulation import NumericalError, Simulation
 
-    with silenced():  # its integrator was warned of with the batch's
+    with silenced("warp_tube.centerline.policy"):  # its integrator was warned of with the batch's
         sim = Simulation(scene, device=device, surface=surface)
     h = sim.model.host
     mpu = scene.stage.meters_per_unit

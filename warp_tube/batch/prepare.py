@@ -18,7 +18,7 @@ from concurrent.futures.process import BrokenProcessPool
 
 import numpy as np
 
-from ..centerline.policy import silenced
+from ..runtime.log_filters import silenced
 from ..scene.spec import SceneError
 from .execute import ignore_sigint
 from .plan import run_choice, run_choices
@@ -139,7 +139,7 @@ def warn_forced(variants, choices) -> None:
 def checked_run_choices(variants) -> list:
     """Each variant's integrator and substeps alone; a variant whose settings no integrator takes
     (e.g. implicit Euler with an assistant line) is a bad row, reported with the others."""
-    with silenced():  # one warning for the batch instead (warn_forced)
+    with silenced("warp_tube.centerline.policy"):  # one warning for the batch instead (warn_forced)
         return _checked_run_choices(variants)
 
 

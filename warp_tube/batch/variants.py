@@ -15,13 +15,13 @@ reported together, each naming the row, the column and what is wrong.
 
 from __future__ import annotations
 
-import contextlib
 import itertools
 import logging
 from dataclasses import dataclass
 
 import numpy as np
 
+from ..runtime.log_filters import once_each, silenced
 from ..scene.spec import Scene, SceneError
 from .fastread import PlainColumns
 from .table import Table
@@ -235,15 +235,12 @@ def plain_table(scene_path: str, table: Table | None) -> bool:
         return False
     from ..scene.usd import SceneReader, open_stage
 
-    logger, quiet = logging.getLogger("warp_tube.scene.usd"), logging.Filter("nothing")  # warnings: once, by the real read
-    logger.addFilter(quiet)
-    try:
-        stage = open_stage(scene_path)
-        base = SceneReader(stage, scene_path).read()
-    except SceneError:
-        return False
-    finally:
-        logger.removeFilter(quiet)
+    with silenced("warp_tube.scene.usd"):  # warnings: once, by the real read
+        try:
+            stage = open_stage(scene_path)
+            base = SceneReader(stage, scene_path).read()
+        except SceneError:
+            return False
     columns = _resolve_columns(stage, table, scene_path)
     if any(msg for _, _, msg in columns):
         return False
@@ -257,31 +254,6 @@ def raise_problems(problems: list) -> None:
         head = [msg for _, msg in problems[:MAX_PROBLEMS]]
         more = f"\n  ... and {len(problems) - MAX_PROBLEMS} more" if len(problems) > MAX_PROBLEMS else ""
         raise SceneError(f"{len(problems)} problem(s) in the variants; nothing was run:\n  " + "\n  ".join(head) + more)
-
-
-class _Once(logging.Filter):
-    """Lets each distinct message through once (the same warning for every variant is one)."""
-
-    def __init__(self):
-        super().__init__()
-        self.seen = set()
-
-    def filter(self, record) -> bool:
-        message = record.getMessage()
-        if message in self.seen:
-            return False
-        self.seen.add(message)
-        return True
-
-
-@contextlib.contextmanager
-def _warn_once(name: str):
-    logger, once = logging.getLogger(name), _Once()
-    logger.addFilter(once)
-    try:
-        yield
-    finally:
-        logger.removeFilter(once)
 
 
 def collect_variants(scene_path: str, table: Table | None = None, variant_sets: str | None = None, extract=None,
@@ -302,7 +274,7 @@ def collect_variants(scene_path: str, table: Table | None = None, variant_sets: 
     Raises:
         SceneError: the scene itself is invalid, or the request is (``variant_sets``, no table).
     """
-    with _warn_once("warp_tube.scene.usd"):  # a scene's warning, once, not once per variant
+    with once_each("warp_tube.scene.usd"):  # a scene's warning, once, not once per variant
         return _collect(scene_path, table, variant_sets, extract, progress)
 
 

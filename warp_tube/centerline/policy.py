@@ -9,7 +9,6 @@ printed in the run summary.
 
 from __future__ import annotations
 
-import contextlib
 import logging
 import math
 from dataclasses import dataclass
@@ -56,23 +55,6 @@ def implicit_substeps(frame_dt: float, time_step: float | None = None) -> int:
     """Implicit Euler's substeps per frame of ``frame_dt`` [s] (substep ``time_step`` [s] or
     :data:`IMPLICIT_DT`, at most a frame)."""
     return max(1, math.ceil(frame_dt / min(time_step or IMPLICIT_DT, frame_dt) - 1e-9))
-
-
-class _Silent(logging.Filter):
-    def filter(self, record) -> bool:
-        return False
-
-
-@contextlib.contextmanager
-def silenced():
-    """Hold back this module's warnings (a batch gives one for all its variants instead of one
-    per variant)."""
-    silent = _Silent()
-    log.addFilter(silent)
-    try:
-        yield
-    finally:
-        log.removeFilter(silent)
 
 
 def choose_integrator(settings: SimulationSettings, critical_dt: float, frame_dt: float,
