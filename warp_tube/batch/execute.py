@@ -153,7 +153,7 @@ def _sim_write_task(payload):
 
     for f in futures:
         f.add_done_callback(written)
-    return run.rows, run.timings
+    return run.rows, None, run.timings
 
 
 def _dask_task(payload):
@@ -490,17 +490,14 @@ def run_pooled(todo, devices, workers: SimWorkers, context, result) -> None:
                 cf.wait(waiting, return_when=cf.FIRST_COMPLETED)
             for fut in [f for f in simulating if f.done()]:
                 c = simulating.pop(fut)
+                rows, paths, timings = fut.result()  # paths None: the worker writes the chunk itself
+                _add_timings(result, timings)
+                bar.frames(len(c.indices) * max(context["frames"] - 1, 1))
                 if by_workers:
-                    rows, timings = fut.result()
-                    _add_timings(result, timings)
-                    bar.frames(len(c.indices) * max(context["frames"] - 1, 1))
                     writing[c.id] = ((), rows)  # reported on the done queue once written
                     if c.id in early:
                         finish_written(c.id, *early.pop(c.id))
                     continue
-                rows, paths, timings = fut.result()
-                _add_timings(result, timings)
-                bar.frames(len(c.indices) * max(context["frames"] - 1, 1))
                 tasks = _with_rows(_write_tasks(c, context, max(1, writers.count // len(devices))), rows, paths)
                 writing[c.id] = ([pool.submit(_timed_write, t) for t in tasks], rows)
             for cid in [cid for cid, (fs, _) in writing.items() if fs and all(f.done() for f in fs)]:

@@ -125,7 +125,8 @@ def _warn_overridden(stage, axes: list[VariantSetAxis], table: Table) -> None:
     """Warn of table columns that set an attribute a crossed variantSet also sets: the table's
     value wins in every combination, so the variantSet's choices give the same scenes."""
     for axis in axes:
-        both = [col.target for col in table.columns if col.target in _authored_in(stage, axis)]
+        authored = _authored_in(stage, axis)
+        both = [col.target for col in table.columns if col.target in authored]
         if both:
             log.warning("%s: column(s) %s set what variantSet %s sets: the table's value wins in every one of its %d "
                         "choices", table.path, ", ".join(both), axis.label, len(axis.choices))  # fmt: skip
