@@ -15,10 +15,10 @@ import sys
 import traceback
 from importlib import resources
 
-from .runtime.interrupts import Terminated, exit_status, terminate_as_interrupt
+from .runtime.interrupts import exit_status, stopped_by, terminate_as_interrupt
 from .scene.spec import SceneError
 
-EXIT_OK, EXIT_INTERNAL, EXIT_INPUT, EXIT_NUMERICAL, EXIT_INTERRUPTED = 0, 1, 2, 3, 130
+EXIT_OK, EXIT_INTERNAL, EXIT_INPUT, EXIT_NUMERICAL = 0, 1, 2, 3
 #: model set-up time per centerline point [s] (build_model and the surface topology, measured by
 #: benchmarks/bench_estimates.py: 0.4 ms on a busy CPU core), for the up-front warning of a long build.
 BUILD_SECONDS_PER_POINT = 0.5e-3
@@ -137,7 +137,7 @@ def _cmd_run(a) -> int:
         return _stopped(sim, out, f"{e}", EXIT_NUMERICAL, a.quiet)
     except KeyboardInterrupt as e:
         s = sim.last_summary
-        how = f"terminated ({e})" if isinstance(e, Terminated) else "interrupted"
+        how = stopped_by(e)
         if s.frames == 0 and s.frames_simulated == 0:
             why = f"{how} during start-up (kernel compilation), before any frame was finished"
         else:
@@ -308,8 +308,7 @@ def main(argv=None) -> int:
         print(f"warp-tube: {e}", file=sys.stderr)
         return EXIT_INPUT
     except KeyboardInterrupt as e:
-        print(f"warp-tube: {'terminated (' + str(e) + ')' if isinstance(e, Terminated) else 'interrupted'}; nothing was written",
-              file=sys.stderr)  # fmt: skip
+        print(f"warp-tube: {stopped_by(e)}; nothing was written", file=sys.stderr)
         return exit_status(e)
     except BrokenPipeError:  # stdout closed by the reader (`| head`): stop quietly, as other tools do
         devnull = os.open(os.devnull, os.O_WRONLY)

@@ -2,7 +2,6 @@
 
 from __future__ import annotations
 
-import signal
 import sys
 
 __all__ = ["add_parser", "run"]
@@ -33,6 +32,7 @@ def add_parser(sub) -> None:
 def run(a) -> int:
     """Run the parsed ``batch`` command; returns the exit status."""
     from ..scene.spec import SceneError
+    from ..runtime.interrupts import exit_status, stopped_by
     from .run import BatchInterrupted, run_batch
 
     if a.surface_arrays and a.layout != "arrays":
@@ -49,9 +49,8 @@ def run(a) -> int:
         )  # fmt: skip
     except BatchInterrupted as e:
         print(e.result.text(), file=sys.stderr)
-        how = f"terminated ({e.signal_name})" if e.signum != signal.SIGINT else "interrupted"
-        print(f"warp-tube: {how}; the finished variants are kept: --resume goes on", file=sys.stderr)
-        return 128 + e.signum
+        print(f"warp-tube: {stopped_by(e)}; the finished variants are kept: --resume goes on", file=sys.stderr)
+        return exit_status(e)
     except OSError as e:
         print(f"warp-tube: batch: {e}", file=sys.stderr)
         return 2

@@ -58,10 +58,6 @@ class BatchInterrupted(KeyboardInterrupt):
         self.result = result
         self.signum = int(signum)
 
-    @property
-    def signal_name(self) -> str:
-        return signal.Signals(self.signum).name
-
 
 @dataclass
 class BatchResult:

@@ -18,7 +18,7 @@ import contextlib
 import signal
 import threading
 
-__all__ = ["kept_interrupts", "raise_if_interrupted", "terminate_as_interrupt", "Terminated", "exit_status"]
+__all__ = ["kept_interrupts", "raise_if_interrupted", "terminate_as_interrupt", "Terminated", "exit_status", "stopped_by"]
 
 _pending = None  # the signal (SIGINT, SIGTERM, SIGHUP) that arrived and may not have been delivered
 
@@ -38,6 +38,13 @@ class Terminated(KeyboardInterrupt):
 def exit_status(e: BaseException) -> int:
     """The exit status of a command stopped by ``e``: 128 + the signal's number (130 for Ctrl-C)."""
     return 128 + int(getattr(e, "signum", signal.SIGINT))
+
+
+def stopped_by(e: BaseException) -> str:
+    """How a command stopped by ``e`` (an interrupt carrying ``signum``, or Ctrl-C) says it
+    stopped: ``interrupted`` or ``terminated (SIGTERM)``."""
+    signum = int(getattr(e, "signum", signal.SIGINT))
+    return "interrupted" if signum == signal.SIGINT else f"terminated ({signal.Signals(signum).name})"
 
 
 def _interrupt(signum: int) -> KeyboardInterrupt:
