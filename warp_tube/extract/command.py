@@ -11,7 +11,7 @@ from ..runtime.progress import Phase
 from .fidelity import Fidelity
 from .mesh_io import load_mesh
 from .pipeline import ExtractedTube, extract_centerline
-from .tube_check import size_warning, summary_line, tube_warnings
+from .tube_check import side_branches, size_warning, summary_line, tube_warnings
 from .usd import write_scene
 
 __all__ = ["extract_to_scene", "Extraction"]
@@ -86,7 +86,6 @@ def extract_to_scene(mesh_path, output, *, hubs=None, spokes=16, scale=None, dev
     warnings += found
     with Phase(f"writing {os.path.basename(output)}", enabled=progress):
         write_scene(tube, output, meters_per_unit=1.0, inputs=[mesh_path])
-    nb = len(tube.branches)
-    log.info("%s: %d hubs x %d spokes, %.4g m, %d side branch%s -> %s (%.2f s)", mesh_path, tube.hubs,
-             tube.spokes, tube.length, nb, "" if nb == 1 else "es", output, tube.timings["total"])  # fmt: skip
+    log.info("%s: %d hubs x %d spokes, %.4g m, %s -> %s (%.2f s)", mesh_path, tube.hubs, tube.spokes, tube.length,
+             side_branches(len(tube.branches)), output, tube.timings["total"])  # fmt: skip
     return Extraction(tube, fid, output, warnings, given)

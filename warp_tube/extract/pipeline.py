@@ -186,6 +186,11 @@ class ExtractedTube:
         return float(arclength(self.points)[-1])
 
     @property
+    def tip_to_tip(self) -> float:
+        """Length from end to end [mesh units]: the hubs' span and what was trimmed at the ends."""
+        return self.length + sum(e.trimmed for e in self.ends)
+
+    @property
     def caps(self) -> bool:
         """Whether the scene closes the tube with caps (both ends rounded and closed)."""
         return all(e.kind == "closed" for e in self.ends)

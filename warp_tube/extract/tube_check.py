@@ -74,10 +74,13 @@ def size_warning(hubs: int, spokes: int) -> str | None:
     )
 
 
+def side_branches(count: int) -> str:
+    """``1 side branch``, ``3 side branches``."""
+    return f"{count} side branch{'' if count == 1 else 'es'}"
+
+
 def summary_line(tube, fidelity, output: str, units: str = "m") -> str:
-    """One line about an extraction: hubs, length (tip to tip: the hubs' span and what was trimmed at
-    the ends), radius range, ends, branches, fit."""
-    reach = tube.length + sum(e.trimmed for e in tube.ends)
+    """One line about an extraction: hubs, length (tip to tip), radius range, ends, branches, fit."""
     ends = "/".join(e.kind for e in tube.ends)
     fit = "fit not measured"
     if fidelity is not None:
@@ -88,7 +91,7 @@ def summary_line(tube, fidelity, output: str, units: str = "m") -> str:
             else "fit not measurable"
         )
     return (
-        f"{output}: {tube.hubs} hubs x {tube.spokes} spokes, {reach:.4g} {units} long, radius "
-        f"{tube.radius.min():.3g}-{tube.radius.max():.3g} {units}, ends {ends}, {len(tube.branches)} side "
-        f"branch{'' if len(tube.branches) == 1 else 'es'} left out, {fit}"
+        f"{output}: {tube.hubs} hubs x {tube.spokes} spokes, {tube.tip_to_tip:.4g} {units} long, radius "
+        f"{tube.radius.min():.3g}-{tube.radius.max():.3g} {units}, ends {ends}, {side_branches(len(tube.branches))} "
+        f"left out, {fit}"
     )

@@ -45,7 +45,7 @@ def check(tube: ExtractedTube, open_rays: np.ndarray, *, hubs_given: bool) -> li
     """
     out = []
     radius = float(tube.spoke_lengths.mean())
-    reach = tube.length + sum(e.trimmed for e in tube.ends)
+    reach = tube.tip_to_tip
     if reach < MIN_LENGTH_RADII * radius:
         out.append(
             f"{NOT_A_TUBE}: {reach / radius:.1f} mean radii long from end to end (mean radius {radius:.4g}); "

@@ -31,6 +31,7 @@ from .pipeline import ExtractedTube, extract_centerline
 from ..model.frames import rotation_minimizing_frames
 from .mesh_io import load_usd_mesh
 from .polyline import arclength
+from .tube_check import side_branches
 from ..scene.spec import FRAME_MODES, SceneError, StageInfo, TubeParams, TubeSpec
 
 __all__ = ["write_scene", "tube_from_mesh_prim", "prim_name", "push_force"]
@@ -50,8 +51,10 @@ def prim_name(text: str) -> str:
 
 
 def push_force(tube: ExtractedTube, meters_per_unit: float, youngs_modulus: float) -> np.ndarray:
-    """Force [N] on the middle hub that bends the tube by about two mean radii.
+    """Force [N] on the middle hub that would bend a straight tube by about two mean radii.
 
+    An estimate (``warp-tube extract`` then sizes the written push by simulating the scene,
+    :mod:`warp_tube.sim.calibrate`: a winding tube is held like an arch and moves far less).
     From the midpoint load of a simply supported beam, ``F = 48 E I d / L^3`` with ``d = 2 r``,
     ``I = pi r^4 / 4`` (mean radius r, length L, in metres); directed along the middle hub's
     spoke-0 direction (perpendicular to the tube there).
@@ -136,8 +139,8 @@ def write_scene(
     ends = ", ".join(e.kind for e in extracted.ends)
     stage.GetRootLayer().documentation = (
         f"warp_tube scene extracted from {os.path.basename(str(extracted.source))}: {n} hubs x {spokes} spokes, "
-        f"{extracted.length + sum(e.trimmed for e in extracted.ends):.4g} units long tip to tip ({extracted.length:.4g} "
-        f"between its end hubs), ends {ends}, {len(extracted.branches)} side branch{'' if len(extracted.branches) == 1 else 'es'} left out.\n"
+        f"{extracted.tip_to_tip:.4g} units long tip to tip ({extracted.length:.4g} between its end hubs), ends {ends}, "
+        f"{side_branches(len(extracted.branches))} left out.\n"
         "Success criteria: the tube bends smoothly under the push on its middle hub (frames 0-48), is "
         "released at frame 60 and returns to its extracted rest shape, held by its anchored ends.\n"
         f"Runs: `warp-tube run {os.path.basename(path_usda)}`."
