@@ -41,6 +41,7 @@ class Journal:
         self.dir = os.path.join(out_dir, ".batch")
         self.chunk_dir = os.path.join(self.dir, "chunks")
         self.state_path = os.path.join(self.dir, "state.json")
+        self.signature: dict | None = None  # set by begin()
 
     def exists(self) -> bool:
         return os.path.exists(self.state_path)
@@ -78,6 +79,7 @@ class Journal:
         Raises:
             SceneError: resuming a batch whose inputs or options differ (naming what differs).
         """
+        self.signature = signature
         if resume and self.exists():
             with open(self.state_path, encoding="utf-8") as f:
                 old = json.load(f)
@@ -102,10 +104,9 @@ class Journal:
         self._atomic(os.path.join(self.chunk_dir, f"chunk_{chunk:05d}.json"), dict(record, chunk=chunk))
 
     def finish(self) -> None:
-        """The batch is complete: keep its signature beside the outputs, remove the record."""
-        with open(self.state_path, encoding="utf-8") as f:
-            signature = json.load(f)
-        self._atomic(self.finished_path, signature)
+        """The batch is complete: keep its signature (as :meth:`begin` had it) beside the outputs,
+        remove the record."""
+        self._atomic(self.finished_path, self.signature)
         shutil.rmtree(self.dir, ignore_errors=True)
 
     @staticmethod
