@@ -51,10 +51,10 @@ def collect(tmp_path, monkeypatch, plain: bool):
 
 def test_plain_columns_give_the_scenes_the_stage_gives(tmp_path, monkeypatch, caplog):
     made = []
-    scene_of = variants_mod.PlainColumns.scene
-    monkeypatch.setattr(variants_mod.PlainColumns, "scene", lambda self, values: made.append(scene_of(self, values)) or made[-1])
+    scenes_of = variants_mod.PlainColumns.scenes
+    monkeypatch.setattr(variants_mod.PlainColumns, "scenes", lambda self, columns: made.extend(scenes_of(self, columns)) or made)
     fast, fast_problems = collect(tmp_path, monkeypatch, plain=True)
-    # rows 0, 1 and 6 made from the base scene; the others read through the stage
+    # rows 0, 1 and 6 made from the base scene (all rows at once); the others read through the stage
     assert [m is not None for m in made] == [True, True, False, False, False, False, True]
     fast_log = [r.getMessage() for r in caplog.records]
     caplog.clear()
@@ -81,10 +81,6 @@ def test_columns_not_taken_fall_back_to_the_stage():
                    ("/World/Bowel", "warptube:damping", "half"), (None, "warptube:damping", "double"),
                    ("/World/Push", "warptube:point", "int"), ("/World", "warptube:density", "double")]:  # fmt: skip
         assert PlainColumns.of(base, [target]) is None, target
-
-
-if __name__ == "__main__":
-    pytest.main([__file__])
 
 
 def test_a_plain_table_is_read_in_this_process(tmp_path, monkeypatch):
@@ -114,3 +110,47 @@ def test_a_plain_table_is_read_in_this_process(tmp_path, monkeypatch):
     other.write_text("/World/Bowel.warptube:spokes\n" + "\n".join(["8", "12", "16", "10"]) + "\n")
     with pytest.raises(RuntimeError, match="processes started"):
         prepare.prepare_batch(str(SCENE), read_table(str(other)), None, bar)
+
+
+def test_one_row_at_a_time_gives_the_same_scenes():
+    """PlainColumns.scenes (every row at once) against PlainColumns.scene (row by row)."""
+    from warp_tube import load_scene
+    from warp_tube.batch.fastread import PlainColumns
+
+    base = load_scene(str(SCENE))
+    targets = [("/World/Bowel", "warptube:youngsModulus", "double"), ("/World/Bowel", "warptube:damping", "float"),
+               ("/World/Bowel", "warptube:anchorStiffness", "double"), ("/World/Push", "warptube:force", "float3")]  # fmt: skip
+    plain = PlainColumns.of(base, targets)
+    rows = [(2e4, 8.0, 60.0, (0.0, 0.02, 0.0)), (3.1e4, 0.1, 0.0, (0.0, 0.02, 0.0)), (-1.0, 8.0, 60.0, (0.0, 0.0, 0.0)),
+            (2e4, float("nan"), 60.0, (0.0, 0.0, 0.0)), (1e14, 1.0, 1.0, (0.0, 0.0, 0.0)),
+            (2e4, 1e39, 60.0, (0.0, 0.0, 0.0)), (2e4, 1.0, 60.0, (0.0, 1e39, 0.0)), (5e4, 2.5, 30.0, (0.01, 0.0, 0.03)),
+            (5e4, 0.0, 30.0, (0.0, 2e9, 0.0))]  # fmt: skip
+    together = plain.scenes([list(col) for col in zip(*rows)])
+    assert [s is not None for s in together] == [True, False, False, False, False, False, False, True, False]
+    for k, row in enumerate(rows):
+        alone = plain.scene(list(row))
+        assert (alone is None) == (together[k] is None), k
+        if alone is not None:
+            same(together[k], alone, f"row {k}")
+
+
+def test_plain_cells_parse_as_the_general_parser_does():
+    """parse_plain takes a subset of the cells parse_value takes, and gives the same values."""
+    from warp_tube.batch.values import parse_plain, parse_value
+
+    cells = ["1", " 2.5 ", "-3e-4", "1_000", "nan", "inf", "1e400", "(1.5)", "1,5", "", "@x.npy", "abc", "0x10",
+             "(1, 2, 3)", "[1,2,3]", " ( 1 , -2.5e3 , 3 ) ", "1, 2, 3", "(1, 2)", "(1, 2, 3, 4)", "(1,,3)", "(1 2 3)",
+             "((1, 2, 3))", "(1, (2), 3)", "(1;2;3)", "(a, b, c)"]  # fmt: skip
+    taken = 0
+    for type_name in ("double", "float", "double3", "float3"):
+        for text in cells:
+            fast = parse_plain(text, type_name)
+            if fast is None:
+                continue
+            taken += 1
+            general = parse_value(text, type_name)
+            assert type(fast) is type(general), (text, type_name)
+            assert np.array_equal(np.asarray(fast), np.asarray(general), equal_nan=True), (text, type_name)
+    assert taken >= 16  # the plain spellings are taken: numbers, and triples with or without brackets
+    assert parse_plain("(1 2 3)", "double3") is None and parse_value("(1 2 3)", "double3") == (1.0, 2.0, 3.0)
+    assert parse_plain("1", "int") is None and parse_plain("x", "double") is None

@@ -114,11 +114,27 @@ def write(task: WriteTask) -> list[str]:
 
 
 _topologies: dict = {}
+#: the last tube prims asked for, by the identity of their arrays (a batch's variants share them):
+#: key -> (the arrays, kept so that their ids stay theirs, and the topology)
+_by_identity: dict = {}
 
 
 def surface_topology(t):
     """The surface topology of tube prim ``t`` (a TubeSpec), as ``SurfaceBuilder`` builds it for a
     run (rest points for ``st``, cap radii from the mean spoke length at the end hubs)."""
+    arrays = (t.points, t.radius, t.spoke_lengths, t.curve_counts)
+    key = (*map(id, arrays), t.params.spokes, t.params.caps)
+    hit = _by_identity.get(key)
+    if hit is not None and all(a is b for a, b in zip(hit[0], arrays)):
+        return hit[1]
+    topology = _surface_topology(t)
+    if len(_by_identity) > 256:
+        _by_identity.clear()
+    _by_identity[key] = (arrays, topology)
+    return topology
+
+
+def _surface_topology(t):
     from ..surface.topology import build_topology
 
     S = t.params.spokes
@@ -320,10 +336,11 @@ def write_summary(path: str, parameter_columns: list[str], variants, rows: dict)
     buf = io.StringIO()
     out = csv.writer(buf, lineterminator="\n")
     out.writerow(["variant", "name", *parameter_columns, *SUMMARY_FIELDS])
+    nan3 = [math.nan] * 3
+    tip_axis = {"tip_x": 0, "tip_y": 1, "tip_z": 2}
     for v in variants:
         r = rows[v.index]
-        params = list(v.cells) + list(v.selection)
-        tip = r.get("tip") or [math.nan] * 3
-        values = dict(r, tip_x=tip[0], tip_y=tip[1], tip_z=tip[2])
-        out.writerow([v.index, v.name, *params, *(_fmt(values.get(k, "")) for k in SUMMARY_FIELDS)])
+        tip = r.get("tip") or nan3
+        out.writerow([v.index, v.name, *v.cells, *v.selection,
+                      *(_fmt(tip[tip_axis[k]] if k in tip_axis else r.get(k, "")) for k in SUMMARY_FIELDS)])  # fmt: skip
     _atomic_text(path, buf.getvalue())

@@ -24,7 +24,7 @@ import re
 
 import numpy as np
 
-__all__ = ["parse_value", "CONTRACT_TYPES"]
+__all__ = ["parse_value", "parse_plain", "CONTRACT_TYPES"]
 
 REALS = ("double", "float", "half", "timecode")
 INTS = ("int", "uint", "int64", "uint64", "uchar")
@@ -110,6 +110,33 @@ def _load_file(name: str, folder: str, files: dict):
         raise ValueError(f"{path}: not a readable array ({e})") from None
     files[path] = arr
     return arr
+
+
+#: types :func:`parse_plain` reads: scalars and 3-vectors of reals
+_PLAIN_LENGTH = {"double": 1, "float": 1, "double3": 3, "float3": 3}
+
+
+def parse_plain(text: str, type_name: str):
+    """:func:`parse_value`'s result for a real scalar (``double``, ``float``) or 3-vector
+    (``double3``, ``float3``) cell written plainly (a number; three numbers separated by commas,
+    optionally in parentheses or brackets), or None where :func:`parse_value` must decide
+    (another type, a file, any other spelling, every malformed cell).
+
+    Whatever it returns, :func:`parse_value` returns too (its tokens are split at the same
+    characters and read by ``float``); it only skips the general path, for tables of many rows.
+    """
+    n = _PLAIN_LENGTH.get(type_name)
+    if n is None or text.startswith("@"):
+        return None
+    try:
+        if n == 1:
+            return float(text)
+        parts = text.strip().strip("()[]").split(",")
+        if len(parts) != 3:
+            return None
+        return (float(parts[0]), float(parts[1]), float(parts[2]))
+    except ValueError:
+        return None
 
 
 def parse_value(text: str, type_name: str, *, folder: str = ".", is_file: bool = False, files: dict | None = None):

@@ -25,7 +25,7 @@ from ..runtime.log_filters import once_each, silenced
 from ..scene.spec import Scene, SceneError
 from .fastread import PlainColumns
 from .table import Table
-from .values import CONTRACT_TYPES, parse_value
+from .values import CONTRACT_TYPES, parse_plain, parse_value
 
 log = logging.getLogger(__name__)
 
@@ -279,6 +279,32 @@ def collect_variants(scene_path: str, table: Table | None = None, variant_sets: 
         return _collect(scene_path, table, variant_sets, extract, progress)
 
 
+def _plain_scenes(plain: PlainColumns, table: Table, columns) -> list:
+    """Per row of ``table``, its variant made from the base scene by ``plain`` (all rows at
+    once), or None where the row must go through the stage (a cell not written plainly, or one
+    the reader would refuse or warn about: that path parses it again and names the problem)."""
+    parsed = []
+    for j, (col, (_, type_name, _)) in enumerate(zip(table.columns, columns)):
+        cache: dict = {}
+        values = []
+        for cells in table.rows:
+            text = cells[j]
+            v = cache.get(text)
+            if v is None and text not in cache:
+                v = cache[text] = None if col.files else parse_plain(text, type_name)
+            values.append(v)
+        parsed.append(values)
+    ok = [all(col[r] is not None for col in parsed) for r in range(len(table.rows))]
+    rows = [r for r, good in enumerate(ok) if good]
+    if not rows:
+        return [None] * len(table.rows)
+    made = plain.scenes([[col[r] for r in rows] for col in parsed])
+    out: list = [None] * len(table.rows)
+    for r, scene in zip(rows, made):
+        out[r] = scene
+    return out
+
+
 def _collect(scene_path, table, variant_sets, extract, progress):
     from pxr import Usd
 
@@ -323,6 +349,7 @@ def _collect(scene_path, table, variant_sets, extract, progress):
             continue
         changed = sorted({col.prim for col in table.columns})
         plain = PlainColumns.of(base, _targets(stage, table, columns))
+        made = _plain_scenes(plain, table, columns) if plain is not None else None
         seen_rows: dict = {}
         folder = table.folder
         for r, cells in enumerate(table.rows, start=table.first_row):
@@ -332,6 +359,13 @@ def _collect(scene_path, table, variant_sets, extract, progress):
             if cells in seen_rows:  # the same values as an earlier row: the same scene
                 out[here] = Variant(index, name, r, cells, combo, seen_rows[cells])
                 done += 1
+                continue
+            if made is not None and made[r - table.first_row] is not None:  # plain values, made from the base scene
+                seen_rows[cells] = scene = made[r - table.first_row]
+                out[here] = Variant(index, name, r, cells, combo, scene)
+                done += 1
+                if progress is not None and done % 1024 == 0:
+                    progress(done)
                 continue
             values, ok = [], True
             for col, (attr, type_name, _), text in zip(table.columns, columns, cells):

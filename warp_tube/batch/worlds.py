@@ -115,13 +115,14 @@ def _surface_builders(scenes, prim_start, device):
     out = []
     W = len(scenes)
     for k, t in enumerate(scenes[0].tubes):
-        lengths = []
-        for s in scenes:
-            u = s.tubes[k]
-            lengths.append(u.spoke_lengths if u.spoke_lengths is not None else np.repeat(u.radius[:, None], u.params.spokes, axis=1))
-        lengths = np.stack(lengths)
-        if np.all(lengths == lengths[:1]):
-            lengths = lengths[0]  # one row serves every world
+        specs = [s.tubes[k] for s in scenes]
+        if all(u.spoke_lengths is None and u.radius is t.radius for u in specs):  # the variants share the radii
+            lengths = np.repeat(t.radius[:, None], t.params.spokes, axis=1)
+        else:
+            lengths = np.stack([u.spoke_lengths if u.spoke_lengths is not None
+                                else np.repeat(u.radius[:, None], u.params.spokes, axis=1) for u in specs])  # fmt: skip
+            if np.all(lengths == lengths[:1]):
+                lengths = lengths[0]  # one row serves every world
         out.append(
             SurfaceBuilder(
                 tube_node_start=prim_start[k] + np.concatenate([[0], np.cumsum(t.curve_counts)]),

@@ -311,7 +311,10 @@ def node_parameters(scene: Scene) -> tuple[dict, bool]:
     bend_k[last] = 0.0
     ea = np.where(np.isnan(head(stretch)), head(youngs) * np.pi * r_seg**2, head(stretch))  # TubeParams.axial_stiffness
     k_ax = np.where(inside, ea / np.where(inside, seg, 1.0), 0.0)
-    kappa = np.concatenate(rest_curvature_of_curves([x[a : b + 1] for a, b in zip(first, last)]))
+    if len(counts) and (counts == counts[0]).all():  # curves of one length (e.g. a batch's worlds): one call
+        kappa = rest_curvature_coordinates(x.reshape(len(counts), int(counts[0]), 3)).reshape(n, 3)
+    else:
+        kappa = np.concatenate(rest_curvature_of_curves([x[a : b + 1] for a, b in zip(first, last)]))
     anchor_k = np.where(anchored, material(p.anchor_stiffness for p in params), 0.0)
     per_node = dict(
         node_rest_q=x, node_mass=mass, node_inv_mass=np.where(pinned, 0.0, 1.0 / mass),
@@ -334,16 +337,14 @@ def build_model(scene: Scene, world_count: int = 1, device=None) -> TubeModel:
     t_index = len(tube_start) - 1
     n_nodes = tube_start[-1]
     # Forces sorted by tube, each with its global node and its assistant-line slots.
-    tube_of_force, node_of_force = [], []
-    for f in scene.forces:
-        spec = scene.tubes[f.tube]
-        c = 0 if len(spec.curve_counts) == 1 else int(np.searchsorted(spec.curve_starts, f.point, side="right") - 1)
-        t = int(per_node["node_tube"][prim_node_start[f.tube] + spec.curve_starts[c]])
-        tube_of_force.append(t)
-        node_of_force.append(int(prim_node_start[f.tube]) + f.point)
-    order = np.argsort(np.asarray(tube_of_force, dtype=np.int64), kind="stable")
-    force_tube = np.asarray(tube_of_force, dtype=np.int64)[order] if len(order) else np.zeros(0, np.int64)
-    force_node = np.asarray(node_of_force, dtype=np.int64)[order] if len(order) else np.zeros(0, np.int64)
+    # A force's node is its prim's first node plus its point; its tube (curve), that node's.
+    n_forces = len(scene.forces)
+    node_of_force = (prim_node_start[np.fromiter((f.tube for f in scene.forces), np.int64, n_forces)]
+                     + np.fromiter((f.point for f in scene.forces), np.int64, n_forces))  # fmt: skip
+    tube_of_force = per_node["node_tube"][node_of_force]
+    order = np.argsort(tube_of_force, kind="stable")
+    force_tube = tube_of_force[order].astype(np.int64)
+    force_node = node_of_force[order]
     tube_force_start = np.searchsorted(force_tube, np.arange(t_index + 1)) if len(order) else np.zeros(t_index + 1, np.int64)
     uses_al = [scene.forces[k].assistant_line for k in order]
     al_start, al_force_index, slot = [], [], 0
