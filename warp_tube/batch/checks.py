@@ -34,7 +34,10 @@ class WorldChecks:
         self.worlds = worlds
         self.rest = h.node_rest_q
         self.rest32 = self.rest.astype(np.float32)
-        extent = np.array([max(float(np.ptp(t.points, axis=0).max()) for t in s.tubes) for s in worlds.scenes])
+        # Each world's largest extent of a tube prim's rest points [m] (its tubes' points are its
+        # rest positions, prim after prim)
+        starts = worlds.prim_start
+        extent = np.max([np.ptp(self.rest[:, a:b], axis=1).max(axis=1) for a, b in zip(starts[:-1], starts[1:])], axis=0)
         # Simulation's round-off floor of the energy check, per world.
         scale = np.maximum(np.maximum(extent, np.abs(self.rest).reshape(W, -1).max(axis=1)), 1e-9)
         energy_floor = np.sum(h.seg_ke, axis=1) * (1e-6 * scale) ** 2 + 1e-30

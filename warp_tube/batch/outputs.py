@@ -338,9 +338,9 @@ def write_summary(path: str, parameter_columns: list[str], variants, rows: dict)
     out.writerow(["variant", "name", *parameter_columns, *SUMMARY_FIELDS])
     nan3 = [math.nan] * 3
     tip_axis = {"tip_x": 0, "tip_y": 1, "tip_z": 2}
-    for v in variants:
-        r = rows[v.index]
-        tip = r.get("tip") or nan3
-        out.writerow([v.index, v.name, *v.cells, *v.selection,
-                      *(_fmt(tip[tip_axis[k]] if k in tip_axis else r.get(k, "")) for k in SUMMARY_FIELDS)])  # fmt: skip
+    found = [rows[v.index] for v in variants]
+    tips = [r.get("tip") or nan3 for r in found]
+    columns = [[_fmt(t[tip_axis[k]]) for t in tips] if k in tip_axis else [_fmt(r.get(k, "")) for r in found]
+               for k in SUMMARY_FIELDS]  # fmt: skip
+    out.writerows([v.index, v.name, *v.cells, *v.selection, *fields] for v, fields in zip(variants, zip(*columns)))
     _atomic_text(path, buf.getvalue())
