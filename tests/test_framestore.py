@@ -2,7 +2,6 @@
 against the same arrays computed with NumPy."""
 
 import numpy as np
-import pytest
 import warp as wp
 
 import warp_tube.batch.framestore as framestore
@@ -50,23 +49,3 @@ def test_windows_copied_back_through_a_small_staging_buffer(monkeypatch):
     # a short last window, the threads' slices) is taken
     store = run_store(monkeypatch, staged=True, window_bytes=200_000, staging_bytes=60_000)
     assert store.window == 5
-
-
-def test_windows_copied_straight_into_page_locked_arrays(monkeypatch):
-    # host arrays in page-locked memory take each window in one copy from the device buffer; no
-    # page-locked memory without a CUDA driver here, so the arrays are only taken for such
-    copied_through_staging = []
-    monkeypatch.setattr(framestore, "is_pinned", lambda a: True)
-    monkeypatch.setattr(framestore, "_parallel_copy", lambda dst, src: copied_through_staging.append(dst.shape))
-    store = run_store(monkeypatch, staged=True, window_bytes=200_000, staging_bytes=60_000)
-    assert store.window == 5 and not copied_through_staging
-
-
-@pytest.mark.gpu
-@pytest.mark.skipif(not wp.get_cuda_device_count(), reason="page-locked host memory needs a CUDA driver")
-def test_page_locked_arrays_are_known_by_address():
-    a = framestore.pinned_empty((4, 6, 3))
-    assert a.shape == (4, 6, 3) and a.dtype == np.float32
-    assert framestore.is_pinned(a) and framestore.is_pinned(a[1:3]) and not framestore.is_pinned(np.zeros((4, 6, 3), np.float32))
-    framestore.release_pinned(a)
-    assert not framestore.is_pinned(a)

@@ -126,7 +126,7 @@ def _sim_write_task(payload):
     wp.config.log_level = wp.LOG_WARNING
     chunk_id, scenes, choice, frames, every, surface, tasks, threads = payload
     if _worker_ring is None:
-        _worker_ring = BufferRing(2, pinned=str(_worker_device).startswith("cuda"))
+        _worker_ring = BufferRing(2)
         _worker_writers = cf.ThreadPoolExecutor(threads, thread_name_prefix="batch-writer")
     pending = _worker_writing.get(_worker_ring.owner())  # (a writer thread removes it when done)
     if pending is not None:  # the arrays this chunk reuses are still being written
@@ -243,14 +243,12 @@ class BufferRing:
     Args:
         slots: chunks' arrays kept.
         folder: the folder of the slot files, or None for arrays in memory.
-        pinned: arrays in memory are page-locked (a CUDA device copies frames straight into them).
     """
 
-    def __init__(self, slots: int, folder: str | None = None, pinned: bool = False):
+    def __init__(self, slots: int, folder: str | None = None):
         self.held: list = [None] * slots
         self.owners: list = [None] * slots
         self.folder = folder
-        self.pinned = pinned
         self.turn = 0
 
     def owner(self):
@@ -266,14 +264,9 @@ class BufferRing:
             return _slot_allocator(self.folder, k)
 
         def allocate(shapes: dict) -> dict:
-            from .framestore import pinned_empty, release_pinned
-
             held = self.held[k]
             if held is None or {name: a.shape for name, a in held.items()} != {n: tuple(s) for n, s in shapes.items()}:
-                for a in (held or {}).values():
-                    release_pinned(a)
-                empty = pinned_empty if self.pinned else (lambda shape: np.empty(shape, dtype=np.float32))
-                held = self.held[k] = {name: empty(shape) for name, shape in shapes.items()}
+                held = self.held[k] = {name: np.empty(shape, dtype=np.float32) for name, shape in shapes.items()}
             return held
 
         return allocate
@@ -366,7 +359,7 @@ def run_here(todo, device, context, result) -> None:
                 if writers.processes:  # the writers read the arrays from files
                     shapes = chunk_shapes(scenes, context["frames"], context["every"], context["surface"], context["spec"].vertices)
                     buffers = _buffer_folder(sum(4 * math.prod(s) for s in shapes.values()), context["spec"].work_dir)
-                ring = BufferRing(2, buffers, pinned=buffers is None and device.startswith("cuda"))
+                ring = BufferRing(2, buffers)
             if ring is not None:
                 while ring.owner() in pending:  # its slot's last chunk is still being written
                     cf.wait(pending[ring.owner()][0])

@@ -4,8 +4,7 @@ Each written frame's centerline, surface points, normals and extents are stored 
 (:func:`warp_tube.kernels.frame_store.store_scaled_kernel`, dividing by the stage's metres per
 unit as ``Simulation`` does on the host) into a device buffer of frames. On a CUDA device the
 buffer holds a window of frames and is copied to the host arrays when full (no per-frame copies,
-no per-frame host arithmetic): straight into host arrays in page-locked memory
-(:func:`pinned_empty`), or else in pieces through a page-locked staging buffer, at the bus's
+no per-frame host arithmetic): in pieces through a page-locked staging buffer, at the bus's
 speed, and from there into the host arrays by several threads (a copy from the device straight
 into pageable memory ran at 1.5-3 GB/s). On the CPU the buffer is the host arrays themselves.
 
@@ -24,7 +23,7 @@ import warp as wp
 
 from ..kernels.frame_store import store_scaled_kernel
 
-__all__ = ["FrameStore", "WINDOW_BYTES", "STAGING_BYTES", "pinned_empty", "release_pinned", "is_pinned"]
+__all__ = ["FrameStore", "WINDOW_BYTES", "STAGING_BYTES"]
 
 #: device memory a window of frames may take on a CUDA device [bytes]
 WINDOW_BYTES = 2 << 30
@@ -37,29 +36,6 @@ PARALLEL_COPY_MIN = 1 << 20
 
 _staging: dict = {}  # device name -> (Warp host array, its NumPy view)
 _copiers = None
-_pinned: dict = {}  # first byte address -> (end address, the Warp array that owns the memory)
-
-
-def pinned_empty(shape, dtype=np.float32) -> np.ndarray:
-    """A NumPy array in page-locked host memory (allocated by Warp, kept while the array lives):
-    a CUDA device copies into it at the bus's speed, with no staging (:meth:`FrameStore.flush`)."""
-    nbytes = int(np.prod(shape)) * np.dtype(dtype).itemsize
-    owner = wp.empty(max(nbytes, 1), dtype=wp.uint8, device="cpu", pinned=True)
-    out = owner.numpy()[:nbytes].view(dtype).reshape(shape)
-    start = out.ctypes.data
-    _pinned[start] = (start + nbytes, owner)
-    return out
-
-
-def release_pinned(a: np.ndarray) -> None:
-    """Forget page-locked array ``a`` of :func:`pinned_empty` (its memory goes with its last reference)."""
-    _pinned.pop(a.ctypes.data, None)
-
-
-def is_pinned(a: np.ndarray) -> bool:
-    """Whether ``a`` lies in memory of :func:`pinned_empty`."""
-    start = a.ctypes.data
-    return any(s <= start and start + a.nbytes <= e for s, (e, _) in _pinned.items())
 
 
 def _staging_buffer(device, nbytes: int) -> np.ndarray:
@@ -154,16 +130,11 @@ class FrameStore:
                 step = max(1, STAGING_BYTES // frame_bytes)  # frames per piece
                 stage = _staging_buffer(self.device, min(step, self.count) * frame_bytes)
                 dst = self._keep[name]
-                window = dst[self.start : self.start + self.count]
-                if is_pinned(window):  # straight from the device, at the bus's speed
-                    wp.copy(wp.array(window, dtype=wp.vec3, device="cpu", copy=False), buf[: self.count])
-                    continue
                 for a in range(0, self.count, step):
                     b = min(a + step, self.count)
                     view = stage[: (b - a) * frame_bytes].view(np.float32).reshape((b - a,) + dst.shape[1:])
                     wp.copy(wp.array(view, dtype=wp.vec3, device="cpu", copy=False), buf[a:b])
                     wp.synchronize_device(self.device)
                     _parallel_copy(dst[self.start + a : self.start + b], view)
-            wp.synchronize_device(self.device)
         self.start += self.count
         self.count = 0
