@@ -19,7 +19,10 @@ Cases (each timed after a warm-up; medians of ``--reps`` repetitions, all in one
   on-chip kernel (the default on CUDA: a frame in one launch, each block keeping whole tubes in
   registers and shared memory; on the CPU it runs on cooperative fibers, a correctness path, slow);
   both at the same substeps per launch; hub-steps per second and ``all_features_over_minimal``,
-  the ratio of their times per substep. On CUDA also at 32, 64, 256 and 512 threads per block.
+  the ratio of their times per substep. On CUDA the on-chip kernel exchanges neighbours' values
+  through warp shuffles where every tube lies within a warp (``exchange``); ``_shared`` cases run
+  the same batches exchanging through shared memory; and both at 32, 64, 256 and 512 threads per
+  block.
 - ``batch_per_tube_minimal`` / ``_all_features``: the same batches on the per-tube kernel (the CPU
   path; on CUDA the path of tubes longer than a block).
 - ``batch_onchip_only_<feature>`` / ``batch_onchip_without_<feature>`` (``--breakdown``): the
@@ -110,10 +113,10 @@ def timed(fn, reps, sync):
     return float(np.median(out)), out
 
 
-def substep_case(device, n_points, extras, reps, worlds=1, substeps=None, block_dim=None, onchip=None):
+def substep_case(device, n_points, extras, reps, worlds=1, substeps=None, block_dim=None, onchip=None, exchange="auto"):
     sim = Simulation(scene(n_points, extras), device=device, world_count=worlds, surface=False)
     sim.step()  # builds the assistant line, compiles
-    solver = SemiImplicitEulerSolver(sim.model, block_dim=block_dim, onchip=onchip)
+    solver = SemiImplicitEulerSolver(sim.model, block_dim=block_dim, onchip=onchip, exchange=exchange)
     n = substeps or sim.substeps
     s0, s1 = sim.state, sim.next_state
     if extras is True:
@@ -130,7 +133,7 @@ def substep_case(device, n_points, extras, reps, worlds=1, substeps=None, block_
         resources = wp.get_cuda_kernel_properties(solver.onchip_kernel, device, solver.onchip_block_dim)
     return {
         "worlds": worlds, "points": n_points, "substeps_per_launch": n, "dt_s": sim.dt,
-        "onchip_kernel": solver.onchip, "block_dim": solver.onchip_block_dim,
+        "onchip_kernel": solver.onchip, "block_dim": solver.onchip_block_dim, "exchange": solver.onchip_exchange,
         "time_per_substep_us": med / n * 1e6,
         "hub_steps_per_s": worlds * sim.model.node_count * n / med,
         "reps_s": all_t, **resources,
@@ -256,6 +259,9 @@ def main():
             res[f"batch_{kernel}_{name}"] = cases[name]
         res[f"batch_{kernel}_all_features_over_minimal"] = cases["all_features"]["time_per_substep_us"] / cases["minimal"]["time_per_substep_us"]
         if dev.is_cuda and onchip:
+            # the same batches with the neighbours exchanged through shared memory
+            for name, extras in (("minimal", False), ("all_features", True)):
+                res[f"batch_onchip_{name}_shared"] = substep_case(device, P, extras, a.reps, worlds=worlds, substeps=n, onchip=True, exchange="shared")
             for bd in (32, 64, 256, 512):
                 for name, extras in (("minimal", False), ("all_features", True)):
                     try:  # a block size the device cannot launch is reported, not fatal

@@ -41,6 +41,7 @@ import functools
 import warp as wp
 
 from .options import CUDA_OPTIONS
+from .warp_shuffle import shfl_down, shfl_down3, shfl_up3, shfl_up_quat
 from .assistant_line import al_point_forces, al_springs
 from .springs import (
     ControlArrays,
@@ -66,15 +67,20 @@ MAX_BLOCK_DIM = 1024
 
 
 @functools.cache
-def make_onchip_kernel(features: Features, block_dim: int, al_lines: int = 0, max_registers: int | None = None):
+def make_onchip_kernel(features: Features, block_dim: int, al_lines: int = 0, max_registers: int | None = None,
+                       shuffle: bool = False):  # fmt: skip
     """The on-chip substep kernel for ``features``, ``block_dim`` threads per block and at most
     ``al_lines`` assistant lines per tube; cached. ``max_registers`` caps the registers per thread
     on CUDA (more blocks resident per multiprocessor, at the price of spills); None: the compiler's
-    choice."""
+    choice. ``shuffle``: exchange between neighbours through warp shuffles instead of shared
+    memory (CUDA only, and only where no tube spans two warps: see the module docstring)."""
     features = Features(*(bool(v) for v in features))
     if not 1 <= block_dim <= MAX_BLOCK_DIM:
         raise ValueError(f"block_dim must be in [1, {MAX_BLOCK_DIM}], got {block_dim}")
     B = int(block_dim)
+    SHUFFLE = bool(shuffle)
+    if SHUFFLE and B % 32:
+        raise ValueError(f"shuffle exchanges need whole warps: block_dim {B} is not a multiple of 32")
     BENDING = features.bending
     CURVED = features.curved and features.bending
     SD = features.spring_damping
@@ -101,18 +107,6 @@ def make_onchip_kernel(features: Features, block_dim: int, al_lines: int = 0, ma
     @wp.func
     def con3(e: con_t, off: int) -> wp.vec3:
         return wp.vec3(e[off], e[off + 1], e[off + 2])
-
-    @wp.func
-    def delta(a: pos_t, b: pos_t, off: int) -> wp.vec3:
-        """Position at ``off`` of ``b`` minus that of ``a`` [m], from compensated positions (the
-        float32 difference of nearby positions is exact, the low parts' difference is added)."""
-        return (get3(b, off) - get3(a, off)) + (get3(b, off + 3) - get3(a, off + 3))
-
-    @wp.func
-    def velocity(e: pos_t, off: int) -> wp.vec3:
-        if wp.static(SD):
-            return get3(e, off + 6)
-        return wp.vec3(0.0)
 
     @wp.kernel(enable_backward=False, module="unique", module_options=CUDA_OPTIONS, cuda_max_registers=max_registers)
     def substeps_onchip(
@@ -209,41 +203,105 @@ def make_onchip_kernel(features: Features, block_dim: int, al_lines: int = 0, ma
 
         has_prev = active and i > start
         has_next = active and i < end - 1
-        pos_buf = wp.tile_zeros(shape=(B,), dtype=pos_t, storage="shared")
-        con_buf = wp.tile_zeros(shape=(B,), dtype=con_t, storage="shared")
-        if wp.static(CURVED):
-            frames = wp.tile_zeros(shape=(2, B), dtype=wp.quat, storage="shared")
-            weights = wp.tile_zeros(shape=(2, B), dtype=float, storage="shared")
+        span = int(slot)  # rounds of the scans: 2 ** rounds >= the longest tube
+        if wp.static(SHUFFLE):
+            span = wp.min(slot, 32)
+        else:
+            pos_buf = wp.tile_zeros(shape=(B,), dtype=pos_t, storage="shared")
+            con_buf = wp.tile_zeros(shape=(B,), dtype=con_t, storage="shared")
+            if wp.static(CURVED):
+                frames = wp.tile_zeros(shape=(2, B), dtype=wp.quat, storage="shared")
+                weights = wp.tile_zeros(shape=(2, B), dtype=float, storage="shared")
         for step in range(substep_count):
-            # 1. Positions (and velocities) out, neighbours' in.
-            own = pos_t()
-            for k in range(3):
-                own[k] = x[k]
-                own[3 + k] = lo[k]
+            # 1. Positions (and velocities) out, neighbours' in: the previous node's (px, plo, pv)
+            # and the next's (nx, nlo, nv, and its line points'), this node's own at tube ends.
+            px = x
+            plo = lo
+            pv = v
+            nx = x
+            nlo = lo
+            nv = v
+            nal_x = al_x
+            nal_lo = al_lo
+            nal_v = al_v
+            if wp.static(SHUFFLE):
+                sx = shfl_up3(x, 1)
+                slo = shfl_up3(lo, 1)
+                tx = shfl_down3(x, 1)
+                tlo = shfl_down3(lo, 1)
+                sv = v
+                tv = v
                 if wp.static(SD):
-                    own[6 + k] = v[k]
-            if wp.static(K > 0):
-                for m in range(K):
-                    for k in range(3):
-                        own[NODE * (m + 1) + k] = al_x[m, k]
-                        own[NODE * (m + 1) + 3 + k] = al_lo[m, k]
+                    sv = shfl_up3(v, 1)
+                    tv = shfl_down3(v, 1)
+                t_al_x = lines3()
+                t_al_lo = lines3()
+                t_al_v = lines3()
+                if wp.static(K > 0):
+                    for m in range(K):
+                        t_al_x[m] = shfl_down3(al_x[m], 1)
+                        t_al_lo[m] = shfl_down3(al_lo[m], 1)
                         if wp.static(SD):
-                            own[NODE * (m + 1) + 6 + k] = al_v[m, k]
-            pos_buf[lane] = own
-            prev = own
-            nxt = own
-            if has_prev:
-                prev = pos_buf[lane - 1]
-            if has_next:
-                nxt = pos_buf[lane + 1]
-            e_prev = delta(prev, own, 0)  # edge i - 1 (zero at a tube's first node)
-            e = delta(own, nxt, 0)  # edge i (zero at its last node)
+                            t_al_v[m] = shfl_down3(al_v[m], 1)
+                if has_prev:
+                    px = sx
+                    plo = slo
+                    pv = sv
+                if has_next:
+                    nx = tx
+                    nlo = tlo
+                    nv = tv
+                    nal_x = t_al_x
+                    nal_lo = t_al_lo
+                    nal_v = t_al_v
+            else:
+                own = pos_t()
+                for k in range(3):
+                    own[k] = x[k]
+                    own[3 + k] = lo[k]
+                    if wp.static(SD):
+                        own[6 + k] = v[k]
+                if wp.static(K > 0):
+                    for m in range(K):
+                        for k in range(3):
+                            own[NODE * (m + 1) + k] = al_x[m, k]
+                            own[NODE * (m + 1) + 3 + k] = al_lo[m, k]
+                            if wp.static(SD):
+                                own[NODE * (m + 1) + 6 + k] = al_v[m, k]
+                pos_buf[lane] = own
+                if has_prev:
+                    prev = pos_buf[lane - 1]
+                    px = get3(prev, 0)
+                    plo = get3(prev, 3)
+                    if wp.static(SD):
+                        pv = get3(prev, 6)
+                if has_next:
+                    nxt = pos_buf[lane + 1]
+                    nx = get3(nxt, 0)
+                    nlo = get3(nxt, 3)
+                    if wp.static(SD):
+                        nv = get3(nxt, 6)
+                    if wp.static(K > 0):
+                        nal_x = lines3()
+                        nal_lo = lines3()
+                        nal_v = lines3()
+                        for m in range(K):
+                            nal_x[m] = get3(nxt, NODE * (m + 1))
+                            nal_lo[m] = get3(nxt, NODE * (m + 1) + 3)
+                            if wp.static(SD):
+                                nal_v[m] = get3(nxt, NODE * (m + 1) + 6)
+            if wp.static(not SD):  # velocities enter only with spring damping
+                pv = zero
+                nv = zero
+                nal_v = lines3()
+            e_prev = (x - px) + (lo - plo)  # edge i - 1 (zero at a tube's first node)
+            e = (nx - x) + (nlo - lo)  # edge i (zero at its last node)
 
             f = zero
             to_prev = zero
             to_next = zero
             if has_next:
-                fs = spring_force(e, velocity(nxt, 0) - v, rest_len, ke, kd)
+                fs = spring_force(e, nv - v, rest_len, ke, kd)
                 f += fs
                 to_next -= fs
 
@@ -257,17 +315,29 @@ def make_onchip_kernel(features: Features, block_dim: int, al_lines: int = 0, ma
                         r = transport(t_rest, t_e)
                     else:
                         r = transport(wp.normalize(e_prev), t_e)
-                frames[0, lane] = r
-                rd = int(0)
-                d = int(1)
-                while d < slot:
-                    if active and i - d >= start:
-                        r = r * frames[rd, lane - d]
-                    rd = 1 - rd
-                    frames[rd, lane] = r
-                    d = d * 2
+                r_prev = r
+                if wp.static(SHUFFLE):
+                    d = int(1)
+                    while d < span:
+                        r_from = shfl_up_quat(r, d)
+                        if active and i - d >= start:
+                            r = r * r_from
+                        d = d * 2
+                    r_prev = shfl_up_quat(r, 1)
+                else:
+                    frames[0, lane] = r
+                    rd = int(0)
+                    d = int(1)
+                    while d < span:
+                        if active and i - d >= start:
+                            r = r * frames[rd, lane - d]
+                        rd = 1 - rd
+                        frames[rd, lane] = r
+                        d = d * 2
+                    if has_prev and kb != 0.0:
+                        r_prev = frames[rd, lane - 1]
                 if has_prev and kb != 0.0:
-                    u = wp.quat_rotate(wp.normalize(frames[rd, lane - 1]), u_rest)
+                    u = wp.quat_rotate(wp.normalize(r_prev), u_rest)
                     target = kappa_target(wp.normalize(e_prev), u, kappa_rest)
 
             # 3. The bending stencil at i, its frame terms, the node terms, the line springs.
@@ -285,18 +355,29 @@ def make_onchip_kernel(features: Features, block_dim: int, al_lines: int = 0, ma
                 if kb != 0.0:
                     grad_a, mu = holonomy_stencil(e_prev, la, kappa, target, kb)
                 # Suffix sums of mu along the tube: the later stencils' weight on this transport.
-                weights[0, lane] = mu
-                rd = int(0)
-                d = int(1)
-                while d < slot:
-                    if active and i + d < end:
-                        mu += weights[rd, lane + d]
-                    rd = 1 - rd
-                    weights[rd, lane] = mu
-                    d = d * 2
                 m_after = float(0.0)
-                if has_next:
-                    m_after = weights[rd, lane + 1]
+                if wp.static(SHUFFLE):
+                    d = int(1)
+                    while d < span:
+                        mu_from = shfl_down(mu, d)
+                        if active and i + d < end:
+                            mu += mu_from
+                        d = d * 2
+                    mu_next = shfl_down(mu, 1)
+                    if has_next:
+                        m_after = mu_next
+                else:
+                    weights[0, lane] = mu
+                    rd = int(0)
+                    d = int(1)
+                    while d < span:
+                        if active and i + d < end:
+                            mu += weights[rd, lane + d]
+                        rd = 1 - rd
+                        weights[rd, lane] = mu
+                        d = d * 2
+                    if has_next:
+                        m_after = weights[rd, lane + 1]
                 if kb != 0.0:
                     ta, tb = twist_gradients(kappa, m_after, la, wp.length(e))
                     grad_a += ta
@@ -316,21 +397,20 @@ def make_onchip_kernel(features: Features, block_dim: int, al_lines: int = 0, ma
             if wp.static(K > 0):
                 for m in range(K):
                     if al_slot[m] >= 0:
-                        o = NODE * (m + 1)
-                        xm = get3(own, o)
-                        lm = get3(own, o + 3)
+                        xm = al_x[m]
+                        lm = al_lo[m]
                         d_rows = mat43()
                         dv_rows = mat43()
                         d_rows[0] = (x - xm) + (lo - lm)
                         dv_rows[0] = v - al_v[m]
                         if has_next:
-                            d_rows[1] = delta(own, nxt, o)
-                            dv_rows[1] = velocity(nxt, o) - al_v[m]
-                            d_rows[2] = (get3(nxt, 0) - xm) + (get3(nxt, 3) - lm)
-                            dv_rows[2] = velocity(nxt, 0) - al_v[m]
+                            d_rows[1] = (nal_x[m] - xm) + (nal_lo[m] - lm)
+                            dv_rows[1] = nal_v[m] - al_v[m]
+                            d_rows[2] = (nx - xm) + (nlo - lm)
+                            dv_rows[2] = nv - al_v[m]
                         if has_prev:
-                            d_rows[3] = (get3(prev, 0) - xm) + (get3(prev, 3) - lm)
-                            dv_rows[3] = velocity(prev, 0) - al_v[m]
+                            d_rows[3] = (px - xm) + (plo - lm)
+                            dv_rows[3] = pv - al_v[m]
                         fm, rows = al_point_forces(al_spr[m], d_rows, dv_rows, al_rest[m], ke, ke_prev, kd, kd_prev)
                         al_f[m] = fm
                         al_next[m] = rows[1]
@@ -339,23 +419,38 @@ def make_onchip_kernel(features: Features, block_dim: int, al_lines: int = 0, ma
                         to_prev += rows[3]
 
             # 4. What this thread's terms put on its neighbours out, theirs on it in.
-            out = con_t()
-            for k in range(3):
-                out[k] = to_prev[k]
-                out[3 + k] = to_next[k]
-            if wp.static(K > 0):
-                for m in range(K):
-                    for k in range(3):
-                        out[6 + 3 * m + k] = al_next[m, k]
-            con_buf[lane] = out
-            if has_prev:
-                back = con_buf[lane - 1]
-                f += con3(back, 3)
+            if wp.static(SHUFFLE):
+                from_prev = shfl_up3(to_next, 1)
+                from_next = shfl_down3(to_prev, 1)
+                al_from_prev = lines3()
                 if wp.static(K > 0):
                     for m in range(K):
-                        al_f[m] = al_f[m] + con3(back, 6 + 3 * m)
-            if has_next:
-                f += con3(con_buf[lane + 1], 0)
+                        al_from_prev[m] = shfl_up3(al_next[m], 1)
+                if has_prev:
+                    f += from_prev
+                    if wp.static(K > 0):
+                        for m in range(K):
+                            al_f[m] = al_f[m] + al_from_prev[m]
+                if has_next:
+                    f += from_next
+            else:
+                out = con_t()
+                for k in range(3):
+                    out[k] = to_prev[k]
+                    out[3 + k] = to_next[k]
+                if wp.static(K > 0):
+                    for m in range(K):
+                        for k in range(3):
+                            out[6 + 3 * m + k] = al_next[m, k]
+                con_buf[lane] = out
+                if has_prev:
+                    back = con_buf[lane - 1]
+                    f += con3(back, 3)
+                    if wp.static(K > 0):
+                        for m in range(K):
+                            al_f[m] = al_f[m] + con3(back, 6 + 3 * m)
+                if has_next:
+                    f += con3(con_buf[lane + 1], 0)
 
             # 5. Advance in registers.
             if active:

@@ -144,3 +144,71 @@ def test_onchip_falls_back_for_tubes_longer_than_a_block():
     model = batch_model(world_count=1, lengths=(1100,))
     solver = SemiImplicitEulerSolver(model, onchip=True)
     assert not solver.onchip and solver.onchip_block_dim is None
+
+
+def test_warp_alignment_of_layouts():
+    from warp_tube.centerline.explicit import warp_aligned
+
+    # two 32-point tubes in a group of 64 nodes, two copies of it a block: each tube in a warp
+    assert warp_aligned(np.array([0, 32, 64]), np.array([0, 64]), 64, 2)
+    # 20-point tubes, six copies a block (lanes 20-39 cross the warp boundary at 32): not
+    assert not warp_aligned(np.array([0, 20]), np.array([0, 20]), 20, 6)
+    assert warp_aligned(np.array([0, 20]), np.array([0, 20]), 20, 1)
+    # a 16- and an 11-point tube: the second copy of the group starts at lane 27
+    assert not warp_aligned(np.array([0, 16, 27]), np.array([0, 27]), 27, 4)
+    # the CPU has no warps: shuffles are refused, "auto" exchanges through shared memory
+    model = batch_model(world_count=2, lengths=(32, 16, 8, 8))
+    with pytest.raises(ValueError, match="CUDA device"):
+        SemiImplicitEulerSolver(model, onchip=True, exchange="shuffle")
+    assert SemiImplicitEulerSolver(model, onchip=True).onchip_exchange == "shared"
+
+
+def run_with_lines(model, substeps=150, frames=2, **solver_args):
+    """As :func:`run`, with the force's assistant line laid beside its tube in every world (1 cm
+    off the axis) and active."""
+    from warp_tube.sim.control import AssistantLineArrays
+
+    solver = SemiImplicitEulerSolver(model, **solver_args)
+    s0, control = batch_inputs(model)
+    h = model.host
+    if model.al_slots:
+        t = int(h.force_tube[0])
+        s, e, p0 = int(h.tube_node_start[t]), int(h.tube_node_start[t + 1]), int(h.al_start[0])
+        q = s0.node_q.numpy().astype(np.float64) + s0.node_q_lo.numpy()
+        lines = AssistantLineArrays.read(s0, control)
+        x = q[:, s:e]
+        lines.build(slice(None), slice(p0, p0 + e - s), x, x + np.array([0.0, 0.0, 0.01]), s0.node_qd.numpy()[:, s:e])
+        lines.write(s0, control)
+        control.al_active.fill_(1)
+    s1 = model.state()
+    dt = 0.5 * critical_time_step(model.host)
+    for _ in range(frames):
+        solver.integrate(s0, s1, control, dt, substeps)
+        s0, s1 = s1, s0
+    q = s0.node_q.numpy().astype(np.float64) + s0.node_q_lo.numpy()
+    return q, s0.node_qd.numpy(), s0.al_q.numpy(), solver
+
+
+@pytest.mark.gpu
+@pytest.mark.skipif(not wp.get_cuda_device_count(), reason="no CUDA device")
+@pytest.mark.parametrize("features", ["straight", "every"])
+def test_onchip_shuffle_exchange_matches_shared_memory_on_cuda(features):
+    # Tubes laid out so that each lies within one warp (groups of 64 nodes, two a block): the
+    # neighbours' values pass through warp shuffles instead of shared memory. The values
+    # exchanged and the arithmetic on them are the same, so are the results, bit for bit.
+    every = features == "every"
+    kw = dict(lengths=(32, 16, 8, 8), curved=every, spring_damping=1e-4 if every else 0.0, assistant_line=every, curve_all=every)
+    model = batch_model(device="cuda:0", **kw)
+    assert model.features.assistant_line == every and model.features.curved == every
+    out = {}
+    for exchange in ("shuffle", "shared"):
+        q, qd, al, solver = run_with_lines(model, onchip=True, exchange=exchange)
+        assert solver.onchip_exchange == exchange
+        out[exchange] = (q, qd, al)
+    assert np.abs(out["shared"][0] - model.host.node_rest_q[None]).max() > 5e-3  # it moved
+    for a, b in zip(out["shuffle"], out["shared"]):
+        np.testing.assert_array_equal(a, b)
+    # and against the per-tube kernel on the CPU: fast math and FMA on the GPU, a few float32
+    # ulp per substep (as test_onchip_cuda_matches_cpu)
+    q_cpu, _, _, _ = run_with_lines(batch_model(**kw), onchip=False)
+    np.testing.assert_allclose(out["shuffle"][0], q_cpu, rtol=0, atol=1e-5)

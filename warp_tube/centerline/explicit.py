@@ -31,7 +31,7 @@ from warp_tube.kernels.springs import ControlArrays, ModelArrays, StateArrays, p
 from ..model.tube import TubeControl, TubeModel, TubeState
 from ..runtime.replay import GraphCache, cpu_blocks
 
-__all__ = ["SemiImplicitEulerSolver", "ONCHIP_BLOCK_DIM", "MAX_BLOCK_DIM"]
+__all__ = ["SemiImplicitEulerSolver", "ONCHIP_BLOCK_DIM", "MAX_BLOCK_DIM", "EXCHANGES", "warp_aligned"]
 
 #: threads per block of the on-chip kernel by default (H100, the minimal kernel before every
 #: feature ran on chip: 5.9e10 hub-steps/s at 128 against 5.4e10 at 256 and 5.0e10 at 512,
@@ -46,7 +46,24 @@ ONCHIP_BLOCK_DIM = 128
 #: slower). `benchmarks/bench_centerline.py` reports each case's registers and spills.
 ONCHIP_MAX_REGISTERS = 128
 
+#: how the on-chip kernel's threads exchange neighbours' values: through warp shuffles (CUDA, every
+#: tube within one warp of 32 threads), through shared memory, or the first that applies
+EXCHANGES = ("auto", "shuffle", "shared")
+
 logger = logging.getLogger(__name__)
+
+
+def warp_aligned(tube_start: np.ndarray, group_start: np.ndarray, slot: int, copies: int) -> bool:
+    """Whether every tube lies within one warp (32 threads) in the on-chip layout: the tubes of
+    group ``g`` (node range ``group_start[g] .. group_start[g + 1]``) at lanes ``c * slot + (node -
+    group_start[g])`` for copies ``c < copies`` of the group in a block."""
+    starts = np.asarray(tube_start, dtype=np.int64)
+    groups = np.asarray(group_start, dtype=np.int64)
+    g = np.searchsorted(groups, starts[:-1], side="right") - 1  # each tube's group
+    first = starts[:-1] - groups[g]
+    last = starts[1:] - 1 - groups[g]
+    c = np.arange(copies, dtype=np.int64)[:, None] * int(slot)
+    return bool(np.all((c + first) // 32 == (c + last) // 32))
 
 
 class SemiImplicitEulerSolver:
@@ -60,11 +77,17 @@ class SemiImplicitEulerSolver:
             with a tube longer than :data:`MAX_BLOCK_DIM` points takes the per-tube kernel instead
             (logged). On the CPU the on-chip kernel runs on Warp's cooperative CPU blocks (slow:
             for testing).
+        exchange: how the on-chip kernel's threads exchange their neighbours' values
+            (:data:`EXCHANGES`): "shuffle" through registers (warp shuffles; CUDA, where every
+            tube lies within one warp of the layout), "shared" through shared memory and block
+            barriers, "auto" (default) the first that applies. Both give the same result bit
+            for bit.
     """
 
     name = "semiImplicitEuler"
 
-    def __init__(self, model: TubeModel, block_dim: int | None = None, onchip: bool | None = None):
+    def __init__(self, model: TubeModel, block_dim: int | None = None, onchip: bool | None = None,
+                 exchange: str = "auto"):  # fmt: skip
         self.model = model
         self.device = wp.get_device(model.device)
         self.substeps_kernel = make_kernels(model.features)
@@ -78,6 +101,10 @@ class SemiImplicitEulerSolver:
         self._commands = {}
         self.onchip_block_dim = None  # threads per block of the on-chip kernel, when it is used
         self._onchip_request = int(block_dim or ONCHIP_BLOCK_DIM)
+        if exchange not in EXCHANGES:
+            raise ValueError(f"exchange must be one of {EXCHANGES}, got {exchange!r}")
+        self._exchange_request = exchange
+        self.onchip_exchange = None  # "shuffle" or "shared", when the on-chip kernel is used
         self.onchip = bool(self.device.is_cuda if onchip is None else onchip) and self._setup_onchip()
 
     # -- the on-chip path ---------------------------------------------------------------------
@@ -106,7 +133,14 @@ class SemiImplicitEulerSolver:
         self._onchip_dim = (-(-m.world_count // self._onchip_worlds_per_block), len(group) - 1)
         self._onchip_group = wp.array(group.astype(np.int32), dtype=int, device=self.device)
         lines = m.al_lines if m.features.assistant_line else 0
-        self.onchip_kernel = make_onchip_kernel(m.features, block, lines)
+        aligned = warp_aligned(starts, group, self._onchip_slot, self._onchip_worlds_per_block)
+        exchange = self._exchange_request
+        if exchange == "auto":
+            exchange = "shuffle" if self.device.is_cuda and aligned else "shared"
+        elif exchange == "shuffle" and not (self.device.is_cuda and aligned):
+            raise ValueError("exchange 'shuffle' needs a CUDA device and tubes that each lie within one warp of 32 threads")
+        self.onchip_exchange = exchange
+        self.onchip_kernel = make_onchip_kernel(m.features, block, lines, shuffle=exchange == "shuffle")
         self._onchip_lines = lines
         self._onchip_registers_checked = not self.device.is_cuda
         return True
@@ -117,7 +151,8 @@ class SemiImplicitEulerSolver:
         self._onchip_registers_checked = True
         props = wp.get_cuda_kernel_properties(self.onchip_kernel, self.device, self.onchip_block_dim)
         if props["register_count"] > ONCHIP_MAX_REGISTERS:
-            self.onchip_kernel = make_onchip_kernel(self.model.features, self.onchip_block_dim, self._onchip_lines, max_registers=ONCHIP_MAX_REGISTERS)
+            self.onchip_kernel = make_onchip_kernel(self.model.features, self.onchip_block_dim, self._onchip_lines,
+                                                    max_registers=ONCHIP_MAX_REGISTERS, shuffle=self.onchip_exchange == "shuffle")  # fmt: skip
 
     def _launch_onchip(self, s_in: TubeState, s_out: TubeState, c: TubeControl, dt: float, substeps: int):
         m = self.model
