@@ -195,7 +195,10 @@ def run_with_lines(model, substeps=150, frames=2, **solver_args):
 def test_onchip_shuffle_exchange_matches_shared_memory_on_cuda(features):
     # Tubes laid out so that each lies within one warp (groups of 64 nodes, two a block): the
     # neighbours' values pass through warp shuffles instead of shared memory. The values
-    # exchanged and the arithmetic on them are the same, so are the results, bit for bit.
+    # exchanged (bit for bit) and the arithmetic on them are the same; the compiler contracts
+    # products and sums into FMAs differently in the two kernels, so they differ by float32
+    # round-off: measured 2.5e-8 m after 300 substeps (positions ~0.1 m, ulp ~7e-9 m); 1e-6 m
+    # allows the same ~30 ulp as the CPU comparisons above.
     every = features == "every"
     kw = dict(lengths=(32, 16, 8, 8), curved=every, spring_damping=1e-4 if every else 0.0, assistant_line=every, curve_all=every)
     model = batch_model(device="cuda:0", **kw)
@@ -206,8 +209,11 @@ def test_onchip_shuffle_exchange_matches_shared_memory_on_cuda(features):
         assert solver.onchip_exchange == exchange
         out[exchange] = (q, qd, al)
     assert np.abs(out["shared"][0] - model.host.node_rest_q[None]).max() > 5e-3  # it moved
-    for a, b in zip(out["shuffle"], out["shared"]):
-        np.testing.assert_array_equal(a, b)
+    q_sh, qd_sh, al_sh = out["shuffle"]
+    q_sm, qd_sm, al_sm = out["shared"]
+    np.testing.assert_allclose(q_sh, q_sm, rtol=0, atol=1e-6)
+    np.testing.assert_allclose(qd_sh, qd_sm, rtol=0, atol=1e-5 * np.abs(qd_sm).max())
+    np.testing.assert_allclose(al_sh, al_sm, rtol=0, atol=1e-6)
     # and against the per-tube kernel on the CPU: fast math and FMA on the GPU, a few float32
     # ulp per substep (as test_onchip_cuda_matches_cpu)
     q_cpu, _, _, _ = run_with_lines(batch_model(**kw), onchip=False)

@@ -84,6 +84,7 @@ class WorldControl:
         self._host = {}  # device array address -> its reused page-locked host copy
         self._columns = {}  # (node, node) -> their column indices and gather buffers on the device
         self._al_host = None  # the lines' rest lengths (as on the device) and rows to build in
+        self._row_buffers = {}  # line length -> device buffers for the rows of new lines
 
     def _fetch(self, a):
         """Device array ``a`` copied to the host: into a page-locked buffer kept for it (on CUDA;
@@ -228,8 +229,15 @@ class WorldControl:
         return self._al_host
 
     def _write_rows(self, lines: AssistantLineArrays, ws: np.ndarray, p0: int, n: int, state) -> None:
-        """Copy the line points just built (worlds ``ws``, slots ``p0 .. p0 + n``) into ``state``."""
+        """Copy the line points just built (worlds ``ws``, slots ``p0 .. p0 + n``) into ``state``,
+        through device buffers kept for it (no allocation per frame)."""
         dev = state.al_q.device
-        src = [wp.array(np.ascontiguousarray(a[ws, p0 : p0 + n]), dtype=wp.vec3, device=dev) for a in (lines.q_hi, lines.q_lo, lines.qd)]
-        rows = wp.array(ws.astype(np.int32), dtype=int, device=dev)
-        wp.launch(scatter_rows_kernel, dim=(len(ws), n), inputs=[rows, int(p0), *src, state.al_q, state.al_q_lo, state.al_qd], device=dev)
+        W, R = self.worlds.world_count, len(ws)
+        held = self._row_buffers.get(n)
+        if held is None:
+            held = self._row_buffers[n] = (wp.empty(W, dtype=int, device=dev), [wp.empty((W, n), dtype=wp.vec3, device=dev) for _ in range(3)])
+        rows, src = held
+        rows[:R].assign(ws.astype(np.int32))
+        for buf, a in zip(src, (lines.q_hi, lines.q_lo, lines.qd)):
+            buf[:R].assign(np.ascontiguousarray(a[ws, p0 : p0 + n]))
+        wp.launch(scatter_rows_kernel, dim=(R, n), inputs=[rows, int(p0), *src, state.al_q, state.al_q_lo, state.al_qd], device=dev)

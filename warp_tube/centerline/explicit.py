@@ -80,8 +80,9 @@ class SemiImplicitEulerSolver:
         exchange: how the on-chip kernel's threads exchange their neighbours' values
             (:data:`EXCHANGES`): "shuffle" through registers (warp shuffles; CUDA, where every
             tube lies within one warp of the layout), "shared" through shared memory and block
-            barriers, "auto" (default) the first that applies. Both give the same result bit
-            for bit.
+            barriers, "auto" (default) the first that applies. Both exchange the same values
+            and do the same arithmetic (the compiler's FMA contractions may differ: float32
+            round-off apart).
     """
 
     name = "semiImplicitEuler"
