@@ -16,7 +16,6 @@ import math
 import numpy as np
 import warp as wp
 
-from ..kernels.frame_store import gather_columns_kernel, scatter_rows_kernel
 from ..sim.control import AL_MIN_ANGLE, AL_REBUILD_ANGLE, AssistantLineArrays
 from .worlds import Worlds
 
@@ -82,9 +81,6 @@ class WorldControl:
                 self._pins.append((worlds.prim_start[k] + t.pinned, track))
         self._f_last = None  # the forces last written to the control, (W, F, 3) [N]
         self._host = {}  # device array address -> its reused page-locked host copy
-        self._columns = {}  # (node, node) -> their column indices and gather buffers on the device
-        self._al_host = None  # the lines' rest lengths (as on the device) and rows to build in
-        self._row_buffers = {}  # line length -> device buffers for the rows of new lines
 
     def _fetch(self, a):
         """Device array ``a`` copied to the host: into a page-locked buffer kept for it (on CUDA;
@@ -98,26 +94,6 @@ class WorldControl:
         wp.copy(buf, a)
         wp.synchronize_device(a.device)
         return buf.numpy()
-
-    def _off_axis(self, a: int, build: np.ndarray, d: np.ndarray, before: int, after: int, state) -> np.ndarray:
-        """Whether each world in ``build`` would build force ``a``'s line (direction ``d``, (W, 3))
-        or drop it (a push within AL_MIN_ANGLE of the axis, with a line), from the tangent between nodes ``before``
-        and ``after`` alone (two columns of the state read back, not all of it); (W,) bool. The
-        same float64 arithmetic as the build below, so the two agree."""
-        cols = self._columns.get((before, after))
-        if cols is None:
-            idx = wp.array(np.array([before, after], dtype=np.int32), dtype=int, device=self.control.node_f_ext.device)
-            out = [wp.empty((self.worlds.world_count, 2), dtype=wp.vec3, device=idx.device) for _ in range(2)]
-            cols = self._columns[(before, after)] = (idx, out)
-        idx, (hi, lo) = cols
-        for src, dst in ((state.node_q, hi), (state.node_q_lo, lo)):
-            wp.launch(gather_columns_kernel, dim=dst.shape, inputs=[src, idx, dst], device=idx.device)
-        q = self._fetch(hi).astype(np.float64) + self._fetch(lo)
-        tangent = q[:, 1] - q[:, 0]
-        tangent = tangent / np.maximum(np.linalg.norm(tangent, axis=-1), 1e-30)[:, None]
-        across = d - np.sum(d * tangent, axis=-1)[:, None] * tangent
-        axial = np.linalg.norm(across, axis=-1) < math.sin(AL_MIN_ANGLE)
-        return build & (~axial | (self._al_active[:, a] != 0))
 
     @property
     def moving_pins(self) -> bool:
@@ -175,18 +151,14 @@ class WorldControl:
             build = ~zero & ~keep
             if not build.any():
                 continue
-            t = h.force_tube[a]
-            s, e = h.tube_node_start[t], h.tube_node_start[t + 1]
-            k = h.force_node[a]
-            if positions is None and not self._off_axis(a, build, d, max(k - 1, s), min(k + 1, e - 1), state).any():
-                # the worlds to build are all within AL_MIN_ANGLE of the axis, and none has a line
-                # to drop: nothing changes (the whole state is not read)
-                continue
             if positions is None:
                 # float64, compensated (float32 + low-order part), as Simulation builds lines
                 q = self._fetch(state.node_q).astype(np.float64) + self._fetch(state.node_q_lo)
                 positions = (q, self._fetch(state.node_qd))
             state_q, state_qd = positions
+            t = h.force_tube[a]
+            s, e = h.tube_node_start[t], h.tube_node_start[t + 1]
+            k = h.force_node[a]
             ws = np.flatnonzero(build)
             tangent = state_q[ws, min(k + 1, e - 1)] - state_q[ws, max(k - 1, s)]
             tangent = tangent / np.maximum(np.linalg.norm(tangent, axis=-1), 1e-30)[:, None]
@@ -203,41 +175,15 @@ class WorldControl:
             if not len(ws):
                 continue
             if lines is None:
-                lines = self._lines()
+                lines = AssistantLineArrays.read(state, c, self._fetch)
             offset_dir = across / norm_across[:, None]
             p0 = h.al_start[a]
             off = self.worlds.host.node_radius[ws, s:e, None] * offset_dir[:, None, :]
             x = state_q[ws, s:e]
             lines.build(ws, slice(p0, p0 + e - s), x, x + off, state_qd[ws, s:e])
-            self._write_rows(lines, ws, p0, e - s, state)
             active[ws, a] = 1
             changed = True
         if lines is not None:
-            for n, v in lines.lengths.items():
-                getattr(c, n).assign(v)
+            lines.write(state, c)
         if changed:
             c.al_active.assign(active)
-
-    def _lines(self) -> AssistantLineArrays:
-        """The lines' rest lengths as the device holds them (this class is their only writer, so
-        it keeps them on the host and never reads them back), with host rows to build new lines
-        in: only the rows built are written to the device (:meth:`_write_rows`)."""
-        if self._al_host is None:
-            W, L = self.worlds.world_count, max(self.worlds.model.al_slots, 1)
-            rows = [np.zeros((W, L, 3), dtype=np.float32) for _ in range(3)]
-            self._al_host = AssistantLineArrays(*rows, {n: np.zeros((W, L), dtype=np.float32) for n in AssistantLineArrays.LENGTHS})
-        return self._al_host
-
-    def _write_rows(self, lines: AssistantLineArrays, ws: np.ndarray, p0: int, n: int, state) -> None:
-        """Copy the line points just built (worlds ``ws``, slots ``p0 .. p0 + n``) into ``state``,
-        through device buffers kept for it (no allocation per frame)."""
-        dev = state.al_q.device
-        W, R = self.worlds.world_count, len(ws)
-        held = self._row_buffers.get(n)
-        if held is None:
-            held = self._row_buffers[n] = (wp.empty(W, dtype=int, device=dev), [wp.empty((W, n), dtype=wp.vec3, device=dev) for _ in range(3)])
-        rows, src = held
-        rows[:R].assign(ws.astype(np.int32))
-        for buf, a in zip(src, (lines.q_hi, lines.q_lo, lines.qd)):
-            buf[:R].assign(np.ascontiguousarray(a[ws, p0 : p0 + n]))
-        wp.launch(scatter_rows_kernel, dim=(R, n), inputs=[rows, int(p0), *src, state.al_q, state.al_q_lo, state.al_qd], device=dev)
