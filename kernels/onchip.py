@@ -24,6 +24,14 @@ and after the last substep stores the state once. Writing an element of a shared
 block barrier (Warp), and every thread of the block writes each tile once a round (inactive
 lanes write zeros), so each exchange costs one barrier and no tile is overwritten while read.
 
+With ``shuffle`` (CUDA, where the host's layout puts every tube within one warp of 32 lanes)
+the same exchanges go through registers instead (:mod:`.warp_shuffle`): each lane takes its
+neighbours' values from the lanes beside it, the scans shuffle by ``1, 2, 4, ...`` lanes, and
+there is no shared memory and no barrier. Every lane of a warp calls each shuffle at the same
+point (as every thread of a block writes each tile), and what a lane takes from another tube or
+an idle lane is discarded by the same tests as above. The values exchanged and the arithmetic
+are those of the shared-memory kernel.
+
 Block layout (set by the host, :class:`warp_tube.centerline.explicit.SemiImplicitEulerSolver`): the
 tubes of one world are packed, in order, into groups of at most ``block_dim`` nodes
 (``group_node_start``); a block holds ``worlds_per_block`` copies of one group from consecutive
