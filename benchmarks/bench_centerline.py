@@ -20,8 +20,9 @@ Cases (each timed after a warm-up; medians of ``--reps`` repetitions, all in one
   registers and shared memory; on the CPU it runs on cooperative fibers, a correctness path, slow);
   both at the same substeps per launch; hub-steps per second and ``all_features_over_minimal``,
   the ratio of their times per substep. On CUDA the on-chip kernel exchanges neighbours' values
-  through warp shuffles where every tube lies within a warp (``exchange``); ``_shared`` cases run
-  the same batches exchanging through shared memory; and both at 32, 64, 256 and 512 threads per
+  through warp shuffles where every tube lies within a warp (``exchange``); ``_shared`` or
+  ``_shuffle`` cases run the same batches with the other exchange (shuffles in a layout padded to
+  whole warps where needed, e.g. 20-point tubes); and both at 32, 64, 256 and 512 threads per
   block.
 - ``batch_per_tube_minimal`` / ``_all_features``: the same batches on the per-tube kernel (the CPU
   path; on CUDA the path of tubes longer than a block).
@@ -259,9 +260,14 @@ def main():
             res[f"batch_{kernel}_{name}"] = cases[name]
         res[f"batch_{kernel}_all_features_over_minimal"] = cases["all_features"]["time_per_substep_us"] / cases["minimal"]["time_per_substep_us"]
         if dev.is_cuda and onchip:
-            # the same batches with the neighbours exchanged through shared memory
+            # the same batches with the other exchange of neighbours' values (shuffles: in a
+            # layout padded to whole warps where the compact one is not)
             for name, extras in (("minimal", False), ("all_features", True)):
-                res[f"batch_onchip_{name}_shared"] = substep_case(device, P, extras, a.reps, worlds=worlds, substeps=n, onchip=True, exchange="shared")
+                other = "shared" if cases[name]["exchange"] == "shuffle" else "shuffle"
+                try:
+                    res[f"batch_onchip_{name}_{other}"] = substep_case(device, P, extras, a.reps, worlds=worlds, substeps=n, onchip=True, exchange=other)
+                except ValueError as e:  # tubes longer than a warp: no shuffles
+                    res[f"batch_onchip_{name}_{other}"] = {"error": str(e)}
             for bd in (32, 64, 256, 512):
                 for name, extras in (("minimal", False), ("all_features", True)):
                     try:  # a block size the device cannot launch is reported, not fatal

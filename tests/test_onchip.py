@@ -191,7 +191,7 @@ def run_with_lines(model, substeps=150, frames=2, **solver_args):
 
 @pytest.mark.gpu
 @pytest.mark.skipif(not wp.get_cuda_device_count(), reason="no CUDA device")
-@pytest.mark.parametrize("features", ["straight", "every"])
+@pytest.mark.parametrize("features", ["straight", "every", "every, padded"])
 def test_onchip_shuffle_exchange_matches_shared_memory_on_cuda(features):
     # Tubes laid out so that each lies within one warp (groups of 64 nodes, two a block): the
     # neighbours' values pass through warp shuffles instead of shared memory. The values
@@ -199,14 +199,19 @@ def test_onchip_shuffle_exchange_matches_shared_memory_on_cuda(features):
     # products and sums into FMAs differently in the two kernels, so they differ by float32
     # round-off: measured 2.5e-8 m after 300 substeps (positions ~0.1 m, ulp ~7e-9 m); 1e-6 m
     # allows the same ~30 ulp as the CPU comparisons above.
-    every = features == "every"
-    kw = dict(lengths=(32, 16, 8, 8), curved=every, spring_damping=1e-4 if every else 0.0, assistant_line=every, curve_all=every)
+    # "padded": a 20-point tube a world, six worlds to a 128-thread block in the compact layout
+    # (crossing warp boundaries): shuffles take a layout of one world a warp.
+    every = features.startswith("every")
+    lengths = (20,) if features.endswith("padded") else (32, 16, 8, 8)
+    kw = dict(lengths=lengths, curved=every, spring_damping=1e-4 if every else 0.0, assistant_line=every, curve_all=every)
     model = batch_model(device="cuda:0", **kw)
     assert model.features.assistant_line == every and model.features.curved == every
     out = {}
     for exchange in ("shuffle", "shared"):
         q, qd, al, solver = run_with_lines(model, onchip=True, exchange=exchange)
         assert solver.onchip_exchange == exchange
+        if lengths == (20,):
+            assert solver._onchip_slot == (32 if exchange == "shuffle" else 20)
         out[exchange] = (q, qd, al)
     assert np.abs(out["shared"][0] - model.host.node_rest_q[None]).max() > 5e-3  # it moved
     q_sh, qd_sh, al_sh = out["shuffle"]

@@ -79,8 +79,10 @@ class SemiImplicitEulerSolver:
             for testing).
         exchange: how the on-chip kernel's threads exchange their neighbours' values
             (:data:`EXCHANGES`): "shuffle" through registers (warp shuffles; CUDA, where every
-            tube lies within one warp of the layout), "shared" through shared memory and block
-            barriers, "auto" (default) the first that applies. Both exchange the same values
+            tube lies within one warp of the layout, which it pads where a world's tubes fit in
+            a warp: each world in 1, 2, 4, ... 32 lanes), "shared" through shared memory and
+            block barriers, "auto" (default) shuffles where the compact layout already has every
+            tube within a warp, else shared memory. Both exchange the same values
             and do the same arithmetic (the compiler's FMA contractions may differ: float32
             round-off apart).
     """
@@ -128,18 +130,26 @@ class SemiImplicitEulerSolver:
                 group.append(int(starts[t]))
         group.append(int(starts[-1]))
         group = np.asarray(group)
-        self._onchip_slot = int(np.diff(group).max())
-        self._onchip_worlds_per_block = block // self._onchip_slot
-        self.onchip_block_dim = block
-        self._onchip_dim = (-(-m.world_count // self._onchip_worlds_per_block), len(group) - 1)
-        self._onchip_group = wp.array(group.astype(np.int32), dtype=int, device=self.device)
-        lines = m.al_lines if m.features.assistant_line else 0
-        aligned = warp_aligned(starts, group, self._onchip_slot, self._onchip_worlds_per_block)
+        slot = int(np.diff(group).max())
+        copies = block // slot
+        aligned = warp_aligned(starts, group, slot, min(copies, m.world_count))
         exchange = self._exchange_request
+        if self.device.is_cuda and not aligned and slot <= 32 and exchange == "shuffle":
+            # Groups of at most a warp: each copy in a slot of 1, 2, 4, ... 32 lanes, so that none
+            # crosses a warp boundary (the lanes past a group's nodes idle)
+            slot = 1 << (slot - 1).bit_length()
+            copies = block // slot
+            aligned = True
         if exchange == "auto":
             exchange = "shuffle" if self.device.is_cuda and aligned else "shared"
         elif exchange == "shuffle" and not (self.device.is_cuda and aligned):
             raise ValueError("exchange 'shuffle' needs a CUDA device and tubes that each lie within one warp of 32 threads")
+        self._onchip_slot = slot
+        self._onchip_worlds_per_block = copies
+        self.onchip_block_dim = block
+        self._onchip_dim = (-(-m.world_count // copies), len(group) - 1)
+        self._onchip_group = wp.array(group.astype(np.int32), dtype=int, device=self.device)
+        lines = m.al_lines if m.features.assistant_line else 0
         self.onchip_exchange = exchange
         self.onchip_kernel = make_onchip_kernel(m.features, block, lines, shuffle=exchange == "shuffle")
         self._onchip_lines = lines
