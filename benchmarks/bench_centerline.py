@@ -20,10 +20,11 @@ Cases (each timed after a warm-up; medians of ``--reps`` repetitions, all in one
   registers and shared memory; on the CPU it runs on cooperative fibers, a correctness path, slow);
   both at the same substeps per launch; hub-steps per second and ``all_features_over_minimal``,
   the ratio of their times per substep. On CUDA the on-chip kernel exchanges neighbours' values
-  through warp shuffles where every tube lies within a warp (``exchange``); ``_shared`` or
-  ``_shuffle`` cases run the same batches with the other exchange (shuffles in a layout padded to
-  whole warps where needed, e.g. 20-point tubes); and both at 32, 64, 256 and 512 threads per
-  block.
+  through warp shuffles where every tube lies within a warp, and curved tubes' scans through
+  shuffles carried between warps elsewhere (``exchange``: shuffle, mixed, shared); ``_shared`` or
+  ``_shuffle`` cases run the same batches with shared memory, or with shuffles in a layout padded
+  to whole warps (e.g. 20-point tubes) where the default was shared memory; and both at 32, 64,
+  256 and 512 threads per block.
 - ``batch_per_tube_minimal`` / ``_all_features``: the same batches on the per-tube kernel (the CPU
   path; on CUDA the path of tubes longer than a block).
 - ``batch_onchip_only_<feature>`` / ``batch_onchip_without_<feature>`` (``--breakdown``): the
@@ -263,7 +264,7 @@ def main():
             # the same batches with the other exchange of neighbours' values (shuffles: in a
             # layout padded to whole warps where the compact one is not)
             for name, extras in (("minimal", False), ("all_features", True)):
-                other = "shared" if cases[name]["exchange"] == "shuffle" else "shuffle"
+                other = "shared" if cases[name]["exchange"] != "shared" else "shuffle"
                 try:
                     res[f"batch_onchip_{name}_{other}"] = substep_case(device, P, extras, a.reps, worlds=worlds, substeps=n, onchip=True, exchange=other)
                 except ValueError as e:  # tubes longer than a warp: no shuffles

@@ -24,13 +24,17 @@ and after the last substep stores the state once. Writing an element of a shared
 block barrier (Warp), and every thread of the block writes each tile once a round (inactive
 lanes write zeros), so each exchange costs one barrier and no tile is overwritten while read.
 
-With ``shuffle`` (CUDA, where the host's layout puts every tube within one warp of 32 lanes)
-the same exchanges go through registers instead (:mod:`.warp_shuffle`): each lane takes its
-neighbours' values from the lanes beside it, the scans shuffle by ``1, 2, 4, ...`` lanes, and
-there is no shared memory and no barrier. Every lane of a warp calls each shuffle at the same
-point (as every thread of a block writes each tile), and what a lane takes from another tube or
-an idle lane is discarded by the same tests as above. The values exchanged and the arithmetic
-are those of the shared-memory kernel.
+With ``exchange="shuffle"`` (CUDA, where the host's layout puts every tube within one warp of
+32 lanes) the same exchanges go through registers instead (:mod:`.warp_shuffle`): each lane
+takes its neighbours' values from the lanes beside it, the scans shuffle by ``1, 2, 4, ...``
+lanes, and there is no shared memory and no barrier. Every lane of a warp calls each shuffle at
+the same point (as every thread of a block writes each tile), and what a lane takes from another
+tube, another warp or an idle lane is discarded by the same tests as above. With
+``exchange="mixed"`` (CUDA, any layout) the scans of a curved tube run within each warp by
+shuffles and are then carried between the warps a tube spans through one shared-memory tile each
+(one barrier per scan instead of one per round); neighbours' values go through shared memory.
+The values exchanged and the arithmetic are those of the shared-memory kernel, up to the order
+of the scans' products and sums.
 
 Block layout (set by the host, :class:`warp_tube.centerline.explicit.SemiImplicitEulerSolver`): the
 tubes of one world are packed, in order, into groups of at most ``block_dim`` nodes
@@ -76,19 +80,24 @@ MAX_BLOCK_DIM = 1024
 
 @functools.cache
 def make_onchip_kernel(features: Features, block_dim: int, al_lines: int = 0, max_registers: int | None = None,
-                       shuffle: bool = False):  # fmt: skip
+                       exchange: str = "shared"):  # fmt: skip
     """The on-chip substep kernel for ``features``, ``block_dim`` threads per block and at most
     ``al_lines`` assistant lines per tube; cached. ``max_registers`` caps the registers per thread
     on CUDA (more blocks resident per multiprocessor, at the price of spills); None: the compiler's
-    choice. ``shuffle``: exchange between neighbours through warp shuffles instead of shared
-    memory (CUDA only, and only where no tube spans two warps: see the module docstring)."""
+    choice. ``exchange`` (see the module docstring): "shared" (shared memory), "shuffle" (warp
+    shuffles; CUDA, no tube spanning two warps) or "mixed" (CUDA: the scans of a curved tube by
+    warp shuffles with one shared-memory carry between warps, the rest through shared memory)."""
     features = Features(*(bool(v) for v in features))
     if not 1 <= block_dim <= MAX_BLOCK_DIM:
         raise ValueError(f"block_dim must be in [1, {MAX_BLOCK_DIM}], got {block_dim}")
     B = int(block_dim)
-    SHUFFLE = bool(shuffle)
-    if SHUFFLE and B % 32:
-        raise ValueError(f"shuffle exchanges need whole warps: block_dim {B} is not a multiple of 32")
+    if exchange not in ("shared", "shuffle", "mixed"):
+        raise ValueError(f"exchange must be shared, shuffle or mixed, got {exchange!r}")
+    SHUFFLE = exchange == "shuffle"  # every exchange through warp shuffles
+    MIXED = exchange == "mixed"  # the scans through shuffles, carried between warps in shared memory
+    SCAN_SHUFFLE = SHUFFLE or MIXED
+    if SCAN_SHUFFLE and B % 32:
+        raise ValueError(f"{exchange} exchanges need whole warps: block_dim {B} is not a multiple of 32")
     BENDING = features.bending
     CURVED = features.curved and features.bending
     SD = features.spring_damping
@@ -211,15 +220,19 @@ def make_onchip_kernel(features: Features, block_dim: int, al_lines: int = 0, ma
 
         has_prev = active and i > start
         has_next = active and i < end - 1
-        span = int(slot)  # rounds of the scans: 2 ** rounds >= the longest tube
-        if wp.static(SHUFFLE):
+        span = int(slot)  # rounds of the scans: 2 ** rounds >= the longest tube (or a warp)
+        wl = lane % 32  # lane in its warp
+        if wp.static(SCAN_SHUFFLE):
             span = wp.min(slot, 32)
-        else:
+        if wp.static(not SHUFFLE):
             pos_buf = wp.tile_zeros(shape=(B,), dtype=pos_t, storage="shared")
             con_buf = wp.tile_zeros(shape=(B,), dtype=con_t, storage="shared")
-            if wp.static(CURVED):
-                frames = wp.tile_zeros(shape=(2, B), dtype=wp.quat, storage="shared")
-                weights = wp.tile_zeros(shape=(2, B), dtype=float, storage="shared")
+        if wp.static(CURVED and not SCAN_SHUFFLE):
+            frames = wp.tile_zeros(shape=(2, B), dtype=wp.quat, storage="shared")
+            weights = wp.tile_zeros(shape=(2, B), dtype=float, storage="shared")
+        if wp.static(CURVED and MIXED):
+            carry_q = wp.tile_zeros(shape=(B,), dtype=wp.quat, storage="shared")
+            carry_m = wp.tile_zeros(shape=(B,), dtype=float, storage="shared")
         for step in range(substep_count):
             # 1. Positions (and velocities) out, neighbours' in: the previous node's (px, plo, pv)
             # and the next's (nx, nlo, nv, and its line points'), this node's own at tube ends.
@@ -324,14 +337,28 @@ def make_onchip_kernel(features: Features, block_dim: int, al_lines: int = 0, ma
                     else:
                         r = transport(wp.normalize(e_prev), t_e)
                 r_prev = r
-                if wp.static(SHUFFLE):
+                if wp.static(SCAN_SHUFFLE):
                     d = int(1)
                     while d < span:
                         r_from = shfl_up_quat(r, d)
-                        if active and i - d >= start:
+                        if active and i - d >= start and wl >= d:
                             r = r * r_from
                         d = d * 2
+                    carried = wp.quat_identity()
+                    if wp.static(MIXED):
+                        # Each warp's prefix from its first lane (or the tube's start) to lane
+                        # 31; a lane multiplies in those of the earlier warps its tube spans.
+                        carry_q[lane] = r
+                        if active:
+                            first_warp = (lane - (i - start)) // 32
+                            j = lane // 32 - 1
+                            while j >= first_warp:
+                                carried = carried * carry_q[32 * j + 31]
+                                j = j - 1
+                        r = r * carried
                     r_prev = shfl_up_quat(r, 1)
+                    if wl == 0:
+                        r_prev = carried  # the product up to the last lane of the warp before
                 else:
                     frames[0, lane] = r
                     rd = int(0)
@@ -364,14 +391,28 @@ def make_onchip_kernel(features: Features, block_dim: int, al_lines: int = 0, ma
                     grad_a, mu = holonomy_stencil(e_prev, la, kappa, target, kb)
                 # Suffix sums of mu along the tube: the later stencils' weight on this transport.
                 m_after = float(0.0)
-                if wp.static(SHUFFLE):
+                if wp.static(SCAN_SHUFFLE):
                     d = int(1)
                     while d < span:
                         mu_from = shfl_down(mu, d)
-                        if active and i + d < end:
+                        if active and i + d < end and wl + d < 32:
                             mu += mu_from
                         d = d * 2
+                    mu_later = float(0.0)
+                    if wp.static(MIXED):
+                        # Each warp's suffix sum from its first lane to the tube's end (or lane
+                        # 31); a lane adds those of the later warps its tube spans.
+                        carry_m[lane] = mu
+                        if active:
+                            last_warp = (lane + (end - 1 - i)) // 32
+                            j = lane // 32 + 1
+                            while j <= last_warp:
+                                mu_later += carry_m[32 * j]
+                                j = j + 1
+                        mu += mu_later
                     mu_next = shfl_down(mu, 1)
+                    if wl == 31:
+                        mu_next = mu_later  # the sum from the first lane of the warp after
                     if has_next:
                         m_after = mu_next
                 else:

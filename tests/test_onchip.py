@@ -227,3 +227,28 @@ def test_onchip_shuffle_exchange_matches_shared_memory_on_cuda(features):
     # ulp per substep (as test_onchip_cuda_matches_cpu)
     q_cpu, _, _, _ = run_with_lines(batch_model(**kw), onchip=False)
     np.testing.assert_allclose(out["shuffle"][0], q_cpu, rtol=0, atol=1e-5)
+
+
+@pytest.mark.gpu
+@pytest.mark.skipif(not wp.get_cuda_device_count(), reason="no CUDA device")
+@pytest.mark.parametrize("block_dim", [32, 128])
+def test_onchip_mixed_exchange_matches_shared_memory_on_cuda(block_dim):
+    # Curved tubes of 16, 11, 3 and 40 points: with 128 threads a block they sit at lanes 0-15,
+    # 16-26, 27-29 and 30-69 (the last spans three warps); with 32 the 40-point tube widens the
+    # block to 64 and spans two. The scans run within warps by shuffles and are carried between
+    # warps through shared memory: the same products and sums in another order, so float32
+    # round-off apart (bounds as in the shuffle test above).
+    kw = dict(curved=True, spring_damping=1e-4, assistant_line=True, curve_all=True)
+    model = batch_model(device="cuda:0", **kw)
+    out = {}
+    for exchange in ("mixed", "shared"):
+        q, qd, al, solver = run_with_lines(model, onchip=True, exchange=exchange, block_dim=block_dim)
+        assert solver.onchip_exchange == exchange
+        out[exchange] = (q, qd, al)
+    assert SemiImplicitEulerSolver(model, onchip=True, block_dim=block_dim).onchip_exchange == "mixed"  # the default here
+    q_mx, qd_mx, al_mx = out["mixed"]
+    q_sm, qd_sm, al_sm = out["shared"]
+    assert np.abs(q_sm - model.host.node_rest_q[None]).max() > 5e-3  # it moved
+    np.testing.assert_allclose(q_mx, q_sm, rtol=0, atol=1e-6)
+    np.testing.assert_allclose(qd_mx, qd_sm, rtol=0, atol=1e-4 * np.abs(qd_sm).max())
+    np.testing.assert_allclose(al_mx, al_sm, rtol=0, atol=1e-5)

@@ -47,8 +47,9 @@ ONCHIP_BLOCK_DIM = 128
 ONCHIP_MAX_REGISTERS = 128
 
 #: how the on-chip kernel's threads exchange neighbours' values: through warp shuffles (CUDA, every
-#: tube within one warp of 32 threads), through shared memory, or the first that applies
-EXCHANGES = ("auto", "shuffle", "shared")
+#: tube within one warp of 32 threads), the scans of curved tubes through shuffles carried between
+#: warps (CUDA, any layout), through shared memory, or the best that applies
+EXCHANGES = ("auto", "shuffle", "mixed", "shared")
 
 logger = logging.getLogger(__name__)
 
@@ -80,9 +81,11 @@ class SemiImplicitEulerSolver:
         exchange: how the on-chip kernel's threads exchange their neighbours' values
             (:data:`EXCHANGES`): "shuffle" through registers (warp shuffles; CUDA, where every
             tube lies within one warp of the layout, which it pads where a world's tubes fit in
-            a warp: each world in 1, 2, 4, ... 32 lanes), "shared" through shared memory and
-            block barriers, "auto" (default) shuffles where the compact layout already has every
-            tube within a warp, else shared memory. Both exchange the same values
+            a warp: each world in 1, 2, 4, ... 32 lanes), "mixed" (CUDA, any layout: the scans
+            of curved tubes through shuffles, carried between warps through shared memory, the
+            rest through shared memory), "shared" through shared memory and block barriers;
+            "auto" (default) shuffles where the compact layout already has every tube within a
+            warp, else on CUDA "mixed" for curved tubes, else shared memory. Both exchange the same values
             and do the same arithmetic (the compiler's FMA contractions may differ: float32
             round-off apart).
     """
@@ -141,9 +144,13 @@ class SemiImplicitEulerSolver:
             copies = block // slot
             aligned = True
         if exchange == "auto":
-            exchange = "shuffle" if self.device.is_cuda and aligned else "shared"
+            exchange = "shared"
+            if self.device.is_cuda:
+                exchange = "shuffle" if aligned else "mixed" if m.features.curved and m.features.bending else "shared"
         elif exchange == "shuffle" and not (self.device.is_cuda and aligned):
             raise ValueError("exchange 'shuffle' needs a CUDA device and tubes that each lie within one warp of 32 threads")
+        elif exchange == "mixed" and not self.device.is_cuda:
+            raise ValueError("exchange 'mixed' needs a CUDA device (warp shuffles)")
         self._onchip_slot = slot
         self._onchip_worlds_per_block = copies
         self.onchip_block_dim = block
@@ -151,7 +158,7 @@ class SemiImplicitEulerSolver:
         self._onchip_group = wp.array(group.astype(np.int32), dtype=int, device=self.device)
         lines = m.al_lines if m.features.assistant_line else 0
         self.onchip_exchange = exchange
-        self.onchip_kernel = make_onchip_kernel(m.features, block, lines, shuffle=exchange == "shuffle")
+        self.onchip_kernel = make_onchip_kernel(m.features, block, lines, exchange=exchange)
         self._onchip_lines = lines
         self._onchip_registers_checked = not self.device.is_cuda
         return True
@@ -163,7 +170,7 @@ class SemiImplicitEulerSolver:
         props = wp.get_cuda_kernel_properties(self.onchip_kernel, self.device, self.onchip_block_dim)
         if props["register_count"] > ONCHIP_MAX_REGISTERS:
             self.onchip_kernel = make_onchip_kernel(self.model.features, self.onchip_block_dim, self._onchip_lines,
-                                                    max_registers=ONCHIP_MAX_REGISTERS, shuffle=self.onchip_exchange == "shuffle")  # fmt: skip
+                                                    max_registers=ONCHIP_MAX_REGISTERS, exchange=self.onchip_exchange)  # fmt: skip
 
     def _launch_onchip(self, s_in: TubeState, s_out: TubeState, c: TubeControl, dt: float, substeps: int):
         m = self.model
