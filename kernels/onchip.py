@@ -34,7 +34,8 @@ tube, another warp or an idle lane is discarded by the same tests as above. With
 shuffles and are then carried between the warps a tube spans through one shared-memory tile each
 (one barrier per scan instead of one per round); neighbours' values go through shared memory.
 The values exchanged and the arithmetic are those of the shared-memory kernel, up to the order
-of the scans' products and sums.
+of the scans' products and sums: with "shuffle" and "shared" that order depends only on a node's
+place in its tube, with "mixed" also on where the tube sits against warp boundaries.
 
 Block layout (set by the host, :class:`warp_tube.centerline.explicit.SemiImplicitEulerSolver`): the
 tubes of one world are packed, in order, into groups of at most ``block_dim`` nodes

@@ -48,7 +48,7 @@ ONCHIP_MAX_REGISTERS = 128
 
 #: how the on-chip kernel's threads exchange neighbours' values: through warp shuffles (CUDA, every
 #: tube within one warp of 32 threads), the scans of curved tubes through shuffles carried between
-#: warps (CUDA, any layout), through shared memory, or the best that applies
+#: warps (CUDA, any layout; by request), through shared memory, or shuffles where they apply
 EXCHANGES = ("auto", "shuffle", "mixed", "shared")
 
 logger = logging.getLogger(__name__)
@@ -83,9 +83,12 @@ class SemiImplicitEulerSolver:
             tube lies within one warp of the layout, which it pads where a world's tubes fit in
             a warp: each world in 1, 2, 4, ... 32 lanes), "mixed" (CUDA, any layout: the scans
             of curved tubes through shuffles, carried between warps through shared memory, the
-            rest through shared memory), "shared" through shared memory and block barriers;
-            "auto" (default) shuffles where the compact layout already has every tube within a
-            warp, else on CUDA "mixed" for curved tubes, else shared memory. Both exchange the same values
+            rest through shared memory; the order of a scan's products then depends on where a
+            tube sits against warp boundaries, so a world's result can differ by round-off with
+            its place in the block), "shared" through shared memory and block barriers; "auto"
+            (default) shuffles where the layout has every tube within a warp, else shared
+            memory: in both a world computes the same whatever its place in the block, so a
+            variant gives the same numbers in a batch and alone. Both exchange the same values
             and do the same arithmetic (the compiler's FMA contractions may differ: float32
             round-off apart).
     """
@@ -135,7 +138,9 @@ class SemiImplicitEulerSolver:
         group = np.asarray(group)
         slot = int(np.diff(group).max())
         copies = block // slot
-        aligned = warp_aligned(starts, group, slot, min(copies, m.world_count))
+        # (judged on every copy a block can hold, not on the worlds there are: a variant run alone
+        # takes the exchange its batch takes, and so the same arithmetic)
+        aligned = warp_aligned(starts, group, slot, copies)
         exchange = self._exchange_request
         if self.device.is_cuda and not aligned and slot <= 32 and exchange == "shuffle":
             # Groups of at most a warp: each copy in a slot of 1, 2, 4, ... 32 lanes, so that none
@@ -144,9 +149,7 @@ class SemiImplicitEulerSolver:
             copies = block // slot
             aligned = True
         if exchange == "auto":
-            exchange = "shared"
-            if self.device.is_cuda:
-                exchange = "shuffle" if aligned else "mixed" if m.features.curved and m.features.bending else "shared"
+            exchange = "shuffle" if self.device.is_cuda and aligned else "shared"
         elif exchange == "shuffle" and not (self.device.is_cuda and aligned):
             raise ValueError("exchange 'shuffle' needs a CUDA device and tubes that each lie within one warp of 32 threads")
         elif exchange == "mixed" and not self.device.is_cuda:
