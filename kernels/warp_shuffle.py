@@ -15,7 +15,7 @@ from __future__ import annotations
 
 import warp as wp
 
-__all__ = ["shfl_up", "shfl_down", "shfl_up3", "shfl_down3", "shfl_up_quat", "shfl_down_quat"]
+__all__ = ["shfl_up", "shfl_down", "shfl_up3", "shfl_down3", "shfl_up_quat"]
 
 _UP = """
 #if defined(__CUDA_ARCH__)
@@ -58,7 +58,3 @@ def shfl_down3(x: wp.vec3, d: int) -> wp.vec3:
 def shfl_up_quat(q: wp.quat, d: int) -> wp.quat:
     return wp.quat(shfl_up(q[0], d), shfl_up(q[1], d), shfl_up(q[2], d), shfl_up(q[3], d))
 
-
-@wp.func
-def shfl_down_quat(q: wp.quat, d: int) -> wp.quat:
-    return wp.quat(shfl_down(q[0], d), shfl_down(q[1], d), shfl_down(q[2], d), shfl_down(q[3], d))

@@ -50,12 +50,14 @@ def collect(tmp_path, monkeypatch, plain: bool):
 
 
 def test_plain_columns_give_the_scenes_the_stage_gives(tmp_path, monkeypatch, caplog):
-    made = []
+    calls = []
     scenes_of = variants_mod.PlainColumns.scenes
-    monkeypatch.setattr(variants_mod.PlainColumns, "scenes", lambda self, columns: made.extend(scenes_of(self, columns)) or made)
+    monkeypatch.setattr(variants_mod.PlainColumns, "scenes", lambda self, columns: calls.append(scenes_of(self, columns)) or calls[-1])
     fast, fast_problems = collect(tmp_path, monkeypatch, plain=True)
-    # rows 0, 1 and 6 made from the base scene (all rows at once); the others read through the stage
-    assert [m is not None for m in made] == [True, True, False, False, False, False, True]
+    # rows 0, 1 and 6 made from the base scene (all rows at once, the first call); the others
+    # read through the stage (each tried alone again first, and refused again)
+    assert [m is not None for m in calls[0]] == [True, True, False, False, False, False, True]
+    assert all(c == [None] for c in calls[1:])
     fast_log = [r.getMessage() for r in caplog.records]
     caplog.clear()
     with monkeypatch.context() as m:
@@ -113,7 +115,8 @@ def test_a_plain_table_is_read_in_this_process(tmp_path, monkeypatch):
 
 
 def test_one_row_at_a_time_gives_the_same_scenes():
-    """PlainColumns.scenes (every row at once) against PlainColumns.scene (row by row)."""
+    """PlainColumns.scenes of every row at once against one row at a time (PlainColumns.scene):
+    which rows are taken, and their scenes, do not depend on the other rows."""
     from warp_tube import load_scene
     from warp_tube.batch.fastread import PlainColumns
 

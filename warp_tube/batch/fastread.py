@@ -6,8 +6,9 @@ the stage again: :class:`PlainColumns` replaces the parameters and force vectors
 base scene's specs (a few microseconds a row, against ~0.5 ms for authoring the row in the stage
 and reading it through usd-core).
 
-:meth:`PlainColumns.scenes` does the same for many rows at once, the values of each column as
-one array (what a table of thousands of rows needs: a few microseconds a row in all).
+:meth:`PlainColumns.scenes` makes many rows at once, the values of each column checked as one
+array (what a table of thousands of rows needs: a few microseconds a row in all);
+:meth:`PlainColumns.scene` is one row of it.
 
 It takes a row only where the result is certain to be what :class:`~warp_tube.scene.usd.SceneReader`
 would read: values rounded as the attribute's type stores them (``float`` to float32), and every
@@ -18,13 +19,9 @@ still comes from the reader.
 
 from __future__ import annotations
 
-import dataclasses
-import math
-import struct
-
 import numpy as np
 
-from ..scene.spec import Scene, SceneError, replace_checked
+from ..scene.spec import Scene, replace_checked
 
 __all__ = ["PlainColumns"]
 
@@ -40,23 +37,6 @@ TUBE_SCALARS = {
 MAX_DENSITY, MAX_YOUNGS, MAX_FORCE = 1e6, 1e13, 1e9
 SCALAR_TYPES = {"double": np.float64, "float": np.float32}
 VECTOR_TYPES = {"double3": np.float64, "float3": np.float32}
-_F32 = struct.Struct("f")
-
-
-def _stored(value, type_name: str):
-    """``value`` as the stage stores an attribute of ``type_name`` and the reader reads it back
-    (float64), or None for a type not taken here."""
-    if type_name == "double":
-        return float(value)
-    if type_name == "float":
-        try:
-            return _F32.unpack(_F32.pack(value))[0]
-        except OverflowError:  # beyond float32: inf, refused by the caller's checks
-            return math.copysign(math.inf, value)
-    with np.errstate(over="ignore"):
-        if type_name in VECTOR_TYPES:
-            return np.asarray(np.asarray(value, dtype=VECTOR_TYPES[type_name]), dtype=np.float64).reshape(3)
-    return None
 
 
 class PlainColumns:
@@ -91,37 +71,8 @@ class PlainColumns:
 
     def scene(self, values: list) -> Scene | None:
         """The variant with ``values`` (one per column, as parsed for the stage), or None where
-        the stage must be read (a value the reader refuses or warns about)."""
-        tube_changes: dict = {}
-        force_values: dict = {}
-        for (prim, attr, type_name), value in zip(self.targets, values):
-            v = _stored(value, type_name)
-            if attr == "warptube:force":
-                if not (np.isfinite(v).all() and np.abs(v).max() <= MAX_FORCE):
-                    return None
-                force_values[self.force_of[prim]] = v
-                continue
-            field, positive = TUBE_SCALARS[attr]
-            if not math.isfinite(v) or v < 0.0 or (positive and v == 0.0):
-                return None
-            tube_changes.setdefault(self.tube_of[prim], {})[field] = v
-        tubes = list(self.base.tubes)
-        for k, changes in tube_changes.items():
-            t = tubes[k]
-            try:
-                params = dataclasses.replace(t.params, **changes)
-            except SceneError:
-                return None
-            E = params.youngs_modulus
-            if params.density > MAX_DENSITY or (E is not None and E > MAX_YOUNGS):
-                return None
-            if len(t.anchors) and params.anchor_stiffness == 0.0:
-                return None  # the reader warns of it
-            tubes[k] = replace_checked(t, params=params)  # the points, radii and indices are the base's
-        forces = list(self.base.forces)
-        for k, v in force_values.items():
-            forces[k] = replace_checked(forces[k], times=np.zeros(1), values=v[None].copy())
-        return replace_checked(self.base, tubes=tuple(tubes), forces=tuple(forces))
+        the stage must be read (a value the reader refuses or warns about): :meth:`scenes` of one row."""
+        return self.scenes([[v] for v in values])[0]
 
     def scenes(self, columns: list[list]) -> list[Scene | None]:
         """:meth:`scene` for many rows at once: ``columns`` holds, per column, every row's value

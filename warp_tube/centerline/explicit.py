@@ -88,9 +88,9 @@ class SemiImplicitEulerSolver:
             its place in the block), "shared" through shared memory and block barriers; "auto"
             (default) shuffles where the layout has every tube within a warp, else shared
             memory: in both a world computes the same whatever its place in the block, so a
-            variant gives the same numbers in a batch and alone. Both exchange the same values
-            and do the same arithmetic (the compiler's FMA contractions may differ: float32
-            round-off apart).
+            variant gives the same numbers in a batch and alone. All three exchange the same
+            values and do the same arithmetic (the compiler's FMA contractions may differ:
+            float32 round-off apart).
     """
 
     name = "semiImplicitEuler"
@@ -113,7 +113,7 @@ class SemiImplicitEulerSolver:
         if exchange not in EXCHANGES:
             raise ValueError(f"exchange must be one of {EXCHANGES}, got {exchange!r}")
         self._exchange_request = exchange
-        self.onchip_exchange = None  # "shuffle" or "shared", when the on-chip kernel is used
+        self.onchip_exchange = None  # "shuffle", "mixed" or "shared", when the on-chip kernel is used
         self.onchip = bool(self.device.is_cuda if onchip is None else onchip) and self._setup_onchip()
 
     # -- the on-chip path ---------------------------------------------------------------------
