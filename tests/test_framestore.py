@@ -13,7 +13,7 @@ def frames(seed, F, W, V):
     return rng.normal(size=(F, W, V, 3)).astype(np.float32) * 10.0
 
 
-def run_store(monkeypatch, staged, window_bytes, staging_bytes):
+def run_store(monkeypatch, staged, window_bytes, staging_bytes, wait="flush"):
     monkeypatch.setattr(framestore, "STAGING_BYTES", staging_bytes)
     monkeypatch.setattr(framestore, "COPY_THREADS", 3)
     monkeypatch.setattr(framestore, "PARALLEL_COPY_MIN", 1000)
@@ -30,7 +30,10 @@ def run_store(monkeypatch, staged, window_bytes, staging_bytes):
             store.store(f, "points", wp.array(np.ascontiguousarray(pts[f][:, cols]) * unit, dtype=wp.vec3, device="cpu"), unit, columns=cols)
             store.store(f, "normals", wp.array(np.ascontiguousarray(nrm[f][:, cols]), dtype=wp.vec3, device="cpu"), 1.0, columns=cols)
             store.store(f, "extent", wp.array(ext[f, :, p] * unit, dtype=wp.vec3, device="cpu"), unit, prim=p)
-    store.flush()
+    if wait == "flush":
+        store.flush()
+    else:  # the copy back runs on its own thread: the future says when every frame is there
+        store.finish().result()
     # The stored frames are src / unit in float32, as NumPy divides: exactly those values.
     for name, ref in (("centerline", cl), ("points", pts), ("extent", ext)):
         np.testing.assert_array_equal(host[name], (ref * np.float32(unit)) / unit)
@@ -49,3 +52,9 @@ def test_windows_copied_back_through_a_small_staging_buffer(monkeypatch):
     # a short last window, the threads' slices) is taken
     store = run_store(monkeypatch, staged=True, window_bytes=200_000, staging_bytes=60_000)
     assert store.window == 5
+
+
+def test_windows_handed_over_and_awaited_through_the_future(monkeypatch):
+    # the same windows, waited for as a batch's writers do (finish() and its future)
+    store = run_store(monkeypatch, staged=True, window_bytes=200_000, staging_bytes=60_000, wait="future")
+    assert store.window == 5 and store.pending.done()

@@ -91,8 +91,9 @@ class WorldControl:
         buf = self._host.get(a.ptr)
         if buf is None:
             buf = self._host[a.ptr] = wp.empty(a.shape, dtype=a.dtype, device="cpu", pinned=True)
-        wp.copy(buf, a)
-        wp.synchronize_device(a.device)
+        stream = wp.get_stream(a.device)
+        wp.copy(buf, a, stream=stream)
+        wp.synchronize_stream(stream)  # (not the device: frames being copied back on another stream need not wait)
         return buf.numpy()
 
     @property

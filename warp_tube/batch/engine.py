@@ -18,6 +18,7 @@ Output arrays (stage units, float32), for ``F`` written frames and ``W`` worlds:
 
 from __future__ import annotations
 
+import concurrent.futures as cf
 import time
 from dataclasses import dataclass, field
 
@@ -29,7 +30,7 @@ from ..scene.spec import Scene
 from .checks import WorldChecks
 from .control import WorldControl
 from .plan import RunChoice
-from .framestore import FrameStore
+from .framestore import FrameStore, done_future
 from .worlds import build_worlds, initial_state
 
 __all__ = ["ChunkRun", "simulate_chunk", "output_frames", "chunk_shapes"]
@@ -64,12 +65,15 @@ class ChunkRun:
             max_displacement_m, tip (the first tube's last point at the end, stage units, (3,)),
             kinetic_energy_J (at the end), work_J (of the forces and gravity, in all).
         timings: seconds spent building, in the kernels, copying back, in control and checks,
-            copying into the arrays and rerunning failed variants alone.
+            handing frames over to be copied into the arrays and rerunning failed variants alone.
+        ready: done once every output frame is in ``arrays`` (they are copied back from the
+            device on a thread of their own while the caller goes on): wait before reading them.
     """
 
     arrays: dict
     rows: list
     timings: dict = field(default_factory=lambda: dict.fromkeys(TIMERS, 0.0))
+    ready: cf.Future = field(default_factory=done_future)
 
 
 def simulate_chunk(scenes: list[Scene], choice: RunChoice, device: str, frames: int, every: int, surface: bool,
@@ -104,6 +108,7 @@ def simulate_chunk(scenes: list[Scene], choice: RunChoice, device: str, frames: 
     shapes = chunk_shapes(scenes, frames, every, surface, int(worlds.vertex_start[-1]) if surface else None)
     arrays = (allocate or _in_memory)(shapes)
     store = FrameStore(arrays, device)
+    stream = wp.get_stream(device) if wp.get_device(device).is_cuda else None
     timings["build_s"] += time.perf_counter() - t0
 
     alive = np.ones(W, dtype=bool)
@@ -120,7 +125,7 @@ def simulate_chunk(scenes: list[Scene], choice: RunChoice, device: str, frames: 
             wc.update(k - 1, state)
             t1 = time.perf_counter()
             solver.integrate(state, nxt, control, dt, n)
-            wp.synchronize_device(device)
+            _synchronize(stream)
             t2 = time.perf_counter()
             problems = checks.check(k - 1, state, nxt, control, alive)
             state, nxt = nxt, state
@@ -143,16 +148,16 @@ def simulate_chunk(scenes: list[Scene], choice: RunChoice, device: str, frames: 
             store.store(f_out, "centerline", state.node_q, mpu)  # as Simulation.centerline_points
             if surface:
                 _surface_frame(worlds, state, store, f_out, mpu)
-            wp.synchronize_device(device)
+            _synchronize(stream)
             t1 = time.perf_counter()
             if store.count == store.window and f_out + 1 < store.frames:
-                store.flush()
+                store.hand_over()  # copied back on the copying thread while the frames go on
             frames_written[alive] += 1
             f_out += 1
             timings["kernels_s"] += t1 - t
             timings["copy_s"] += time.perf_counter() - t1
     t = time.perf_counter()
-    store.flush()
+    ready = store.finish()
     timings["copy_s"] += time.perf_counter() - t
     t = time.perf_counter()
     q, qd = state.node_q.numpy(), state.node_qd.numpy()
@@ -166,10 +171,19 @@ def simulate_chunk(scenes: list[Scene], choice: RunChoice, device: str, frames: 
                          max_displacement_m=float(max_disp[w]), tip=(q[w, first_tip] / mpu).astype(np.float64),
                          kinetic_energy_J=float(ke[w]), work_J=float(checks.work[w])))  # fmt: skip
     t = time.perf_counter()
+    if failed:
+        ready.result()  # the worlds run alone write over their rows of the copied frames
     for w in sorted(failed):
         rows[w] = _run_alone(scenes[w], w, device, frames, every, surface, arrays, first_tip)
     timings["rerun_s"] += time.perf_counter() - t
-    return ChunkRun(arrays=arrays, rows=rows, timings=timings)
+    return ChunkRun(arrays=arrays, rows=rows, timings=timings, ready=ready)
+
+
+def _synchronize(stream) -> None:
+    """Wait for the simulation's own stream (not the copies back running beside it); nothing on
+    the CPU, where launches return when done."""
+    if stream is not None:
+        wp.synchronize_stream(stream)
 
 
 def _in_memory(shapes: dict) -> dict:

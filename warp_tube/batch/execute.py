@@ -104,6 +104,7 @@ def _sim_task(payload):
     wp.config.log_level = wp.LOG_WARNING
     scenes, choice, frames, every, surface, buffer_dir, slot = payload
     run = simulate_chunk(scenes, choice, _worker_device, frames, every, surface, allocate=_slot_allocator(buffer_dir, slot))
+    run.ready.result()  # the frames are in the slot files
     paths = {name: a.filename for name, a in run.arrays.items()}
     for a in run.arrays.values():
         a.flush()
@@ -133,7 +134,7 @@ def _sim_write_task(payload):
         cf.wait(pending)
     run = simulate_chunk(scenes, choice, _worker_device, frames, every, surface, allocate=_worker_ring.allocator(chunk_id))
     t0 = time.perf_counter()
-    futures = [_worker_writers.submit(write, t) for t in _with_rows(tasks, run.rows, run.arrays)]
+    futures = [_worker_writers.submit(_write_when_ready, run.ready, t) for t in _with_rows(tasks, run.rows, run.arrays)]
     _worker_writing[chunk_id] = futures
     left = [len(futures)]
     lock = threading.Lock()
@@ -166,6 +167,7 @@ def _dask_task(payload):
     scenes, choice, frames, every, surface, device, tasks = payload
     t0 = time.perf_counter()
     run = simulate_chunk(scenes, choice, resolve_device(device), frames, every, surface)
+    run.ready.result()
     t1 = time.perf_counter()
     outputs = []
     for task in _with_rows(tasks, run.rows, run.arrays):
@@ -209,6 +211,35 @@ def _timed_write(task: WriteTask):
     t0 = time.perf_counter()
     out = write(task)
     return out, time.perf_counter() - t0
+
+
+def _write_when_ready(ready: cf.Future, task: WriteTask):
+    """:func:`write` once the chunk's frames are in its arrays (``ready``)."""
+    ready.result()
+    return write(task)
+
+
+def _timed_write_when_ready(ready: cf.Future, task: WriteTask):
+    ready.result()
+    return _timed_write(task)
+
+
+def _hand_to_processes(ready: cf.Future, arrays: dict, tasks: list, pool):
+    """Once the chunk's frames are in its memory-mapped ``arrays``, flush them and have the
+    writer processes ``pool`` write ``tasks`` (filled in with the arrays' file names); returns
+    every task's outputs and the writers' summed time, as one :func:`_timed_write`."""
+    ready.result()
+    for a in arrays.values():
+        a.flush()
+    names = {name: a.filename for name, a in arrays.items()}
+    futures = [pool.submit(_timed_write, WriteTask(spec=t.spec, chunk=t.chunk, variants=t.variants, positions=t.positions,
+                                                   rows=t.rows, arrays=names)) for t in tasks]  # fmt: skip
+    outputs, spent = [], 0.0
+    for f in futures:
+        out, s = f.result()
+        outputs += out
+        spent += s
+    return outputs, spent
 
 
 def _slot_allocator(folder: str, slot: int):
@@ -335,6 +366,7 @@ def run_here(todo, device, context, result) -> None:
     buffers = None
     pending: dict = {}  # chunk id -> (futures, rows)
     ring = None  # the chunks' arrays, two in turn: one being written while the next is simulated
+    handoff = None  # threads handing chunks to writer processes once their frames are copied back
     bar = context["bar"]
 
     def settle(block: bool):
@@ -373,6 +405,7 @@ def run_here(todo, device, context, result) -> None:
             tasks = _write_tasks(chunk, context, max(writers.count, 1))
             if pool is None:
                 t0 = time.perf_counter()
+                run.ready.result()
                 outputs = []
                 for task in _with_rows(tasks, run.rows, run.arrays):
                     outputs += write(task)
@@ -380,14 +413,14 @@ def run_here(todo, device, context, result) -> None:
                 result.write_wait_s += time.perf_counter() - t0  # written here: the simulation waits
                 context["finish"](chunk.id, run.rows, outputs)
                 continue
-            if writers.processes:
-                for a in run.arrays.values():
-                    a.flush()
-                arrays = {name: a.filename for name, a in run.arrays.items()}
+            filled = _with_rows(tasks, run.rows, run.arrays)
+            if writers.processes:  # handed over once the frames are in the files, without waiting here
+                if handoff is None:
+                    handoff = cf.ThreadPoolExecutor(2, thread_name_prefix="batch-handoff")
+                futures = [handoff.submit(_hand_to_processes, run.ready, run.arrays, filled, pool)]
             else:
-                arrays = run.arrays
+                futures = [pool.submit(_timed_write_when_ready, run.ready, t) for t in filled]
             del run.arrays
-            futures = [pool.submit(_timed_write, t) for t in _with_rows(tasks, run.rows, arrays)]
             pending[chunk.id] = (futures, run.rows)
             settle(block=False)
             t0 = time.perf_counter()
@@ -405,6 +438,8 @@ def run_here(todo, device, context, result) -> None:
         finally:
             raise
     finally:
+        if handoff is not None:
+            handoff.shutdown(wait=True)
         if buffers is not None:
             shutil.rmtree(buffers, ignore_errors=True)
 

@@ -8,6 +8,11 @@ no per-frame host arithmetic): in pieces through a page-locked staging buffer, a
 speed, and from there into the host arrays by several threads (a copy from the device straight
 into pageable memory ran at 1.5-3 GB/s). On the CPU the buffer is the host arrays themselves.
 
+The copy back runs on a thread of its own, on a CUDA stream of its own, while the simulation
+goes on: a full window is handed over and the frames that follow go into fresh device buffers
+(at most two windows of a process are in flight). :meth:`FrameStore.finish` returns a future
+that is done once every frame is in the host arrays; whoever reads them waits for it.
+
 Host arrays (float32, stage units), for ``F`` written frames and ``W`` worlds, as
 :func:`warp_tube.batch.engine.chunk_shapes` gives them: ``centerline`` (F, W, N, 3); ``points``,
 ``normals`` (F, W, V, 3); ``extent`` (F, W, prims, 2, 3).
@@ -23,7 +28,7 @@ import warp as wp
 
 from ..kernels.frame_store import store_scaled_kernel
 
-__all__ = ["FrameStore", "WINDOW_BYTES", "STAGING_BYTES"]
+__all__ = ["FrameStore", "WINDOW_BYTES", "STAGING_BYTES", "done_future"]
 
 #: device memory a window of frames may take on a CUDA device [bytes]
 WINDOW_BYTES = 2 << 30
@@ -36,6 +41,45 @@ PARALLEL_COPY_MIN = 1 << 20
 
 _staging: dict = {}  # device name -> (Warp host array, its NumPy view)
 _copiers = None
+_flusher = None  # the thread that copies windows back, one per process (it owns the staging buffers)
+_flush_streams: dict = {}  # device name -> the CUDA stream the copies back run on
+
+
+def _flush_thread() -> cf.ThreadPoolExecutor:
+    global _flusher
+    if _flusher is None:
+        _flusher = cf.ThreadPoolExecutor(1, thread_name_prefix="frame-flush")
+    return _flusher
+
+
+def _copy_stream(device) -> wp.Stream:
+    """A CUDA stream for copying frames back that does not block the legacy default stream:
+    ``wp.array.numpy()`` copies on that stream, which waits for every blocking stream, so the
+    simulation's small per-frame reads would otherwise wait for pieces of a window being copied.
+    Created through the driver (Warp's own streams are blocking); a Warp stream where that fails."""
+    import ctypes
+
+    try:
+        lib = ctypes.CDLL("libcuda.so.1")
+        handle, popped = ctypes.c_void_p(), ctypes.c_void_p()
+        if lib.cuCtxPushCurrent_v2(ctypes.c_void_p(device.context)) != 0:
+            raise OSError("cuCtxPushCurrent failed")
+        try:
+            rc = lib.cuStreamCreate(ctypes.byref(handle), ctypes.c_uint(1))  # CU_STREAM_NON_BLOCKING
+        finally:
+            lib.cuCtxPopCurrent_v2(ctypes.byref(popped))
+        if rc != 0 or not handle.value:
+            raise OSError(f"cuStreamCreate returned {rc}")
+        return wp.Stream(device, cuda_stream=handle.value)
+    except (OSError, AttributeError):
+        return wp.Stream(device)
+
+
+def done_future(value=None) -> cf.Future:
+    """A future that is already done (with ``value``)."""
+    f = cf.Future()
+    f.set_result(value)
+    return f
 
 
 def _staging_buffer(device, nbytes: int) -> np.ndarray:
@@ -94,13 +138,14 @@ class FrameStore:
                             for name, h in self.host.items()}  # fmt: skip
         self.start = 0  # first frame in the window
         self.count = 0  # frames stored in the window
+        self.pending = done_future()  # the copy back of the last window handed over
 
     def _slot(self, frame: int) -> int:
         if frame != self.start + self.count and frame != self.start + self.count - 1:
             raise ValueError(f"frame {frame}: frames are stored in order (next is {self.start + self.count})")
         if frame == self.start + self.count:
             if self.count == self.window:
-                self.flush()
+                self.hand_over()
             self.count += 1
         return frame - self.start
 
@@ -114,7 +159,8 @@ class FrameStore:
             columns: the columns of the output this fills (a prim's vertices), or all.
             prim: for ``extent``, the prim whose bounds ``src`` (W, 2) holds.
         """
-        out = self.buffers[name][self._slot(frame)]
+        slot = self._slot(frame)  # (first: it may start a new window, with new buffers)
+        out = self.buffers[name][slot]
         if prim is not None:
             out = out[:, prim]
         if columns is not None:
@@ -122,19 +168,50 @@ class FrameStore:
         wp.launch(store_scaled_kernel, dim=src.shape, inputs=[src, float(unit), out], device=self.device)
 
     def flush(self) -> None:
-        """Copy the window's stored frames to the host arrays (CUDA; nothing to do on the CPU)."""
-        if self.buffers is not self.host and self.count:
-            wp.synchronize_device(self.device)
-            for name, buf in self.buffers.items():
-                frame_bytes = 12 * int(np.prod(buf.shape[1:]))
-                step = max(1, STAGING_BYTES // frame_bytes)  # frames per piece
-                stage = _staging_buffer(self.device, min(step, self.count) * frame_bytes)
-                dst = self._keep[name]
-                for a in range(0, self.count, step):
-                    b = min(a + step, self.count)
-                    view = stage[: (b - a) * frame_bytes].view(np.float32).reshape((b - a,) + dst.shape[1:])
-                    wp.copy(wp.array(view, dtype=wp.vec3, device="cpu", copy=False), buf[a:b])
-                    wp.synchronize_device(self.device)
-                    _parallel_copy(dst[self.start + a : self.start + b], view)
+        """Copy the window's stored frames to the host arrays and wait until they are there."""
+        self.hand_over()
+        self.pending.result()
+
+    def finish(self) -> cf.Future:
+        """Hand the last window over; the returned future is done (or raises the copy's error)
+        once every stored frame is in the host arrays."""
+        self.hand_over()
+        return self.pending
+
+    def hand_over(self) -> None:
+        """Give the window to the copying thread and start a new one (CUDA; on the CPU the
+        frames are already in the host arrays)."""
+        if self.buffers is self.host or not self.count:
+            self.start += self.count
+            self.count = 0
+            return
+        self.pending.result()  # at most two windows in flight: this one and the one copying now
+        event = wp.record_event() if self.device.is_cuda else None  # on the stream that stored the frames
+        job = (self.buffers, self.start, self.count, event)
+        self.pending = _flush_thread().submit(self._copy_back, *job)
         self.start += self.count
         self.count = 0
+        if self.start < self.frames:  # frames to come: fresh buffers (the handed-over ones are being read)
+            self.buffers = {name: wp.empty(buf.shape, dtype=wp.vec3, device=self.device) for name, buf in self.buffers.items()}
+
+    def _copy_back(self, buffers: dict, start: int, count: int, event) -> None:
+        """On the copying thread: ``count`` frames of ``buffers`` into the host arrays from frame
+        ``start``, through the staging buffer, on this thread's stream."""
+        stream = None
+        if self.device.is_cuda:
+            stream = _flush_streams.get(str(self.device))
+            if stream is None:
+                stream = _flush_streams[str(self.device)] = _copy_stream(self.device)
+            stream.wait_event(event)
+        for name, buf in buffers.items():
+            frame_bytes = 12 * int(np.prod(buf.shape[1:]))
+            step = max(1, STAGING_BYTES // frame_bytes)  # frames per piece
+            stage = _staging_buffer(self.device, min(step, count) * frame_bytes)
+            dst = self._keep[name]
+            for a in range(0, count, step):
+                b = min(a + step, count)
+                view = stage[: (b - a) * frame_bytes].view(np.float32).reshape((b - a,) + dst.shape[1:])
+                wp.copy(wp.array(view, dtype=wp.vec3, device="cpu", copy=False), buf[a:b], stream=stream)
+                if stream is not None:
+                    wp.synchronize_stream(stream)
+                _parallel_copy(dst[start + a : start + b], view)
