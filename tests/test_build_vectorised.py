@@ -107,13 +107,31 @@ def _varied_scene() -> Scene:
     return Scene(tuple(tubes))
 
 
-@pytest.mark.parametrize("scene", ["varied", "many"])
+def _shared_geometry_scene():
+    """A batch's worlds: copies of one prim (three curves, pins and anchors) sharing its geometry
+    arrays, each with its own material."""
+    from warp_tube.scene.spec import replace_checked
+
+    base = _varied_scene().tubes[0]
+    rng = np.random.default_rng(5)
+    out = []
+    for k in range(6):
+        params = replace_checked(base.params, youngs_modulus=float(rng.uniform(1e4, 1e6)), density=float(rng.uniform(900, 1200)),
+                                 damping=float(k), anchor_stiffness=10.0 * (k + 1))  # fmt: skip
+        out.append(replace_checked(base, path=f"/W{k}", params=params))
+    return Scene(tuple(out))
+
+
+@pytest.mark.parametrize("scene", ["varied", "many", "shared"])
 def test_node_parameters_equal_the_curve_loop(scene):
     from tests.reference_build import node_parameters_loop
     from warp_tube.model.tube import node_parameters
 
     if scene == "varied":
         sc = _varied_scene()
+    elif scene == "shared":  # prims holding the same geometry arrays: the first prim's repeated
+        sc = _shared_geometry_scene()
+        assert all(t.points is sc.tubes[0].points for t in sc.tubes)
     else:
         params = TubeParams(density=1000.0, youngs_modulus=1e5, damping=2.0)
         sc = Scene(tuple(TubeSpec(f"/V{k}", wavy(12, 0.01 * k), [12], np.full(12, 0.01), params, pinned=[0, 1]) for k in range(50)))

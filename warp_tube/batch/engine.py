@@ -164,12 +164,12 @@ def simulate_chunk(scenes: list[Scene], choice: RunChoice, device: str, frames: 
     timings["readback_s"] += time.perf_counter() - t
     ke = checks.kinetic_energy(qd)
     first_tip = int(np.cumsum(scenes[0].tubes[0].curve_counts)[0]) - 1
-    rows = []
-    for w in range(W):
-        rows.append(dict(status="ok", reason="", frames=int(frames_written[w]), frames_simulated=int(frames_simulated[w]),
-                         integrator=choice.integrator, substeps=choice.substeps, rerun=False,
-                         max_displacement_m=float(max_disp[w]), tip=(q[w, first_tip] / mpu).astype(np.float64),
-                         kinetic_energy_J=float(ke[w]), work_J=float(checks.work[w])))  # fmt: skip
+    tips = (q[:, first_tip] / mpu).astype(np.float64).tolist()
+    columns = zip(frames_written.tolist(), frames_simulated.tolist(), max_disp.tolist(), tips, np.asarray(ke, dtype=np.float64).tolist(),
+                  np.asarray(checks.work, dtype=np.float64).tolist())  # fmt: skip
+    rows = [dict(status="ok", reason="", frames=fw, frames_simulated=fs, integrator=choice.integrator, substeps=choice.substeps,
+                 rerun=False, max_displacement_m=d, tip=tip, kinetic_energy_J=e, work_J=wk)
+            for fw, fs, d, tip, e, wk in columns]  # fmt: skip
     t = time.perf_counter()
     if failed:
         ready.result()  # the worlds run alone write over their rows of the copied frames
@@ -256,5 +256,5 @@ def _run_alone(scene: Scene, w: int, device: str, frames: int, every: int, surfa
     # work_J: what Simulation's own checks counted over the frames it kept
     return dict(status="failed" if reason else "ok", reason=reason or note, frames=written,
                 frames_simulated=simulated, integrator=sim.integrator, substeps=sim.substeps, rerun=True,
-                max_displacement_m=float(max_disp), tip=(q[0, tip] / mpu).astype(np.float64), kinetic_energy_J=ke,
+                max_displacement_m=float(max_disp), tip=(q[0, tip] / mpu).astype(np.float64).tolist(), kinetic_energy_J=ke,
                 work_J=float(sim.checks.work.sum()))  # fmt: skip

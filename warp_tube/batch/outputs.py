@@ -325,6 +325,9 @@ def _atomic_text(path: str, text: str) -> None:
     os.replace(tmp, path)
 
 
+_AS_STR = {float, int, str, bool}
+
+
 def _fmt(v) -> str:
     if isinstance(v, float):
         return "nan" if math.isnan(v) else repr(v)
@@ -340,7 +343,9 @@ def write_summary(path: str, parameter_columns: list[str], variants, rows: dict)
     tip_axis = {"tip_x": 0, "tip_y": 1, "tip_z": 2}
     found = [rows[v.index] for v in variants]
     tips = [r.get("tip") or nan3 for r in found]
-    columns = [[_fmt(t[tip_axis[k]]) for t in tips] if k in tip_axis else [_fmt(r.get(k, "")) for r in found]
-               for k in SUMMARY_FIELDS]  # fmt: skip
+    columns = [[t[tip_axis[k]] for t in tips] if k in tip_axis else [r.get(k, "") for r in found] for k in SUMMARY_FIELDS]
+    # csv writes str(value): for floats repr (NaN as "nan"), ints, strings and bools as _fmt does;
+    # only a column holding something else (None) goes through _fmt
+    columns = [c if set(map(type, c)) <= _AS_STR else [_fmt(x) for x in c] for c in columns]
     out.writerows([v.index, v.name, *v.cells, *v.selection, *fields] for v, fields in zip(variants, zip(*columns)))
     _atomic_text(path, buf.getvalue())

@@ -21,6 +21,7 @@ from __future__ import annotations
 
 import math
 from dataclasses import dataclass
+from types import SimpleNamespace
 
 import numpy as np
 
@@ -49,10 +50,16 @@ class Chunk:
     indices: tuple[int, ...]
 
 
-def _tube_key(t) -> tuple:
-    """What of a tube prim the stability bound depends on (content, not identity)."""
-    return (t.points.tobytes(), t.radius.tobytes(), tuple(t.curve_counts.tolist()), t.params, t.pinned.tobytes(),
-            t.anchors.tobytes())  # fmt: skip
+def _tube_key(t, memo: dict) -> tuple:
+    """What of a tube prim the stability bound depends on (content, not identity): its geometry
+    (read once per set of arrays: ``memo``, by the arrays' identities, while they live) and its
+    parameters."""
+    ids = (id(t.points), id(t.radius), id(t.curve_counts), id(t.pinned), id(t.anchors))
+    geometry = memo.get(ids)
+    if geometry is None:
+        geometry = memo[ids] = (t.points.tobytes(), t.radius.tobytes(), tuple(t.curve_counts.tolist()), t.pinned.tobytes(),
+                                t.anchors.tobytes())  # fmt: skip
+    return geometry, t.params
 
 
 def run_choices(scenes: list[Scene], block: int = 1024) -> list[RunChoice]:
@@ -60,28 +67,31 @@ def run_choices(scenes: list[Scene], block: int = 1024) -> list[RunChoice]:
 
     The policy is the one ``Simulation`` applies (:func:`warp_tube.centerline.policy.choose_integrator`), given each scene's stability
     bound (``critical_time_step`` of its own nodes), so the batch cannot drift from it. Scenes of
-    one node layout are discretised together, ``block`` at a time (``build_model`` of a scene
-    holding them all, on the CPU; its host arrays sliced per scene), and scenes whose tubes agree
+    one node layout are discretised together, ``block`` at a time (the per-node parameters of a
+    scene holding them all, with the first one's topology; read per scene), and scenes whose tubes agree
     in everything the bound depends on share one answer.
     """
     out: list = [None] * len(scenes)
     first_of: dict = {}  # content key -> index of the first scene with it
+    keys: list = []
     layouts: dict = {}
+    memo: dict = {}
     for i, s in enumerate(scenes):
-        key = (tuple(_tube_key(t) for t in s.tubes), tuple(f.assistant_line for f in s.forces), s.settings, s.stage.frame_dt)
+        tubes = tuple(_tube_key(t, memo) for t in s.tubes)
+        key = (tubes, tuple(f.assistant_line for f in s.forces), s.settings, s.stage.frame_dt)
+        keys.append(key)
         if key in first_of:
             continue
         first_of[key] = i
-        layout = (tuple(tuple(t.curve_counts.tolist()) for t in s.tubes), key[1])
+        layout = (tuple(g[2] for g, _ in tubes), key[1])  # curve point counts, assistant lines
         layouts.setdefault(layout, []).append(i)
     for members in layouts.values():
         for b in range(0, len(members), block):
             idx = members[b : b + block]
             for i, choice in zip(idx, _choices_of([scenes[i] for i in idx])):
                 out[i] = choice
-    for i, s in enumerate(scenes):
+    for i, key in enumerate(keys):
         if out[i] is None:
-            key = (tuple(_tube_key(t) for t in s.tubes), tuple(f.assistant_line for f in s.forces), s.settings, s.stage.frame_dt)
             out[i] = out[first_of[key]]
     return out
 
@@ -90,16 +100,17 @@ def _choices_of(scenes: list[Scene]) -> list[RunChoice]:
     """run_choices for scenes of one node layout, discretised in one build."""
     from ..centerline.policy import choose_integrator, implicit_cost_ratio
     from ..centerline.stability import critical_time_steps
-    from ..model.tube import build_model
-    from .worlds import combined_scene
+    from ..model.tube import build_model, node_parameters
+    from .worlds import combined_tubes
 
-    flat = build_model(combined_scene(scenes), world_count=1, device="cpu")
-    h = flat.host
+    per_node, _ = node_parameters(combined_tubes(scenes))  # every scene's nodes, scene after scene
+    one = build_model(scenes[0], world_count=1, device="cpu")  # the topology they share
+    h = SimpleNamespace(**per_node, tube_al_force=one.host.tube_al_force)
     damping = np.array([max((t.params.spring_damping for t in s.tubes), default=0.0) for s in scenes])
-    bounds = critical_time_steps(h, len(scenes), flat.features.assistant_line, damping)
+    bounds = critical_time_steps(h, len(scenes), one.features.assistant_line, damping)
     seg = np.asarray(h.seg_rest_length).reshape(len(scenes), -1)
     seg_min = np.where(seg > 0, seg, np.inf).min(axis=1)
-    cost = implicit_cost_ratio(flat)
+    cost = implicit_cost_ratio(one)
     out = []
     for k, scene in enumerate(scenes):
         choice = choose_integrator(scene.settings, float(bounds[k]), scene.stage.frame_dt, cost)

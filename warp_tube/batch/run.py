@@ -355,7 +355,8 @@ def _finished(out_dir: str, result: BatchResult, t_start: float) -> BatchResult:
 
 
 def _json_row(row: dict, output: str) -> dict:
-    out = {k: (v.tolist() if isinstance(v, np.ndarray) else v) for k, v in row.items()}
+    """A chunk's summary row with its output, as the journal keeps it (plain Python values)."""
+    out = dict(row)
     out["output"] = output
     return out
 

@@ -1,8 +1,8 @@
 """Variants of one topology as the worlds of one model: per-world parameter arrays, one launch.
 
-:func:`build_worlds` discretises all the variants at once (``build_model`` of a scene holding every
-variant's tubes, one after another) and reads the result as ``(world, node)`` arrays: each model
-parameter array of shape (1, N) becomes (W, N), so world ``w`` holds variant ``w``'s masses,
+:func:`build_worlds` discretises all the variants at once (the per-node parameters of a scene
+holding every variant's tubes, one after another) and reads the result as ``(world, node)`` arrays:
+each model parameter array of shape (1, N) becomes (W, N), so world ``w`` holds variant ``w``'s masses,
 stiffnesses, rest shape and damping (the kernels read parameters at ``[w % rows, i]``). The
 topology (tube and force layout) is the first variant's, which every variant of a group shares
 (:mod:`warp_tube.batch.plan`). The surface of each tube prim is one ``SurfaceBuilder`` over all
@@ -17,10 +17,10 @@ from dataclasses import dataclass
 import numpy as np
 import warp as wp
 
-from ..model.tube import TubeModel, build_model
+from ..model.tube import TubeModel, build_model, model_features, node_parameters
 from ..scene.spec import Scene, replace_checked
 
-__all__ = ["Worlds", "WorldArrays", "build_worlds", "combined_scene"]
+__all__ = ["Worlds", "WorldArrays", "build_worlds", "combined_scene", "combined_tubes"]
 
 
 @dataclass(frozen=True)
@@ -51,6 +51,14 @@ def combined_scene(scenes: list[Scene]) -> Scene:
         forces.extend(replace_checked(f, tube=f.tube + offset) if offset else f for f in s.forces)
     first = scenes[0]
     return Scene(tubes=tuple(tubes), forces=tuple(forces), settings=first.settings, stage=first.stage, source=first.source)
+
+
+def combined_tubes(scenes: list[Scene]) -> Scene:
+    """One scene holding every scene's tubes, scene after scene, and no forces: what the per-node
+    parameters (:func:`~warp_tube.model.tube.node_parameters`) of them all are made from."""
+    first = scenes[0]
+    tubes = tuple(t for s in scenes for t in s.tubes)
+    return Scene(tubes=tubes, forces=(), settings=first.settings, stage=first.stage, source=first.source)
 
 
 @dataclass
@@ -86,19 +94,20 @@ class Worlds:
 def build_worlds(scenes: list[Scene], device: str, surface: bool) -> Worlds:
     """Discretise ``scenes`` (one topology) as the worlds of one model on ``device``."""
     W = len(scenes)
-    flat = build_model(combined_scene(scenes), world_count=1, device=device)
-    one = build_model(scenes[0], world_count=W, device=device)
+    per_node, curved = node_parameters(combined_tubes(scenes))  # every world's nodes, world after world
+    one = build_model(scenes[0], world_count=W, device=device)  # the topology every world shares
     N = one.node_count
-    if flat.node_count != W * N:
-        raise ValueError(f"variants of one group have {flat.node_count} nodes in all, expected {W} x {N}")
+    if len(per_node["node_mass"]) != W * N:
+        raise ValueError(f"variants of one group have {len(per_node['node_mass'])} nodes in all, expected {W} x {N}")
+    host = WorldArrays(**{f.name: per_node[f.name].reshape((W, N) + per_node[f.name].shape[1:])
+                          for f in dataclasses.fields(WorldArrays)})  # fmt: skip
     per_world = {}
     for f in dataclasses.fields(one):
         value = getattr(one, f.name)
         if isinstance(value, wp.array) and value.ndim == 2 and value.shape == (1, N):
-            per_world[f.name] = getattr(flat, f.name).reshape((W, N))
-    model = dataclasses.replace(one, features=flat.features, **per_world)
-    host = WorldArrays(**{f.name: getattr(flat.host, f.name).reshape((W, N) + getattr(flat.host, f.name).shape[1:])
-                          for f in dataclasses.fields(WorldArrays)})  # fmt: skip
+            per_world[f.name] = wp.array(getattr(host, f.name), dtype=value.dtype, device=device)
+    features = model_features(per_node, curved, scenes[0].settings.gravity, one.features.external, one.features.assistant_line)
+    model = dataclasses.replace(one, features=features, **per_world)
     prim_start = np.append(one.host.prim_node_start, N)
     surfaces = vertex_start = None
     if surface:

@@ -24,6 +24,7 @@ Discretisation (SI units):
 from __future__ import annotations
 
 from dataclasses import dataclass
+from operator import attrgetter
 
 import numpy as np
 import warp as wp
@@ -245,6 +246,10 @@ class TubeModel:
         )
 
 
+#: a tube prim's geometry arrays (TubeSpec fields): prims holding the same objects share them
+_GEOMETRY = ("points", "radius", "curve_counts", "pinned", "anchors")
+
+
 def node_parameters(scene: Scene) -> tuple[dict, bool]:
     """The per-node arrays of every curve of ``scene`` (prims in order, each prim's curves in
     order), for all curves at once, and whether any rest shape is curved.
@@ -258,18 +263,30 @@ def node_parameters(scene: Scene) -> tuple[dict, bool]:
     ``tube_node_start`` (C + 1,), ``node_tube`` (N,), ``prim_node_start`` (T,).
     """
     specs = scene.tubes
+    # Prims that share their geometry arrays (a batch's variants made from one scene): each
+    # per-node array of the geometry is the first prim's repeated, and so is its rest curvature.
+    shared = len(specs) > 1 and all(len(set(map(id, map(attrgetter(a), specs)))) == 1 for a in _GEOMETRY)
     sizes = np.array([len(s.points) for s in specs], dtype=np.int64)
     prim_start = np.concatenate([[0], np.cumsum(sizes)]).astype(np.int64)
-    counts = np.concatenate([s.curve_counts for s in specs]).astype(np.int64)
+    if shared:
+        s0, P = specs[0], len(specs)
+        counts = np.tile(s0.curve_counts.astype(np.int64), P)
+        x, r = np.tile(s0.points, (P, 1)), np.tile(s0.radius, P)
+    else:
+        counts = np.concatenate([s.curve_counts for s in specs]).astype(np.int64)
+        x = np.concatenate([s.points for s in specs])
+        r = np.concatenate([s.radius for s in specs])
     tube_start = np.concatenate([[0], np.cumsum(counts)]).astype(np.int64)
     first, last = tube_start[:-1], tube_start[1:] - 1
-    x = np.concatenate([s.points for s in specs])
-    r = np.concatenate([s.radius for s in specs])
     n = len(x)
     pinned = np.zeros(n, dtype=bool)
-    pinned[np.concatenate([s.pinned + o for s, o in zip(specs, prim_start)])] = True
     anchored = np.zeros(n, dtype=bool)
-    anchored[np.concatenate([s.anchors + o for s, o in zip(specs, prim_start)])] = True
+    if shared:
+        pinned.reshape(P, -1)[:, specs[0].pinned] = True
+        anchored.reshape(P, -1)[:, specs[0].anchors] = True
+    else:
+        pinned[np.concatenate([s.pinned + o for s, o in zip(specs, prim_start)])] = True
+        anchored[np.concatenate([s.anchors + o for s, o in zip(specs, prim_start)])] = True
 
     def material(values):
         """One value per prim [its unit] over the prim's nodes (NaN for None): an array (N,), or a
@@ -311,7 +328,10 @@ def node_parameters(scene: Scene) -> tuple[dict, bool]:
     bend_k[last] = 0.0
     ea = np.where(np.isnan(head(stretch)), head(youngs) * np.pi * r_seg**2, head(stretch))  # TubeParams.axial_stiffness
     k_ax = np.where(inside, ea / np.where(inside, seg, 1.0), 0.0)
-    if len(counts) and (counts == counts[0]).all():  # curves of one length (e.g. a batch's worlds): one call
+    if shared:
+        kappa = np.tile(node_parameters(Scene(tubes=specs[:1], forces=(), settings=scene.settings, stage=scene.stage,
+                                              source=scene.source))[0]["node_kappa_rest"], (len(specs), 1))  # fmt: skip
+    elif len(counts) and (counts == counts[0]).all():  # curves of one length (e.g. a batch's worlds): one call
         kappa = rest_curvature_coordinates(x.reshape(len(counts), int(counts[0]), 3)).reshape(n, 3)
     else:
         kappa = np.concatenate(rest_curvature_of_curves([x[a : b + 1] for a, b in zip(first, last)]))
@@ -326,6 +346,22 @@ def node_parameters(scene: Scene) -> tuple[dict, bool]:
         prim_node_start=prim_start[:-1],
     )  # fmt: skip
     return per_node, bool(np.abs(kappa).max() > 1e-6)
+
+
+def model_features(per_node: dict, curved: bool, gravity, external: bool, assistant_line: bool) -> Features:
+    """The force terms a model needs, from its per-node arrays (:func:`node_parameters`),
+    whether a rest shape is curved, the gravity [m/s^2] (or None), and whether it has point
+    forces and assistant lines."""
+    return Features(
+        bending=bool((per_node["node_bend_k"] > 0).any()),
+        curved=curved,
+        anchors=bool((per_node["node_anchor_k"] > 0).any()),
+        gravity=gravity is not None and any(v != 0.0 for v in gravity),
+        mass_damping=bool((per_node["node_damping"] > 0).any()),
+        spring_damping=bool((per_node["seg_kd"] > 0).any() or (per_node["node_anchor_kd"] > 0).any()),
+        external=external,
+        assistant_line=assistant_line,
+    )
 
 
 def build_model(scene: Scene, world_count: int = 1, device=None) -> TubeModel:
@@ -364,16 +400,7 @@ def build_model(scene: Scene, world_count: int = 1, device=None) -> TubeModel:
                       al_start=np.asarray(al_start, dtype=np.int64), force_uses_al=np.asarray(uses_al, dtype=bool),
                       tube_al_force=tube_al_force)  # fmt: skip
     g = scene.settings.gravity
-    features = Features(
-        bending=bool((host.node_bend_k > 0).any()),
-        curved=curved,
-        anchors=bool((host.node_anchor_k > 0).any()),
-        gravity=g is not None and any(v != 0.0 for v in g),
-        mass_damping=bool((host.node_damping > 0).any()),
-        spring_damping=bool((host.seg_kd > 0).any() or (host.node_anchor_kd > 0).any()),
-        external=len(scene.forces) > 0,
-        assistant_line=slot > 0,
-    )
+    features = model_features(per_node, curved, g, external=len(scene.forces) > 0, assistant_line=slot > 0)
 
     def row(a, dtype=float):
         return wp.array(np.asarray(a)[None], dtype=dtype, device=device)
