@@ -753,3 +753,29 @@ print("ok", r.ok)
     assert "ok 5" in p.stdout and "reading it in this process" in p.stderr
     for k in range(5):
         assert filecmp.cmp(files_out / f"variant_{k:05d}.usdc", out / f"variant_{k:05d}.usdc", shallow=False)
+
+
+@pytest.mark.parametrize("block_bytes", [1 << 30, 3 * 4 * 3 * 5 * 4 + 1])
+def test_arrays_written_in_blocks_of_variants_that_follow_one_another(tmp_path, monkeypatch, block_bytes):
+    """The arrays layout writes each run of variants consecutive in the batch and in the chunk with
+    one copy and one write: runs broken by gaps in the batch's indices, by the chunk's order and by
+    the block size (the second case: at most 4 variants a block) land at their rows, each
+    variant's frames copied exactly and padded with NaN past its points."""
+    import warp_tube.batch.outputs as outputs
+
+    monkeypatch.setattr(outputs, "ARRAY_BLOCK_BYTES", block_bytes)
+    F, W, m, n = 3, 9, 4, 5  # frames, worlds in the chunk, the chunk's points, the batch's most points
+    spec = outputs.OutputSpec(layout="arrays", out_dir=str(tmp_path), surface=False, time_codes=(0.0, 1.0, 2.0), variants=14,
+                              points=n, work_dir=str(tmp_path))  # fmt: skip
+    outputs.prepare_arrays(spec, resume=False)
+    chunk = np.random.default_rng(0).normal(size=(F, W, m, 3)).astype(np.float32)
+    indices = [0, 1, 2, 3, 4, 5, 8, 9, 13]  # a gap after 5 and after 9
+    positions = [0, 1, 2, 3, 4, 5, 6, 8, 7]  # the last two swapped in the chunk
+    task = outputs.WriteTask(spec=spec, chunk=0, variants=tuple((i, f"v{i}", None) for i in indices), positions=tuple(positions),
+                             rows=(), arrays={"centerline": chunk})  # fmt: skip
+    assert outputs.write(task) == ["centerline.npy"] * W
+    got = np.load(tmp_path / "centerline.npy")
+    for i, p in zip(indices, positions):
+        assert np.array_equal(got[i, :, :m], chunk[:, p]) and np.isnan(got[i, :, m:]).all(), i
+    untouched = sorted(set(range(14)) - set(indices))
+    assert not got[untouched].any()  # rows of other chunks: not written here (still the file's zeros)

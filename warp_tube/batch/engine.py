@@ -29,8 +29,8 @@ from ..runtime.interrupts import raise_if_interrupted
 from ..scene.spec import Scene
 from .checks import WorldChecks
 from .control import WorldControl
-from .plan import RunChoice
 from .framestore import FrameStore, done_future
+from .plan import RunChoice
 from .worlds import build_worlds, initial_state
 
 __all__ = ["ChunkRun", "simulate_chunk", "output_frames", "chunk_shapes"]

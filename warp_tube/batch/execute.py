@@ -1,11 +1,11 @@
-"""Where a batch's chunks run, and the writers that write them.
+"""Where a batch's chunks run on one host, and the writers that write them.
 
 - :func:`run_here`: one device, in this process; a pool of writers (:class:`Writers`) writes each
   chunk while the next one is simulated;
 - :func:`run_pooled`: one worker process per device (the GPUs of a host, or N CPU processes), each
   simulating chunks into memory-mapped arrays that the writers read (``arrays``: each writing its
   own chunks);
-- :func:`run_dask`: each chunk a task of a Dask distributed cluster, simulating and writing there.
+- beyond one host, :func:`warp_tube.batch.cluster.run_dask`.
 
 Each calls ``context["finish"](chunk_id, rows, outputs)`` when a chunk's outputs are complete, and
 adds its timings to the batch's result.
@@ -29,8 +29,8 @@ from ..scene.spec import SceneError
 from .engine import TIMERS, chunk_shapes, simulate_chunk
 from .outputs import WriteTask, write
 
-__all__ = ["Writers", "SimWorkers", "writer_count", "run_here", "run_pooled", "run_dask", "dask_client", "check_dask",
-           "ignore_sigint"]
+__all__ = ["Writers", "SimWorkers", "writer_count", "run_here", "run_pooled", "ignore_sigint", "add_timings", "with_rows",
+           "write_tasks"]
 
 
 def ignore_sigint():
@@ -134,7 +134,7 @@ def _sim_write_task(payload):
         cf.wait(pending)
     run = simulate_chunk(scenes, choice, _worker_device, frames, every, surface, allocate=_worker_ring.allocator(chunk_id))
     t0 = time.perf_counter()
-    futures = [_worker_writers.submit(_write_when_ready, run.ready, t) for t in _with_rows(tasks, run.rows, run.arrays)]
+    futures = [_worker_writers.submit(_write_when_ready, run.ready, t) for t in with_rows(tasks, run.rows, run.arrays)]
     _worker_writing[chunk_id] = futures
     left = [len(futures)]
     lock = threading.Lock()
@@ -155,24 +155,6 @@ def _sim_write_task(payload):
     for f in futures:
         f.add_done_callback(written)
     return run.rows, None, run.timings
-
-
-def _dask_task(payload):
-    """A Dask task: simulate one chunk on the worker's device and write its outputs."""
-    import warp as wp
-
-    from ..sim.simulation import resolve_device
-
-    wp.config.log_level = wp.LOG_WARNING
-    scenes, choice, frames, every, surface, device, tasks = payload
-    t0 = time.perf_counter()
-    run = simulate_chunk(scenes, choice, resolve_device(device), frames, every, surface)
-    run.ready.result()
-    t1 = time.perf_counter()
-    outputs = []
-    for task in _with_rows(tasks, run.rows, run.arrays):
-        outputs += write(task)
-    return run.rows, outputs, run.timings, t1 - t0, time.perf_counter() - t1
 
 
 class Writers:
@@ -303,7 +285,7 @@ class BufferRing:
         return allocate
 
 
-def _with_rows(tasks: list[WriteTask], rows: list, arrays: dict) -> list[WriteTask]:
+def with_rows(tasks: list[WriteTask], rows: list, arrays: dict) -> list[WriteTask]:
     """Fill the write tasks of a chunk with the simulation's rows and arrays."""
     out = []
     for t in tasks:
@@ -325,7 +307,7 @@ def _buffer_folder(chunk_bytes: int, work_dir: str) -> str:
     return tempfile.mkdtemp(prefix="buffers-", dir=work_dir)
 
 
-def _write_tasks(chunk, context, parts: int) -> list[WriteTask]:
+def write_tasks(chunk, context, parts: int) -> list[WriteTask]:
     """A chunk's variants split into ``parts`` write tasks (the grid: one), rows filled in later."""
     variants, spec = context["variants"].variants, context["spec"]
     idx = list(chunk.indices)
@@ -401,19 +383,19 @@ def run_here(todo, device, context, result) -> None:
             run = simulate_chunk(scenes, choice, device, context["frames"], context["every"], context["surface"],
                                  allocate=allocate, progress=bar.frames)  # fmt: skip
             result.simulate_s += time.perf_counter() - t0
-            _add_timings(result, run.timings)
-            tasks = _write_tasks(chunk, context, max(writers.count, 1))
+            add_timings(result, run.timings)
+            tasks = write_tasks(chunk, context, max(writers.count, 1))
             if pool is None:
                 t0 = time.perf_counter()
                 run.ready.result()
                 outputs = []
-                for task in _with_rows(tasks, run.rows, run.arrays):
+                for task in with_rows(tasks, run.rows, run.arrays):
                     outputs += write(task)
                 result.write_s += time.perf_counter() - t0
                 result.write_wait_s += time.perf_counter() - t0  # written here: the simulation waits
                 context["finish"](chunk.id, run.rows, outputs)
                 continue
-            filled = _with_rows(tasks, run.rows, run.arrays)
+            filled = with_rows(tasks, run.rows, run.arrays)
             if writers.processes:  # handed over once the frames are in the files, without waiting here
                 if handoff is None:
                     handoff = cf.ThreadPoolExecutor(2, thread_name_prefix="batch-handoff")
@@ -502,7 +484,7 @@ def run_pooled(todo, devices, workers: SimWorkers, context, result) -> None:
         while by_workers and queue_chunks and len(simulating) + len(writing) < 3 * len(devices):
             c = queue_chunks.pop(0)
             scenes = [context["variants"].variants[i].scene for i in c.indices]
-            tasks = _write_tasks(c, context, threads)
+            tasks = write_tasks(c, context, threads)
             payload = (c.id, scenes, context["choices"][c.indices[0]], context["frames"], context["every"], context["surface"],
                        tasks, threads)  # fmt: skip
             simulating[sims.submit(_sim_write_task, payload)] = c
@@ -526,14 +508,14 @@ def run_pooled(todo, devices, workers: SimWorkers, context, result) -> None:
             for fut in [f for f in simulating if f.done()]:
                 c = simulating.pop(fut)
                 rows, paths, timings = fut.result()  # paths None: the worker writes the chunk itself
-                _add_timings(result, timings)
+                add_timings(result, timings)
                 bar.frames(len(c.indices) * max(context["frames"] - 1, 1))
                 if by_workers:
                     writing[c.id] = ((), rows)  # reported on the done queue once written
                     if c.id in early:
                         finish_written(c.id, *early.pop(c.id))
                     continue
-                tasks = _with_rows(_write_tasks(c, context, max(1, writers.count // len(devices))), rows, paths)
+                tasks = with_rows(write_tasks(c, context, max(1, writers.count // len(devices))), rows, paths)
                 writing[c.id] = ([pool.submit(_timed_write, t) for t in tasks], rows)
             for cid in [cid for cid, (fs, _) in writing.items() if fs and all(f.done() for f in fs)]:
                 fs, rows = writing.pop(cid)
@@ -572,58 +554,6 @@ def run_pooled(todo, devices, workers: SimWorkers, context, result) -> None:
         result.write_wait_s += 0.0 if not result.simulate_s else max(0.0, time.perf_counter() - t0 - result.simulate_s / len(devices))
 
 
-def check_dask() -> None:
-    """Raise SceneError if Dask distributed is not installed (before a batch writes anything)."""
-    try:
-        import distributed  # noqa: F401
-    except ImportError:
-        raise SceneError("--scheduler needs Dask distributed: pip install 'warp-tube[dask]'") from None
-
-
-def dask_client(scheduler: str):
-    """A client of the Dask scheduler at ``scheduler``.
-
-    Raises:
-        SceneError: Dask is not installed, or the scheduler cannot be reached.
-    """
-    check_dask()
-    from distributed import Client
-
-    try:
-        return Client(scheduler, timeout="20s")
-    except (OSError, TimeoutError) as e:
-        raise SceneError(f"--scheduler {scheduler}: cannot reach the Dask scheduler ({e})") from None
-
-
-def run_dask(todo, context, result) -> None:
-    """Each chunk a task of the Dask cluster at ``scheduler``, simulating and writing there."""
-    from distributed import as_completed
-
-    client = dask_client(context["scheduler"])
-    bar = context["bar"]
-    futures = {}
-    try:
-        for c in todo:
-            scenes = [context["variants"].variants[i].scene for i in c.indices]
-            tasks = _write_tasks(c, context, 1)
-            payload = (scenes, context["choices"][c.indices[0]], context["frames"], context["every"], context["surface"],
-                       context["device"], tasks)  # fmt: skip
-            futures[client.submit(_dask_task, payload, pure=False)] = c
-        for fut in as_completed(list(futures)):
-            c = futures[fut]
-            rows, outputs, timings, sim_s, write_s = fut.result()
-            _add_timings(result, timings)
-            result.simulate_s += sim_s
-            result.write_s += write_s
-            bar.frames(len(c.indices) * max(context["frames"] - 1, 1))
-            context["finish"](c.id, rows, outputs)
-    except KeyboardInterrupt:
-        client.cancel(list(futures))
-        raise
-    finally:
-        client.close()
-
-
-def _add_timings(result, timings: dict) -> None:
+def add_timings(result, timings: dict) -> None:
     for k, v in timings.items():
         result.timings[k] = result.timings.get(k, 0.0) + v

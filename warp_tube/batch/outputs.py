@@ -204,24 +204,48 @@ def prepare_arrays(spec: OutputSpec, resume: bool) -> None:
             open_memmap(path, mode="w+", dtype=np.float32, shape=(spec.variants, F, n, 3)).flush()  # sparse until written
 
 
+#: bytes of one block written to an arrays layout's file at once (variants in a row)
+ARRAY_BLOCK_BYTES = 64 << 20
+
+
+def _runs(indices: list, positions: list, limit: int) -> list[tuple[int, int, int]]:
+    """``(first batch index, first position, count)`` of each run of variants that follow one
+    another both in the batch and in the chunk, at most ``limit`` long."""
+    out = []
+    for i, p in zip(indices, positions):
+        if out and out[-1][2] < limit and i == out[-1][0] + out[-1][2] and p == out[-1][1] + out[-1][2]:
+            out[-1] = (out[-1][0], out[-1][1], out[-1][2] + 1)
+        else:
+            out.append((i, p, 1))
+    return out
+
+
 def _write_arrays(task: WriteTask, arrays: dict) -> list[str]:
+    """Each variant's frames into the batch's ``.npy`` files at its row, variants that follow one
+    another in a block of their own (one copy out of the frame-major chunk arrays and one
+    ``os.pwrite``, both without the GIL: few Python steps per block, so that the writer threads
+    do not queue for the GIL behind the simulating thread)."""
     spec, F = task.spec, len(task.spec.time_codes)
     targets = [("centerline", "centerline", spec.points)]
     if spec.surface:
         targets.append(("surface", "points", spec.vertices))
+    indices = [index for index, _, _ in task.variants]
     for name, source, n in targets:
         path = os.path.join(spec.work_dir, f"{name}.npy")
         offset = np.load(path, mmap_mode="r").offset
+        row_bytes = F * n * 3 * 4
         fd = os.open(path, os.O_WRONLY)
         try:
-            block = np.empty((F, n, 3), dtype=np.float32)
-            for (index, _, _), p in zip(task.variants, task.positions):
-                data = arrays[source][:, p]
-                block[:, : data.shape[1]] = data
-                block[:, data.shape[1] :] = np.nan
-                written = os.pwrite(fd, block, offset + index * block.nbytes)  # the buffer itself: no copy under the GIL
-                if written != block.nbytes:
-                    raise OSError(f"{path}: short write ({written} of {block.nbytes} bytes)")
+            runs = _runs(indices, list(task.positions), max(1, ARRAY_BLOCK_BYTES // row_bytes))
+            block = np.empty((max(k for _, _, k in runs), F, n, 3), dtype=np.float32)
+            for index, p, k in runs:
+                data = arrays[source][:, p : p + k]  # (F, k, points, 3)
+                out = block[:k]
+                out[:, :, : data.shape[2]] = data.transpose(1, 0, 2, 3)
+                out[:, :, data.shape[2] :] = np.nan
+                written = os.pwrite(fd, out, offset + index * row_bytes)  # the buffer itself: no copy under the GIL
+                if written != out.nbytes:
+                    raise OSError(f"{path}: short write ({written} of {out.nbytes} bytes)")
         finally:
             os.close(fd)
     return ["centerline.npy" + (" surface.npy" if spec.surface else "")] * len(task.variants)

@@ -32,7 +32,8 @@ import numpy as np
 from ..runtime.interrupts import kept_interrupts
 from ..scene.spec import SceneError
 from .engine import TIMERS, output_frames
-from .execute import SimWorkers, Writers, check_dask, dask_client, run_dask, run_here, run_pooled, writer_count
+from .cluster import check_dask, dask_client, run_dask
+from .execute import SimWorkers, Writers, run_here, run_pooled, writer_count
 from .journal import Journal, file_digest
 from .outputs import LAYOUTS, OutputSpec, finish_arrays, prepare_arrays, surface_topology, write_grid_root, write_summary
 from .plan import group_key, plan_chunks
