@@ -48,13 +48,14 @@ def test_frames_straight_into_the_host_arrays(monkeypatch):
 
 def test_windows_copied_back_through_a_small_staging_buffer(monkeypatch):
     # windows of 5 frames (one frame of all four outputs is 36.9 kB) and staging pieces of 3
-    # frames of the largest output: every path of the copy (a full window, a short last piece and
-    # a short last window, the threads' slices) is taken
-    store = run_store(monkeypatch, staged=True, window_bytes=200_000, staging_bytes=60_000)
+    # frames of the largest output (each half of the staging buffer, used in turn): every path of
+    # the copy (a full window, a short last piece and a short last window, the threads' slices)
+    # is taken
+    store = run_store(monkeypatch, staged=True, window_bytes=200_000, staging_bytes=120_000)
     assert store.window == 5
 
 
 def test_windows_handed_over_and_awaited_through_the_future(monkeypatch):
     # the same windows, waited for as a batch's writers do (finish() and its future)
-    store = run_store(monkeypatch, staged=True, window_bytes=200_000, staging_bytes=60_000, wait="future")
+    store = run_store(monkeypatch, staged=True, window_bytes=200_000, staging_bytes=120_000, wait="future")
     assert store.window == 5 and store.pending.done()

@@ -196,22 +196,38 @@ class FrameStore:
 
     def _copy_back(self, buffers: dict, start: int, count: int, event) -> None:
         """On the copying thread: ``count`` frames of ``buffers`` into the host arrays from frame
-        ``start``, through the staging buffer, on this thread's stream."""
+        ``start``, on this thread's stream, in pieces through the two halves of the staging
+        buffer: while one piece is copied from the device into one half, the other half's piece
+        goes on into the host arrays."""
         stream = None
         if self.device.is_cuda:
             stream = _flush_streams.get(str(self.device))
             if stream is None:
                 stream = _flush_streams[str(self.device)] = _copy_stream(self.device)
             stream.wait_event(event)
+        half = STAGING_BYTES // 2
+        pieces = []  # (output name, first frame, end frame) of each piece
         for name, buf in buffers.items():
             frame_bytes = 12 * int(np.prod(buf.shape[1:]))
-            step = max(1, STAGING_BYTES // frame_bytes)  # frames per piece
-            stage = _staging_buffer(self.device, min(step, count) * frame_bytes)
+            step = max(1, half // frame_bytes)  # frames per piece
+            pieces += [(name, a, min(a + step, count)) for a in range(0, count, step)]
+        size = max(12 * (b - a) * int(np.prod(buffers[name].shape[1:])) for name, a, b in pieces)
+        stage = _staging_buffer(self.device, 2 * size)
+        halves = (stage[:size], stage[size : 2 * size])
+
+        def fetch(k: int):
+            """Start copying piece ``k`` into its half; returns the half's view and an event (CUDA)."""
+            name, a, b = pieces[k]
             dst = self._keep[name]
-            for a in range(0, count, step):
-                b = min(a + step, count)
-                view = stage[: (b - a) * frame_bytes].view(np.float32).reshape((b - a,) + dst.shape[1:])
-                wp.copy(wp.array(view, dtype=wp.vec3, device="cpu", copy=False), buf[a:b], stream=stream)
-                if stream is not None:
-                    wp.synchronize_stream(stream)
-                _parallel_copy(dst[start + a : start + b], view)
+            view = halves[k % 2][: (b - a) * dst[0].nbytes].view(np.float32).reshape((b - a,) + dst.shape[1:])
+            wp.copy(wp.array(view, dtype=wp.vec3, device="cpu", copy=False), buffers[name][a:b], stream=stream)
+            return view, (stream.record_event() if stream is not None else None)
+
+        pending = fetch(0)
+        for k, (name, a, b) in enumerate(pieces):
+            view, done = pending
+            if k + 1 < len(pieces):  # the other half is free: its last piece went on at step k - 1
+                pending = fetch(k + 1)
+            if done is not None:
+                wp.synchronize_event(done)
+            _parallel_copy(self._keep[name][start + a : start + b], view)
