@@ -80,6 +80,9 @@ class WorldControl:
                 track = np.stack([s.tubes[k].pin_track for s in worlds.scenes])
                 self._pins.append((worlds.prim_start[k] + t.pinned, track))
         self._f_last = None  # the forces last written to the control, (W, F, 3) [N]
+        self._constant = all(len(times) == 1 for groups in self._forces for times, _, _ in groups)
+        self._f_const = self._f_const_dead = None  # constant forces, and the dead worlds they were made for
+        self._directions: dict = {}  # force -> (the forces array, its size per world, zero, unit direction)
         self._host = {}  # device array address -> its reused page-locked host copy
 
     def _fetch(self, a):
@@ -101,13 +104,20 @@ class WorldControl:
         return bool(self._pins)
 
     def forces_at(self, t: float) -> np.ndarray:
-        """Each world's model forces at time ``t`` [s], (W, F, 3) [N]; 0 in dead worlds."""
+        """Each world's model forces at time ``t`` [s], (W, F, 3) [N]; 0 in dead worlds. Where
+        every force is held constant (one sample each) the same array comes back frame after
+        frame until a world dies (read only)."""
+        if self._constant and self._f_const is not None and np.array_equal(self.dead, self._f_const_dead):
+            return self._f_const
         W = self.worlds.world_count
         out = np.zeros((W, len(self._forces), 3))
         for a, groups in enumerate(self._forces):
             for times, ws, values in groups:
                 out[ws, a] = interpolate(t, times, values)
         out[self.dead] = 0.0
+        if self._constant:
+            out.flags.writeable = False
+            self._f_const, self._f_const_dead = out, self.dead.copy()
         return out
 
     def update(self, frame: int, state) -> None:
@@ -116,7 +126,7 @@ class WorldControl:
         W, N = m.world_count, m.node_count
         if m.force_count:
             f = self.forces_at((frame + 0.5) * self.frame_dt)
-            if self._f_last is None or not np.array_equal(f, self._f_last):  # held forces: written once
+            if self._f_last is None or (f is not self._f_last and not np.array_equal(f, self._f_last)):  # held: written once
                 fe = np.zeros((W, N, 3))
                 for a, node in enumerate(self.force_node):  # in force order, as np.add.at sums them
                     fe[:, node] += f[:, a]
@@ -141,13 +151,16 @@ class WorldControl:
         for a in range(m.force_count):
             if not self.uses_al[a]:
                 continue
-            mag = np.linalg.norm(f[:, a], axis=-1)
-            zero = mag == 0.0
+            held = self._directions.get(a)
+            if held is None or held[0] is not f:  # (the same forces as last frame: the same directions)
+                mag = np.linalg.norm(f[:, a], axis=-1)
+                zero = mag == 0.0
+                held = self._directions[a] = (f, zero, f[:, a] / np.where(zero, 1.0, mag)[:, None])
+            _, zero, d = held
             drop = zero & (active[:, a] != 0)
             if drop.any():
                 active[drop, a] = 0
                 changed = True
-            d = f[:, a] / np.where(zero, 1.0, mag)[:, None]
             keep = (active[:, a] != 0) & (np.sum(d * self._al_dir[:, a], axis=-1) >= cos_rebuild)
             build = ~zero & ~keep
             if not build.any():

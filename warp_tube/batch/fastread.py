@@ -104,16 +104,21 @@ class PlainColumns:
                     good &= np.asarray(fields.get("anchor_stiffness", t.params.anchor_stiffness)) != 0.0  # the reader warns
         out: list = [None] * rows
         base_tubes, base_forces = list(self.base.tubes), list(self.base.forces)
-        tube_items = [(k, base_tubes[k], list(fields.items())) for k, fields in tube_fields.items()]
-        force_items = list(force_values.items())
+        # per column its values as Python floats (a list indexes faster than an array)
+        tube_items = [(k, base_tubes[k], [(f, a.tolist()) for f, a in fields.items()]) for k, fields in tube_fields.items()]
+        # each variant's force: one constant sample, a row of one (rows, 1, 3) array (read only)
+        force_items = [(k, v.reshape(rows, 1, 3)) for k, v in force_values.items()]
+        for _, v in force_items:
+            v.flags.writeable = False
         times = np.zeros(1)
+        times.flags.writeable = False  # shared by every variant's constant forces
         for r in np.flatnonzero(good).tolist():
             tubes = base_tubes.copy()
             for k, t, fields in tube_items:
-                params = replace_checked(t.params, **{f: float(a[r]) for f, a in fields})  # checked above, per column
+                params = replace_checked(t.params, **{f: a[r] for f, a in fields})  # checked above, per column
                 tubes[k] = replace_checked(t, params=params)
             forces = base_forces.copy()
             for k, v in force_items:
-                forces[k] = replace_checked(forces[k], times=times.copy(), values=v[r][None].copy())
+                forces[k] = replace_checked(forces[k], times=times, values=v[r])
             out[r] = replace_checked(self.base, tubes=tuple(tubes), forces=tuple(forces))
         return out

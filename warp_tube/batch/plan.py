@@ -145,20 +145,29 @@ def mean_spoke_length(t) -> float:
     return value
 
 
-def group_key(scene: Scene, choice: RunChoice, surface: bool) -> tuple:
-    """Variants with equal keys run as worlds of one model (see the module docstring)."""
+def group_key(scene: Scene, choice: RunChoice, surface: bool, memo: dict | None = None) -> tuple:
+    """Variants with equal keys run as worlds of one model (see the module docstring).
+
+    ``memo``: a dict kept over the calls for one batch's variants, where the parts of a tube's
+    key read from its arrays are remembered by the arrays' identities (a batch's variants mostly
+    share them), or None."""
     s = scene.stage
-    tubes = tuple(
-        (t.path, tuple(t.curve_counts.tolist()), t.pinned.tobytes(), t.params.spokes, t.params.frames, t.params.caps,
-         t.params.reference_normal, t.pin_track is not None)
-        for t in scene.tubes
-    )  # fmt: skip
+    memo = {} if memo is None else memo
+    tubes, shape = [], []
+    for t in scene.tubes:
+        p = t.params
+        ids = (id(t.curve_counts), id(t.pinned), id(t.points), id(t.radius), id(t.spoke_lengths), p.spokes)
+        arrays = memo.get(ids)
+        if arrays is None:
+            arrays = memo[ids] = (tuple(t.curve_counts.tolist()), t.pinned.tobytes(), t.points.tobytes(), mean_spoke_length(t),
+                                  (t.curve_counts, t.pinned, t.points, t.radius, t.spoke_lengths))  # (kept: their ids stay theirs)
+        tubes.append((t.path, arrays[0], arrays[1], p.spokes, p.frames, p.caps, p.reference_normal, t.pin_track is not None))
+        shape.append((arrays[2], arrays[3]))
     forces = tuple((f.tube, f.point, f.assistant_line) for f in scene.forces)
     run = (choice.integrator, choice.substeps, scene.settings.gravity, s.start_time_code, s.end_time_code,
            s.time_codes_per_second, s.frames_per_second, s.meters_per_unit, s.up_axis)  # fmt: skip
     implicit = choice.min_segment if choice.integrator == "implicitEuler" else None
-    shape = tuple((t.points.tobytes(), mean_spoke_length(t)) for t in scene.tubes) if surface else None
-    return (tubes, forces, run, implicit, shape)
+    return (tuple(tubes), forces, run, implicit, tuple(shape) if surface else None)
 
 
 def plan_chunks(keys: list, chunk: int) -> list[Chunk]:

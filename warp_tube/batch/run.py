@@ -262,7 +262,8 @@ def _run_batch(scene, out_dir, table, tab, devices, writer_pool, sim_workers, t_
     bar.close_reading()
     first = variants.variants[0].scene
     n_frames = first.stage.frame_count if frames is None else int(frames)
-    keys = [group_key(v.scene, c, surface) for v, c in zip(variants.variants, choices)]
+    memo: dict = {}
+    keys = [group_key(v.scene, c, surface, memo) for v, c in zip(variants.variants, choices)]
     journal = Journal(out_dir)
     if chunk is None:
         base = DEFAULT_CHUNK_CUDA if devices[0].startswith("cuda") else DEFAULT_CHUNK_CPU
