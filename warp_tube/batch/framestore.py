@@ -10,7 +10,8 @@ into pageable memory ran at 1.5-3 GB/s). On the CPU the buffer is the host array
 
 The copy back runs on a thread of its own, on a CUDA stream of its own, while the simulation
 goes on: a full window is handed over and the frames that follow go into fresh device buffers
-(at most two windows of a process are in flight). :meth:`FrameStore.finish` returns a future
+(at most :data:`MAX_WINDOWS_IN_FLIGHT` windows of a process wait, over the chunks, and no more
+than fit in a quarter of the device's memory). :meth:`FrameStore.finish` returns a future
 that is done once every frame is in the host arrays; whoever reads them waits for it.
 
 Host arrays (float32, stage units), for ``F`` written frames and ``W`` worlds, as
@@ -20,6 +21,7 @@ Host arrays (float32, stage units), for ``F`` written frames and ``W`` worlds, a
 
 from __future__ import annotations
 
+import collections
 import concurrent.futures as cf
 import os
 
@@ -43,6 +45,9 @@ _staging: dict = {}  # device name -> (Warp host array, its NumPy view)
 _copiers = None
 _flusher = None  # the thread that copies windows back, one per process (it owns the staging buffers)
 _flush_streams: dict = {}  # device name -> the CUDA stream the copies back run on
+#: windows handed over and not yet copied back, at most (a quarter of the device's memory at most)
+MAX_WINDOWS_IN_FLIGHT = 3
+_in_flight: collections.deque = collections.deque()  # their futures, oldest first (one copying thread: in order)
 
 
 def _flush_thread() -> cf.ThreadPoolExecutor:
@@ -185,10 +190,15 @@ class FrameStore:
             self.start += self.count
             self.count = 0
             return
-        self.pending.result()  # at most two windows in flight: this one and the one copying now
+        window_bytes = sum(b.capacity for b in self.buffers.values())
+        limit = max(1, min(MAX_WINDOWS_IN_FLIGHT, int(0.25 * (self.device.total_memory or 0) // max(window_bytes, 1))))
+        while len(_in_flight) >= limit:  # device memory held by windows not yet copied back
+            _in_flight[0].result()
+            _in_flight.popleft()
         event = wp.record_event() if self.device.is_cuda else None  # on the stream that stored the frames
         job = (self.buffers, self.start, self.count, event)
         self.pending = _flush_thread().submit(self._copy_back, *job)
+        _in_flight.append(self.pending)
         self.start += self.count
         self.count = 0
         if self.start < self.frames:  # frames to come: fresh buffers (the handed-over ones are being read)
