@@ -2,7 +2,7 @@
 
 ``state.json`` holds the batch's signature (scene and table contents, options that change the
 outputs, the chunk size); ``chunks/chunk_00003.json`` is written (atomically) when every output of
-chunk 3 is complete, with its variants' summary fields. Resuming checks the signature and skips
+chunk 3 is complete, with its variants' summary fields (one list per field, in the chunk's order). Resuming checks the signature and skips
 the recorded chunks; chunks are planned the same way again, so the resumed batch ends with the
 same files as an uninterrupted one. The folder is removed when the batch completes, and its
 signature kept in ``DIR/.batch-finished.json``, so that ``--resume`` of a finished batch with other
@@ -92,7 +92,7 @@ class Journal:
             done = {}
             for path in sorted(glob.glob(os.path.join(self.chunk_dir, "chunk_*.json"))):
                 with open(path, encoding="utf-8") as f:
-                    rec = json.load(f)
+                    rec = _from_columns(json.load(f))
                 done[int(rec["chunk"])] = rec
             return done
         os.makedirs(self.chunk_dir, exist_ok=True)
@@ -101,7 +101,7 @@ class Journal:
 
     def record(self, chunk: int, record: dict) -> None:
         """Mark chunk ``chunk`` finished (all its outputs complete)."""
-        self._atomic(os.path.join(self.chunk_dir, f"chunk_{chunk:05d}.json"), dict(record, chunk=chunk))
+        self._atomic(os.path.join(self.chunk_dir, f"chunk_{chunk:05d}.json"), _to_columns(dict(record, chunk=chunk)))
 
     def finish(self) -> None:
         """The batch is complete: keep its signature (as :meth:`begin` had it) beside the outputs,
@@ -116,3 +116,21 @@ class Journal:
         with open(tmp, "w", encoding="utf-8") as f:
             f.write(text)
         os.replace(tmp, path)
+
+
+def _to_columns(record: dict) -> dict:
+    """A chunk's record with its rows (``{batch index: {field: value}}``, every row the same
+    fields) as one list per field: fewer, longer lists for the JSON encoder than a dict per row."""
+    rows = record["rows"]
+    fields = list(next(iter(rows.values()))) if rows else []
+    out = {k: v for k, v in record.items() if k != "rows"}
+    out["rows"] = {"index": list(rows), **{f: [r[f] for r in rows.values()] for f in fields}}
+    return out
+
+
+def _from_columns(record: dict) -> dict:
+    """:func:`_to_columns` undone."""
+    cols = record["rows"]
+    index = cols.pop("index")
+    fields = list(cols)
+    return dict(record, rows={i: dict(zip(fields, values)) for i, values in zip(index, zip(*cols.values()))})
