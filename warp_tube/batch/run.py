@@ -357,10 +357,10 @@ def _finished(out_dir: str, result: BatchResult, t_start: float) -> BatchResult:
 
 
 def _json_row(row: dict, output: str) -> dict:
-    """A chunk's summary row with its output, as the journal keeps it (plain Python values)."""
-    out = dict(row)
-    out["output"] = output
-    return out
+    """A chunk's summary row (plain Python values, the chunk's own: its writing is done) with its
+    output added, as the journal keeps it."""
+    row["output"] = output
+    return row
 
 
 def _tally(result: BatchResult, records: dict, variants) -> None:
