@@ -166,15 +166,19 @@ class WorldControl:
             if not build.any():
                 continue
             if positions is None:
-                # float64, compensated (float32 + low-order part), as Simulation builds lines
-                q = self._fetch(state.node_q).astype(np.float64) + self._fetch(state.node_q_lo)
-                positions = (q, self._fetch(state.node_qd))
-            state_q, state_qd = positions
+                positions = (self._fetch(state.node_q), self._fetch(state.node_q_lo), self._fetch(state.node_qd))
+            q_hi, q_lo, state_qd = positions
+
+            def state_q(rows, cols):
+                """Positions [m] of ``rows`` x ``cols``: float64, compensated (float32 + low-order
+                part), as Simulation builds lines (only where they are needed)."""
+                return q_hi[rows, cols].astype(np.float64) + q_lo[rows, cols]
+
             t = h.force_tube[a]
             s, e = h.tube_node_start[t], h.tube_node_start[t + 1]
             k = h.force_node[a]
             ws = np.flatnonzero(build)
-            tangent = state_q[ws, min(k + 1, e - 1)] - state_q[ws, max(k - 1, s)]
+            tangent = state_q(ws, min(k + 1, e - 1)) - state_q(ws, max(k - 1, s))
             tangent = tangent / np.maximum(np.linalg.norm(tangent, axis=-1), 1e-30)[:, None]
             dw = d[ws]
             across = dw - np.sum(dw * tangent, axis=-1)[:, None] * tangent
@@ -193,7 +197,7 @@ class WorldControl:
             offset_dir = across / norm_across[:, None]
             p0 = h.al_start[a]
             off = self.worlds.host.node_radius[ws, s:e, None] * offset_dir[:, None, :]
-            x = state_q[ws, s:e]
+            x = state_q(ws, slice(s, e))
             lines.build(ws, slice(p0, p0 + e - s), x, x + off, state_qd[ws, s:e])
             active[ws, a] = 1
             changed = True
