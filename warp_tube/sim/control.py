@@ -90,6 +90,10 @@ class FrameControl:
         self._force_override: dict[int, np.ndarray] = {}
         self._pin_override: dict[int, np.ndarray] = {}
         self._al_dir = np.zeros((model.force_count, 3))
+        # What this object last wrote into the control (it alone writes these): the point forces
+        # are uploaded only when they change, and the lines' flags are not read back each frame.
+        self._fe_last = None  # (node_count, 3) [N]
+        self._active = np.zeros(control.al_active.shape, dtype=np.int32)  # as TubeModel.control() makes it
         prim_start = model.host.prim_node_start
         self.pinned_nodes = [prim_start[k] + t.pinned for k, t in enumerate(scene.tubes)]
 
@@ -177,7 +181,9 @@ class FrameControl:
             f = self.forces_at((frame + 0.5) * self.frame_dt)
             fe = np.zeros((m.node_count, 3))
             np.add.at(fe, m.host.force_node, f)
-            c.node_f_ext.assign(np.repeat(fe[None], W, axis=0))
+            if self._fe_last is None or not np.array_equal(fe, self._fe_last):  # held forces: uploaded once
+                c.node_f_ext.assign(np.repeat(fe[None], W, axis=0))
+                self._fe_last = fe
             if m.features.assistant_line:
                 self._update_assistant_lines(f, state)
         if self.moving_pins:
@@ -194,7 +200,7 @@ class FrameControl:
 
     def _update_assistant_lines(self, f: np.ndarray, state):
         m, c, h = self.model, self.control, self.model.host
-        active = c.al_active.numpy()
+        active = self._active
         changed = False
         state_q = state_qd = lines = None
         for a in range(m.force_count):

@@ -56,6 +56,7 @@ class ContactMonitor:
         self._gap = wp.zeros(self.group_count, dtype=float, device=d)
         self._pairs = None
         self._grid = None
+        self._launches: dict = {}  # positions' address -> their recorded launch (False: no pairs to test)
         largest = int(np.bincount(self.group).max()) if n else 0
         if largest <= SMALL:
             # Every pair of a group that could ever count, fixed once: per frame only distances.
@@ -76,15 +77,25 @@ class ContactMonitor:
             q: one world's positions [m], shape (node,), vec3, on the monitor's device.
         """
         self._gap.zero_()
-        if self._pairs is not None:
-            if self._pairs[0].shape[0]:
-                wp.launch(contact_pairs_kernel, dim=self._pairs[0].shape[0], device=self.device,
-                          inputs=[*self._pairs, q, self._radius, self._arc, self._tube, self._group, self._gap])  # fmt: skip
-        else:
+        if self._pairs is None:
             self._grid.build(q, 2.0 * self.max_radius, groups=self._group)
-            wp.launch(contact_grid_kernel, dim=q.shape[0], device=self.device,
-                      inputs=[self._grid.id, 2.0 * self.max_radius, q, self._radius, self._arc, self._tube,
-                              self._group, self._gap])  # fmt: skip
+        # One recorded launch per positions array (a run alternates two states): the launch holds
+        # the array, so its address identifies it for as long as the launch is kept.
+        launch = self._launches.get(q.ptr)
+        if launch is None:
+            if self._pairs is not None:
+                launch = wp.launch(contact_pairs_kernel, dim=self._pairs[0].shape[0], device=self.device,
+                                   inputs=[*self._pairs, q, self._radius, self._arc, self._tube, self._group, self._gap],
+                                   record_cmd=True) if self._pairs[0].shape[0] else False  # fmt: skip
+            else:
+                launch = wp.launch(contact_grid_kernel, dim=q.shape[0], device=self.device,
+                                   inputs=[self._grid.id, 2.0 * self.max_radius, q, self._radius, self._arc, self._tube,
+                                           self._group, self._gap], record_cmd=True)  # fmt: skip
+            if len(self._launches) > 8:
+                self._launches.clear()
+            self._launches[q.ptr] = launch
+        if launch:
+            launch.launch()
         return self._gap.numpy()
 
     def closest(self, q: np.ndarray, group: int = 0):
