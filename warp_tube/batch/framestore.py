@@ -195,7 +195,8 @@ class FrameStore:
         while len(_in_flight) >= limit:  # device memory held by windows not yet copied back
             _in_flight[0].result()
             _in_flight.popleft()
-        event = wp.record_event() if self.device.is_cuda else None  # on the stream that stored the frames
+        # on the stream that stored the frames: this device's current one (not the default device's)
+        event = wp.get_stream(self.device).record_event() if self.device.is_cuda else None
         job = (self.buffers, self.start, self.count, event)
         self.pending = _flush_thread().submit(self._copy_back, *job)
         _in_flight.append(self.pending)
