@@ -119,12 +119,13 @@ class FrameStore:
     Args:
         arrays: the host arrays by name (see the module docstring), float32, C-contiguous.
         device: the Warp device the chunk runs on.
-        window_bytes: on CUDA, device memory for frames [bytes] (at least one frame is kept).
+        window_bytes: on CUDA, device memory for a window of frames [bytes] (at least one frame is
+            kept; default :data:`WINDOW_BYTES`).
         staged: keep frames in buffers of their own and copy them back in windows (default: on
             CUDA devices only; on the CPU for tests of the copying).
     """
 
-    def __init__(self, arrays: dict, device, window_bytes: int = WINDOW_BYTES, staged: bool | None = None):
+    def __init__(self, arrays: dict, device, window_bytes: int | None = None, staged: bool | None = None):
         self.device = wp.get_device(device)
         self.frames = next(iter(arrays.values())).shape[0]
         self.host = {}
@@ -138,6 +139,7 @@ class FrameStore:
             self.buffers = self.host
         else:
             per_frame = sum(a[0].nbytes for a in arrays.values())
+            window_bytes = WINDOW_BYTES if window_bytes is None else window_bytes
             self.window = int(max(1, min(self.frames, window_bytes // max(per_frame, 1))))
             self.buffers = {name: wp.empty((self.window,) + h.shape[1:], dtype=wp.vec3, device=self.device)
                             for name, h in self.host.items()}  # fmt: skip
