@@ -29,6 +29,7 @@ import numpy as np
 import warp as wp
 
 from ..kernels.frame_store import store_scaled_kernel
+from ..runtime.replay import CAPTURE_LOCK
 
 __all__ = ["FrameStore", "WINDOW_BYTES", "STAGING_BYTES", "done_future"]
 
@@ -214,10 +215,11 @@ class FrameStore:
         goes on into the host arrays."""
         stream = None
         if self.device.is_cuda:
-            stream = _flush_streams.get(str(self.device))
-            if stream is None:
-                stream = _flush_streams[str(self.device)] = _copy_stream(self.device)
-            stream.wait_event(event)
+            with CAPTURE_LOCK:  # (every call into Warp on the device: not while a graph is captured)
+                stream = _flush_streams.get(str(self.device))
+                if stream is None:
+                    stream = _flush_streams[str(self.device)] = _copy_stream(self.device)
+                stream.wait_event(event)
         half = STAGING_BYTES // 2
         pieces = []  # (output name, first frame, end frame) of each piece
         for name, buf in buffers.items():
@@ -233,8 +235,9 @@ class FrameStore:
             name, a, b = pieces[k]
             dst = self._keep[name]
             view = halves[k % 2][: (b - a) * dst[0].nbytes].view(np.float32).reshape((b - a,) + dst.shape[1:])
-            wp.copy(wp.array(view, dtype=wp.vec3, device="cpu", copy=False), buffers[name][a:b], stream=stream)
-            return view, (stream.record_event() if stream is not None else None)
+            with CAPTURE_LOCK:
+                wp.copy(wp.array(view, dtype=wp.vec3, device="cpu", copy=False), buffers[name][a:b], stream=stream)
+                return view, (stream.record_event() if stream is not None else None)
 
         pending = fetch(0)
         for k, (name, a, b) in enumerate(pieces):
@@ -242,5 +245,6 @@ class FrameStore:
             if k + 1 < len(pieces):  # the other half is free: its last piece went on at step k - 1
                 pending = fetch(k + 1)
             if done is not None:
-                wp.synchronize_event(done)
+                with CAPTURE_LOCK:
+                    wp.synchronize_event(done)
             _parallel_copy(self._keep[name][start + a : start + b], view)

@@ -10,10 +10,16 @@ their arguments in Python (on the paper's 20-point tube that halves a frame's co
 from __future__ import annotations
 
 import contextlib
+import threading
 
 import warp as wp
 
-__all__ = ["GraphCache", "can_capture", "cpu_blocks"]
+__all__ = ["GraphCache", "can_capture", "cpu_blocks", "CAPTURE_LOCK"]
+
+#: held while a graph is captured: other threads of the process that call into Warp on a device
+#: (copying frames back beside the simulation) take it around those calls, since Warp refuses to
+#: synchronize with a device while a capture on it is active
+CAPTURE_LOCK = threading.Lock()
 
 _cpu_capture = None
 
@@ -78,7 +84,7 @@ class GraphCache:
             self._seen.add(key)
             launch()
             return
-        with wp.ScopedCapture(device=self.device) as cap:
+        with CAPTURE_LOCK, wp.ScopedCapture(device=self.device) as cap:
             launch()
         if len(self._graphs) >= self.size:
             self._graphs.clear()
