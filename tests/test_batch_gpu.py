@@ -2,6 +2,8 @@
 
 from __future__ import annotations
 
+import time
+
 import numpy as np
 import pytest
 import warp as wp
@@ -64,9 +66,10 @@ def test_batch_on_cuda_lines_built_late_per_world(tmp_path):
 
 
 def test_batch_on_cuda_frames_copied_back_in_many_windows(tmp_path, monkeypatch):
-    """Windows of two frames and staging pieces of a few kB: every frame of every chunk comes back
-    through several windows handed over while the simulation goes on (with the windows in flight
-    held to their limit), on the copying thread's own stream; the arrays equal those of one
+    """Windows of two frames and staging pieces of a few kB, each piece held back a little: every
+    frame of every chunk comes back through several windows handed over while the simulation goes
+    on (the windows in flight held to their limit, the copies still running while the next chunk
+    captures its graphs), on the copying thread's own stream; the arrays equal those of one
     window a chunk, element for element (the same kernels: only the copy differs)."""
     import warp_tube.batch.framestore as framestore
 
@@ -78,6 +81,13 @@ def test_batch_on_cuda_frames_copied_back_in_many_windows(tmp_path, monkeypatch)
     monkeypatch.setattr(framestore, "WINDOW_BYTES", 2 * per_frame)
     monkeypatch.setattr(framestore, "STAGING_BYTES", 8192)
     monkeypatch.setattr(framestore, "MAX_WINDOWS_IN_FLIGHT", 2)
+    copy = framestore._parallel_copy
+
+    def slow_copy(dst, src):  # copies back still running when the next chunk captures its graphs
+        time.sleep(0.01)
+        copy(dst, src)
+
+    monkeypatch.setattr(framestore, "_parallel_copy", slow_copy)
     many = tmp_path / "many"
     run_batch(str(DEFAULT), str(many), str(table), frames=11, device="cuda:0", layout="arrays", surface=True, chunk=3)
     for name in ("centerline.npy", "surface.npy"):
