@@ -59,3 +59,31 @@ def test_windows_handed_over_and_awaited_through_the_future(monkeypatch):
     # the same windows, waited for as a batch's writers do (finish() and its future)
     store = run_store(monkeypatch, staged=True, window_bytes=200_000, staging_bytes=120_000, wait="future")
     assert store.window == 5 and store.pending.done()
+
+
+def test_a_failed_copy_back_is_reported_once(monkeypatch):
+    """A copy back that fails raises from its chunk's future (and so in that chunk's writers), and
+    the next chunk's windows (waiting for it to leave the windows in flight) are copied back as
+    usual: the failure is not raised again elsewhere."""
+    import pytest
+
+    monkeypatch.setattr(framestore, "MAX_WINDOWS_IN_FLIGHT", 1)
+    host = {"centerline": np.zeros((4, 2, 5, 3), dtype=np.float32)}
+    store = FrameStore(host, "cpu", window_bytes=2 * 2 * 5 * 12, staged=True)  # windows of 2 frames
+
+    def broken(dst, src):
+        raise OSError("disk gone")
+
+    monkeypatch.setattr(framestore, "_parallel_copy", broken)
+    for f in range(2):
+        store.store(f, "centerline", wp.array(np.ones((2, 5, 3), dtype=np.float32), dtype=wp.vec3, device="cpu"))
+    with pytest.raises(OSError, match="disk gone"):
+        store.finish().result()
+    monkeypatch.undo()
+    monkeypatch.setattr(framestore, "MAX_WINDOWS_IN_FLIGHT", 1)
+    again = FrameStore(host, "cpu", window_bytes=2 * 2 * 5 * 12, staged=True)
+    ref = frames(4, 4, 2, 5)
+    for f in range(4):
+        again.store(f, "centerline", wp.array(ref[f], dtype=wp.vec3, device="cpu"))
+    again.finish().result()
+    assert np.array_equal(host["centerline"], ref)

@@ -196,8 +196,7 @@ class FrameStore:
         window_bytes = sum(b.capacity for b in self.buffers.values())
         limit = max(1, min(MAX_WINDOWS_IN_FLIGHT, int(0.25 * (self.device.total_memory or 0) // max(window_bytes, 1))))
         while len(_in_flight) >= limit:  # device memory held by windows not yet copied back
-            _in_flight[0].result()
-            _in_flight.popleft()
+            _in_flight.popleft().exception()  # waits; a failed copy is reported by its own chunk's future
         # on the stream that stored the frames: this device's current one (not the default device's)
         event = wp.get_stream(self.device).record_event() if self.device.is_cuda else None
         job = (self.buffers, self.start, self.count, event)
