@@ -87,3 +87,11 @@ def test_a_failed_copy_back_is_reported_once(monkeypatch):
         again.store(f, "centerline", wp.array(ref[f], dtype=wp.vec3, device="cpu"))
     again.finish().result()
     assert np.array_equal(host["centerline"], ref)
+
+
+def test_windows_copied_back_in_place_where_two_do_not_fit(monkeypatch):
+    # a device with room for one window only: each window is copied back before the frames go
+    # on, in the same buffers; the same arrays
+    monkeypatch.setattr(framestore, "_window_memory", lambda device: 250_000.0)
+    store = run_store(monkeypatch, staged=True, window_bytes=200_000, staging_bytes=120_000, wait="future")
+    assert store.window == 5 and store.pending.done()

@@ -11,7 +11,8 @@ into pageable memory ran at 1.5-3 GB/s). On the CPU the buffer is the host array
 The copy back runs on a thread of its own, on a CUDA stream of its own, while the simulation
 goes on: a full window is handed over and the frames that follow go into fresh device buffers
 (at most :data:`MAX_WINDOWS_IN_FLIGHT` windows of a process wait, over the chunks, and no more
-than fit in a quarter of the device's memory). :meth:`FrameStore.finish` returns a future
+than fit with the window being filled in a quarter of the device's memory; where not even two
+fit, the frames wait for each window's copy and go on in the same buffers). :meth:`FrameStore.finish` returns a future
 that is done once every frame is in the host arrays; whoever reads them waits for it.
 
 Host arrays (float32, stage units), for ``F`` written frames and ``W`` worlds, as
@@ -79,6 +80,11 @@ def _copy_stream(device) -> wp.Stream:
         return wp.Stream(device, cuda_stream=handle.value)
     except (OSError, AttributeError):
         return wp.Stream(device)
+
+
+def _window_memory(device) -> float:
+    """Device memory the windows of frames may take [bytes]: a quarter of the device's."""
+    return 0.25 * (device.total_memory or 0)
 
 
 def done_future(value=None) -> cf.Future:
@@ -193,8 +199,12 @@ class FrameStore:
             self.start += self.count
             self.count = 0
             return
+        # Windows waiting to be copied back, besides the one being filled, within a quarter of the
+        # device's memory; none (copied back before the frames go on, in the same buffers) where
+        # even one does not fit.
         window_bytes = sum(b.capacity for b in self.buffers.values())
-        limit = max(1, min(MAX_WINDOWS_IN_FLIGHT, int(0.25 * (self.device.total_memory or 0) // max(window_bytes, 1))))
+        fit = int(_window_memory(self.device) // max(window_bytes, 1)) - 1
+        limit = max(1, min(MAX_WINDOWS_IN_FLIGHT, fit))
         while len(_in_flight) >= limit:  # device memory held by windows not yet copied back
             _in_flight.popleft().exception()  # waits; a failed copy is reported by its own chunk's future
         # on the stream that stored the frames: this device's current one (not the default device's)
@@ -204,8 +214,11 @@ class FrameStore:
         _in_flight.append(self.pending)
         self.start += self.count
         self.count = 0
-        if self.start < self.frames:  # frames to come: fresh buffers (the handed-over ones are being read)
-            self.buffers = {name: wp.empty(buf.shape, dtype=wp.vec3, device=self.device) for name, buf in self.buffers.items()}
+        if self.start < self.frames:  # frames to come
+            if fit < 1:  # no room for a second window: the frames wait for this one's copy
+                self.pending.exception()
+            else:  # fresh buffers (the handed-over ones are being read)
+                self.buffers = {name: wp.empty(buf.shape, dtype=wp.vec3, device=self.device) for name, buf in self.buffers.items()}
 
     def _copy_back(self, buffers: dict, start: int, count: int, event) -> None:
         """On the copying thread: ``count`` frames of ``buffers`` into the host arrays from frame
