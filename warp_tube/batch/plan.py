@@ -80,9 +80,8 @@ def run_choices(scenes: list[Scene], block: int = 1024) -> list[RunChoice]:
         tubes = tuple(_tube_key(t, memo) for t in s.tubes)
         key = (tubes, tuple(f.assistant_line for f in s.forces), s.settings, s.stage.frame_dt)
         keys.append(key)
-        if key in first_of:
+        if first_of.setdefault(key, i) != i:  # (one hash of the key)
             continue
-        first_of[key] = i
         layout = (tuple(g[2] for g, _ in tubes), key[1])  # curve point counts, assistant lines
         layouts.setdefault(layout, []).append(i)
     for members in layouts.values():
