@@ -16,7 +16,6 @@ import math
 import numpy as np
 import warp as wp
 
-from ..kernels.line_rows import line_rows_kernel
 from ..sim.control import AL_MIN_ANGLE, AL_REBUILD_ANGLE, AssistantLineArrays
 from .worlds import Worlds
 
@@ -100,26 +99,6 @@ class WorldControl:
         wp.synchronize_stream(stream)  # (not the device: frames being copied back on another stream need not wait)
         return buf.numpy()
 
-    def _lay(self, worlds: np.ndarray, p0: int, line: dict, state) -> None:
-        """Write the lines laid in ``worlds`` (``line``: :meth:`AssistantLineArrays.line`'s values,
-        one row per world) into the state's and control's line arrays from slot ``p0``: only
-        those rows go to the device (the others' lines, the low-order parts included, stay as
-        they are there)."""
-        c, d = self.control, self.worlds.model.device
-        k, n = line["link"].shape
-        if n < 2:
-            raise ValueError(f"an assistant line of {n} point(s): expected at least 2")
-
-        def up(name, dtype):
-            return wp.array(np.ascontiguousarray(line[name], dtype=np.float32), dtype=dtype, device=d)
-
-        wp.launch(line_rows_kernel, dim=(k, n), device=d,
-                  inputs=[wp.array(np.asarray(worlds, dtype=np.int32), dtype=int, device=d), p0, up("q_hi", wp.vec3),
-                          up("q_lo", wp.vec3), up("qd", wp.vec3), up("link", float), up("chord", float), up("fwd", float),
-                          up("bwd", float)],
-                  outputs=[state.al_q, state.al_q_lo, state.al_qd, c.al_link_length, c.al_chord_length, c.al_fwd_length,
-                           c.al_bwd_length])  # fmt: skip
-
     @property
     def moving_pins(self) -> bool:
         return bool(self._pins)
@@ -167,7 +146,7 @@ class WorldControl:
         m, c, h = self.worlds.model, self.control, self.worlds.model.host
         active = self._al_active
         changed = False
-        positions = None
+        positions = lines = None
         cos_rebuild, sin_min = math.cos(AL_REBUILD_ANGLE), math.sin(AL_MIN_ANGLE)
         for a in range(m.force_count):
             if not self.uses_al[a]:
@@ -213,12 +192,16 @@ class WorldControl:
             ws, across, norm_across = ws[~axial], across[~axial], norm_across[~axial]
             if not len(ws):
                 continue
+            if lines is None:
+                lines = AssistantLineArrays.read(state, c, self._fetch)
             offset_dir = across / norm_across[:, None]
             p0 = h.al_start[a]
             off = self.worlds.host.node_radius[ws, s:e, None] * offset_dir[:, None, :]
             x = state_q(ws, slice(s, e))
-            self._lay(ws, int(p0), AssistantLineArrays.line(x, x + off, state_qd[ws, s:e]), state)
+            lines.build(ws, slice(p0, p0 + e - s), x, x + off, state_qd[ws, s:e])
             active[ws, a] = 1
             changed = True
+        if lines is not None:
+            lines.write(state, c)
         if changed:
             c.al_active.assign(active)

@@ -51,31 +51,20 @@ class AssistantLineArrays:
         lengths = {n: fetch(getattr(control, n)) for n in cls.LENGTHS}
         return cls(fetch(state.al_q), fetch(state.al_q_lo), fetch(state.al_qd), lengths)
 
-    @staticmethod
-    def line(x: np.ndarray, xp: np.ndarray, xd: np.ndarray) -> dict:
-        """The values of a line laid at ``xp`` beside the tube points ``x``, both float64 (w, n, 3)
-        [m], moving with the tube's velocities ``xd`` [m/s]: ``q_hi``, ``q_lo``, ``qd`` (w, n, 3)
-        float32, and rest lengths [m] from these positions (unstrained), ``link`` (w, n) and
-        ``chord``, ``fwd``, ``bwd`` (w, n - 1) (``bwd[j]`` belongs to point ``j + 1``)."""
-        hi = xp.astype(np.float32)
-        return dict(
-            q_hi=hi, q_lo=(xp - hi).astype(np.float32), qd=xd,
-            link=np.linalg.norm(xp - x, axis=-1), chord=np.linalg.norm(xp[:, 1:] - xp[:, :-1], axis=-1),
-            fwd=np.linalg.norm(x[:, 1:] - xp[:, :-1], axis=-1), bwd=np.linalg.norm(x[:, :-1] - xp[:, 1:], axis=-1),
-        )  # fmt: skip
-
     def build(self, worlds, slots: slice, x: np.ndarray, xp: np.ndarray, xd: np.ndarray) -> None:
-        """Lay a line (:meth:`line`) in slots ``slots`` of ``worlds`` (an index or a slice)."""
-        v = self.line(x, xp, xd)
-        self.q_hi[worlds, slots] = v["q_hi"]
-        self.q_lo[worlds, slots] = v["q_lo"]
-        self.qd[worlds, slots] = v["qd"]
+        """Lay a line: slots ``slots`` of ``worlds`` (an index or a slice) at ``xp`` beside the tube
+        points ``x``, both float64 (w, n, 3) [m], moving with the tube's velocities ``xd`` [m/s];
+        its links, chords and diagonals get their rest lengths from these positions (unstrained)."""
+        hi = xp.astype(np.float32)
+        self.q_hi[worlds, slots] = hi
+        self.q_lo[worlds, slots] = (xp - hi).astype(np.float32)
+        self.qd[worlds, slots] = xd
         p0, n = slots.start, slots.stop - slots.start
         L = self.lengths
-        L["al_link_length"][worlds, slots] = v["link"]
-        L["al_chord_length"][worlds, p0 : p0 + n - 1] = v["chord"]
-        L["al_fwd_length"][worlds, p0 : p0 + n - 1] = v["fwd"]
-        L["al_bwd_length"][worlds, p0 + 1 : p0 + n] = v["bwd"]
+        L["al_link_length"][worlds, slots] = np.linalg.norm(xp - x, axis=-1)
+        L["al_chord_length"][worlds, p0 : p0 + n - 1] = np.linalg.norm(xp[:, 1:] - xp[:, :-1], axis=-1)
+        L["al_fwd_length"][worlds, p0 : p0 + n - 1] = np.linalg.norm(x[:, 1:] - xp[:, :-1], axis=-1)
+        L["al_bwd_length"][worlds, p0 + 1 : p0 + n] = np.linalg.norm(x[:, :-1] - xp[:, 1:], axis=-1)
 
     def write(self, state, control) -> None:
         """Copy the lines back into ``state`` and ``control``."""
