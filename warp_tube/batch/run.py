@@ -375,10 +375,33 @@ def _tally(result: BatchResult, records: dict, variants) -> None:
             result.failures.append((variants.variants[i].name, rows[i]["reason"]))
 
 
+def _counts(variants, surface: bool) -> list[tuple[int, int]]:
+    """Per variant its centerline points and surface vertices (0 without the surface), all tube
+    prims together; worked out once per set of tube arrays (a batch's variants share them)."""
+    memo: dict = {}
+    out = []
+    for v in variants:
+        tubes = v.scene.tubes
+        key = tuple((id(t.points), id(t.radius), id(t.spoke_lengths), id(t.curve_counts), t.params.spokes, t.params.caps)
+                    for t in tubes)  # fmt: skip
+        hit = memo.get(key)
+        if hit is None:
+            hit = memo[key] = ((sum(len(t.points) for t in tubes),
+                                sum(surface_topology(t).vertex_count for t in tubes) if surface else 0), tubes)  # fmt: skip
+        out.append(hit[0])
+    return out
+
+
+def _columns(counts: list, surface: bool) -> tuple[list, list]:
+    """:func:`_counts` as the points of every variant and their vertices (none without the surface)."""
+    return [p for p, _ in counts], ([n for _, n in counts] if surface else [])
+
+
 def _output_spec(variants, layout, out_dir, work_dir, surface, time_codes) -> OutputSpec:
     vs = variants.variants
-    points = max(sum(len(t.points) for t in v.scene.tubes) for v in vs)
-    vertices = max(sum(surface_topology(t).vertex_count for t in v.scene.tubes) for v in vs) if surface else 0
+    counts = _counts(vs, surface)
+    points = max(p for p, _ in counts)
+    vertices = max(n for _, n in counts) if surface else 0
     first = vs[0].scene.stage
     cell, columns = 1.0, 1
     if layout == "grid":
@@ -397,8 +420,7 @@ def _finish_outputs(spec: OutputSpec, variants, records: dict, first_scene, out_
     vs = variants.variants
     if spec.layout == "arrays":
         finish_arrays(spec, list(range(len(vs))), [v.name for v in vs],
-                      [sum(len(t.points) for t in v.scene.tubes) for v in vs],
-                      [sum(surface_topology(t).vertex_count for t in v.scene.tubes) for v in vs] if spec.surface else [])  # fmt: skip
+                      *_columns(_counts(vs, spec.surface), spec.surface))  # fmt: skip
     if spec.layout == "grid":
         layers = [records[c]["layer"] for c in sorted(records) if records[c]["layer"]]
         ok = [v.name for v in vs if rows[v.index]["status"] == "ok"]
