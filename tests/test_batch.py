@@ -639,6 +639,30 @@ def test_run_choices_are_what_simulation_chooses():
         assert (c.integrator, c.substeps, c.reason) == (sim.integrator, sim.substeps, sim.reason)
 
 
+def test_run_choices_with_lines_placed_on_other_tubes():
+    """Scenes of one node layout whose pushes (with assistant lines) sit on other tubes: two lines
+    on one tube in one scene, one on each tube in the other. Each scene's stability bound counts
+    its own lines (planned together, they must not take each other's): the choices Simulation
+    makes for each alone."""
+    from warp_tube.batch.plan import run_choices
+    from warp_tube.scene.spec import ForceSpec, Scene, SimulationSettings, TubeParams, TubeSpec
+    from warp_tube.sim.simulation import Simulation
+
+    params = TubeParams(density=1000.0, youngs_modulus=2e6, damping=1.0)
+    pts = np.stack([np.linspace(0.0, 0.3, 16), np.zeros(16), np.zeros(16)], axis=1)
+    tubes = tuple(TubeSpec(f"/T{k}", pts + (0.0, 0.1 * k, 0.0), [16], np.full(16, 0.01), params, pinned=[0, 1]) for k in range(2))
+
+    def push(name, tube, point):
+        return ForceSpec(name, tube, point, np.zeros(1), np.array([[0.0, 0.0, 0.01]]), assistant_line=True)
+
+    both_on_one = Scene(tubes, (push("/A", 0, 8), push("/B", 0, 12)), SimulationSettings())
+    one_each = Scene(tubes, (push("/A", 0, 8), push("/B", 1, 12)), SimulationSettings())
+    for order in ((both_on_one, one_each), (one_each, both_on_one)):
+        for s, c in zip(order, run_choices(list(order))):
+            sim = Simulation(s, device="cpu", surface=False)
+            assert (c.integrator, c.substeps, c.reason) == (sim.integrator, sim.substeps, sim.reason)
+
+
 def test_a_large_table_read_by_several_processes(sweep, tmp_path, monkeypatch, capsys):
     """Reading split over processes (as for a large table on a many-core host) gives the same
     batch, and problems from every part, in row order."""

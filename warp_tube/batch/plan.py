@@ -67,9 +67,10 @@ def run_choices(scenes: list[Scene], block: int = 1024) -> list[RunChoice]:
 
     The policy is the one ``Simulation`` applies (:func:`warp_tube.centerline.policy.choose_integrator`), given each scene's stability
     bound (``critical_time_step`` of its own nodes), so the batch cannot drift from it. Scenes of
-    one node layout are discretised together, ``block`` at a time (the per-node parameters of a
-    scene holding them all, with the first one's topology; read per scene), and scenes whose tubes agree
-    in everything the bound depends on share one answer.
+    one layout (curve point counts, and the forces' tubes and lines) are discretised together,
+    ``block`` at a time (the per-node parameters of a scene holding them all, with the layout's
+    topology; read per scene), and scenes whose tubes agree in everything the bound depends on
+    share one answer.
     """
     out: list = [None] * len(scenes)
     first_of: dict = {}  # content key -> index of the first scene with it
@@ -78,16 +79,20 @@ def run_choices(scenes: list[Scene], block: int = 1024) -> list[RunChoice]:
     memo: dict = {}
     for i, s in enumerate(scenes):
         tubes = tuple(_tube_key(t, memo) for t in s.tubes)
-        key = (tubes, tuple(f.assistant_line for f in s.forces), s.settings, s.stage.frame_dt)
+        # the forces' tubes and lines: how many lines each tube carries, which the bound counts
+        lines = tuple((f.tube, f.assistant_line) for f in s.forces)
+        key = (tubes, lines, s.settings, s.stage.frame_dt)
         keys.append(key)
         if first_of.setdefault(key, i) != i:  # (one hash of the key)
             continue
-        layout = (tuple(g[2] for g, _ in tubes), key[1])  # curve point counts, assistant lines
+        layout = (tuple(g[2] for g, _ in tubes), lines)  # curve point counts, lines on each tube
         layouts.setdefault(layout, []).append(i)
     for members in layouts.values():
+        one = None  # the layout's topology, built once
         for b in range(0, len(members), block):
             idx = members[b : b + block]
-            for i, choice in zip(idx, _choices_of([scenes[i] for i in idx])):
+            one = one or _topology(scenes[idx[0]])
+            for i, choice in zip(idx, _choices_of([scenes[i] for i in idx], one)):
                 out[i] = choice
     for i, key in enumerate(keys):
         if out[i] is None:
@@ -95,15 +100,23 @@ def run_choices(scenes: list[Scene], block: int = 1024) -> list[RunChoice]:
     return out
 
 
-def _choices_of(scenes: list[Scene]) -> list[RunChoice]:
-    """run_choices for scenes of one node layout, discretised in one build."""
+def _topology(scene: Scene):
+    """The model of ``scene`` on the CPU: the topology of the scenes of its layout (nodes, and
+    the forces' lines on each tube)."""
+    from ..model.tube import build_model
+
+    return build_model(scene, world_count=1, device="cpu")
+
+
+def _choices_of(scenes: list[Scene], one) -> list[RunChoice]:
+    """run_choices for scenes of one layout (``one``: :func:`_topology` of one of them),
+    discretised in one build."""
     from ..centerline.policy import choose_integrator, implicit_cost_ratio
     from ..centerline.stability import critical_time_steps
-    from ..model.tube import build_model, node_parameters
+    from ..model.tube import node_parameters
     from .worlds import combined_tubes
 
     per_node, _ = node_parameters(combined_tubes(scenes))  # every scene's nodes, scene after scene
-    one = build_model(scenes[0], world_count=1, device="cpu")  # the topology they share
     h = SimpleNamespace(**per_node, tube_al_force=one.host.tube_al_force)
     damping = np.array([max((t.params.spring_damping for t in s.tubes), default=0.0) for s in scenes])
     bounds = critical_time_steps(h, len(scenes), one.features.assistant_line, damping)
