@@ -59,3 +59,15 @@ def test_groups_do_not_touch_each_other(n):
     deepest = mon.deepest(wp.array(host["node_rest_q"], dtype=wp.vec3, device="cpu"))
     np.testing.assert_allclose(deepest, [-0.05, 0.0], atol=1e-6)
     assert mon.closest(host["node_rest_q"], group=1) is None
+
+
+@pytest.mark.parametrize("n", [15, 101])
+def test_the_same_positions_array_checked_again_after_it_moves(n):
+    """The monitor replays one recorded launch per positions array: frame after frame it must see
+    the array's new contents (touching, then apart, then touching again)."""
+    near, far = crossing(n, 0.15), crossing(n, 0.25)
+    mon = ContactMonitor(near["node_rest_q"], near["node_radius"], near["tube_node_start"], device="cpu")
+    q = wp.array(near["node_rest_q"], dtype=wp.vec3, device="cpu")
+    for host, expected in ((near, -0.05), (far, 0.0), (near, -0.05)):
+        q.assign(host["node_rest_q"])
+        np.testing.assert_allclose(mon.deepest(q), [expected], atol=1e-6)  # float32 round-off, as above
