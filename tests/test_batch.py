@@ -803,3 +803,88 @@ def test_arrays_written_in_blocks_of_variants_that_follow_one_another(tmp_path, 
         assert np.array_equal(got[i, :, :m], chunk[:, p]) and np.isnan(got[i, :, m:]).all(), i
     untouched = sorted(set(range(14)) - set(indices))
     assert not got[untouched].any()  # rows of other chunks: not written here (still the file's zeros)
+
+
+TWO_TUBES = """#usda 1.0
+(
+    defaultPrim = "World"
+    metersPerUnit = 1
+    upAxis = "Y"
+    timeCodesPerSecond = 24
+    framesPerSecond = 24
+    startTimeCode = 0
+    endTimeCode = 24
+)
+
+def Xform "World"
+{
+    def BasisCurves "A"
+    {
+        uniform token type = "linear"
+        int[] curveVertexCounts = [11]
+        point3f[] points = [(0, 0, 0), (0.02, 0, 0), (0.04, 0, 0), (0.06, 0, 0), (0.08, 0, 0), (0.1, 0, 0), (0.12, 0, 0), (0.14, 0, 0), (0.16, 0, 0), (0.18, 0, 0), (0.2, 0, 0)]
+        float[] widths = [0.02] (interpolation = "constant")
+        double warptube:youngsModulus = 200000
+        double warptube:density = 1000
+        double warptube:damping = 4
+        int[] warptube:pinnedPoints = [0, 10]
+    }
+
+    def BasisCurves "B"
+    {
+        uniform token type = "linear"
+        int[] curveVertexCounts = [11]
+        point3f[] points = [(0, 0.03, 0), (0.02, 0.03, 0), (0.04, 0.03, 0), (0.06, 0.03, 0), (0.08, 0.03, 0), (0.1, 0.03, 0), (0.12, 0.03, 0), (0.14, 0.03, 0), (0.16, 0.03, 0), (0.18, 0.03, 0), (0.2, 0.03, 0)]
+        float[] widths = [0.02] (interpolation = "constant")
+        double warptube:youngsModulus = 200000
+        double warptube:density = 1000
+        double warptube:damping = 4
+        int[] warptube:pinnedPoints = [0, 10]
+    }
+
+    def Scope "Push"
+    {
+        rel warptube:target = </World/A>
+        int warptube:point = 5
+        float3 warptube:force = (0, 0.05, 0)
+    }
+}
+"""
+
+
+@pytest.mark.parametrize("pairs_max", [None, 4])
+def test_batch_records_the_frame_distant_parts_first_touch(tmp_path, monkeypatch, pairs_max):
+    """Two parallel tubes 1 cm apart (surface to surface), one pushed towards the other: with
+    the stronger pushes they touch (contact is not modelled: they pass through each other), with
+    the weak one they never do. The summary's contact_frame of each variant is the frame at which
+    Simulation alone first warns of it (the same test on the same positions), empty where it
+    never does; with every pair of a world tested (22 points) and through the hash grid."""
+    import csv
+
+    import warp_tube.batch.contacts as contacts
+
+    if pairs_max is not None:
+        monkeypatch.setattr(contacts, "PAIRS_MAX", pairs_max)
+
+    from warp_tube.batch.table import read_table
+    from warp_tube.batch.variants import prepare_variants
+    from warp_tube.sim.simulation import Simulation
+
+    scene = tmp_path / "two.usda"
+    scene.write_text(TWO_TUBES)
+    table = write_table(tmp_path / "t.csv", ["/World/Push.warptube:force"], [("(0, 0.002, 0)",), ("(0, 0.6, 0)",), ("(0, 1.5, 0)",)])
+    out = tmp_path / "out"
+    result = run_batch(str(scene), str(out), str(table), frames=24, layout="arrays", writers=0)
+    assert result.ok == 3
+    with open(out / "summary.csv", newline="") as f:
+        got = [r["contact_frame"] for r in csv.DictReader(f)]
+    alone = []
+    for v in prepare_variants(str(scene), read_table(str(table))).variants:
+        sim = Simulation(v.scene, device="cpu", surface=False)
+        for _ in range(23):
+            sim.step()
+        alone.append("" if sim.contact_frame is None else str(sim.contact_frame))
+    assert got == alone
+    assert alone[0] == "" and alone[1] != "" and alone[2] != "" and int(alone[2]) <= int(alone[1])
+    assert result.contacts == [("variant_00001", int(alone[1])), ("variant_00002", int(alone[2]))]
+    assert "contact      2 variant(s)" in result.text()

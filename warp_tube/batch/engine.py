@@ -28,6 +28,7 @@ import warp as wp
 from ..runtime.interrupts import raise_if_interrupted
 from ..scene.spec import Scene
 from .checks import WorldChecks
+from .contacts import WorldContacts
 from .control import WorldControl
 from .framestore import FrameStore, done_future
 from .plan import RunChoice
@@ -63,7 +64,9 @@ class ChunkRun:
         rows: per variant (chunk order) its summary fields: status ("ok" or "failed"), reason,
             frames (written), frames_simulated, integrator, substeps, rerun (run alone),
             max_displacement_m, tip (the first tube's last point at the end, stage units, (3,)),
-            kinetic_energy_J (at the end), work_J (of the forces and gravity, in all).
+            kinetic_energy_J (at the end), work_J (of the forces and gravity, in all),
+            contact_frame (the first frame at whose end distant parts of its tubes overlapped, or
+            "": :mod:`warp_tube.batch.contacts`).
         timings: seconds spent building, in the kernels, copying back, in control and checks,
             handing frames over to be copied into the arrays and rerunning failed variants alone.
         ready: done once every output frame is in ``arrays`` (they are copied back from the
@@ -105,6 +108,7 @@ def simulate_chunk(scenes: list[Scene], choice: RunChoice, device: str, frames: 
     frame_dt, mpu = stage.frame_dt, stage.meters_per_unit
     wc = WorldControl(worlds, control, frame_dt)
     checks = WorldChecks(worlds, scenes[0].settings.gravity, wc.moving_pins)
+    contacts = WorldContacts(worlds)
     shapes = chunk_shapes(scenes, frames, every, surface, int(worlds.vertex_start[-1]) if surface else None)
     arrays = (allocate or _in_memory)(shapes)
     store = FrameStore(arrays, device)
@@ -135,6 +139,7 @@ def simulate_chunk(scenes: list[Scene], choice: RunChoice, device: str, frames: 
                     failed[w] = msg
                 wc.dead[~alive] = True
                 _reset_worlds(state, checks.rest32, worlds.rest_q(), ~alive)
+            contacts.check(k, state.node_q, alive)  # (the state at the end of frame k)
             max_disp = np.where(alive, np.maximum(max_disp, checks.distance), max_disp)
             frames_simulated[alive] += 1
             t3 = time.perf_counter()
@@ -165,11 +170,12 @@ def simulate_chunk(scenes: list[Scene], choice: RunChoice, device: str, frames: 
     ke = checks.kinetic_energy(qd)
     first_tip = int(np.cumsum(scenes[0].tubes[0].curve_counts)[0]) - 1
     tips = (q[:, first_tip] / mpu).astype(np.float64).tolist()
+    touched = [f if f >= 0 else "" for f in contacts.frame.tolist()]
     columns = zip(frames_written.tolist(), frames_simulated.tolist(), max_disp.tolist(), tips, np.asarray(ke, dtype=np.float64).tolist(),
-                  np.asarray(checks.work, dtype=np.float64).tolist())  # fmt: skip
+                  np.asarray(checks.work, dtype=np.float64).tolist(), touched)  # fmt: skip
     rows = [dict(status="ok", reason="", frames=fw, frames_simulated=fs, integrator=choice.integrator, substeps=choice.substeps,
-                 rerun=False, max_displacement_m=d, tip=tip, kinetic_energy_J=e, work_J=wk)
-            for fw, fs, d, tip, e, wk in columns]  # fmt: skip
+                 rerun=False, max_displacement_m=d, tip=tip, kinetic_energy_J=e, work_J=wk, contact_frame=cf)
+            for fw, fs, d, tip, e, wk, cf in columns]  # fmt: skip
     t = time.perf_counter()
     if failed:
         ready.result()  # the worlds run alone write over their rows of the copied frames
@@ -257,4 +263,4 @@ def _run_alone(scene: Scene, w: int, device: str, frames: int, every: int, surfa
     return dict(status="failed" if reason else "ok", reason=reason or note, frames=written,
                 frames_simulated=simulated, integrator=sim.integrator, substeps=sim.substeps, rerun=True,
                 max_displacement_m=float(max_disp), tip=(q[0, tip] / mpu).astype(np.float64).tolist(), kinetic_energy_J=ke,
-                work_J=float(sim.checks.work.sum()))  # fmt: skip
+                work_J=float(sim.checks.work.sum()), contact_frame="" if sim.contact_frame is None else sim.contact_frame)  # fmt: skip

@@ -78,6 +78,8 @@ class BatchResult:
             after the last chunk was simulated.
         timings: the simulation's own split (build, kernels, readback, control, checks, copy, rerun), summed.
         failures: (variant name, reason) of the failed variants.
+        contacts: (variant name, frame) of the variants where distant parts of their tubes came
+            closer than the sum of their radii, at the first such frame (contact is not modelled).
     """
 
     out_dir: str
@@ -97,6 +99,7 @@ class BatchResult:
     frames: int = 0
     timings: dict = field(default_factory=lambda: dict.fromkeys(TIMERS, 0.0))
     failures: list = field(default_factory=list)
+    contacts: list = field(default_factory=list)
 
     def text(self) -> str:
         t = self.timings
@@ -113,6 +116,10 @@ class BatchResult:
         lines += [f"failed       {name}: {reason}" for name, reason in self.failures[:10]]
         if len(self.failures) > 10:
             lines.append(f"failed       ... and {len(self.failures) - 10} more (summary.csv)")
+        if self.contacts:
+            name, frame = self.contacts[0]
+            lines.append(f"contact      {len(self.contacts)} variant(s): distant parts of their tubes touched (first {name} at "
+                         f"frame {frame}); contact is not modelled, they pass through each other (summary.csv: contact_frame)")  # fmt: skip
         return "\n".join(lines)
 
 
@@ -352,6 +359,7 @@ def _finished(out_dir: str, result: BatchResult, t_start: float) -> BatchResult:
     result.ok = sum(r["status"] == "ok" for r in rows)
     result.failed = len(rows) - result.ok
     result.failures = [(r["name"], r["reason"]) for r in rows if r["status"] != "ok"]
+    result.contacts = [(r["name"], int(r["contact_frame"])) for r in rows if r.get("contact_frame", "") != ""]
     result.wall_s = time.perf_counter() - t_start
     return result
 
@@ -365,7 +373,7 @@ def _json_row(row: dict, output: str) -> dict:
 
 def _tally(result: BatchResult, records: dict, variants) -> None:
     result.ok = result.failed = 0
-    result.failures = []
+    result.failures, result.contacts = [], []
     rows = {int(i): r for rec in records.values() for i, r in rec["rows"].items()}
     for i in sorted(rows):
         if rows[i]["status"] == "ok":
@@ -373,6 +381,8 @@ def _tally(result: BatchResult, records: dict, variants) -> None:
         else:
             result.failed += 1
             result.failures.append((variants.variants[i].name, rows[i]["reason"]))
+        if rows[i].get("contact_frame", "") != "":
+            result.contacts.append((variants.variants[i].name, int(rows[i]["contact_frame"])))
 
 
 def _counts(variants, surface: bool) -> list[tuple[int, int]]:

@@ -17,11 +17,43 @@ from scipy.spatial import cKDTree
 
 from ..kernels.contact import contact_grid_kernel, contact_pairs_kernel
 
-__all__ = ["ContactMonitor"]
+__all__ = ["ContactMonitor", "rest_arclength"]
 
 #: groups of up to this many points check all their distant pairs each frame; larger ones query
 #: a hash grid
 SMALL = 128
+
+
+def rest_arclength(rest: np.ndarray, tube_node_start: np.ndarray) -> np.ndarray:
+    """Arclength of each rest point from its tube's start [m]: ``rest`` (..., node, 3) [m], the
+    tubes' first nodes (tube + 1,) int; returns (..., node). Leading axes (a batch's worlds, which
+    share the tubes' layout) are independent: each world's row is what its points alone give."""
+    start = np.asarray(tube_node_start, dtype=np.int64)
+    tube = np.repeat(np.arange(len(start) - 1), np.diff(start))
+    seg = np.linalg.norm(np.diff(rest, axis=-2), axis=-1)
+    arc = np.concatenate([np.zeros(seg.shape[:-1] + (1,)), np.cumsum(seg, axis=-1)], axis=-1)
+    return arc - arc[..., start[:-1]][..., tube]
+
+
+def _group_pairs(group: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """Every pair ``i < j`` of points of one group, ``group`` (node,) int: built per group (a
+    batch's worlds: equal blocks in a row, one block's pairs offset block after block)."""
+    n = len(group)
+    if n == 0:
+        return np.zeros(0, np.int64), np.zeros(0, np.int64)
+    sizes = np.bincount(group)
+    blocks = len(sizes)
+    if (sizes == sizes[0]).all() and np.array_equal(group, np.repeat(np.arange(blocks), sizes[0])):
+        i, j = np.triu_indices(int(sizes[0]), 1)
+        offset = (np.arange(blocks) * sizes[0])[:, None]
+        return (i[None] + offset).reshape(-1), (j[None] + offset).reshape(-1)
+    out_i, out_j = [], []
+    for g in range(blocks):
+        nodes = np.flatnonzero(group == g)
+        i, j = np.triu_indices(len(nodes), 1)
+        out_i.append(nodes[i])
+        out_j.append(nodes[j])
+    return np.concatenate(out_i), np.concatenate(out_j)
 
 
 class ContactMonitor:
@@ -33,17 +65,20 @@ class ContactMonitor:
         tube_node_start: first node of each tube, shape (tube_count + 1,) int.
         device: the Warp device of the positions.
         node_group: (node,) int group of each node (default: all one group).
+        node_arc: (node,) rest arclength of each node from its tube's start [m] (default:
+            :func:`rest_arclength` of ``rest_q``).
+        small: groups of at most this many points test all their pairs, larger ones use the
+            hash grid (the same contacts either way; many groups of a few dozen points already
+            make many pairs).
     """
 
-    def __init__(self, rest_q, radius, tube_node_start, device="cpu", node_group=None):
+    def __init__(self, rest_q, radius, tube_node_start, device="cpu", node_group=None, node_arc=None, small: int = SMALL):
         rest = np.asarray(rest_q, dtype=np.float64)
         start = np.asarray(tube_node_start, dtype=np.int64)
         n = len(rest)
         self.radius = np.asarray(radius, dtype=np.float64)
         self.tube = np.repeat(np.arange(len(start) - 1), np.diff(start))
-        seg = np.linalg.norm(np.diff(rest, axis=0), axis=1)
-        arc = np.concatenate([[0.0], np.cumsum(seg)])
-        self.arc = arc - arc[start[:-1]][self.tube]  # arclength from each tube's start
+        self.arc = rest_arclength(rest, start) if node_arc is None else np.asarray(node_arc, dtype=np.float64)
         self.group = np.zeros(n, dtype=np.int32) if node_group is None else np.asarray(node_group, dtype=np.int32)
         self.group_count = int(self.group.max()) + 1 if n else 1
         self.max_radius = float(self.radius.max()) if n else 0.0
@@ -58,9 +93,9 @@ class ContactMonitor:
         self._grid = None
         self._launches: dict = {}  # positions' address -> their recorded launch (False: no pairs to test)
         largest = int(np.bincount(self.group).max()) if n else 0
-        if largest <= SMALL:
+        if largest <= small:
             # Every pair of a group that could ever count, fixed once: per frame only distances.
-            i, j = np.triu_indices(n, 1)
+            i, j = _group_pairs(self.group)
             rsum = self.radius[i] + self.radius[j]
             keep = (self.group[i] == self.group[j]) & (
                 (self.tube[i] != self.tube[j]) | (np.abs(self.arc[i] - self.arc[j]) > 0.5 * np.pi * rsum))

@@ -167,6 +167,10 @@ class Simulation:
         device: "cpu", "cuda:N" or None (CUDA when available).
         world_count: copies of the scene run side by side (batch layout), each with the same input.
         surface: build the hubs-and-spokes surface (needed for :meth:`surface_points` and output).
+
+    Attributes:
+        contact_frame: the first frame at whose end distant parts of the tubes (world 0) were
+            closer than the sum of their radii (warned of once; contact is not modelled), or None.
     """
 
     def __init__(self, scene: Scene, device=None, world_count: int = 1, surface: bool = True):
@@ -198,6 +202,7 @@ class Simulation:
         self._world_q = None  # one world's positions for the surface builders, (1, node_count)
         self._contacts = ContactMonitor(m.host.node_rest_q, m.host.node_radius, m.host.tube_node_start, device=self.device)
         self._contact_reported = False
+        self.contact_frame: int | None = None
         self._first_world: dict = {}  # state positions' address -> their world 0 (a view), for the contact monitor
         self._retry = self.scene.settings.integrator == "auto"
         extent = max(float(np.ptp(t.points, axis=0).max()) for t in scene.tubes)
@@ -328,6 +333,7 @@ class Simulation:
                "radii (distant parts touch; contact is not modelled, so they pass through each other)")  # fmt: skip
         self._warn(msg)
         self._contact_reported = True
+        self.contact_frame = self.frame
 
     def _node_name(self, node: int) -> str:
         k = int(np.searchsorted(self._prim_start, node, side="right") - 1)
