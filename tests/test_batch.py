@@ -805,7 +805,26 @@ def test_arrays_written_in_blocks_of_variants_that_follow_one_another(tmp_path, 
     assert not got[untouched].any()  # rows of other chunks: not written here (still the file's zeros)
 
 
-TWO_TUBES = """#usda 1.0
+def _straight_tube(name: str, y: float) -> str:
+    """A pinned straight tube prim of 11 points along x at height ``y`` [m], radius 1 cm."""
+    points = ", ".join(f"({0.02 * k:.2f}, {y}, 0)" for k in range(11))
+    return f"""
+    def BasisCurves "{name}"
+    {{
+        uniform token type = "linear"
+        int[] curveVertexCounts = [11]
+        point3f[] points = [{points}]
+        float[] widths = [0.02] (interpolation = "constant")
+        double warptube:youngsModulus = 200000
+        double warptube:density = 1000
+        double warptube:damping = 4
+        int[] warptube:pinnedPoints = [0, 10]
+    }}
+"""
+
+
+TWO_TUBES = (
+    """#usda 1.0
 (
     defaultPrim = "World"
     metersPerUnit = 1
@@ -817,31 +836,10 @@ TWO_TUBES = """#usda 1.0
 )
 
 def Xform "World"
-{
-    def BasisCurves "A"
-    {
-        uniform token type = "linear"
-        int[] curveVertexCounts = [11]
-        point3f[] points = [(0, 0, 0), (0.02, 0, 0), (0.04, 0, 0), (0.06, 0, 0), (0.08, 0, 0), (0.1, 0, 0), (0.12, 0, 0), (0.14, 0, 0), (0.16, 0, 0), (0.18, 0, 0), (0.2, 0, 0)]
-        float[] widths = [0.02] (interpolation = "constant")
-        double warptube:youngsModulus = 200000
-        double warptube:density = 1000
-        double warptube:damping = 4
-        int[] warptube:pinnedPoints = [0, 10]
-    }
-
-    def BasisCurves "B"
-    {
-        uniform token type = "linear"
-        int[] curveVertexCounts = [11]
-        point3f[] points = [(0, 0.03, 0), (0.02, 0.03, 0), (0.04, 0.03, 0), (0.06, 0.03, 0), (0.08, 0.03, 0), (0.1, 0.03, 0), (0.12, 0.03, 0), (0.14, 0.03, 0), (0.16, 0.03, 0), (0.18, 0.03, 0), (0.2, 0.03, 0)]
-        float[] widths = [0.02] (interpolation = "constant")
-        double warptube:youngsModulus = 200000
-        double warptube:density = 1000
-        double warptube:damping = 4
-        int[] warptube:pinnedPoints = [0, 10]
-    }
-
+{"""
+    + _straight_tube("A", 0.0)
+    + _straight_tube("B", 0.03)
+    + """
     def Scope "Push"
     {
         rel warptube:target = </World/A>
@@ -850,6 +848,7 @@ def Xform "World"
     }
 }
 """
+)
 
 
 @pytest.mark.parametrize("pairs_max", [None, 4])
