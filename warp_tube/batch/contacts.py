@@ -43,17 +43,11 @@ class WorldContacts:
                                       device=m.device, node_group=np.repeat(np.arange(W), N),
                                       node_arc=rest_arclength(h.node_rest_q, start).reshape(-1), small=PAIRS_MAX)  # fmt: skip
         self.frame = np.full(W, -1, dtype=np.int64)
-        self._flat: dict = {}  # state positions' address -> their (W N,) view
 
     def check(self, frame: int, q, alive: np.ndarray) -> None:
         """Record ``frame`` for the ``alive`` worlds whose positions ``q`` (W, N) vec3 [m] (the
         state at the end of that frame) first put distant parts of their tubes in contact."""
-        flat = self._flat.get(q.ptr)
-        if flat is None:
-            if len(self._flat) > 4:
-                self._flat.clear()
-            flat = self._flat[q.ptr] = q.reshape((q.shape[0] * q.shape[1],))
-        gap = self.monitor.deepest(flat)
+        gap = self.monitor.deepest(q)  # (every world's points: the monitor's groups)
         new = np.flatnonzero((gap < 0.0) & (self.frame < 0) & alive)
         if len(new):
             host = q.numpy().reshape(-1, 3).astype(np.float64)

@@ -80,6 +80,7 @@ class ContactMonitor:
         self.tube = np.repeat(np.arange(len(start) - 1), np.diff(start))
         self.arc = rest_arclength(rest, start) if node_arc is None else np.asarray(node_arc, dtype=np.float64)
         self.group = np.zeros(n, dtype=np.int32) if node_group is None else np.asarray(node_group, dtype=np.int32)
+        self.node_count = n
         self.group_count = int(self.group.max()) + 1 if n else 1
         self.max_radius = float(self.radius.max()) if n else 0.0
         self.device = device
@@ -91,14 +92,13 @@ class ContactMonitor:
         self._gap = wp.zeros(self.group_count, dtype=float, device=d)
         self._pairs = None
         self._grid = None
-        self._launches: dict = {}  # positions' address -> their recorded launch (False: no pairs to test)
+        self._launches: dict = {}  # positions' address -> (their monitored points, recorded launch or None)
         largest = int(np.bincount(self.group).max()) if n else 0
         if largest <= small:
             # Every pair of a group that could ever count, fixed once: per frame only distances.
             i, j = _group_pairs(self.group)
             rsum = self.radius[i] + self.radius[j]
-            keep = (self.group[i] == self.group[j]) & (
-                (self.tube[i] != self.tube[j]) | (np.abs(self.arc[i] - self.arc[j]) > 0.5 * np.pi * rsum))
+            keep = (self.tube[i] != self.tube[j]) | (np.abs(self.arc[i] - self.arc[j]) > 0.5 * np.pi * rsum)
             self._pairs = (wp.array(i[keep], dtype=int, device=d), wp.array(j[keep], dtype=int, device=d))
         else:
             dim = int(np.clip(round(n ** (1.0 / 3.0)), 8, 128))
@@ -109,27 +109,32 @@ class ContactMonitor:
         where nothing touches.
 
         Args:
-            q: one world's positions [m], shape (node,), vec3, on the monitor's device.
+            q: positions [m], vec3, on the monitor's device, whose first ``node_count`` points
+                (in memory order) are the monitor's: one world's (node,), or a state's
+                (world, node) of which the monitor watches world 0, or every world of a batch.
         """
-        self._gap.zero_()
-        if self._pairs is None:
-            self._grid.build(q, 2.0 * self.max_radius, groups=self._group)
-        # One recorded launch per positions array (a run alternates two states): the launch holds
-        # the array, so its address identifies it for as long as the launch is kept.
-        launch = self._launches.get(q.ptr)
-        if launch is None:
+        # One recorded launch per positions array (a run alternates two states), with the view of
+        # its monitored points: the launch holds the array, so its address identifies it for as
+        # long as the launch is kept.
+        held = self._launches.get(q.ptr)
+        if held is None:
+            flat = q.reshape((q.size,))[: self.node_count] if q.ndim > 1 or q.shape[0] != self.node_count else q
             if self._pairs is not None:
                 launch = wp.launch(contact_pairs_kernel, dim=self._pairs[0].shape[0], device=self.device,
-                                   inputs=[*self._pairs, q, self._radius, self._arc, self._tube, self._group, self._gap],
-                                   record_cmd=True) if self._pairs[0].shape[0] else False  # fmt: skip
+                                   inputs=[*self._pairs, flat, self._radius, self._arc, self._tube, self._group, self._gap],
+                                   record_cmd=True) if self._pairs[0].shape[0] else None  # fmt: skip
             else:
-                launch = wp.launch(contact_grid_kernel, dim=q.shape[0], device=self.device,
-                                   inputs=[self._grid.id, 2.0 * self.max_radius, q, self._radius, self._arc, self._tube,
+                launch = wp.launch(contact_grid_kernel, dim=self.node_count, device=self.device,
+                                   inputs=[self._grid.id, 2.0 * self.max_radius, flat, self._radius, self._arc, self._tube,
                                            self._group, self._gap], record_cmd=True)  # fmt: skip
             if len(self._launches) > 8:
                 self._launches.clear()
-            self._launches[q.ptr] = launch
-        if launch:
+            held = self._launches[q.ptr] = (flat, launch)
+        flat, launch = held
+        self._gap.zero_()
+        if self._pairs is None:
+            self._grid.build(flat, 2.0 * self.max_radius, groups=self._group)
+        if launch is not None:
             launch.launch()
         return self._gap.numpy()
 

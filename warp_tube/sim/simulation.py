@@ -203,7 +203,6 @@ class Simulation:
         self._contacts = ContactMonitor(m.host.node_rest_q, m.host.node_radius, m.host.tube_node_start, device=self.device)
         self._contact_reported = False
         self.contact_frame: int | None = None
-        self._first_world: dict = {}  # state positions' address -> their world 0 (a view), for the contact monitor
         self._retry = self.scene.settings.integrator == "auto"
         extent = max(float(np.ptp(t.points, axis=0).max()) for t in scene.tubes)
         # float32 round-off moves points by ~1e-7 of their coordinates; springs strained that much
@@ -315,13 +314,7 @@ class Simulation:
 
     def _report_contact(self):
         """Warn once when distant parts of tubes (world 0) come closer than two radii."""
-        q = self.state.node_q
-        first = self._first_world.get(q.ptr)
-        if first is None:  # world 0 of each of the two states, made once
-            if len(self._first_world) > 4:
-                self._first_world.clear()
-            first = self._first_world[q.ptr] = q[0]
-        gap = self._contacts.deepest(first)
+        gap = self._contacts.deepest(self.state.node_q)  # (its first node_count points: world 0)
         if not (gap < 0.0).any():
             return
         hit = self._contacts.closest(self.state.node_q.numpy()[0].astype(np.float64), group=int(np.argmin(gap)))
