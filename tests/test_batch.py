@@ -733,17 +733,21 @@ def test_a_scene_warning_is_given_once_not_per_variant(tmp_path, caplog):
 def test_critical_time_steps_of_many_parts_equal_each_part_alone():
     """The batch plans every variant's stability bound from one launch over the group's model; each
     part's bound must be the one its own nodes give (same float64 row sums: equal to 1e-12)."""
+    from types import SimpleNamespace
+
     from warp_tube import load_scene
-    from warp_tube.batch.worlds import combined_scene
+    from warp_tube.batch.worlds import combined_tubes
     from warp_tube.centerline.stability import critical_time_step, critical_time_steps
-    from warp_tube.model.tube import build_model
+    from warp_tube.model.tube import build_model, node_parameters
 
     base = load_scene(str(DEFAULT))
     scenes = []
     for e, d in ((1e5, 0.0), (4e5, 0.0), (2.5e4, 0.3)):
         t = base.tubes[0]
         scenes.append(replace(base, tubes=(replace(t, params=replace(t.params, youngs_modulus=e, spring_damping=d)),)))
-    h = build_model(combined_scene(scenes), world_count=1, device="cpu").host
+    # as the planner builds it: every part's per-node parameters, with one part's topology
+    per_node, _ = node_parameters(combined_tubes(scenes))
+    h = SimpleNamespace(**per_node, tube_al_force=build_model(scenes[0], world_count=1, device="cpu").host.tube_al_force)
     n = len(h.node_mass) // 3
     damping = np.array([s.tubes[0].params.spring_damping for s in scenes])
     many = critical_time_steps(h, 3, True, damping)

@@ -82,7 +82,7 @@ class WorldControl:
         self._f_last = None  # the forces last written to the control, (W, F, 3) [N]
         self._constant = all(len(times) == 1 for groups in self._forces for times, _, _ in groups)
         self._f_const = self._f_const_dead = None  # constant forces, and the dead worlds they were made for
-        self._directions: dict = {}  # force -> (the forces array, its size per world, zero, unit direction)
+        self._directions: dict = {}  # force -> (the forces array they are of, zero per world, unit direction per world)
         self._host = {}  # device array address -> its reused page-locked host copy
 
     def _fetch(self, a):

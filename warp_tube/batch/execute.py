@@ -14,6 +14,7 @@ adds its timings to the batch's result.
 from __future__ import annotations
 
 import concurrent.futures as cf
+import dataclasses
 import math
 import multiprocessing
 import os
@@ -134,7 +135,7 @@ def _sim_write_task(payload):
         cf.wait(pending)
     run = simulate_chunk(scenes, choice, _worker_device, frames, every, surface, allocate=_worker_ring.allocator(chunk_id))
     t0 = time.perf_counter()
-    futures = [_worker_writers.submit(_write_when_ready, run.ready, t) for t in with_rows(tasks, run.rows, run.arrays)]
+    futures = [_worker_writers.submit(_timed_write_when_ready, run.ready, t) for t in with_rows(tasks, run.rows, run.arrays)]
     _worker_writing[chunk_id] = futures
     left = [len(futures)]
     lock = threading.Lock()
@@ -146,7 +147,7 @@ def _sim_write_task(payload):
                 return
         _worker_writing.pop(chunk_id, None)
         try:
-            outputs = [o for f in futures for o in f.result()]
+            outputs = [o for f in futures for o in f.result()[0]]
         except Exception as e:  # reported to the batch, which stops with it
             _worker_done.put((chunk_id, None, f"writing chunk {chunk_id}: {type(e).__name__}: {e}"))
             return
@@ -195,13 +196,8 @@ def _timed_write(task: WriteTask):
     return out, time.perf_counter() - t0
 
 
-def _write_when_ready(ready: cf.Future, task: WriteTask):
-    """:func:`write` once the chunk's frames are in its arrays (``ready``)."""
-    ready.result()
-    return write(task)
-
-
 def _timed_write_when_ready(ready: cf.Future, task: WriteTask):
+    """:func:`_timed_write` once the chunk's frames are in its arrays (``ready``)."""
     ready.result()
     return _timed_write(task)
 
@@ -214,8 +210,7 @@ def _hand_to_processes(ready: cf.Future, arrays: dict, tasks: list, pool):
     for a in arrays.values():
         a.flush()
     names = {name: a.filename for name, a in arrays.items()}
-    futures = [pool.submit(_timed_write, WriteTask(spec=t.spec, chunk=t.chunk, variants=t.variants, positions=t.positions,
-                                                   rows=t.rows, arrays=names)) for t in tasks]  # fmt: skip
+    futures = [pool.submit(_timed_write, dataclasses.replace(t, arrays=names)) for t in tasks]
     outputs, spent = [], 0.0
     for f in futures:
         out, s = f.result()

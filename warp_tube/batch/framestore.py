@@ -12,8 +12,9 @@ The copy back runs on a thread of its own, on a CUDA stream of its own, while th
 goes on: a full window is handed over and the frames that follow go into fresh device buffers
 (at most :data:`MAX_WINDOWS_IN_FLIGHT` windows of a process wait, over the chunks, and no more
 than fit with the window being filled in a quarter of the device's memory; where not even two
-fit, the frames wait for each window's copy and go on in the same buffers). :meth:`FrameStore.finish` returns a future
-that is done once every frame is in the host arrays; whoever reads them waits for it.
+fit, the frames wait for each window's copy and go on in the same buffers).
+:meth:`FrameStore.finish` returns a future that is done once every frame is in the host arrays;
+whoever reads them waits for it.
 
 Host arrays (float32, stage units), for ``F`` written frames and ``W`` worlds, as
 :func:`warp_tube.batch.engine.chunk_shapes` gives them: ``centerline`` (F, W, N, 3); ``points``,

@@ -27,7 +27,8 @@ import numpy as np
 
 from ..scene.spec import Scene
 
-__all__ = ["Chunk", "RunChoice", "run_choice", "run_choices", "group_key", "plan_chunks"]
+__all__ = ["Chunk", "RunChoice", "run_choice", "run_choices", "group_key", "plan_chunks", "by_identity"]
+
 
 @dataclass(frozen=True)
 class RunChoice:
@@ -50,16 +51,31 @@ class Chunk:
     indices: tuple[int, ...]
 
 
+def by_identity(memo: dict, arrays: tuple, extra: tuple, make, of):
+    """``make(of)``, worked out once per set of ``arrays`` (and plain values ``extra``) in
+    ``memo``: by the arrays' identities, a batch's variants mostly sharing their tubes' arrays
+    (the arrays are kept in ``memo``, so that their ids stay theirs while it lives)."""
+    key = (*map(id, arrays), *extra)
+    hit = memo.get(key)
+    if hit is None:
+        hit = memo[key] = (make(of), arrays)
+    return hit[0]
+
+
 def _tube_key(t, memo: dict) -> tuple:
     """What of a tube prim the stability bound depends on (content, not identity): its geometry
-    (read once per set of arrays: ``memo``, by the arrays' identities, while they live) and its
-    parameters."""
-    ids = (id(t.points), id(t.radius), id(t.curve_counts), id(t.pinned), id(t.anchors))
-    geometry = memo.get(ids)
-    if geometry is None:
-        geometry = memo[ids] = (t.points.tobytes(), t.radius.tobytes(), tuple(t.curve_counts.tolist()), t.pinned.tobytes(),
-                                t.anchors.tobytes())  # fmt: skip
+    (read once per set of arrays, :func:`by_identity`) and its parameters."""
+    geometry = by_identity(memo, (t.points, t.radius, t.curve_counts, t.pinned, t.anchors), (), _geometry_key, t)
     return geometry, t.params
+
+
+def _geometry_key(t) -> tuple:
+    return t.points.tobytes(), t.radius.tobytes(), tuple(t.curve_counts.tolist()), t.pinned.tobytes(), t.anchors.tobytes()
+
+
+def _group_arrays(t) -> tuple:
+    """The parts of a tube's :func:`group_key` read from its arrays."""
+    return tuple(t.curve_counts.tolist()), t.pinned.tobytes(), t.points.tobytes(), mean_spoke_length(t)
 
 
 def run_choices(scenes: list[Scene], block: int = 1024) -> list[RunChoice]:
@@ -161,18 +177,13 @@ def group_key(scene: Scene, choice: RunChoice, surface: bool, memo: dict | None 
     """Variants with equal keys run as worlds of one model (see the module docstring).
 
     ``memo``: a dict kept over the calls for one batch's variants, where the parts of a tube's
-    key read from its arrays are remembered by the arrays' identities (a batch's variants mostly
-    share them), or None."""
+    key read from its arrays are worked out once per set of arrays (:func:`by_identity`), or None."""
     s = scene.stage
     memo = {} if memo is None else memo
     tubes, shape = [], []
     for t in scene.tubes:
         p = t.params
-        ids = (id(t.curve_counts), id(t.pinned), id(t.points), id(t.radius), id(t.spoke_lengths), p.spokes)
-        arrays = memo.get(ids)
-        if arrays is None:
-            arrays = memo[ids] = (tuple(t.curve_counts.tolist()), t.pinned.tobytes(), t.points.tobytes(), mean_spoke_length(t),
-                                  (t.curve_counts, t.pinned, t.points, t.radius, t.spoke_lengths))  # (kept: their ids stay theirs)
+        arrays = by_identity(memo, (t.curve_counts, t.pinned, t.points, t.radius, t.spoke_lengths), (p.spokes,), _group_arrays, t)
         tubes.append((t.path, arrays[0], arrays[1], p.spokes, p.frames, p.caps, p.reference_normal, t.pin_track is not None))
         shape.append((arrays[2], arrays[3]))
     forces = tuple((f.tube, f.point, f.assistant_line) for f in scene.forces)

@@ -36,7 +36,7 @@ from .cluster import check_dask, dask_client, run_dask
 from .execute import SimWorkers, Writers, run_here, run_pooled, writer_count
 from .journal import Journal, file_digest
 from .outputs import LAYOUTS, OutputSpec, finish_arrays, prepare_arrays, surface_topology, write_grid_root, write_summary
-from .plan import group_key, plan_chunks
+from .plan import by_identity, group_key, plan_chunks
 from .prepare import prepare_batch
 from .progress import Progress
 
@@ -392,14 +392,18 @@ def _counts(variants, surface: bool) -> list[tuple[int, int]]:
     out = []
     for v in variants:
         tubes = v.scene.tubes
-        key = tuple((id(t.points), id(t.radius), id(t.spoke_lengths), id(t.curve_counts), t.params.spokes, t.params.caps)
-                    for t in tubes)  # fmt: skip
-        hit = memo.get(key)
-        if hit is None:
-            hit = memo[key] = ((sum(len(t.points) for t in tubes),
-                                sum(surface_topology(t).vertex_count for t in tubes) if surface else 0), tubes)  # fmt: skip
-        out.append(hit[0])
+        arrays = tuple(a for t in tubes for a in (t.points, t.radius, t.spoke_lengths, t.curve_counts))
+        extra = tuple(x for t in tubes for x in (t.params.spokes, t.params.caps))
+        out.append(by_identity(memo, arrays, extra, _points_and_vertices if surface else _points, tubes))
     return out
+
+
+def _points(tubes) -> tuple[int, int]:
+    return sum(len(t.points) for t in tubes), 0
+
+
+def _points_and_vertices(tubes) -> tuple[int, int]:
+    return sum(len(t.points) for t in tubes), sum(surface_topology(t).vertex_count for t in tubes)
 
 
 def _columns(counts: list, surface: bool) -> tuple[list, list]:

@@ -18,9 +18,9 @@ import numpy as np
 import warp as wp
 
 from ..model.tube import TubeModel, build_model, model_features, node_parameters
-from ..scene.spec import Scene, replace_checked
+from ..scene.spec import Scene
 
-__all__ = ["Worlds", "WorldArrays", "build_worlds", "combined_scene", "combined_tubes"]
+__all__ = ["Worlds", "WorldArrays", "build_worlds", "combined_tubes"]
 
 
 @dataclass(frozen=True)
@@ -40,17 +40,6 @@ class WorldArrays:
     node_anchor_k: np.ndarray  # (W, N) [N/m]
     node_anchor_kd: np.ndarray  # (W, N) [N s/m]
     node_radius: np.ndarray  # (W, N) [m]
-
-
-def combined_scene(scenes: list[Scene]) -> Scene:
-    """One scene holding every scene's tubes and forces, scene after scene (forces re-targeted)."""
-    tubes, forces = [], []
-    for s in scenes:
-        offset = len(tubes)
-        tubes.extend(s.tubes)
-        forces.extend(replace_checked(f, tube=f.tube + offset) if offset else f for f in s.forces)
-    first = scenes[0]
-    return Scene(tubes=tuple(tubes), forces=tuple(forces), settings=first.settings, stage=first.stage, source=first.source)
 
 
 def combined_tubes(scenes: list[Scene]) -> Scene:

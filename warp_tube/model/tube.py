@@ -329,12 +329,9 @@ def node_parameters(scene: Scene) -> tuple[dict, bool]:
     ea = np.where(np.isnan(head(stretch)), head(youngs) * np.pi * r_seg**2, head(stretch))  # TubeParams.axial_stiffness
     k_ax = np.where(inside, ea / np.where(inside, seg, 1.0), 0.0)
     if shared:
-        kappa = np.tile(node_parameters(Scene(tubes=specs[:1], forces=(), settings=scene.settings, stage=scene.stage,
-                                              source=scene.source))[0]["node_kappa_rest"], (len(specs), 1))  # fmt: skip
-    elif len(counts) and (counts == counts[0]).all():  # curves of one length (e.g. a batch's worlds): one call
-        kappa = rest_curvature_coordinates(x.reshape(len(counts), int(counts[0]), 3)).reshape(n, 3)
+        kappa = np.tile(_curves_kappa(specs[0].points, specs[0].curve_counts.astype(np.int64)), (len(specs), 1))
     else:
-        kappa = np.concatenate(rest_curvature_of_curves([x[a : b + 1] for a, b in zip(first, last)]))
+        kappa = _curves_kappa(x, counts)
     anchor_k = np.where(anchored, material(p.anchor_stiffness for p in params), 0.0)
     per_node = dict(
         node_rest_q=x, node_mass=mass, node_inv_mass=np.where(pinned, 0.0, 1.0 / mass),
@@ -346,6 +343,15 @@ def node_parameters(scene: Scene) -> tuple[dict, bool]:
         prim_node_start=prim_start[:-1],
     )  # fmt: skip
     return per_node, bool(np.abs(kappa).max() > 1e-6)
+
+
+def _curves_kappa(x: np.ndarray, counts: np.ndarray) -> np.ndarray:
+    """Rest curvature coordinates (N, 3) of the curves of ``counts`` points, one after another in
+    ``x`` (N, 3) [m]; curves of one length (e.g. a batch's worlds) in one call."""
+    if len(counts) and (counts == counts[0]).all():
+        return rest_curvature_coordinates(x.reshape(len(counts), int(counts[0]), 3)).reshape(len(x), 3)
+    starts = np.concatenate([[0], np.cumsum(counts)])
+    return np.concatenate(rest_curvature_of_curves([x[a:b] for a, b in zip(starts[:-1], starts[1:])]))
 
 
 def model_features(per_node: dict, curved: bool, gravity, external: bool, assistant_line: bool) -> Features:
