@@ -14,9 +14,9 @@ from __future__ import annotations
 import math
 
 import numpy as np
-import warp as wp
 
 from ..sim.control import AL_MIN_ANGLE, AL_REBUILD_ANGLE, AssistantLineArrays
+from .rows import WorldRows
 from .worlds import Worlds
 
 __all__ = ["WorldControl", "interpolate"]
@@ -83,21 +83,7 @@ class WorldControl:
         self._constant = all(len(times) == 1 for groups in self._forces for times, _, _ in groups)
         self._f_const = self._f_const_dead = None  # constant forces, and the dead worlds they were made for
         self._directions: dict = {}  # force -> (the forces array they are of, zero per world, unit direction per world)
-        self._host = {}  # device array address -> its reused page-locked host copy
-
-    def _fetch(self, a):
-        """Device array ``a`` copied to the host: into a page-locked buffer kept for it (on CUDA;
-        fresh pageable memory and its page faults made each copy cost ~0.25 ms), as a NumPy view
-        valid until the next fetch of ``a``."""
-        if not a.device.is_cuda:
-            return a.numpy()
-        buf = self._host.get(a.ptr)
-        if buf is None:
-            buf = self._host[a.ptr] = wp.empty(a.shape, dtype=a.dtype, device="cpu", pinned=True)
-        stream = wp.get_stream(a.device)
-        wp.copy(buf, a, stream=stream)
-        wp.synchronize_stream(stream)  # (not the device: frames being copied back on another stream need not wait)
-        return buf.numpy()
+        self.rows = WorldRows(m.device)  # the few worlds' rows a frame's new lines read and write
 
     @property
     def moving_pins(self) -> bool:
@@ -146,7 +132,6 @@ class WorldControl:
         m, c, h = self.worlds.model, self.control, self.worlds.model.host
         active = self._al_active
         changed = False
-        positions = lines = None
         cos_rebuild, sin_min = math.cos(AL_REBUILD_ANGLE), math.sin(AL_MIN_ANGLE)
         for a in range(m.force_count):
             if not self.uses_al[a]:
@@ -165,20 +150,15 @@ class WorldControl:
             build = ~zero & ~keep
             if not build.any():
                 continue
-            if positions is None:
-                positions = (self._fetch(state.node_q), self._fetch(state.node_q_lo), self._fetch(state.node_qd))
-            q_hi, q_lo, state_qd = positions
-
-            def state_q(rows, cols):
-                """Positions [m] of ``rows`` x ``cols``: float64, compensated (float32 + low-order
-                part), as Simulation builds lines (only where they are needed)."""
-                return q_hi[rows, cols].astype(np.float64) + q_lo[rows, cols]
-
             t = h.force_tube[a]
             s, e = h.tube_node_start[t], h.tube_node_start[t + 1]
             k = h.force_node[a]
             ws = np.flatnonzero(build)
-            tangent = state_q(ws, min(k + 1, e - 1)) - state_q(ws, max(k - 1, s))
+            # Only these worlds' tube rows come to the host: positions float64, compensated
+            # (float32 + low-order part), as Simulation builds lines.
+            q_hi, q_lo, qd = self.rows.take((state.node_q, state.node_q_lo, state.node_qd), ws, s, e)
+            x = q_hi.astype(np.float64) + q_lo
+            tangent = x[:, min(k + 1, e - 1) - s] - x[:, max(k - 1, s) - s]
             tangent = tangent / np.maximum(np.linalg.norm(tangent, axis=-1), 1e-30)[:, None]
             dw = d[ws]
             across = dw - np.sum(dw * tangent, axis=-1)[:, None] * tangent
@@ -189,19 +169,32 @@ class WorldControl:
             if len(off_axis):
                 active[off_axis, a] = 0
                 changed = True
-            ws, across, norm_across = ws[~axial], across[~axial], norm_across[~axial]
+            laid = ~axial
+            ws, x = ws[laid], x[laid]
             if not len(ws):
                 continue
-            if lines is None:
-                lines = AssistantLineArrays.read(state, c, self._fetch)
-            offset_dir = across / norm_across[:, None]
-            p0 = h.al_start[a]
+            offset_dir = across[laid] / norm_across[laid][:, None]
             off = self.worlds.host.node_radius[ws, s:e, None] * offset_dir[:, None, :]
-            x = state_q(ws, slice(s, e))
-            lines.build(ws, slice(p0, p0 + e - s), x, x + off, state_qd[ws, s:e])
+            self._lay_lines(c, state, ws, h.al_start[a], x, x + off, qd[laid])
             active[ws, a] = 1
             changed = True
-        if lines is not None:
-            lines.write(state, c)
         if changed:
             c.al_active.assign(active)
+
+    def _lay_lines(self, c, state, ws: np.ndarray, p0: int, x: np.ndarray, xp: np.ndarray, xd: np.ndarray) -> None:
+        """Lay the lines of worlds ``ws`` in slots ``p0 ...`` beside tube points ``x`` (float64,
+        (len(ws), n, 3) [m]) at ``xp``, moving with ``xd`` [m/s]: built compact
+        (:meth:`AssistantLineArrays.build`) and written into those worlds' rows only; every other
+        entry keeps its value bit for bit."""
+        n = x.shape[1]
+        lines = AssistantLineArrays(np.zeros((len(ws), n, 3), np.float32), np.zeros((len(ws), n, 3), np.float32),
+                                    np.zeros((len(ws), n, 3), np.float32),
+                                    {name: np.zeros((len(ws), n), np.float32) for name in AssistantLineArrays.LENGTHS})  # fmt: skip
+        lines.build(slice(None), slice(0, n), x, xp, xd)
+        L = lines.lengths
+        self.rows.put(ws, [
+            (state.al_q, p0, lines.q_hi, 0, n), (state.al_q_lo, p0, lines.q_lo, 0, n), (state.al_qd, p0, lines.qd, 0, n),
+            (c.al_link_length, p0, L["al_link_length"], 0, n),
+            (c.al_chord_length, p0, L["al_chord_length"], 0, n - 1), (c.al_fwd_length, p0, L["al_fwd_length"], 0, n - 1),
+            (c.al_bwd_length, p0 + 1, L["al_bwd_length"], 1, n - 1),
+        ])  # fmt: skip
