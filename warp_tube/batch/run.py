@@ -290,7 +290,8 @@ def _run_batch(scene, out_dir, table, tab, devices, writer_pool, sim_workers, t_
                      chunk=chunk, variants=len(variants))  # fmt: skip
     result = BatchResult(out_dir=out_dir, variants=len(variants), groups=len({c.group for c in plan}), chunks=len(plan),
                          devices=devices if devices != ["dask"] else [f"dask {scheduler}"], frames=len(F_idx))  # fmt: skip
-    spec = _output_spec(variants, layout, out_dir, journal.dir, surface, time_codes)
+    counts = _counts(variants.variants, surface)  # per variant its points and vertices
+    spec = _output_spec(variants, counts, layout, out_dir, journal.dir, surface, time_codes)
     result.prepare_s = time.perf_counter() - t_start
 
     if resume and not journal.exists():  # the batch there finished: nothing to do
@@ -339,7 +340,7 @@ def _run_batch(scene, out_dir, table, tab, devices, writer_pool, sim_workers, t_
         result.wall_s = time.perf_counter() - t_start
         raise BatchInterrupted(result, getattr(e, "signum", signal.SIGINT)) from None
     bar.close()
-    _finish_outputs(spec, variants, records, first, out_dir)
+    _finish_outputs(spec, variants, counts, records, first, out_dir)
     journal.finish()
     _tally(result, records, variants)
     result.wall_s = time.perf_counter() - t_start
@@ -411,9 +412,9 @@ def _columns(counts: list, surface: bool) -> tuple[list, list]:
     return [p for p, _ in counts], ([n for _, n in counts] if surface else [])
 
 
-def _output_spec(variants, layout, out_dir, work_dir, surface, time_codes) -> OutputSpec:
+def _output_spec(variants, counts: list, layout, out_dir, work_dir, surface, time_codes) -> OutputSpec:
+    """The batch's outputs (``counts``: :func:`_counts` of its variants)."""
     vs = variants.variants
-    counts = _counts(vs, surface)
     points = max(p for p, _ in counts)
     vertices = max(n for _, n in counts) if surface else 0
     first = vs[0].scene.stage
@@ -429,12 +430,12 @@ def _output_spec(variants, layout, out_dir, work_dir, surface, time_codes) -> Ou
                       up_axis=first.up_axis)  # fmt: skip
 
 
-def _finish_outputs(spec: OutputSpec, variants, records: dict, first_scene, out_dir: str) -> None:
+def _finish_outputs(spec: OutputSpec, variants, counts: list, records: dict, first_scene, out_dir: str) -> None:
     rows = {int(i): r for rec in records.values() for i, r in rec["rows"].items()}
     vs = variants.variants
     if spec.layout == "arrays":
         finish_arrays(spec, list(range(len(vs))), [v.name for v in vs],
-                      *_columns(_counts(vs, spec.surface), spec.surface))  # fmt: skip
+                      *_columns(counts, spec.surface))  # fmt: skip
     if spec.layout == "grid":
         layers = [records[c]["layer"] for c in sorted(records) if records[c]["layer"]]
         ok = [v.name for v in vs if rows[v.index]["status"] == "ok"]
