@@ -25,8 +25,9 @@ def test_take_and_put_rows_equal_numpy_indexing(device, kernels):
     av = wp.array(v, dtype=wp.vec3, device=device)
     af = wp.array(f, dtype=float, device=device)
     rows = np.array([7, 0, 4])
+    c0, c1 = np.int64(2), np.int64(6)  # (column bounds as NumPy integers, as a model's host arrays give them)
     access = WorldRows(device, kernels=kernels)
-    (got,) = access.take((av,), rows, 2, 6)
+    (got,) = access.take((av,), rows, c0, c1)
     np.testing.assert_array_equal(got, v[rows, 2:6])
     two = access.take((av, av), np.array([1]), 0, C)  # several arrays share the read-back buffer
     np.testing.assert_array_equal(two[0], v[[1]])
@@ -34,7 +35,7 @@ def test_take_and_put_rows_equal_numpy_indexing(device, kernels):
 
     nv = rng.normal(size=(3, 5, 3)).astype(np.float32)
     nf = rng.normal(size=(3, 5)).astype(np.float32)
-    access.put(rows, [(av, 1, nv, 0, 5), (af, 3, nf, 1, 4)])
+    access.put(rows, [(av, np.int64(1), nv, 0, np.int64(5)), (af, 3, nf, np.int64(1), 4)])
     want_v, want_f = v.copy(), f.copy()
     want_v[rows, 1:6] = nv
     want_f[rows, 3:7] = nf[:, 1:5]

@@ -37,6 +37,7 @@ class WorldRows:
         ``arrays``: NumPy float32 copies, shape (len(rows), stop - start, 3) each."""
         if not self.kernels:
             return [a.numpy()[rows, start:stop] for a in arrays]
+        start, stop = int(start), int(stop)
         n, width = len(rows), stop - start
         size = n * width
         if self._staging is None or self._staging.shape[0] < len(arrays) * size:
@@ -62,6 +63,7 @@ class WorldRows:
             return
         r = wp.array(np.asarray(rows, dtype=np.int32), dtype=wp.int32, device=self.device)
         for a, start, values, src_start, width in writes:
+            start, src_start, width = int(start), int(src_start), int(width)
             kernel = scatter_rows_vec3 if a.dtype == wp.vec3 else scatter_rows_float
             src = wp.array(np.ascontiguousarray(values, dtype=np.float32), dtype=a.dtype, device=self.device)
             wp.launch(kernel, dim=(len(rows), width), inputs=[src, src_start, r, start], outputs=[a], device=self.device)
