@@ -14,12 +14,20 @@ the seam vertices split).
 Where files go: with ``out`` a folder (or no ``out``), files ``<stage name>.<frame>.<fmt>``; with no
 ``out`` that folder is ``<stage name>_<fmt>/`` beside the stage (one new folder, never the current
 folder), or, for one ``frame``, the file goes beside the stage. No file is replaced unless
-``overwrite`` is given (``--force``): the names are checked before anything is written, and each
-file is written under a temporary name and renamed when complete.
+``overwrite`` is given (``--force``): the names are checked before anything is written.
+
+All or nothing: every file is written under a hidden temporary name beside its own and the files
+are renamed into place only when all of them are complete, so an existing file is only ever
+replaced by a complete one. An export that fails (a full disk, a read-only folder, an interrupt)
+leaves nothing of itself: its temporary files and a folder it created are removed, and files it had
+already put in place are put back as they were.
 """
 
 from __future__ import annotations
 
+import os
+from collections.abc import Callable
+from functools import partial
 from pathlib import Path
 
 import numpy as np
@@ -121,13 +129,13 @@ def export(usd_path, fmt: str = "obj", out=None, frame=None, overwrite: bool = F
 
     Raises:
         SceneError: missing or unreadable file, no Surface mesh, an unknown format, a frame the
-            stage has no sample for, an ``out`` naming one file for several frames, or files that
-            exist (without ``overwrite``).
+            stage has no sample for, an ``out`` naming one file for several frames, files that
+            exist (without ``overwrite``), or a folder that cannot be created or a file that cannot
+            be written (then nothing of the export is left, see the module's docstring).
     """
-    import trimesh
     from pxr import UsdGeom
 
-    from ..scene.files import refuse_existing, same_file, write_atomically
+    from ..scene.files import refuse_existing, same_file
 
     if fmt not in FORMATS:
         raise SceneError(f"unknown export format {fmt!r}; expected one of {FORMATS}")
@@ -168,10 +176,11 @@ def export(usd_path, fmt: str = "obj", out=None, frame=None, overwrite: bool = F
             raise SceneError(f"{p}: is the input stage: refusing to write over it")
     if not overwrite:
         refuse_existing(paths)
-    if not paths[0].parent.is_dir():
-        if not paths[0].parent.parent.is_dir():
-            raise SceneError(f"{paths[0].parent}: cannot create the folder: {paths[0].parent.parent} does not exist")
-        paths[0].parent.mkdir(exist_ok=True)
+    for p in paths:
+        if p.is_dir():
+            raise SceneError(f"{p}: is a folder: not replaced by the exported file")
+    if not paths[0].parent.is_dir() and not paths[0].parent.parent.is_dir():
+        raise SceneError(f"{paths[0].parent}: cannot create the folder: {paths[0].parent.parent} does not exist")
 
     to_gltf = np.eye(3)
     scale = 1.0
@@ -180,21 +189,159 @@ def export(usd_path, fmt: str = "obj", out=None, frame=None, overwrite: bool = F
         if UsdGeom.GetStageUpAxis(stage) == UsdGeom.Tokens.z:
             to_gltf = np.array([[1.0, 0.0, 0.0], [0.0, 0.0, -1.0], [0.0, 1.0, 0.0]])  # rows: x->x, y->-z, z->y
 
-    written = []
-    for time, path in zip(times, paths):
-        parts = []
-        for mesh in meshes:
-            verts, faces, normals = surface_at(mesh, time)
-            verts = scale * verts @ to_gltf
-            normals = None if normals is None else normals @ to_gltf
-            parts.append((str(mesh.GetPath()), trimesh.Trimesh(verts, faces, vertex_normals=normals, process=False)))
-        if fmt == "obj":
-            merged = trimesh.util.concatenate([m for _, m in parts]) if len(parts) > 1 else parts[0][1]
-            write_atomically(path, lambda tmp: merged.export(tmp, file_type="obj", include_normals=True))
-        else:
-            scene = trimesh.Scene()
-            for name, m in parts:
-                scene.add_geometry(m, node_name=name, geom_name=name)
-            write_atomically(path, lambda tmp: scene.export(tmp, file_type="glb"))
-        written.append(path)
-    return written
+    _write_all(paths[0].parent, [(path, partial(_render, fmt, meshes, t, scale, to_gltf)) for t, path in zip(times, paths)])
+    return paths
+
+
+def _render(fmt: str, meshes, time, scale: float, to_gltf: np.ndarray) -> bytes:
+    """The bytes of one exported file: every Surface mesh at a time code, as one OBJ mesh or as
+    one GLB node each."""
+    import trimesh
+
+    parts = []
+    for mesh in meshes:
+        verts, faces, normals = surface_at(mesh, time)
+        verts = scale * verts @ to_gltf
+        normals = None if normals is None else normals @ to_gltf
+        parts.append((str(mesh.GetPath()), trimesh.Trimesh(verts, faces, vertex_normals=normals, process=False)))
+    if fmt == "obj":
+        merged = trimesh.util.concatenate([m for _, m in parts]) if len(parts) > 1 else parts[0][1]
+        return merged.export(file_type="obj", include_normals=True).encode("utf-8")
+    scene = trimesh.Scene()
+    for name, m in parts:
+        scene.add_geometry(m, node_name=name, geom_name=name)
+    return scene.export(file_type="glb")
+
+
+def _write_all(folder: Path, files: list[tuple[Path, Callable[[], bytes]]]) -> None:
+    """Write files in ``folder`` all or nothing.
+
+    ``folder`` is created if it does not exist (its parent must). Each ``(path, render)`` is written
+    under a hidden temporary name beside ``path`` (``render()`` gives its bytes); when all are
+    written they are renamed into place. On any exception, interrupts included, nothing of this
+    call is left: temporary files are removed, files renamed into place are taken back (an earlier
+    file there is put back), and ``folder`` is removed if this call created it.
+
+    Raises:
+        SceneError: the folder cannot be created or a file cannot be written (path and OS reason).
+    """
+    made = _make_folder(folder)
+    temps = []
+    try:
+        for path, render in files:
+            temps.append((_write_temporary(path, render()), path))
+        _put_in_place(temps)
+    except BaseException:
+        for tmp, _ in temps:
+            _remove(tmp)
+        if made:
+            _remove_folder(folder)
+        raise
+
+
+def _reason(e: OSError) -> str:
+    """The OS's words for an error (``Read-only file system``, ``No space left on device``)."""
+    return e.strerror or str(e)
+
+
+def _make_folder(folder: Path) -> bool:
+    """Create ``folder`` unless it is there; whether this call created it."""
+    if folder.is_dir():
+        return False
+    try:
+        folder.mkdir()
+    except FileExistsError:
+        return False
+    except OSError as e:
+        raise SceneError(f"{folder}: cannot create the folder ({_reason(e)})") from None
+    return True
+
+
+def _write_temporary(path: Path, data: bytes) -> str:
+    """Write ``data`` to a new file under :func:`~warp_tube.scene.files.temp_path` of ``path``,
+    flushed to the disk; its name. Nothing is left if it fails."""
+    from ..scene.files import temp_path
+
+    tmp = temp_path(path)
+    created = False
+    try:
+        with open(tmp, "xb") as f:
+            created = True
+            f.write(data)
+            f.flush()
+            os.fsync(f.fileno())
+    except BaseException as e:
+        if created:
+            _remove(tmp)
+        if isinstance(e, OSError):
+            raise SceneError(f"{path}: cannot write ({_reason(e)})") from None
+        raise
+    return tmp
+
+
+def _backup_path(path: Path) -> str:
+    """Hidden name beside ``path`` that keeps an earlier file there while it is replaced."""
+    return str(path.with_name(f".{path.stem}.old-{os.getpid()}{path.suffix}"))
+
+
+def _keep(path: Path) -> str | None:
+    """A hard link to the file at ``path`` under :func:`_backup_path`; None where there is no
+    file, or no link can be made (the file is then replaced without a way back)."""
+    if not os.path.lexists(path):
+        return None
+    backup = _backup_path(path)
+    try:
+        os.link(path, backup, follow_symlinks=False)
+    except OSError:
+        return None
+    return backup
+
+
+def _put_in_place(temps: list[tuple[str, Path]]) -> None:
+    """Rename each temporary file to its path; if one fails, those renamed are taken back (an
+    earlier file put back where it was kept)."""
+    backups, done = {}, []
+    try:
+        for tmp, path in temps:
+            existed = os.path.lexists(path)
+            backups[path] = _keep(path)
+            done.append((path, existed))
+            try:
+                os.replace(tmp, path)
+            except OSError as e:
+                raise SceneError(f"{path}: cannot write ({_reason(e)})") from None
+    except BaseException:
+        for path, existed in reversed(done):
+            _take_back(path, existed, backups[path])
+        raise
+    finally:
+        for backup in backups.values():
+            if backup is not None:
+                _remove(backup)
+
+
+def _take_back(path: Path, existed: bool, backup: str | None) -> None:
+    """Undo the renaming of a new file to ``path``: the kept earlier file back, or no file."""
+    try:
+        if backup is not None:
+            os.replace(backup, path)
+        elif not existed:
+            os.remove(path)
+    except OSError:
+        pass
+
+
+def _remove(path) -> None:
+    """Remove a file if it is there and can be removed."""
+    try:
+        os.remove(path)
+    except OSError:
+        pass
+
+
+def _remove_folder(folder: Path) -> None:
+    """Remove a folder if it is empty."""
+    try:
+        folder.rmdir()
+    except OSError:
+        pass
