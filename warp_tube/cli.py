@@ -163,7 +163,12 @@ def _stopped(sim, out: str, why: str, status: int, quiet: bool = False) -> int:
     if not quiet:
         print(s.text(), file=sys.stderr)
     print(f"warp-tube: {why}", file=sys.stderr)
-    kept = f"{s.frames_written_text()} kept in {s.partial}" if s.partial else "no frame was finished: nothing kept"
+    if s.partial:
+        kept = f"{s.frames_written_text()} kept in {s.partial}"
+    elif s.frames:
+        kept = f"{s.frames_written_text()} could not be saved: nothing kept"
+    else:
+        kept = "no frame was finished: nothing kept"
     left = f"{out} was left as it was" if os.path.exists(out) else f"{out} was not written"
     print(f"warp-tube: {kept}; {left}", file=sys.stderr)
     return status

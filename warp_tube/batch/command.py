@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import os
 import sys
 
 __all__ = ["add_parser", "run"]
@@ -52,7 +53,10 @@ def run(a) -> int:
         print(f"warp-tube: {stopped_by(e)}; the finished variants are kept: --resume goes on", file=sys.stderr)
         return exit_status(e)
     except OSError as e:
-        print(f"warp-tube: batch: {e}", file=sys.stderr)
+        where = f"cannot write {e.filename}: " if e.filename else f"cannot write into {a.output}: "
+        resumable = os.path.isdir(os.path.join(a.output, ".batch"))
+        more = "; the variants finished before it are kept: --resume goes on" if resumable else ""
+        print(f"warp-tube: batch: {where}{e.strerror or e}{more}", file=sys.stderr)
         return 2
     if not a.quiet:
         print(result.text())

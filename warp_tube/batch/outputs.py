@@ -322,6 +322,8 @@ def write_grid_root(spec: OutputSpec, stage_info, chunk_layers: list[str], names
     order under ``/Grid`` (``names``, batch order)."""
     from pxr import Sdf, Usd, UsdGeom
 
+    from ..io.writer import save_error
+
     path = os.path.join(spec.out_dir, "grid.usda")
     tmp = os.path.join(spec.out_dir, f".grid.partial-{os.getpid()}.usda")
     layer = Sdf.Layer.CreateNew(tmp)
@@ -337,7 +339,13 @@ def write_grid_root(spec: OutputSpec, stage_info, chunk_layers: list[str], names
     del st
     layer.GetPrimAtPath("/Grid").nameChildrenOrder = list(names)
     layer.subLayerPaths = list(chunk_layers)
-    layer.Save()
+    try:
+        layer.Save()
+    except Exception as e:  # (usd-core's exception names no errno, and does not pickle)
+        del layer
+        if os.path.exists(tmp):
+            os.remove(tmp)
+        raise save_error(path, e) from None
     del layer
     os.replace(tmp, path)
 

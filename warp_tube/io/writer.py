@@ -232,7 +232,10 @@ class StageWriter:
     def _save_to(self, final: str):
         try:
             self.layer.endTimeCode = self.last_time
-            self.layer.Save()
+            try:
+                self.layer.Save()
+            except Exception as e:  # usd-core's errors (pxr.Tf.ErrorException) name no errno
+                raise save_error(final, e) from None
             self.closed = True
             del self.layer
             os.replace(self.tmp, final)
@@ -250,3 +253,22 @@ class StageWriter:
             os.remove(self.tmp)
         except FileNotFoundError:
             pass
+
+
+#: operating-system errors usd-core reports in words when a save fails, most specific first
+_SAVE_ERRNOS = ("ENOSPC", "EDQUOT", "EROFS", "EACCES", "EFBIG", "EIO")
+
+
+def save_error(path: str, error: Exception) -> OSError:
+    """An ``OSError`` for a failed ``Sdf.Layer.Save`` of ``path``: the operating system's reason
+    where usd-core's message names one (no space left, read-only file system, ...), else "usd-core
+    could not save the stage". Plain, so it crosses process boundaries (usd-core's own exception
+    does not pickle)."""
+    import errno
+
+    text = str(error)
+    for name in _SAVE_ERRNOS:
+        code = getattr(errno, name, None)
+        if code is not None and os.strerror(code) in text:
+            return OSError(code, os.strerror(code), path)
+    return OSError(errno.EIO, "usd-core could not save the stage", path)

@@ -415,6 +415,7 @@ class Simulation:
         if output and len(written) == 1 and end - first > 1:
             self._warn(f"every {every}: of frames {first} to {end - 1} only frame {written[0]} is written")
         if output:
+            self._check_output_fits(len(written))
             inputs = [self.scene.source] if self.scene.source and os.path.exists(self.scene.source) else []
             start_tc = info.start_time_code + (written[0] if written else first)
             writer = open_writer(output, self.scene, self.surfaces, start_time_code=start_tc, inputs=inputs)
@@ -530,6 +531,20 @@ class Simulation:
         and normals)."""
         vertices = sum(b.vertex_count for b in self.surfaces) if self.surfaces else 0
         return 12 * (self.model.node_count + 2 * vertices)
+
+    def _check_output_fits(self, frames: int) -> None:
+        """Refuse, before anything is written, an output larger than the memory available now:
+        usd-core holds a stage's samples in memory until it is saved, so such a run would end
+        killed by the system with nothing saved."""
+        from ..runtime.memory import available_memory
+
+        size, free = frames * self.output_bytes_per_frame(), available_memory()
+        if free is not None and size > free:
+            raise SceneError(
+                f"the output would hold about {size / 1e9:.1f} GB ({frames:,} frames x {self.output_bytes_per_frame():,} bytes), "
+                f"more than the {free / 1e9:.1f} GB of memory available (usd-core keeps it in memory until the run ends); "
+                "--every K or --frames N write fewer frames"
+            )  # fmt: skip
 
     def _announce_large_output(self, frames: int) -> None:
         """Warn before a run whose output gets large (usd-core holds it in memory until it is saved)."""
