@@ -41,6 +41,8 @@ BAD = {
     "two settings prims": (mutate('def Scope "Push"', 'def Scope "More"\n    {\n        double warptube:timeStep = 0.001\n    }\n\n    def Scope "Push"'), ["2 simulation settings prims", "/World/Simulation", "/World/More"]),
     "negative time step": (mutate('token warptube:integrator = "auto"', 'token warptube:integrator = "auto"\n        double warptube:timeStep = -1'), ["warptube:timeStep", "-1"]),
     "huge force": (mutate("24: (0, 0.02, 0)", "24: (0, 1e12, 0)"), ["warptube:force", "1e+12"]),
+    "misspelled attribute": (mutate("warptube:density = 1050", "warptube:densty = 1050"), ["/World/Tube.warptube:densty", "unknown attribute", "did you mean warptube:density"]),
+    "force attribute on a tube": (mutate("warptube:density = 1050", "warptube:density = 1050\n        bool warptube:assistantLine = true"), ["/World/Tube.warptube:assistantLine", "not an attribute of a tube prim"]),
     "syntax error": (BASE.replace("def Xform", "def Xform {{"), ["USD syntax error at line 16", "unexpected end of file"]),
 }
 

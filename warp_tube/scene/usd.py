@@ -17,6 +17,7 @@ import re
 
 import numpy as np
 
+from .attributes import FORCE_ATTRS, KNOWN_ATTRS, MESH_ATTRS, SETTINGS_ATTRS, TUBE_ATTRS, check_names
 from .spec import (
     FRAME_MODES,
     INTEGRATORS,
@@ -33,15 +34,8 @@ log = logging.getLogger(__name__)
 
 __all__ = ["load_scene", "open_stage", "save_scene", "usd_error_in_user_terms", "SceneReader"]
 
-SETTINGS_ATTRS = ("warptube:timeStep", "warptube:integrator", "warptube:gravity")
 REAL = ("float", "double", "half")
 REAL3 = ("float3", "double3", "half3", "vector3f", "vector3d", "vector3h", "point3f", "point3d", "normal3f", "normal3d")
-TUBE_ATTRS = {
-    "warptube:youngsModulus", "warptube:stretchStiffness", "warptube:bendStiffness", "warptube:density",
-    "warptube:damping", "warptube:springDamping", "warptube:pinnedPoints", "warptube:anchorPoints",
-    "warptube:anchorStiffness", "warptube:spokes", "warptube:spokeLengths", "warptube:referenceNormal",
-    "warptube:frames", "warptube:caps",
-}  # fmt: skip
 
 
 def open_stage(path: str):
@@ -466,15 +460,20 @@ class SceneReader:
         for prim in stage.Traverse():
             names = [a.GetName() for a in prim.GetAttributes() if a.GetName().startswith("warptube:")]
             if prim.GetRelationship("warptube:target"):
+                check_names(path, prim, names, FORCE_ATTRS, "force")
                 force_prims.append(prim)
             elif any(n in SETTINGS_ATTRS for n in names):
+                check_names(path, prim, names, set(SETTINGS_ATTRS), "simulation settings")
                 settings_prims.append(prim)
             elif prim.IsA(UsdGeom.BasisCurves) and names:
+                check_names(path, prim, names, TUBE_ATTRS, "tube")
                 tubes.append(prim)
             elif prim.IsA(UsdGeom.Mesh) and "warptube:extract" in names:
+                check_names(path, prim, names, MESH_ATTRS, "Mesh tube")
                 if _Reader(path, prim).boolean("warptube:extract", False):
                     mesh_prims.append(prim)
             elif names:
+                check_names(path, prim, names, KNOWN_ATTRS, "warp_tube")
                 log.info("%s: %s carries warptube: attributes but is not a tube, force or settings prim: ignored", path, prim.GetPath())
         if len(settings_prims) > 1:
             raise SceneError(
