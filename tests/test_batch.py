@@ -891,3 +891,16 @@ def test_batch_records_the_frame_distant_parts_first_touch(tmp_path, monkeypatch
     assert alone[0] == "" and alone[1] != "" and alone[2] != "" and int(alone[2]) <= int(alone[1])
     assert result.contacts == [("variant_00001", int(alone[1])), ("variant_00002", int(alone[2]))]
     assert "contact      2 variant(s)" in result.text()
+
+
+def test_cpu_workers_beyond_the_cores_are_capped_with_a_warning(monkeypatch, caplog):
+    """Each CPU worker runs one thread: more workers than cores only compete for them."""
+    import warp_tube.batch.run as run
+
+    monkeypatch.setattr(run.os, "sched_getaffinity", lambda pid: {0, 1}, raising=False)
+    with caplog.at_level("WARNING"):
+        devices = run._devices("cpu", 64, None)
+    assert devices == ["cpu", "cpu"]
+    assert "--workers 64: this host gives this process 2 CPU core(s); running 2 worker(s)" in caplog.text
+    assert run._devices("cpu", 2, None) == ["cpu", "cpu"] and run._devices("cpu", None, None) == ["cpu"]
+    assert run._device_list(devices) == "cpu x 2" and run._device_list(["cuda:0", "cuda:1"]) == "cuda:0, cuda:1"

@@ -21,6 +21,7 @@ interrupted batch keeps them and ``--resume`` goes on from there.
 
 from __future__ import annotations
 
+import logging
 import math
 import os
 import signal
@@ -39,6 +40,8 @@ from .outputs import LAYOUTS, OutputSpec, finish_arrays, prepare_arrays, surface
 from .plan import by_identity, group_key, plan_chunks
 from .prepare import prepare_batch
 from .progress import Progress
+
+log = logging.getLogger(__name__)
 
 __all__ = ["run_batch", "BatchResult", "BatchInterrupted", "DEFAULT_CHUNK_CPU", "DEFAULT_CHUNK_CUDA"]
 
@@ -104,7 +107,7 @@ class BatchResult:
     def text(self) -> str:
         t = self.timings
         lines = [
-            f"variants     {self.variants} in {self.groups} group(s), {self.chunks} chunk(s) on {', '.join(self.devices) or '-'}",
+            f"variants     {self.variants} in {self.groups} group(s), {self.chunks} chunk(s) on {_device_list(self.devices)}",
             f"finished     {self.ok} ok, {self.failed} failed" + (f" ({self.resumed} from before)" if self.resumed else ""),
             f"frames       {self.frames} per variant",
             f"wall time    {self.wall_s:.2f} s: reading {self.prepare_s:.2f} s, simulating {self.simulate_s:.2f} s "
@@ -139,7 +142,7 @@ def _devices(device, workers, scheduler) -> list[str]:
     if device is not None:
         dev = resolve_device(device)
         if dev == "cpu":
-            return ["cpu"] * (workers or 1)
+            return ["cpu"] * _cpu_workers(workers)
         if workers not in (None, 1):
             raise SceneError(f"--workers {workers} with --device {device}: one device runs one worker; leave out --device to use every GPU")
         return [dev]
@@ -149,7 +152,28 @@ def _devices(device, workers, scheduler) -> list[str]:
         if n > gpus:
             raise SceneError(f"--workers {n}: this host has {gpus} GPU(s); a GPU runs one worker (--device cpu for CPU workers)")
         return [f"cuda:{i}" for i in range(n)]
-    return ["cpu"] * (workers or 1)
+    return ["cpu"] * _cpu_workers(workers)
+
+
+def _cpu_workers(workers: int | None) -> int:
+    """CPU worker processes for ``--workers``: at most one per core this process may use (each
+    runs one thread; more only compete for the cores), with a warning where more were asked for."""
+    try:
+        cores = len(os.sched_getaffinity(0))
+    except AttributeError:  # (not on every system)
+        cores = os.cpu_count() or 1
+    if workers is not None and workers > cores:
+        log.warning("--workers %d: this host gives this process %d CPU core(s); running %d worker(s) (each runs one thread)",
+                    workers, cores, cores)  # fmt: skip
+        return cores
+    return workers or 1
+
+
+def _device_list(devices: list[str]) -> str:
+    """``cuda:0, cuda:1`` or, for workers sharing a device, ``cpu x 4``."""
+    if len(devices) > 1 and len(set(devices)) == 1:
+        return f"{devices[0]} x {len(devices)}"
+    return ", ".join(devices) or "-"
 
 
 def _check_out_dir(out_dir: str, resume: bool) -> None:
