@@ -486,14 +486,17 @@ def make_implicit_kernel(features: Features, al_lines: int = 0):
             scratch.r[w, u] = scratch.r[w, u] * h
         factor_solve(w, start * PER_NODE, end * PER_NODE, scratch)
         step = wp.float64(1.0)
-        for k in range(9):
+        # Halve until G decreases: an ill-conditioned direction (a hard push folding a short, wide
+        # tube) can need far more halvings than a well-posed one, and keeping a step that raised G
+        # left a frame with many times the energy put in; 2^-39 is below any useful move.
+        for k in range(40):
             set_iterate(w, pw, t, start, end, h, step, model, control, scratch, state)
             # Accept within round-off (1e-9 relative, float64 sums of float32-stored positions):
             # near equilibrium the change of G is below it and a strict test would creep.
             if merit(w, pw, t, start, end, h, model, control, scratch, state) <= g0 + wp.float64(1.0e-9) * wp.abs(g0):
                 break
             step = step * wp.float64(0.5)
-            if k == 8:
+            if k == 39:
                 # No decrease along dv (round-off level): the first iteration keeps its shortest
                 # step (dv is a descent direction there), a later one keeps the previous iterate.
                 if not first:

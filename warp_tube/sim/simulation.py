@@ -306,7 +306,9 @@ class Simulation:
         """The message of a failed frame."""
         dt = self.frame_dt / (self.substeps * factor)
         hint = ""
-        if dt > self.critical_dt:
+        if self.integrator == "implicitEuler":  # (no stability bound: its substep, and a way to a smaller one)
+            hint = f" (implicit Euler, substep {dt:.3g} s; a smaller warptube:timeStep may carry it through)"
+        elif dt > self.critical_dt:
             hint = f" (substep {dt:.3g} s exceeds the stability bound {self.critical_dt:.3g} s)"
         elif factor > 1:
             hint = f" (after {factor}x the substeps)"
