@@ -52,8 +52,8 @@ def test_the_push_of_an_extracted_winding_tube_moves_it_by_two_radii(tmp_cwd, ca
     mesh.export(tmp_cwd / "helix.ply")
     assert main(["extract", "helix.ply", "-o", "helix.usda", "--scale", "0.01"]) == 0
     line = capsys.readouterr().out.splitlines()[-1]
-    assert "push" in line and "2 mean radii" in line, line
-    factor = float(line.rsplit("(x", 1)[1].split()[0])
+    assert "push" in line and "target" in line, line
+    factor = float(line.split("; x", 1)[1].split()[0])
     assert factor > 2.0  # the straight-beam estimate was well short (an arch, not a beam)
     assert main(["run", "helix.usda", "-o", "out.usdc", "--frames", "49", "--no-surface", "--quiet"]) == 0
     st = Usd.Stage.Open("out.usdc")
@@ -61,6 +61,8 @@ def test_the_push_of_an_extracted_winding_tube_moves_it_by_two_radii(tmp_cwd, ca
     rest = np.asarray(attr.Get(0.0))
     moved = max(np.linalg.norm(np.asarray(attr.Get(t)) - rest, axis=1).max() for t in attr.GetTimeSamples())  # m
     target = 2.0 * float(np.mean(radii)) * 0.01
-    # The response is linear to first order only (implicit Euler's Newton tolerance, the assistant
-    # line laid from the moving shape): 0.85-1.0 of the target measured on real meshes.
-    assert 0.7 * target <= moved <= 1.3 * target, (moved, target)
+    # The push is corrected until the sizing runs move the tube within 15% of the target; the run
+    # here is the same scene on the same device (CPU), so it moves as the last sizing run did.
+    reported = float(line.split("moves by ", 1)[1].split()[0]) * 1e-3  # mm -> m
+    assert abs(moved - reported) <= 1e-3 * reported, (moved, reported)
+    assert 0.85 * target <= moved <= 1.15 * target, (moved, target)

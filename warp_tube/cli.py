@@ -210,9 +210,14 @@ def _size_push(scene: str, progress: bool) -> None:
         logging.getLogger("warp_tube.extract").warning("%s: the push was not sized (the scene failed: %s)", scene, e)
         return
     if size is not None:
-        print(f"{os.path.basename(scene)}: push {size.force_n:.3g} N on the middle hub: the tube moves by about "
-              f"{size.target_m * 1e3:.3g} mm (2 mean radii) by frame {PUSH_FRAMES - 1} (x{size.factor:.3g} of the "
-              "straight-beam estimate)")  # fmt: skip
+        print(f"{os.path.basename(scene)}: push {size.force_n:.3g} N on the middle hub: the tube moves by "
+              f"{size.moved_m * 1e3:.3g} mm by frame {PUSH_FRAMES - 1} (target {size.target_m * 1e3:.3g} mm; "
+              f"x{size.factor:.3g} of the straight-beam estimate; {size.runs} runs)")  # fmt: skip
+        if not size.within_tolerance:
+            logging.getLogger("warp_tube.extract").warning(
+                "%s: the push moves the tube by %.3g mm, not the %.3g mm it was sized for: the tube does not answer "
+                "in proportion to the force (it snaps through or stiffens); edit /World/Push's warptube:force to taste",
+                scene, size.moved_m * 1e3, size.target_m * 1e3)  # fmt: skip
 
 
 def _cmd_preview(a) -> int:

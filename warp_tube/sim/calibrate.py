@@ -5,9 +5,15 @@ released at 60). A force from beam theory (:func:`warp_tube.extract.usd.push_for
 simply supported beam) can be tens of times too small for a tube that winds: a curved tube pushed
 in its plane acts as an arch, held by its axial stiffness. :func:`size_push` runs the scene as
 written (the CPU, no surface) over the ramp and hold, measures the largest displacement of any
-point, and scales the force's samples so that the displacement becomes the target. The response to
-a force that small is linear (a few radii on a tube tens of radii long), so one run is enough;
-:func:`size_push` reports the displacement the scaled force gives as the run measured it, scaled.
+point, and scales the force's samples towards the target displacement. A winding tube does not
+answer in proportion (an arch stiffens, or gives way, as it bends: an S-shaped tube pushed to two
+radii moved 2.2 times what one proportional step predicted), so the scaled scene is run again and
+the force corrected, by the slope the runs measured on log scales, until the displacement is
+within :data:`PUSH_TOLERANCE` of the target or :data:`PUSH_RUNS` runs are spent; the displacement
+reported is the one the last run measured with the force written.
+
+The target is two mean radii, at most :data:`MAX_LENGTH_FRACTION` of the tube's length (a short,
+wide tube is not pushed farther than a quarter of its length).
 """
 
 from __future__ import annotations
@@ -16,10 +22,16 @@ from dataclasses import dataclass
 
 import numpy as np
 
-__all__ = ["PushSize", "size_push", "PUSH_FRAMES"]
+__all__ = ["PushSize", "size_push", "PUSH_FRAMES", "PUSH_TOLERANCE", "PUSH_RUNS", "MAX_LENGTH_FRACTION"]
 
 #: frames simulated to size the push: the ramp (0-24) and the hold (24-48) of an extracted scene
 PUSH_FRAMES = 49
+#: a sized push moves the tube within this fraction of the target displacement
+PUSH_TOLERANCE = 0.15
+#: simulations at most to size a push (the first with the force as written)
+PUSH_RUNS = 4
+#: the target displacement is at most this fraction of the tube's length
+MAX_LENGTH_FRACTION = 0.25
 
 
 @dataclass(frozen=True)
@@ -31,12 +43,21 @@ class PushSize:
         force_n: the largest force magnitude after scaling [N].
         before_m: the largest displacement with the force as it was [m].
         target_m: the displacement sized for [m].
+        moved_m: the largest displacement with the force as written, as simulated [m].
+        runs: simulations made.
     """
 
     factor: float
     force_n: float
     before_m: float
     target_m: float
+    moved_m: float
+    runs: int
+
+    @property
+    def within_tolerance(self) -> bool:
+        """Whether the written force moves the tube within :data:`PUSH_TOLERANCE` of the target."""
+        return abs(self.moved_m / self.target_m - 1.0) <= PUSH_TOLERANCE
 
 
 def largest_displacement(scene, frames: int = PUSH_FRAMES) -> float:
@@ -52,29 +73,63 @@ def largest_displacement(scene, frames: int = PUSH_FRAMES) -> float:
     return out
 
 
+def push_target(tube, radii: float = 2.0) -> float:
+    """The displacement [m] a tube prim's push is sized for: ``radii`` mean radii, at most
+    :data:`MAX_LENGTH_FRACTION` of its length along its points."""
+    length = float(np.linalg.norm(np.diff(tube.points, axis=0), axis=1).sum())
+    return min(radii * float(np.mean(tube.radius)), MAX_LENGTH_FRACTION * length)
+
+
 def size_push(path: str, force_path: str = "/World/Push", radii: float = 2.0, frames: int = PUSH_FRAMES) -> PushSize | None:
     """Scale the samples of force ``force_path`` in scene file ``path`` so that its tube moves by
-    ``radii`` mean radii within ``frames`` frames; the file is rewritten (atomically).
+    :func:`push_target` within ``frames`` frames; the file is rewritten (atomically) with the last
+    force tried.
 
     Returns:
         The :class:`PushSize`, or None where the scene has no such force or it moves nothing.
 
     Raises:
-        NumericalError: the scene blows up with the force as it was.
+        NumericalError: the scene blows up with the force as it was (with a corrected force, the
+            last force that did not is written).
     """
+    import dataclasses
+
     from ..scene.edit import scale_force_samples
     from ..scene.usd import load_scene
+    from .simulation import NumericalError
 
     scene = load_scene(path)
-    forces = [f for f in scene.forces if f.path == force_path]
-    if not forces:
+    k = next((i for i, f in enumerate(scene.forces) if f.path == force_path), None)
+    if k is None:
         return None
-    tube = scene.tubes[forces[0].tube]
-    target = radii * float(np.mean(tube.radius))
-    before = largest_displacement(scene, frames)
+    force = scene.forces[k]
+    target = push_target(scene.tubes[force.tube], radii)
+
+    def moved(factor: float) -> float:
+        scaled = dataclasses.replace(force, values=force.values * factor)
+        return largest_displacement(dataclasses.replace(scene, forces=(*scene.forces[:k], scaled, *scene.forces[k + 1:])), frames)
+
+    before = moved(1.0)
     if not before > 0.0:
         return None
-    factor = target / before
-    scale_force_samples(path, force_path, factor)
-    return PushSize(factor=factor, force_n=factor * float(np.linalg.norm(forces[0].values, axis=-1).max()), before_m=before,
-                    target_m=target)  # fmt: skip
+    tried = [(1.0, before)]  # (factor, displacement) of each run
+    factor, runs = target / before, 1
+    while runs < PUSH_RUNS:
+        try:
+            d = moved(factor)
+        except NumericalError:
+            factor = 0.5 * (factor + max(f for f, _ in tried))  # (a smaller step towards it)
+            runs += 1
+            continue
+        runs += 1
+        tried.append((factor, d))
+        if not d > 0.0 or abs(d / target - 1.0) <= PUSH_TOLERANCE:
+            break
+        (f0, d0), (f1, d1) = tried[-2], tried[-1]
+        slope = np.log(d1 / d0) / np.log(f1 / f0) if f1 != f0 and d0 > 0.0 and d1 != d0 else 1.0
+        slope = float(np.clip(slope, 0.25, 4.0))  # (the response's order: 1 where proportional)
+        factor = f1 * (target / d1) ** (1.0 / slope)
+    best_factor, best = min(tried[1:] or tried, key=lambda fd: abs(np.log(fd[1] / target)) if fd[1] > 0 else np.inf)
+    scale_force_samples(path, force_path, best_factor)
+    return PushSize(factor=best_factor, force_n=best_factor * float(np.linalg.norm(force.values, axis=-1).max()), before_m=before,
+                    target_m=target, moved_m=best, runs=runs)  # fmt: skip
