@@ -120,3 +120,27 @@ def test_preview_tiles_carry_their_frame(stage_path, tmp_path):
         corner = img[size - 18 :, k * size : k * size + 60]
         dark = np.all(np.abs(corner - [70, 70, 70]) < 40, axis=2)
         assert dark.sum() > 10  # the label's strokes
+
+
+def test_preview_of_many_frames_wraps_into_rows(stage_path, tmp_path):
+    """More frames than a row holds wrap into rows of SHEET_COLUMNS tiles (a strip 49 tiles long
+    is no contact sheet); the tiles left over in the last row are background."""
+    from warp_tube.io import preview as module
+
+    size = 32
+    stage = module.open_output_stage(stage_path)
+    n = len(module.surface_frames(module.surface_meshes(stage, stage_path)))
+    del stage
+    columns = 2
+    assert n >= 3  # (rows to wrap, the last one part empty where n is odd)
+    old = module.SHEET_COLUMNS
+    module.SHEET_COLUMNS = columns
+    try:
+        img = np.asarray(Image.open(preview(stage_path, tmp_path / "sheet.png", frames=n, size=size, device="cpu")).convert("RGB"))
+    finally:
+        module.SHEET_COLUMNS = old
+    rows = -(-n // columns)
+    assert img.shape == (rows * size, columns * size, 3)
+    if n % columns:
+        empty = img[(rows - 1) * size :, (n % columns) * size :]
+        assert (empty == module.BACKGROUND.astype(np.uint8)).all()

@@ -23,6 +23,7 @@ BACKGROUND = np.array([245, 245, 242], dtype=np.float64)
 TISSUE = np.array([214, 120, 112], dtype=np.float64)
 LABEL = (70, 70, 70)  # the frame label's colour (RGB)
 LABEL_MIN_TILE = 96  # tiles smaller than this [pixels] get no label
+SHEET_COLUMNS = 8  # tiles per row of the sheet; more frames wrap into further rows
 
 
 def _pick_frames(times: list[float], count: int) -> list[float]:
@@ -33,7 +34,8 @@ def _pick_frames(times: list[float], count: int) -> list[float]:
 
 
 def preview(usd_path, png_path, frames: int = 4, size: int = 320, device=None) -> Path:
-    """Render ``frames`` evenly spaced frames of the Surface meshes side by side into a PNG.
+    """Render ``frames`` evenly spaced frames of the Surface meshes side by side into a PNG
+    (:data:`SHEET_COLUMNS` to a row, further rows below).
 
     Args:
         usd_path: output stage written by ``warp-tube run``.
@@ -94,7 +96,10 @@ def preview(usd_path, png_path, frames: int = 4, size: int = 320, device=None) -
     pixel = 2.1 * radius / size
 
     device = wp.get_device(device)
-    sheet = np.empty((size, size * len(shown), 3), dtype=np.uint8)
+    columns = min(len(shown), SHEET_COLUMNS)  # many frames wrap into rows
+    rows = -(-len(shown) // columns)
+    sheet = np.empty((size * rows, size * columns, 3), dtype=np.uint8)
+    sheet[:] = BACKGROUND.astype(np.uint8)  # (a last row's empty tiles)
     image = wp.zeros((size, size), dtype=float, device=device)
     for k, (verts, faces) in enumerate(geometry):
         mesh = wp.Mesh(
@@ -110,13 +115,15 @@ def preview(usd_path, png_path, frames: int = 4, size: int = 320, device=None) -
         )
         shade = image.numpy()[..., None].astype(np.float64)
         tile = np.where(shade < 0.0, BACKGROUND, TISSUE * np.clip(shade, 0.0, 1.0))
-        sheet[:, k * size : (k + 1) * size] = np.clip(np.round(tile), 0, 255).astype(np.uint8)
+        r, c = divmod(k, columns)
+        sheet[r * size : (r + 1) * size, c * size : (c + 1) * size] = np.clip(np.round(tile), 0, 255).astype(np.uint8)
     picture = Image.fromarray(sheet)
     if size >= LABEL_MIN_TILE:  # each tile's time code at its bottom left (too small a tile: none)
         from PIL import ImageDraw
 
         draw = ImageDraw.Draw(picture)
         for k, time in enumerate(shown):
-            draw.text((k * size + 6, size - 16), f"frame {time:g}", fill=LABEL)
+            r, c = divmod(k, columns)
+            draw.text((c * size + 6, (r + 1) * size - 16), f"frame {time:g}", fill=LABEL)
     write_atomically(png_path, lambda tmp: picture.save(tmp, format="PNG"))
     return png_path
