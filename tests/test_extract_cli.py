@@ -63,6 +63,6 @@ def test_the_push_of_an_extracted_winding_tube_moves_it_by_two_radii(tmp_cwd, ca
     target = 2.0 * float(np.mean(radii)) * 0.01
     # The push is corrected until the sizing runs move the tube within 15% of the target; the run
     # here is the same scene on the same device (CPU), so it moves as the last sizing run did.
-    reported = float(line.split("moves by ", 1)[1].split()[0]) * 1e-3  # mm -> m
-    assert abs(moved - reported) <= 1e-3 * reported, (moved, reported)
+    reported = float(line.split("moves by ", 1)[1].split()[0]) * 1e-3  # mm -> m, printed to 3 digits
+    assert abs(moved - reported) <= 5e-3 * reported, (moved, reported)
     assert 0.85 * target <= moved <= 1.15 * target, (moved, target)
