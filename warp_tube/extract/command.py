@@ -52,9 +52,9 @@ def extract_to_scene(mesh_path, output, *, hubs=None, spokes=16, scale=None, dev
         strict: refuse a mesh that is not tube-like (SceneError) instead of warning.
 
     Returns:
-        The :class:`Extraction`. Warnings (a shape that does not look like a tube, a rest surface
-        that misses the mesh, a fit that could not be measured, a very large ``hubs``) are logged
-        and listed in it.
+        The :class:`Extraction`. Warnings (a shape that does not look like a tube, a closed ring
+        cut open, a rest surface that misses the mesh, a fit that could not be measured, a very
+        large ``hubs``) are logged and listed in it.
 
     Raises:
         SceneError: unreadable or unusable mesh (with ``strict``: not tube-like), or an output that cannot be

@@ -18,6 +18,7 @@ import trimesh
 from scipy.sparse.csgraph import connected_components
 
 from ..scene.spec import SceneError
+from .wording import counted
 
 __all__ = [
     "load_mesh",
@@ -32,6 +33,11 @@ __all__ = [
 ]
 
 log = logging.getLogger(__name__)
+
+MIN_EDGE = 10.0 * trimesh.tol.merge
+"""Least median edge length of a mesh after scaling [units of the result]: trimesh merges vertices
+closer than ``trimesh.tol.merge`` (1e-8), which collapses the faces of a smaller mesh."""
+_FORMATS = {"stl": "STL", "stl_ascii": "STL", "ply": "PLY", "obj": "OBJ", "off": "OFF", "glb": "glTF", "gltf": "glTF"}
 
 
 def _scale3(scale) -> np.ndarray:
@@ -64,7 +70,8 @@ def clean_mesh(mesh: trimesh.Trimesh, source: str, scale=(1.0, 1.0, 1.0)) -> tri
     v = np.asarray(mesh.vertices, dtype=np.float64)
     f = np.asarray(mesh.faces, dtype=np.int64)
     if len(v) == 0 or len(f) == 0:
-        raise SceneError(f"{source}: empty mesh ({len(v)} vertices, {len(f)} faces): expected a tube surface")
+        raise SceneError(f"{source}: empty mesh ({counted(len(v), 'vertex')}, {counted(len(f), 'face')}): "
+                         "expected a tube surface")
     if f.ndim != 2 or f.shape[1] != 3:
         raise SceneError(f"{source}: faces shape {f.shape}: expected triangles (F, 3)")
     if f.min() < 0 or f.max() >= len(v):
@@ -72,9 +79,10 @@ def clean_mesh(mesh: trimesh.Trimesh, source: str, scale=(1.0, 1.0, 1.0)) -> tri
     bad = ~np.isfinite(v).all(axis=1)
     if bad.any():
         raise SceneError(
-            f"{source}: {int(bad.sum())} vertices with NaN or infinite coordinates "
+            f"{source}: {counted(int(bad.sum()), 'vertex')} with NaN or infinite coordinates "
             f"(first: vertex {int(np.argmax(bad))}): expected finite coordinates"
         )
+    _check_size(v * s, f, s, source)
     out = trimesh.Trimesh(v * s, f, process=False)
     out.merge_vertices()
     out.update_faces(out.nondegenerate_faces())
@@ -86,15 +94,48 @@ def clean_mesh(mesh: trimesh.Trimesh, source: str, scale=(1.0, 1.0, 1.0)) -> tri
     counts = np.bincount(labels)
     if len(counts) > 1:
         keep = int(np.argmax(counts))
-        log.warning(
-            "%s: %d connected components; using the largest (%d of %d faces)",
-            source, len(counts), counts[keep], len(out.faces),
-        )
+        log.warning("%s: %s; using the largest (%d of %s)", source, counted(len(counts), "connected component"),
+                    counts[keep], counted(len(out.faces), "face"))  # fmt: skip
         out.update_faces(labels == keep)
         out.remove_unreferenced_vertices()
     if len(out.faces) < 8:
-        raise SceneError(f"{source}: only {len(out.faces)} faces: expected a tube surface")
+        raise SceneError(f"{source}: only {counted(len(out.faces), 'face')}: expected a tube surface")
     return out
+
+
+def _check_size(v: np.ndarray, f: np.ndarray, s: np.ndarray, source: str) -> None:
+    """Refuse a mesh whose median edge, after scaling, is below :data:`MIN_EDGE` (its vertices
+    would merge and its faces collapse).
+
+    Args:
+        v: scaled vertices [units of the result], shape (V, 3); f: faces, int (F, 3), indices checked.
+        s: the scale factors per axis; source: name used in messages.
+    """
+    edges = np.linalg.norm(v[f[:, [1, 2, 0]]] - v[f], axis=-1).reshape(-1)
+    edges = edges[edges > 0]
+    if len(edges) == 0 or np.median(edges) >= MIN_EDGE:
+        return  # no edge with length: "every face has zero area" below
+    size = float(np.ptp(v, axis=0).max())
+    factors = s[:1] if (s == s[0]).all() else s
+    scaled = "" if (s == 1.0).all() else f" after scaling by {' x '.join(f'{x:g}' for x in factors)}"
+    raise SceneError(f"{source}: the mesh is {size:.3g} across{scaled} (median edge {np.median(edges):.3g}): too "
+                     f"small, vertices closer than {trimesh.tol.merge:g} merge; check --scale (metres per mesh unit)")
+
+
+def _file_type(path: str) -> str:
+    """The mesh format trimesh reads ``path`` as, from its name ("stl", "ply", ...).
+
+    Raises:
+        SceneError: a name that is not one of a mesh format trimesh reads.
+    """
+    name = os.path.basename(path).lower()
+    types = sorted(trimesh.available_formats(), key=len, reverse=True)
+    found = next((t for t in types if name.endswith("." + t)), None)
+    if found is None:
+        ext = os.path.splitext(name)[1]
+        raise SceneError(f"{path}: {f'a {ext} file' if ext else 'no extension'}: expected a mesh file (.stl, .ply "
+                         "or .obj)")  # fmt: skip
+    return found
 
 
 def load_mesh(path, scale=(1.0, 1.0, 1.0)) -> trimesh.Trimesh:
@@ -118,10 +159,13 @@ def load_mesh(path, scale=(1.0, 1.0, 1.0)) -> trimesh.Trimesh:
     if ext in (".usd", ".usda", ".usdc", ".usdz"):
         raise SceneError(f"{path}: a USD stage, not a mesh file: extract reads STL, PLY or OBJ; a USD Mesh prim is "
                          "extracted when its scene loads, with warptube:extract = true (see the README)")  # fmt: skip
+    file_type = _file_type(path)
     try:
         mesh = trimesh.load(path, force="mesh", process=False)
-    except Exception as e:  # trimesh raises many kinds (ValueError, KeyError, struct.error, ...)
-        raise SceneError(f"{path}: cannot read as a mesh ({type(e).__name__}: {e})") from None
+    except Exception as e:  # trimesh raises many kinds (ValueError, KeyError, IndexError, UnicodeDecodeError, ...)
+        log.debug("%s: trimesh: %s: %s", path, type(e).__name__, e)
+        kind = _FORMATS.get(file_type, file_type.upper())
+        raise SceneError(f"{path}: not a readable {kind} mesh: the file is damaged, truncated or not {kind}") from None
     if isinstance(mesh, trimesh.Scene) or not hasattr(mesh, "faces"):
         raise SceneError(f"{path}: holds no triangle faces: expected a surface mesh")
     if len(mesh.faces) == 0:
@@ -130,7 +174,8 @@ def load_mesh(path, scale=(1.0, 1.0, 1.0)) -> trimesh.Trimesh:
         except Exception:
             points = 0
         if points:
-            raise SceneError(f"{path}: {points} points and no faces (a point cloud): expected a surface mesh")
+            raise SceneError(f"{path}: {counted(points, 'point')} and no faces (a point cloud): expected a surface "
+                             "mesh")
     return clean_mesh(mesh, path, scale)
 
 
@@ -152,13 +197,15 @@ def mesh_from_arrays(points, face_vertex_counts, face_vertex_indices, *, source=
     counts = np.asarray(face_vertex_counts, dtype=np.int64).reshape(-1)
     idx = np.asarray(face_vertex_indices, dtype=np.int64).reshape(-1)
     if len(counts) == 0 or len(p) == 0:
-        raise SceneError(f"{source}: empty mesh ({len(p)} points, {len(counts)} faces): expected a tube surface")
+        raise SceneError(f"{source}: empty mesh ({counted(len(p), 'point')}, {counted(len(counts), 'face')}): "
+                         "expected a tube surface")
     if (counts < 3).any():
         i = int(np.argmax(counts < 3))
         raise SceneError(f"{source}: faceVertexCounts[{i}] = {counts[i]}: expected polygons of 3 or more vertices")
     if counts.sum() != len(idx):
         raise SceneError(
-            f"{source}: faceVertexCounts sum to {counts.sum()} but faceVertexIndices has {len(idx)} entries"
+            f"{source}: faceVertexCounts sum to {counts.sum()} but faceVertexIndices has "
+            f"{counted(len(idx), 'entry', 'entries')}"
         )
     if idx.min() < 0 or idx.max() >= len(p):
         raise SceneError(f"{source}: faceVertexIndices span {idx.min()}..{idx.max()}: expected 0..{len(p) - 1}")

@@ -28,12 +28,15 @@ rings made so that the simulator rebuilds the input at rest:
 
 Side branches (e.g. of a coronary artery) are the parts of the inside farther than their own
 diameter beyond the main tube's surface; each is reported with its junction hub and length. The
-tube-likeness check (:mod:`warp_tube.extract.tubelike`) warns about inputs that are not tubes.
-Lengths are in the mesh's units after ``scale``.
+tube-likeness check (:mod:`warp_tube.extract.tubelike`) warns about inputs that are not tubes. A
+closed ring (a torus: watertight, ``V - E + F = 0``) has no ends: it is cut open at the two ends
+found as for any closed mesh, and the tube records where and how much of the ring it leaves out
+(:mod:`warp_tube.extract.closed_ring`). Lengths are in the mesh's units after ``scale``.
 """
 
 from __future__ import annotations
 
+import dataclasses
 import logging
 import time
 from dataclasses import dataclass, field
@@ -43,10 +46,11 @@ import trimesh
 import warp as wp
 from scipy.spatial import cKDTree
 
-from . import distance_map as dmap
+from . import distance_map as dmap, wording
 from ..model.frames import hub_tangents, initial_normal, rotation_minimizing_frames, spoke_directions
 from ..scene.spec import SceneError
 from .branches import find_branches
+from .closed_ring import RingCut, ring_cut
 from .ends import choose_ends, cut_closed_tail, fit_closed_end, settle_end, trim_open_end
 from .fidelity import Distances, Fidelity, fidelity_of, measured_vertices, mesh_distances, plain_surface
 from .mesh_io import BoundaryLoop, boundary_loops, cap_loops, clean_mesh, flat_cuts
@@ -153,6 +157,8 @@ class ExtractedTube:
         fidelity: the rest surface against the mesh (:class:`~warp_tube.extract.fidelity.Fidelity`).
         warnings: what the tube-likeness and hub-count checks found (also logged).
         source: where the mesh came from (file or prim), for messages and metadata.
+        ring: for a closed ring (a mesh with no ends), where it was cut open and how much the tube
+            leaves out (:class:`~warp_tube.extract.closed_ring.RingCut`, cuts in mesh units); else None.
     """
 
     points: np.ndarray
@@ -169,6 +175,7 @@ class ExtractedTube:
     fidelity: Fidelity | None = None
     warnings: list[str] = field(default_factory=list)
     source: str = "<mesh>"
+    ring: RingCut | None = None
 
     @property
     def hubs(self) -> int:
@@ -269,7 +276,7 @@ def extract_centerline(
     end_size = [lp for lp in loops if lp.radius >= _END_LOOP_FRACTION * r_med and len(lp.vertices) >= 5]
     holes = [lp for lp in loops if not any(lp is e for e in end_size)]
     if holes:
-        log.info("%s: %d small holes closed", src, len(holes))
+        log.info("%s: %s closed", src, wording.counted(len(holes), "small hole"))
     wall_v, wall_f = cap_loops(m, holes)
     q = MeshQueries(wall_v, wall_f, closed_v, closed_f, device, raw=(m.vertices, m.faces))
     timings["prepare"] = time.perf_counter() - t_start
@@ -279,8 +286,8 @@ def extract_centerline(
     dm = dmap.build_distance_map(q.closed, q.wall, lo, hi, h, device)
     if dm.count < 16:
         raise SceneError(
-            f"{src}: {dm.count} inside voxels of {h:.3g}: expected a tube enclosing volume (is it a closed or "
-            "open-ended tube surface?)"
+            f"{src}: {wording.counted(dm.count, 'inside voxel')} of {h:.3g}: expected a tube enclosing volume (is it "
+            "a closed or open-ended tube surface?)"
         )
     timings["distance_map"] = time.perf_counter() - t0
 
@@ -294,7 +301,7 @@ def extract_centerline(
         raise SceneError(f"{src}: its ends are not connected inside the mesh: expected one tube")
     voxel_path = dmap.trace_path(pred, choice.b)
     if len(voxel_path) < 3:
-        raise SceneError(f"{src}: the tube is {len(voxel_path)} voxels long: expected a longer tube")
+        raise SceneError(f"{src}: the tube is {wording.counted(len(voxel_path), 'voxel')} long: expected a longer tube")
     path, d = dm.points[voxel_path], dm.dfb[voxel_path]
     path, d = _open_or_cut(path, d, choice.end_a, h)
     path, d = _open_or_cut(path[::-1], d[::-1], choice.end_b, h)
@@ -372,12 +379,17 @@ def extract_centerline(
     points, spoke_len, ref, valid = kept.points, kept.lengths, kept.reference_normal, kept.valid
     fid = fidelity_of(points, spoke_len, ref, caps, m.vertices, m.faces, tips=tips, branch_paths=branch_paths,
                       seals=seals, device=device, wall=cap_loops(m, choice.others))  # fmt: skip
+    ring = ring_cut(m, points, spoke_len, ref, tips, branch_paths, device)
     timings["hubs"] = time.perf_counter() - t0
 
     hub_tree = cKDTree(points)
     branches = []
-    for fb in found:
+    for k, fb in enumerate(found):
         jh = int(hub_tree.query(dense[min(fb.junction, len(dense) - 1)])[1])
+        if ring is not None and k in ring.rest:
+            log.info("%s: the rest of the closed ring, from hub %d, %.4g long: left out of the tube", src, jh,
+                     fb.length)
+            continue
         branches.append(Branch(jh, fb.length, fb.path + shift))
         log.info("%s: side branch (%s) at hub %d, %.4g long: left out of the tube", src, fb.kind, jh, fb.length)
     openings = _openings(choice.others, spoke_len, hub_tree, src)
@@ -401,6 +413,7 @@ def extract_centerline(
         missed_spokes=int((~valid).sum()),
         fidelity=fid,
         source=src,
+        ring=None if ring is None else dataclasses.replace(ring, cuts=ring.cuts + shift),
     )
     tube.warnings = tubelike.check(tube, open_rays(q, points, diag), hubs_given=hubs is not None)
     refused = [w for w in tube.warnings if w.startswith(tubelike.NOT_A_TUBE)] if strict else []

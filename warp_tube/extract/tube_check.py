@@ -17,6 +17,8 @@ from __future__ import annotations
 
 import math
 
+from .wording import counted
+
 __all__ = ["tube_warnings", "summary_line", "size_warning"]
 
 MAX_HUBS_PER_RADIUS = 10.0
@@ -76,17 +78,21 @@ def size_warning(hubs: int, spokes: int) -> str | None:
 
 def side_branches(count: int) -> str:
     """``1 side branch``, ``3 side branches``."""
-    return f"{count} side branch{'' if count == 1 else 'es'}"
+    return counted(count, "side branch")
 
 
 def summary_line(tube, fidelity, output: str, units: str = "m") -> str:
-    """One line about an extraction: hubs, length (tip to tip), radius range, ends, branches, fit."""
+    """One line about an extraction: hubs, length (tip to tip), radius range, ends, branches, fit (of
+    a closed ring: on the part kept, with how much of the ring was left out)."""
     ends = "/".join(e.kind for e in tube.ends)
+    ring = tube.ring
+    if ring is not None:
+        ends += f" of a closed ring cut open ({ring.left_out:.0%} of its surface left out)"
     fit = "fit not measured"
     if fidelity is not None:
         fit = (
             f"surface within {fidelity.mean:.1%} (mean) / {fidelity.p99:.1%} (99th percentile) of the radius, "
-            "both ways"
+            f"both ways{'' if ring is None else ', on the part kept'}"
             if fidelity.to_surface.counted
             else "fit not measurable"
         )

@@ -1,8 +1,10 @@
 """Whether an extracted mesh is a tube, and whether its hubs rebuild it well enough.
 
-Two checks on the mesh (their warnings start with :data:`NOT_A_TUBE`, and ``warp-tube extract
+Three checks on the mesh (their warnings start with :data:`NOT_A_TUBE`, and ``warp-tube extract
 --strict`` refuses the mesh on them):
 
+- a closed ring (a torus: watertight, ``V - E + F = 0``, :mod:`warp_tube.extract.closed_ring`) has
+  no ends: the tube is cut open where the warning says and leaves the rest of the ring out;
 - length against radius: the axis from tip to tip must be at least :data:`MIN_LENGTH_RADII` mean
   radii long (a sphere or a blob gives about two);
 - cross-sections that are single closed loops: at most :data:`MAX_OPEN_SECTIONS` of the interior
@@ -22,11 +24,12 @@ from typing import TYPE_CHECKING
 import numpy as np
 
 from .fidelity import FIDELITY_BOUNDS
+from .wording import counted
 
 if TYPE_CHECKING:
     from .pipeline import ExtractedTube
 
-__all__ = ["NOT_A_TUBE", "MIN_LENGTH_RADII", "MAX_OPEN_SECTIONS", "check"]
+__all__ = ["NOT_A_TUBE", "MIN_LENGTH_RADII", "MAX_OPEN_SECTIONS", "check", "ring_warning"]
 
 NOT_A_TUBE = "not tube-like"
 MIN_LENGTH_RADII = 4.0
@@ -43,7 +46,7 @@ def check(tube: ExtractedTube, open_rays: np.ndarray, *, hubs_given: bool) -> li
         open_rays: which rays of each hub's ring leave through an opening, bool (hubs, rays).
         hubs_given: whether the hub count came from the caller (``--hubs``).
     """
-    out = []
+    out = [] if tube.ring is None else [ring_warning(tube.ring)]
     radius = float(tube.spoke_lengths.mean())
     reach = tube.tip_to_tip
     if reach < MIN_LENGTH_RADII * radius:
@@ -56,8 +59,8 @@ def check(tube: ExtractedTube, open_rays: np.ndarray, *, hubs_given: bool) -> li
         open_hubs = int(inner.any(axis=1).sum())
         if open_hubs > MAX_OPEN_SECTIONS * len(inner):
             out.append(
-                f"{NOT_A_TUBE}: the cross-sections at {open_hubs} of {len(inner)} hubs are not closed loops of its "
-                "wall (rays across them leave through an opening of the mesh)"
+                f"{NOT_A_TUBE}: the cross-sections at {open_hubs} of {counted(len(inner), 'hub')} are not closed "
+                "loops of its wall (rays across them leave through an opening of the mesh)"
             )
     fid = tube.fidelity
     if fid is not None and not fid.within(*FIDELITY_BOUNDS):
@@ -76,3 +79,16 @@ def check(tube: ExtractedTube, open_rays: np.ndarray, *, hubs_given: bool) -> li
             )
         out.append(text)
     return out
+
+
+def ring_warning(ring) -> str:
+    """The warning for a closed ring (:class:`~warp_tube.extract.closed_ring.RingCut`): where the
+    tube cuts it open [mesh units, to 1/1000 of the cuts' distance apart] and how much of its
+    surface the tube leaves out."""
+    cuts = np.asarray(ring.cuts, dtype=np.float64)
+    step = 10.0 ** (np.floor(np.log10(max(float(np.linalg.norm(cuts[0] - cuts[1])), 1e-300))) - 3)
+    a, b = (", ".join(f"{x:.4g}" for x in np.round(c / step) * step + 0.0) for c in cuts)
+    return (
+        f"{NOT_A_TUBE}: a closed ring with no ends (watertight, V - E + F = 0): the tube is cut open at "
+        f"({a}) and ({b}) and leaves {ring.left_out:.0%} of the ring's surface out"
+    )

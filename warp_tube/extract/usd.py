@@ -137,6 +137,8 @@ def write_scene(
     world = UsdGeom.Xform.Define(stage, "/World")
     stage.SetDefaultPrim(world.GetPrim())
     ends = ", ".join(e.kind for e in extracted.ends)
+    if extracted.ring is not None:
+        ends += f" (a closed ring cut open, {extracted.ring.left_out:.0%} of its surface left out)"
     stage.GetRootLayer().documentation = (
         f"warp_tube scene extracted from {os.path.basename(str(extracted.source))}: {n} hubs x {spokes} spokes, "
         f"{extracted.tip_to_tip:.4g} units long tip to tip ({extracted.length:.4g} between its end hubs), ends {ends}, "

@@ -1,0 +1,215 @@
+"""warp-tube extract on inputs a new user gives it by mistake: a closed ring (a torus, which has no
+ends), a file of random bytes named as a mesh, a --scale that shrinks the mesh below what can be
+resolved, and counts of one in the messages.
+
+Meshes are built here with trimesh (or by hand where the topology matters) and written to tmp_path.
+"""
+
+from __future__ import annotations
+
+import logging
+from itertools import pairwise
+
+import numpy as np
+import pytest
+import trimesh
+
+from warp_tube.cli import main
+from warp_tube.extract.closed_ring import euler_characteristic, is_closed_ring
+from warp_tube.extract.mesh_io import clean_mesh, mesh_from_arrays
+from warp_tube.extract.pipeline import extract_centerline
+from warp_tube.extract.tubelike import NOT_A_TUBE
+from warp_tube.extract.wording import counted
+from warp_tube.scene.spec import SceneError
+
+
+def _refusal(call) -> str:
+    """The message of the SceneError that ``call()`` raises."""
+    with pytest.raises(SceneError) as e:
+        call()
+    return str(e.value)
+
+
+def torus():
+    """A ring of tube: centre-line radius 0.05 m, tube radius 0.008 m (watertight, genus 1)."""
+    return trimesh.creation.torus(major_radius=0.05, minor_radius=0.008)
+
+
+def straight_tube(stations=41, ring=24, length=10.0, radius=1.0, caps=True):
+    """A tube along x, ``stations`` rings of ``ring`` vertices joined by strips; ``caps`` closes both
+    ends with fans. Returns ``(vertices (V, 3), faces (F, 3))``; vertex ``i * ring + j`` is vertex j
+    of ring i."""
+    x = np.linspace(0.0, length, stations)
+    phi = 2.0 * np.pi * np.arange(ring) / ring
+    v = np.stack([np.repeat(x, ring), radius * np.tile(np.cos(phi), stations),
+                  radius * np.tile(np.sin(phi), stations)], 1)  # fmt: skip
+    i, j = np.meshgrid(np.arange(stations - 1), np.arange(ring), indexing="ij")
+    a0, a1 = i * ring + j, i * ring + (j + 1) % ring
+    f = np.concatenate([np.stack([a0, a1, a1 + ring], -1).reshape(-1, 3),
+                        np.stack([a0, a1 + ring, a0 + ring], -1).reshape(-1, 3)])  # fmt: skip
+    if caps:
+        k = len(v)
+        v = np.vstack([v, [[0.0, 0.0, 0.0], [length, 0.0, 0.0]]])
+        jj = np.arange(ring)
+        last = (stations - 1) * ring
+        f = np.vstack([f, np.stack([np.full(ring, k), (jj + 1) % ring, jj], 1),
+                       np.stack([np.full(ring, k + 1), last + jj, last + (jj + 1) % ring], 1)])  # fmt: skip
+    return v, f
+
+
+def tube_with_a_small_handle(ring=24, first=12, last=20, rise=0.6, steps=8):
+    """A capped straight tube (radius 1, 10 long) whose wall carries a small hollow handle: the wall
+    quads of spoke 0 at stations ``first`` and ``last`` are opened and joined by an arched square
+    duct (one quad wide) rising ``rise`` above the wall. Watertight, genus 1, but not a ring."""
+    v, f = straight_tube(ring=ring)
+    holes = [[i * ring, i * ring + 1, (i + 1) * ring + 1, (i + 1) * ring] for i in (first, last)]
+    opened = {tuple(sorted(t)) for q in holes for t in ([q[0], q[1], q[2]], [q[0], q[2], q[3]])}
+    f = np.asarray([t for t in f.tolist() if tuple(sorted(t)) not in opened])
+    rings = [holes[0]]
+    for t in np.linspace(0.0, 1.0, steps + 1)[1:-1]:
+        corners = (1.0 - t) * v[holes[0]] + t * v[holes[1]]
+        lift = rise * np.sin(np.pi * t) * corners[:, 1:] / np.linalg.norm(corners[:, 1:], axis=1, keepdims=True)
+        v = np.vstack([v, corners + np.concatenate([np.zeros((4, 1)), lift], 1)])
+        rings.append(list(range(len(v) - 4, len(v))))
+    rings.append(holes[1])
+    duct = [[a[k], a[(k + 1) % 4], b[(k + 1) % 4]] for a, b in pairwise(rings) for k in range(4)]
+    duct += [[a[k], b[(k + 1) % 4], b[k]] for a, b in pairwise(rings) for k in range(4)]
+    return trimesh.Trimesh(v, np.vstack([f, duct]), process=False)
+
+
+# ---------------------------------------------------------------------------------------------
+# a closed ring
+
+
+def test_the_euler_characteristic_tells_a_ring_from_an_open_or_capped_tube():
+    ring = torus()
+    open_v, open_f = straight_tube(caps=False)
+    capped_v, capped_f = straight_tube(caps=True)
+    open_tube, capped = trimesh.Trimesh(open_v, open_f), trimesh.Trimesh(capped_v, capped_f)
+    assert [euler_characteristic(m) for m in (ring, open_tube, capped)] == [0, 0, 2]
+    assert [is_closed_ring(m) for m in (ring, open_tube, capped)] == [True, False, False]
+
+
+def test_a_closed_ring_warns_where_it_was_cut_and_how_much_is_left_out(tmp_path, monkeypatch, capsys, caplog):
+    monkeypatch.chdir(tmp_path)
+    torus().export("ring.stl")
+    with caplog.at_level(logging.WARNING, logger="warp_tube"):
+        assert main(["extract", "ring.stl", "-o", "ring.usda"]) == 0
+    (warning,) = [r.getMessage() for r in caplog.records if "closed ring" in r.getMessage()]
+    assert warning.startswith(f"ring.stl: {NOT_A_TUBE}: a closed ring with no ends"), warning
+    assert "cut open at (" in warning and ") and (" in warning
+    left_out = float(warning.split("leaves ")[1].split("%")[0])
+    assert 10.0 <= left_out <= 60.0, warning  # the extraction keeps one side of the ring
+    summary = capsys.readouterr().out.splitlines()[0]
+    assert f"closed ring cut open ({left_out:.0f}% of its surface left out)" in summary, summary
+    assert "0 side branches left out" in summary and summary.endswith("both ways, on the part kept"), summary
+    assert (tmp_path / "ring.usda").exists()
+
+
+def test_strict_refuses_a_closed_ring_in_one_line_and_writes_nothing(tmp_path, monkeypatch, capsys):
+    monkeypatch.chdir(tmp_path)
+    torus().export("ring.stl")
+    assert main(["extract", "ring.stl", "-o", "ring.usda", "--strict"]) == 2
+    err = capsys.readouterr().err.strip()
+    assert len(err.splitlines()) == 1, err
+    assert err.startswith("warp-tube: ring.stl: not tube-like: a closed ring with no ends"), err
+    assert "cut open at" in err and "of the ring's surface out" in err and err.endswith("(--strict)"), err
+    assert not (tmp_path / "ring.usda").exists()
+
+
+def test_a_small_handle_on_a_straight_tube_is_not_a_ring():
+    mesh = tube_with_a_small_handle()
+    cleaned = clean_mesh(mesh, "handle")
+    assert is_closed_ring(cleaned)  # the topology alone would call it a ring
+    tube = extract_centerline(mesh, source="handle")
+    assert tube.ring is None
+    assert not any("closed ring" in w for w in tube.warnings), tube.warnings
+    assert tube.tip_to_tip == pytest.approx(10.0, rel=0.05)
+
+
+# ---------------------------------------------------------------------------------------------
+# files that are not meshes
+
+
+def _garbage(kind: str) -> bytes:
+    rng = np.random.default_rng(7)
+    header = b"ply\nformat binary_little_endian 1.0\nelement vertex 8\nproperty float x\nproperty float y\n" \
+             b"property float z\nelement face 4\nproperty list uchar int vertex_indices\nend_header\n"  # fmt: skip
+    return {"random": rng.bytes(4000), "ply then random": b"ply\n" + rng.bytes(4000),
+            "truncated": header + rng.bytes(30), "empty": b""}[kind]  # fmt: skip
+
+
+@pytest.mark.parametrize("kind", ["random", "ply then random", "truncated", "empty"])
+def test_garbage_named_ply_says_it_is_not_a_readable_ply_mesh(kind, tmp_path, monkeypatch, capsys):
+    monkeypatch.chdir(tmp_path)
+    (tmp_path / "garbage.ply").write_bytes(_garbage(kind))
+    assert main(["extract", "garbage.ply", "-o", "s.usda"]) == 2
+    err = capsys.readouterr().err.strip()
+    assert err == "warp-tube: garbage.ply: not a readable PLY mesh: the file is damaged, truncated or not PLY", err
+    assert not (tmp_path / "s.usda").exists()
+
+
+def test_garbage_named_stl_and_a_text_file_name_the_file_and_what_is_wrong(tmp_path, monkeypatch, capsys):
+    monkeypatch.chdir(tmp_path)
+    (tmp_path / "garbage.stl").write_bytes(np.random.default_rng(3).bytes(1000))
+    (tmp_path / "notes.txt").write_text("a tube\n")
+    assert main(["extract", "garbage.stl", "-o", "s.usda"]) == 2
+    assert main(["extract", "notes.txt", "-o", "s.usda"]) == 2
+    first, second = capsys.readouterr().err.strip().splitlines()
+    assert first == "warp-tube: garbage.stl: not a readable STL mesh: the file is damaged, truncated or not STL"
+    assert second == "warp-tube: notes.txt: a .txt file: expected a mesh file (.stl, .ply or .obj)"
+    assert not (tmp_path / "s.usda").exists()
+
+
+# ---------------------------------------------------------------------------------------------
+# --scale that makes the mesh too small
+
+
+def test_a_scale_that_shrinks_the_mesh_below_resolution_names_its_size(tmp_path, monkeypatch, capsys):
+    monkeypatch.chdir(tmp_path)
+    trimesh.creation.cylinder(radius=0.005, height=0.08, sections=24).export("cyl.stl")
+    assert main(["extract", "cyl.stl", "-o", "c.usda", "--scale", "1e-9"]) == 2
+    err = capsys.readouterr().err.strip()
+    assert err.startswith("warp-tube: cyl.stl: the mesh is 8e-11 across after scaling by 1e-09"), err
+    assert "too small" in err and "check --scale" in err and "zero area" not in err, err
+    assert not (tmp_path / "c.usda").exists()
+
+
+def test_a_realistic_scale_is_not_refused_and_a_collapsed_mesh_still_has_zero_area():
+    mm = trimesh.creation.cylinder(radius=0.5, height=8.0, sections=24)  # a 1 mm vessel in mm
+    out = clean_mesh(mm, "vessel", scale=1e-3)
+    assert np.ptp(out.vertices, axis=0).max() == pytest.approx(8e-3)
+    point = trimesh.Trimesh([[0.0, 0.0, 0.0]] * 3, [[0, 1, 2]], process=False)
+    assert _refusal(lambda: clean_mesh(point, "point")) == "point: every face has zero area: expected a tube surface"
+
+
+# ---------------------------------------------------------------------------------------------
+# counts of one
+
+
+def test_counted_pluralises():
+    assert [counted(1, "face"), counted(0, "face"), counted(2, "vertex"), counted(1, "vertex")] == [
+        "1 face", "0 faces", "2 vertices", "1 vertex"]  # fmt: skip
+    assert counted(1, "side branch") == "1 side branch" and counted(3, "side branch") == "3 side branches"
+    assert counted(12345, "face", fmt=",") == "12,345 faces"
+
+
+def test_messages_say_one_face_one_vertex_one_point_one_entry(tmp_path, monkeypatch, capsys):
+    one = trimesh.Trimesh([[0.0, 0.0, 0.0], [1.0, 0.0, 0.0], [0.0, 1.0, 0.0]], [[0, 1, 2]], process=False)
+    assert _refusal(lambda: clean_mesh(one, "tri")) == "tri: only 1 face: expected a tube surface"
+    lone = trimesh.Trimesh([[0.0, 0.0, 0.0]], np.zeros((0, 3), dtype=np.int64), process=False)
+    assert _refusal(lambda: clean_mesh(lone, "dot")) == "dot: empty mesh (1 vertex, 0 faces): expected a tube surface"
+    nan = trimesh.Trimesh([[np.nan, 0.0, 0.0], [1.0, 0.0, 0.0], [0.0, 1.0, 0.0]], [[0, 1, 2]], process=False)
+    assert _refusal(lambda: clean_mesh(nan, "nan")).startswith("nan: 1 vertex with NaN or infinite coordinates")
+    short = _refusal(lambda: mesh_from_arrays(np.eye(3), [3], [0], source="prim"))
+    assert short.endswith("faceVertexIndices has 1 entry"), short
+    monkeypatch.chdir(tmp_path)
+    (tmp_path / "pt.ply").write_text("ply\nformat ascii 1.0\nelement vertex 1\nproperty float x\nproperty float y\n"
+                                     "property float z\nend_header\n0 0 0\n")  # fmt: skip
+    one.export("tri.stl")
+    assert main(["extract", "pt.ply", "-o", "s.usda"]) == 2
+    assert main(["extract", "tri.stl", "-o", "s.usda"]) == 2
+    err = capsys.readouterr().err.splitlines()
+    assert err == ["warp-tube: pt.ply: 1 point and no faces (a point cloud): expected a surface mesh",
+                   "warp-tube: tri.stl: only 1 face: expected a tube surface"], err  # fmt: skip
+    assert not (tmp_path / "s.usda").exists()
