@@ -18,7 +18,7 @@ import numpy as np
 import warp as wp
 
 from ..model.tube import TubeModel, build_model, model_features, node_parameters
-from ..scene.spec import Scene
+from ..scene.spec import Scene, replace_checked
 
 __all__ = ["Worlds", "WorldArrays", "build_worlds", "combined_tubes"]
 
@@ -45,9 +45,8 @@ class WorldArrays:
 def combined_tubes(scenes: list[Scene]) -> Scene:
     """One scene holding every scene's tubes, scene after scene, and no forces: what the per-node
     parameters (:func:`~warp_tube.model.tube.node_parameters`) of them all are made from."""
-    first = scenes[0]
     tubes = tuple(t for s in scenes for t in s.tubes)
-    return Scene(tubes=tubes, forces=(), settings=first.settings, stage=first.stage, source=first.source)
+    return replace_checked(scenes[0], tubes=tubes, forces=())  # (the scenes' prims repeat: not one scene's)
 
 
 @dataclass

@@ -67,6 +67,17 @@ class StageInfo:
     end_time_code: float = 48.0
     authored: tuple[str, ...] = ()
 
+    def __post_init__(self):
+        for name, v in (("metersPerUnit", self.meters_per_unit), ("timeCodesPerSecond", self.time_codes_per_second),
+                        ("framesPerSecond", self.frames_per_second)):  # fmt: skip
+            if not (isinstance(v, (int, float, np.integer, np.floating)) and math.isfinite(v) and v > 0.0):
+                raise SceneError(f"{name} {v!r}: expected a positive finite number")
+        for name, v in (("startTimeCode", self.start_time_code), ("endTimeCode", self.end_time_code)):
+            if not (isinstance(v, (int, float, np.integer, np.floating)) and math.isfinite(v)):
+                raise SceneError(f"{name} {v!r}: expected a finite time code")
+        if self.up_axis not in ("Y", "Z"):
+            raise SceneError(f"upAxis {self.up_axis!r}: expected \"Y\" or \"Z\"")
+
     @property
     def frame_count(self) -> int:
         """Number of output frames, one per time code from start to end inclusive."""
@@ -97,6 +108,14 @@ class SimulationSettings:
             raise SceneError(f"integrator {self.integrator!r}: expected one of {', '.join(INTEGRATORS)}")
         if self.time_step is not None and not (math.isfinite(self.time_step) and self.time_step > 0.0):
             raise SceneError(f"timeStep {self.time_step!r}: expected a positive finite number of seconds")
+        if self.gravity is not None:
+            try:
+                g = np.asarray(self.gravity, dtype=np.float64)
+            except (TypeError, ValueError):
+                g = np.full(1, np.nan)
+            if g.shape != (3,) or not np.isfinite(g).all():
+                raise SceneError(f"gravity {self.gravity!r}: expected three finite numbers [m/s^2] or None")
+            object.__setattr__(self, "gravity", tuple(float(x) for x in g))
 
 
 @dataclass(frozen=True)
@@ -151,8 +170,8 @@ class TubeParams:
         nonneg("damping", self.damping)
         nonneg("springDamping", self.spring_damping)
         nonneg("anchorStiffness", self.anchor_stiffness)
-        if not (3 <= self.spokes <= 1024):
-            raise SceneError(f"spokes {self.spokes}: expected an integer from 3 to 1024")
+        if isinstance(self.spokes, bool) or not isinstance(self.spokes, (int, np.integer)) or not (3 <= self.spokes <= 1024):
+            raise SceneError(f"spokes {self.spokes!r}: expected an integer from 3 to 1024")
         if self.frames not in FRAME_MODES:
             raise SceneError(f"frames {self.frames!r}: expected one of {', '.join(FRAME_MODES)}")
 
@@ -211,6 +230,8 @@ class TubeSpec:
                 f"{where}: curveVertexCounts {counts.tolist()}: expected counts >= 2 summing to {len(pts)} points"
             )
         rad = np.asarray(self.radius, dtype=np.float64)
+        if rad.size == 1:  # one radius for every point
+            rad = np.full(len(pts), float(rad.reshape(-1)[0]))
         if rad.shape != (len(pts),):
             raise SceneError(f"{where}: widths give {rad.shape} radii: expected one or {len(pts)}")
         if not (np.isfinite(rad).all() and (rad > 0).all()):
@@ -220,10 +241,14 @@ class TubeSpec:
         object.__setattr__(self, "curve_counts", counts)
         object.__setattr__(self, "radius", rad)
         for name in ("pinned", "anchors"):
-            idx = np.unique(np.asarray(getattr(self, name), dtype=np.int64).reshape(-1))
+            given = np.asarray(getattr(self, name)).reshape(-1)
+            attr = "pinnedPoints" if name == "pinned" else "anchorPoints"
+            if given.size and not (np.issubdtype(given.dtype, np.integer) or (np.issubdtype(given.dtype, np.floating) and
+                                                                           np.array_equal(given, np.round(given)))):  # fmt: skip
+                raise SceneError(f"{where}: {attr} {given.tolist()!r}: expected point indices (integers)")
+            idx = np.unique(given.astype(np.int64))
             if len(idx) and (idx.min() < 0 or idx.max() >= len(pts)):
                 bad = idx[(idx < 0) | (idx >= len(pts))][0]
-                attr = "pinnedPoints" if name == "pinned" else "anchorPoints"
                 raise SceneError(f"{where}: {attr} holds {bad}: expected indices 0..{len(pts) - 1}")
             object.__setattr__(self, name, idx)
         if self.spoke_lengths is not None:
@@ -291,6 +316,9 @@ class ForceSpec:
             raise SceneError(f"force {self.path}: force: expected finite values")
         if (np.diff(t) <= 0).any():
             raise SceneError(f"force {self.path}: sample times must increase")
+        for name, index in (("tube", self.tube), ("point", self.point)):
+            if isinstance(index, bool) or not isinstance(index, (int, np.integer)):
+                raise SceneError(f"force {self.path}: {name} {index!r}: expected an index (an integer)")
         object.__setattr__(self, "times", t)
         object.__setattr__(self, "values", v)
 
@@ -317,6 +345,11 @@ class Scene:
                 f"{self.source}: no tube: expected a BasisCurves prim carrying warptube: attributes "
                 "(or a Mesh with warptube:extract = true)"
             )
+        for kind, items in (("tubes", self.tubes), ("forces", self.forces)):
+            paths = [x.path for x in items]
+            if len(set(paths)) != len(paths):
+                twice = next(p for p in paths if paths.count(p) > 1)
+                raise SceneError(f"{self.source}: two {kind} have the path {twice}: expected one prim path each")
         for f in self.forces:
             if not (0 <= f.tube < len(self.tubes)):
                 raise SceneError(f"force {f.path}: target tube index {f.tube} out of range")

@@ -1,0 +1,88 @@
+"""The Python API checks what the USD reader checks, and says what is wrong: scene dataclasses
+built in code (units, gravity, indices, repeated prim paths), and the Simulation's accessors
+(force and tube by index or path, world indices, pin targets by point)."""
+
+import numpy as np
+import pytest
+
+import warp_tube
+from warp_tube import ForceSpec, Scene, SceneError, SimulationSettings, StageInfo, TubeParams, TubeSpec
+
+
+def tube(path="/T", pinned=(0, 1), **kw):
+    x = np.linspace(0.0, 0.2, 11)
+    return TubeSpec(path, np.stack([x, 0 * x, 0 * x], 1), [11], np.full(11, 0.01), TubeParams(density=1000.0, youngs_modulus=1e5),
+                    pinned=list(pinned), **kw)  # fmt: skip
+
+
+@pytest.mark.parametrize("make, words", [
+    (lambda: StageInfo(meters_per_unit=0.0), ["metersPerUnit 0.0", "positive"]),
+    (lambda: StageInfo(time_codes_per_second=float("nan")), ["timeCodesPerSecond"]),
+    (lambda: StageInfo(up_axis="X"), ["upAxis 'X'"]),
+    (lambda: SimulationSettings(gravity=(0.0, float("nan"), 0.0)), ["gravity", "three finite numbers"]),
+    (lambda: SimulationSettings(gravity=(0.0, -9.8)), ["gravity (0.0, -9.8)", "three finite numbers"]),
+    (lambda: TubeParams(density=1000.0, youngs_modulus=1e5, spokes=8.5), ["spokes 8.5", "integer"]),
+    (lambda: tube(pinned=(0.5, 1.7)), ["pinnedPoints [0.5, 1.7]", "integers"]),
+    (lambda: Scene((tube(), tube())), ["two tubes have the path /T"]),
+    (lambda: ForceSpec("/F", 0, 2.0, [0.0], [[0, 1, 0]]), ["point 2.0", "integer"]),
+])  # fmt: skip
+def test_scene_dataclasses_refuse_what_the_reader_refuses(make, words):
+    with pytest.raises(SceneError) as err:
+        make()
+    for w in words:
+        assert w in str(err.value), (w, str(err.value))
+
+
+def test_one_radius_serves_every_point_and_whole_float_indices_are_indices():
+    t = tube(pinned=(0.0, 1.0))
+    x = np.linspace(0.0, 0.2, 11)
+    one = TubeSpec("/T", np.stack([x, 0 * x, 0 * x], 1), [11], 0.01, TubeParams(density=1000.0, youngs_modulus=1e5))
+    assert one.radius.shape == (11,) and (one.radius == 0.01).all()
+    assert t.pinned.tolist() == [0, 1]
+    assert SimulationSettings(gravity=[0, -9.81, 0]).gravity == (0.0, -9.81, 0.0)
+
+
+@pytest.fixture(scope="module")
+def sim():
+    push = ForceSpec("/World/Push", 0, 5, [0.0], [[0.0, 0.01, 0.0]], assistant_line=False)
+    scene = Scene((tube("/World/Tube", pinned=(10, 0)),), (push,), stage=StageInfo(meters_per_unit=1.0, end_time_code=4.0))
+    return warp_tube.Simulation(scene, device="cpu")
+
+
+def test_forces_and_tubes_by_index_or_path(sim):
+    from pxr import Sdf
+
+    sim.set_force(Sdf.Path("/World/Push"), (0.0, 0.02, 0.0))  # a path as usd-core gives it
+    sim.set_force(0, (0.0, 0.01, 0.0))
+    with pytest.raises(TypeError, match="force 0.7: expected an index"):
+        sim.set_force(0.7, (0.0, 0.01, 0.0))
+    with pytest.raises(KeyError, match="no force at /World/Pull"):
+        sim.set_force("/World/Pull", (0.0, 0.01, 0.0))
+    with pytest.raises(IndexError, match="force 3: the scene has 1 force"):
+        sim.set_force(3, (0.0, 0.01, 0.0))
+
+
+def test_world_indices_are_checked(sim):
+    assert len(sim.centerline_points(0)[0]) == 11
+    with pytest.raises(IndexError, match="world 1: this Simulation runs 1 world"):
+        sim.centerline_points(1)
+    with pytest.raises(IndexError, match="world 5"):
+        sim.surface_points(world=5)
+
+
+def test_pin_targets_follow_the_pinned_indices_ascending_or_a_dict(sim):
+    """``pinnedPoints = [10, 0]``: rows are for points 0 then 10 (ascending); a dict names them."""
+    assert sim.scene.tubes[0].pinned.tolist() == [0, 10]
+    far_end = (0.2, 0.05, 0.0)
+    sim.set_pin_targets("/World/Tube", {10: far_end, 0: (0.0, 0.0, 0.0)})
+    sim.step()
+    q = sim.centerline_points()[0]
+    assert np.allclose(q[10], far_end, atol=1e-6) and np.allclose(q[0], 0.0, atol=1e-6)  # pins reach their targets
+    with pytest.raises(ValueError, match="expected every pinned point once"):
+        sim.set_pin_targets(0, {10: far_end})
+
+
+def test_numerical_error_is_exported():
+    from warp_tube.sim.simulation import NumericalError
+
+    assert warp_tube.NumericalError is NumericalError
