@@ -17,6 +17,7 @@ __all__ = [
     "TubeSpec",
     "load_scene",
     "Simulation",
+    "NumericalError",
 ]
 
 
@@ -39,4 +40,8 @@ def __getattr__(name):
         from .sim.simulation import Simulation
 
         return Simulation
+    if name == "NumericalError":
+        from .sim.simulation import NumericalError
+
+        return NumericalError
     raise AttributeError(name)

@@ -108,7 +108,8 @@ class FrameControl:
         three finite numbers.
 
         Raises:
-            KeyError: no force at that prim path. IndexError: no force with that index.
+            KeyError: no force at that prim path. IndexError: no force with that index. TypeError: neither
+            an index nor a path (a float, a bool).
             ValueError: ``vector`` is not three finite numbers (checked here, before any step).
         """
         idx = self.force_index(force)
@@ -123,12 +124,20 @@ class FrameControl:
         self._force_override[idx] = v.reshape(3)
 
     def set_pin_targets(self, tube, positions) -> None:
-        """Move a tube prim's pinned points: ``positions`` [stage units], shape (pinned, 3), finite.
+        """Move a tube prim's pinned points: ``positions`` [stage units], finite: shape (pinned, 3),
+        one row per pinned point in ascending order of its index (``scene.tubes[k].pinned``, not the
+        order ``pinnedPoints`` lists them), or a dict from each pinned point's index to its position.
 
         Raises:
-            KeyError / IndexError: no such tube prim. ValueError: wrong shape or non-finite values.
+            KeyError / IndexError: no such tube prim. ValueError: wrong shape, points or non-finite values.
         """
         k = self.tube_index(tube)
+        pinned = self.scene.tubes[k].pinned
+        if isinstance(positions, dict):  # point index -> position, every pinned point once
+            if sorted(int(i) for i in positions) != pinned.tolist():
+                raise ValueError(f"pin targets of {self.scene.tubes[k].path}: points {sorted(positions)}: expected every "
+                                 f"pinned point once, {pinned.tolist()}")  # fmt: skip
+            positions = [positions[i] for i in pinned.tolist()]
         try:
             p = np.asarray(positions, dtype=np.float64) * self.scene.stage.meters_per_unit
         except (TypeError, ValueError):
@@ -140,28 +149,12 @@ class FrameControl:
         self._pin_override[k] = p
 
     def force_index(self, force) -> int:
-        """Index of a scene force given by index or prim path."""
-        if isinstance(force, str):
-            for k, f in enumerate(self.scene.forces):
-                if f.path == force:
-                    return k
-            raise KeyError(f"no force at {force}")
-        k = int(force)
-        if not 0 <= k < len(self.scene.forces):
-            raise IndexError(f"force {k}: the scene has {len(self.scene.forces)} force(s)")
-        return k
+        """Index of a scene force given by index or prim path (a string or an ``Sdf.Path``)."""
+        return _index(force, [f.path for f in self.scene.forces], "force")
 
     def tube_index(self, tube) -> int:
-        """Index of a tube prim given by index or prim path."""
-        if isinstance(tube, str):
-            for k, t in enumerate(self.scene.tubes):
-                if t.path == tube:
-                    return k
-            raise KeyError(f"no tube at {tube}")
-        k = int(tube)
-        if not 0 <= k < len(self.scene.tubes):
-            raise IndexError(f"tube {k}: the scene has {len(self.scene.tubes)} tube prim(s)")
-        return k
+        """Index of a tube prim given by index or prim path (a string or an ``Sdf.Path``)."""
+        return _index(tube, [t.path for t in self.scene.tubes], "tube")
 
     # -- per frame -------------------------------------------------------------------------------
     def forces_at(self, t: float) -> np.ndarray:
@@ -246,3 +239,24 @@ class FrameControl:
             lines.write(state, c)
         if changed:
             c.al_active.assign(active)
+
+
+def _index(which, paths: list[str], kind: str) -> int:
+    """``which`` (an index, or a prim path as a string or anything whose ``str`` is one, such as
+    ``Sdf.Path``) as an index into ``paths``.
+
+    Raises:
+        KeyError: no prim at that path. IndexError: the index is out of range. TypeError: neither
+        an integer nor a path (a float, a bool).
+    """
+    if isinstance(which, (bool, float, np.floating)) or which is None:
+        raise TypeError(f"{kind} {which!r}: expected an index (an integer) or a prim path")
+    if isinstance(which, (int, np.integer)):
+        k = int(which)
+        if not 0 <= k < len(paths):
+            raise IndexError(f"{kind} {k}: the scene has {len(paths)} {kind}(s)")
+        return k
+    path = str(which)
+    if path in paths:
+        return paths.index(path)
+    raise KeyError(f"no {kind} at {path}")

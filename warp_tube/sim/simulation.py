@@ -236,7 +236,9 @@ class Simulation:
         self.controls.set_force(force, vector)
 
     def set_pin_targets(self, tube, positions) -> None:
-        """Move a tube prim's pinned points: ``positions`` [stage units], shape (pinned, 3)."""
+        """Move a tube prim's pinned points: ``positions`` [stage units], shape (pinned, 3) with one
+        row per pinned point in ascending order of its index, or a dict from point index to position
+        (:meth:`FrameControl.set_pin_targets <warp_tube.sim.control.FrameControl.set_pin_targets>`)."""
         self.controls.set_pin_targets(tube, positions)
 
     def _warn(self, msg: str) -> None:
@@ -335,9 +337,18 @@ class Simulation:
         return f"{self.scene.tubes[k].path} point {int(node - self._prim_start[k])}"
 
     # -- read-back -------------------------------------------------------------------------------
+    def _world(self, world) -> int:
+        """``world`` checked against the worlds this Simulation runs."""
+        if isinstance(world, bool) or not isinstance(world, (int, np.integer)) or not 0 <= world < self.model.world_count:
+            raise IndexError(f"world {world!r}: this Simulation runs {self.model.world_count} world(s), 0..{self.model.world_count - 1}")
+        return int(world)
+
     def centerline_points(self, world: int = 0) -> list[np.ndarray]:
-        """Centerline points per tube prim [stage units], each shape (P, 3)."""
-        q = self.state.node_q.numpy()[world] / self.scene.stage.meters_per_unit
+        """Centerline points per tube prim [stage units], each shape (P, 3).
+
+        Raises:
+            IndexError: no such world."""
+        q = self.state.node_q.numpy()[self._world(world)] / self.scene.stage.meters_per_unit
         return [q[s : s + n].copy() for s, n in zip(self._prim_start, self._prim_count)]
 
     def surface_points(self, world: int = 0) -> list[np.ndarray]:
@@ -349,6 +360,7 @@ class Simulation:
         normals, each shape (V, 3), and the points' ``[min, max]`` corners [stage units], (2, 3)."""
         if self.surfaces is None:
             raise RuntimeError("this Simulation was made with surface=False")
+        world = self._world(world)
         mpu = self.scene.stage.meters_per_unit
         q = self.state.node_q
         if q.shape[0] > 1:  # the builders serve one world: hand them that world's row
