@@ -390,6 +390,9 @@ def test_points_from_files_and_variant_sets(tmp_path):
     alone = tmp_path / "alone.usdc"
     assert cli(["run", str(alone_scene), "-o", str(alone), "--frames", "5", "--quiet"]) == 0
     assert filecmp.cmp(alone, out / "variant_00001.usdc", shallow=False)
+    # the sets named as a list, as the Python API takes them: the same variants
+    listed = run_batch(str(scene), str(tmp_path / "listed"), str(table), variant_sets=["stiffness"], frames=5, writers=0)
+    assert listed.variants == 4 and filecmp.cmp(tmp_path / "listed" / "variant_00001.usdc", out / "variant_00001.usdc", shallow=False)
 
 
 def test_cpu_worker_processes_match_one_process(sweep, tmp_path):

@@ -126,6 +126,10 @@ def _cmd_run(a) -> int:
     if points * BUILD_SECONDS_PER_POINT > LONG_BUILD_SECONDS:
         log.warning("building the model of %s points will take about %s (set-up in Python, point by point)",
                     f"{points:,}", format_seconds(points * BUILD_SECONDS_PER_POINT))  # fmt: skip
+    info = scene.stage
+    if a.frames is None and info.frame_count == 1 and "endTimeCode" not in info.authored:
+        log.warning("%s: endTimeCode not authored: USD's fallback (%g, the start) gives one frame and nothing to simulate; "
+                    "author endTimeCode or pass --frames N", scene_path or "the scene", info.end_time_code)  # fmt: skip
     # Run warnings go into the summary; with --quiet (no summary unless the run stops) they are
     # printed as they happen instead.
     _RUN_WARNINGS.summary_prints_them = not a.quiet

@@ -211,7 +211,7 @@ def _remove_stray_partials(out_dir: str) -> None:
                     os.remove(os.path.join(folder, n))
 
 
-def run_batch(scene: str, out_dir: str, table: str | None = None, *, variant_sets: str | None = None,
+def run_batch(scene: str, out_dir: str, table: str | None = None, *, variant_sets: str | list[str] | None = None,
               layout: str = "files", every: int = 1, frames: int | None = None, surface: bool | None = None,
               device: str | None = None, workers: int | None = None, writers: int | None = None,
               chunk: int | None = None, scheduler: str | None = None, resume: bool = False, progress: bool = False,
@@ -222,7 +222,9 @@ def run_batch(scene: str, out_dir: str, table: str | None = None, *, variant_set
         scene: the scene file.
         out_dir: the batch folder (created; must not hold another batch unless ``resume``).
         table: the variants table (CSV), or None.
-        variant_sets: ``all`` or a list of the scene's variantSets to cross with the table.
+        variant_sets: ``all``, or the scene's variantSets to cross with the table: a list of names
+            (``["shape"]``, ``["/World/Tube{shape}"]``) or one comma-separated string as the
+            command line takes it.
         layout: "files", "grid" or "arrays".
         every: write every ``every``-th frame.
         frames: frames per variant, frame 0 (rest) included (default: the scene's).
@@ -247,6 +249,8 @@ def run_batch(scene: str, out_dir: str, table: str | None = None, *, variant_set
     """
     from .table import read_table
 
+    if variant_sets is not None and not isinstance(variant_sets, str):
+        variant_sets = ",".join(str(v) for v in variant_sets)
     t_start = time.perf_counter()
     out_dir = os.path.abspath(os.fspath(out_dir))
     if layout not in LAYOUTS:
