@@ -107,3 +107,33 @@ def test_unauthored_metadata_takes_usd_fallbacks(tmp_cwd):
     s = load_scene(str(tmp_cwd / "u.usda"))
     assert (s.stage.meters_per_unit, s.stage.up_axis, s.stage.time_codes_per_second) == (0.01, "Y", 24.0)
     assert "metersPerUnit" not in s.stage.authored
+
+
+@pytest.mark.parametrize("edit, words", [
+    # a scale that differs along the axes: widths take its geometric mean
+    (('def Xform "World"\n{', 'def Xform "World"\n{\n    double3 xformOp:scale = (2, 1, 1)\n    uniform token[] xformOpOrder = ["xformOp:scale"]'),
+     ["scales unevenly", "geometric mean 1.26"]),
+    # an animated parent transform with untimed points: not followed
+    (('def Xform "World"\n{', 'def Xform "World"\n{\n    double3 xformOp:translate.timeSamples = {0: (0, 0, 0), 10: (5, 0, 0)}\n'
+                               '    uniform token[] xformOpOrder = ["xformOp:translate"]'),
+     ["the transform of /World is animated", "does not follow"]),
+])  # fmt: skip
+def test_what_the_scene_cannot_follow_is_warned_of(edit, words, tmp_cwd, caplog):
+    (tmp_cwd / "s.usda").write_text(mutate(*edit))
+    with caplog.at_level("WARNING"):
+        load_scene(str(tmp_cwd / "s.usda"))
+    text = " ".join(r.getMessage() for r in caplog.records)
+    for w in words:
+        assert w in text, (w, text)
+
+
+def test_time_sampled_points_without_pins_are_warned_of(tmp_cwd, caplog):
+    import re
+
+    m = re.search(r"point3f\[\] points = (\[[^\]]*\])", BASE)
+    text = BASE.replace(m.group(0), f"point3f[] points.timeSamples = {{0: {m.group(1)}, 10: {m.group(1)}}}")
+    text = re.sub(r"\s*int\[\] warptube:pinnedPoints = \[[^\]]*\]", "", text)
+    (tmp_cwd / "s.usda").write_text(text)
+    with caplog.at_level("WARNING"):
+        load_scene(str(tmp_cwd / "s.usda"))
+    assert any("time-sampled, but the tube has no pinnedPoints" in r.getMessage() for r in caplog.records)

@@ -29,6 +29,7 @@ from .spec import (
     TubeParams,
     TubeSpec,
 )
+from .transforms import to_world, warn_about_transforms
 
 log = logging.getLogger(__name__)
 
@@ -238,16 +239,6 @@ def _stage_info(stage) -> StageInfo:
     )  # fmt: skip
 
 
-def _to_world(prim, pts: np.ndarray, time) -> tuple[np.ndarray, float]:
-    """Points (P, 3) to world space; also the transform's mean length scale."""
-    from pxr import UsdGeom
-
-    m = np.array(UsdGeom.Xformable(prim).ComputeLocalToWorldTransform(time), dtype=np.float64)
-    out = pts @ m[:3, :3] + m[3, :3]
-    scale = abs(np.linalg.det(m[:3, :3])) ** (1.0 / 3.0)
-    return out, scale
-
-
 def _read_tube(file: str, prim, info: StageInfo, frame_times) -> TubeSpec:
     from pxr import Usd, UsdGeom
 
@@ -269,7 +260,7 @@ def _read_tube(file: str, prim, info: StageInfo, frame_times) -> TubeSpec:
     if counts.sum() != len(pts) or (counts < 2).any():
         r.fail("curveVertexCounts", counts.tolist(), f"counts >= 2 summing to the {len(pts)} points")
     start_tc = Usd.TimeCode(info.start_time_code)
-    world, scale = _to_world(prim, pts, start_tc)
+    world, scale = to_world(prim, pts, start_tc)
     mpu = info.meters_per_unit
     widths = curves.GetWidthsAttr().Get(start_tc) if curves.GetWidthsAttr().HasAuthoredValue() else None
     if widths is None or len(widths) == 0:
@@ -284,6 +275,7 @@ def _read_tube(file: str, prim, info: StageInfo, frame_times) -> TubeSpec:
         i = int(np.argmax(bad))
         r.fail("widths", f"{widths[i]} at index {i}", "positive finite diameters")
     radius = 0.5 * widths * scale * mpu
+    warn_about_transforms(prim, start_tc, pattr_sampled=curves.GetPointsAttr().GetNumTimeSamples() > 1, where=r.where("points"))
     E = r.real("warptube:youngsModulus", positive=True)
     EA = r.real("warptube:stretchStiffness", minimum=0.0)
     EI = r.real("warptube:bendStiffness", minimum=0.0)
@@ -335,13 +327,16 @@ def _read_tube(file: str, prim, info: StageInfo, frame_times) -> TubeSpec:
         sl = sl.reshape(n, spokes) * scale * mpu
     pin_track = None
     pinned = np.unique(idx["warptube:pinnedPoints"])
+    if pattr.GetNumTimeSamples() > 1 and not len(pinned):
+        log.warning("%s: time-sampled, but the tube has no pinnedPoints: only pinned points follow the samples "
+                    "(the rest shape is the first frame's): nothing here follows them", r.where("points"))  # fmt: skip
     if pattr.GetNumTimeSamples() > 1 and len(pinned):
         track = []
         for tc in frame_times:
             p = np.asarray(pattr.Get(Usd.TimeCode(tc)), dtype=np.float64)
             if p.shape != pts.shape or not np.isfinite(p).all():
                 r.fail("points", f"a sample at time {tc} of shape {p.shape}", f"finite points of shape {pts.shape}")
-            track.append(_to_world(prim, p, Usd.TimeCode(tc))[0][pinned])
+            track.append(to_world(prim, p, Usd.TimeCode(tc))[0][pinned])
         pin_track = np.asarray(track) * mpu
     try:
         return TubeSpec(
