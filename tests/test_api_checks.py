@@ -86,3 +86,21 @@ def test_numerical_error_is_exported():
     from warp_tube.sim.simulation import NumericalError
 
     assert warp_tube.NumericalError is NumericalError
+
+
+def test_save_scene_keeps_moving_pins(tmp_path):
+    """A tube whose pinned end follows a track (one position per frame) saved and read back has
+    the same track (float32 round-off of the stage's points)."""
+    from warp_tube.scene.usd import load_scene, save_scene
+
+    t = tube(pinned=(0, 10))
+    frames = 5
+    track = np.repeat(t.points[[0, 10]][None], frames, axis=0)
+    track[:, 1, 1] = np.linspace(0.0, 0.05, frames)  # the far end rises 5 cm over the frames [m]
+    moving = TubeSpec(t.path, t.points, t.curve_counts, t.radius, t.params, pinned=t.pinned, pin_track=track)
+    scene = Scene((moving,), stage=StageInfo(meters_per_unit=0.01, end_time_code=float(frames - 1)))
+    save_scene(scene, str(tmp_path / "moving.usda"))
+    back = load_scene(str(tmp_path / "moving.usda")).tubes[0]
+    assert back.pin_track is not None and back.pin_track.shape == track.shape
+    np.testing.assert_allclose(back.pin_track, track, atol=1e-7)  # [m]: float32 of centimetres
+    np.testing.assert_allclose(back.points, t.points, atol=1e-7)

@@ -547,7 +547,12 @@ def save_scene(scene: Scene, path: str) -> None:
     for t in scene.tubes:
         c = UsdGeom.BasisCurves.Define(stage, t.path)
         c.CreateTypeAttr("linear")
-        c.CreatePointsAttr(Vt.Vec3fArray.FromNumpy((t.points / mpu).astype(np.float32)))
+        points = c.CreatePointsAttr(Vt.Vec3fArray.FromNumpy((t.points / mpu).astype(np.float32)))
+        if t.pin_track is not None:  # moving pins: the points time-sampled, one sample a frame
+            for k, pins in enumerate(t.pin_track):
+                frame = t.points.copy()
+                frame[t.pinned] = pins
+                points.Set(Vt.Vec3fArray.FromNumpy((frame / mpu).astype(np.float32)), Usd.TimeCode(scene.stage.start_time_code + k))
         c.CreateCurveVertexCountsAttr(Vt.IntArray([int(v) for v in t.curve_counts]))
         c.CreateWidthsAttr(Vt.FloatArray.FromNumpy((2.0 * t.radius / mpu).astype(np.float32)))
         c.SetWidthsInterpolation(UsdGeom.Tokens.vertex)
