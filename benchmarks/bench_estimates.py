@@ -3,8 +3,9 @@
 - model set-up per centerline point: ``Simulation(scene)`` (build_model and the surface topology)
   of straight tubes of N points, against ``warp_tube.cli.BUILD_SECONDS_PER_POINT``;
 - a semi-implicit substep per point on the CPU: the default scene made stiff (E = 1e10 Pa, tens of
-  thousands of substeps a frame), frames after the first (kernels compiled), against
-  ``warp_tube.sim.simulation.CPU_SEMI_STEP_COST``.
+  thousands of substeps a frame) with semi-implicit Euler forced, frames after the first (kernels
+  compiled), against ``warp_tube.sim.simulation.CPU_SEMI_STEP_COST``; and the same scene with
+  ``auto`` (which takes implicit Euler), against that cost x ``IMPLICIT_COST_RATIO``.
 
 Prints medians of ``--repeat`` runs. Usage: ``.venv/bin/python benchmarks/bench_estimates.py``.
 """
@@ -23,6 +24,7 @@ import warp_tube
 from warp_tube.cli import BUILD_SECONDS_PER_POINT
 from warp_tube.scene.spec import Scene, SimulationSettings, StageInfo, TubeParams, TubeSpec
 from warp_tube import Simulation
+from warp_tube.centerline.policy import IMPLICIT_COST_RATIO
 from warp_tube.sim.simulation import CPU_SEMI_STEP_COST
 
 ROOT = pathlib.Path(__file__).resolve().parents[1]
@@ -54,22 +56,22 @@ def main():
         print(f"set-up, {n:,} points: median {statistics.median(times):.2f} s, {per * 1e3:.3f} ms a point "
               f"(estimate uses {BUILD_SECONDS_PER_POINT * 1e3:.3f})")  # fmt: skip
 
-    text = (ROOT / "scenes" / "default.usda").read_text().replace("youngsModulus = 100000", "youngsModulus = 1e10")
-    path = pathlib.Path("/tmp") / "warp_tube_bench_stiff.usda"
-    path.write_text(text)
-    sim = Simulation(warp_tube.load_scene(str(path)), device="cpu", surface=False)
-    sim.step()  # compiles the kernels
-    times = []
-    for _ in range(a.repeat):
-        t0 = time.perf_counter()
-        sim.step()
-        times.append(time.perf_counter() - t0)
-    per_step = statistics.median(times) / sim.substeps
-    per_point = per_step / sim.model.node_count
-    print(f"stiff default scene: {sim.substeps:,} substeps a frame, median frame {statistics.median(times):.3f} s, "
-          f"{per_step * 1e6:.2f} us a substep, {per_point * 1e9:.0f} ns a point and substep "
-          f"({sim.model.node_count} points; estimate uses {CPU_SEMI_STEP_COST * 1e9:.0f})")  # fmt: skip
-
+    stiff = (ROOT / "scenes" / "default.usda").read_text().replace("youngsModulus = 100000", "youngsModulus = 1e10")
+    for integrator, factor in (("semiImplicitEuler", 1.0), ("auto", IMPLICIT_COST_RATIO)):
+        path = pathlib.Path("/tmp") / f"warp_tube_bench_stiff_{integrator}.usda"
+        path.write_text(stiff.replace('warptube:integrator = "auto"', f'warptube:integrator = "{integrator}"'))
+        sim = Simulation(warp_tube.load_scene(str(path)), device="cpu", surface=False)
+        sim.step()  # compiles the kernels
+        times = []
+        for _ in range(a.repeat):
+            t0 = time.perf_counter()
+            sim.step()
+            times.append(time.perf_counter() - t0)
+        per_step = statistics.median(times) / sim.substeps
+        per_point = per_step / sim.model.node_count
+        print(f"stiff default scene, {sim.integrator}: {sim.substeps:,} substeps a frame, median frame "
+              f"{statistics.median(times):.3f} s, {per_step * 1e6:.2f} us a substep, {per_point * 1e9:.0f} ns a point "
+              f"and substep ({sim.model.node_count} points; estimate uses {CPU_SEMI_STEP_COST * factor * 1e9:.0f})")  # fmt: skip
 
 if __name__ == "__main__":
     main()

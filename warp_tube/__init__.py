@@ -34,6 +34,10 @@ def load_scene(path):
     return _load(path, extract=tube_from_mesh_prim)
 
 
+def __dir__():
+    return sorted(set(globals()) | set(__all__))
+
+
 def __getattr__(name):
     if name == "Simulation":
         from . import io  # noqa: F401 (registers the USD writer with the frame loop)

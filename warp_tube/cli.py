@@ -20,8 +20,9 @@ from .scene.spec import SceneError
 
 EXIT_OK, EXIT_INTERNAL, EXIT_INPUT, EXIT_NUMERICAL = 0, 1, 2, 3
 #: model set-up time per centerline point [s] (build_model and the surface topology, measured by
-#: benchmarks/bench_estimates.py: 0.4 ms on a busy CPU core), for the up-front warning of a long build.
-BUILD_SECONDS_PER_POINT = 0.5e-3
+#: benchmarks/bench_estimates.py: 2-3 us on one CPU core, 5,000 to 200,000 points), for the up-front
+#: warning of a long build.
+BUILD_SECONDS_PER_POINT = 4e-6
 #: a build estimated to take longer than this [s] is announced.
 LONG_BUILD_SECONDS = 30.0
 

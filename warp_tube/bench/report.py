@@ -115,9 +115,12 @@ def report_markdown(results: dict) -> str:
             "| code and configuration | segments | frequency error |", "|---|---|---|"]  # fmt: skip
     for r in (r for r in rows if r["kind"] == "frequency"):
         out.append(f"| {label(r)} | {r['config']['segments']} | " + (f"failed: {r['failed']}" if "failed" in r else f"{100 * r['frequency_error']:+.2f}%") + " |")
-    out += ["", "## Throughput: 20-segment tubes (rod-steps per second; tube-seconds simulated per wall second)", "",
-            "| code and configuration | tubes | rod-steps/s | simulated tube-s per s | time step [s] | reps | spread |", "|---|---|---|---|---|---|---|"]  # fmt: skip
-    for r in sorted((r for r in rows if r["kind"] == "throughput"), key=lambda r: (label(r), r["config"]["batch"])):
+    throughput = sorted((r for r in rows if r["kind"] == "throughput"), key=lambda r: (label(r), r["config"]["batch"]))
+    if throughput:  # (none in an accuracy run)
+        out += ["", "## Throughput: 20-segment tubes (rod-steps per second; tube-seconds simulated per wall second)", "",
+                "| code and configuration | tubes | rod-steps/s | simulated tube-s per s | time step [s] | reps | spread |",
+                "|---|---|---|---|---|---|---|"]  # fmt: skip
+    for r in throughput:
         if "failed" in r:
             out.append(f"| {label(r)} | {r['config']['batch']} | failed: {r['failed']} | | | | |")
             continue
