@@ -164,11 +164,13 @@ def _cmd_run(a) -> int:
 
 def _stopped(sim, out: str, why: str, status: int, quiet: bool = False) -> int:
     """Print why a run stopped early (after its summary, unless quiet) and where its frames are."""
-    s = sim.last_summary
-    if not quiet:
+    s = getattr(sim, "last_summary", None)  # (None where the run stopped before its first frame began)
+    if not quiet and s is not None:
         print(s.text(), file=sys.stderr)
     print(f"warp-tube: {why}", file=sys.stderr)
-    if s.partial:
+    if s is None:
+        kept = "no frame was simulated: nothing kept"
+    elif s.partial:
         kept = f"{s.frames_written_text()} kept in {s.partial}"
     elif s.frames:
         kept = f"{s.frames_written_text()} could not be saved: nothing kept"

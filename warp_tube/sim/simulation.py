@@ -432,7 +432,8 @@ class Simulation:
             self._check_output_fits(len(written))
             inputs = [self.scene.source] if self.scene.source and os.path.exists(self.scene.source) else []
             start_tc = info.start_time_code + (written[0] if written else first)
-            writer = open_writer(output, self.scene, self.surfaces, start_time_code=start_tc, inputs=inputs)
+            with Phase(f"setting up {os.path.basename(str(output))} ({len(self.scene.tubes):,} tube prims)", enabled=bool(progress), after=1.0):
+                writer = open_writer(output, self.scene, self.surfaces, start_time_code=start_tc, inputs=inputs)
         summary = RunSummary(
             scene=self.scene.source, device=self.device, frames=0, substeps=self.substeps, dt=self.dt,
             integrator=self.integrator, reason=self.reason, wall_time=0.0, max_displacement=0.0,
@@ -484,7 +485,11 @@ class Simulation:
             raise
         else:
             if writer:
-                summary.output = writer.close()
+                if bar is not None:  # (the saving line takes its place)
+                    bar.close()
+                    bar = None
+                with Phase(f"saving {os.path.basename(str(output))}", enabled=bool(progress), after=1.0):
+                    summary.output = writer.close()
         finally:
             interrupts.__exit__(None, None, None)
             summary.wall_time = time.perf_counter() - t0
