@@ -104,3 +104,18 @@ def test_save_scene_keeps_moving_pins(tmp_path):
     assert back.pin_track is not None and back.pin_track.shape == track.shape
     np.testing.assert_allclose(back.pin_track, track, atol=1e-7)  # [m]: float32 of centimetres
     np.testing.assert_allclose(back.points, t.points, atol=1e-7)
+
+
+def test_the_run_summary_counts_the_set_up_apart(tmp_path, capsys):
+    """The summary's set-up holds setting up the output and what the caller spent before the run
+    (the CLI: reading and building), apart from the frames' wall time."""
+    from warp_tube.cli import main
+
+    push = ForceSpec("/World/Push", 0, 5, [0.0], [[0.0, 0.01, 0.0]], assistant_line=False)
+    scene = Scene((tube("/World/Tube"),), (push,), stage=StageInfo(meters_per_unit=1.0, end_time_code=2.0))
+    summary = warp_tube.Simulation(scene, device="cpu").run(output=str(tmp_path / "o.usdc"), setup_time=1.5)
+    assert 1.5 < summary.setup_time < 1.5 + 60.0  # the caller's 1.5 s plus the output's set-up
+    assert "set-up       " in summary.text() and "s for the frames" in summary.text()
+    assert main(["run", "-o", str(tmp_path / "tube.usdc"), "--frames", "2"]) == 0
+    line = next(x for x in capsys.readouterr().out.splitlines() if x.startswith("set-up"))
+    assert float(line.split()[1]) > 0.0

@@ -12,6 +12,7 @@ import argparse
 import logging
 import os
 import sys
+import time
 import traceback
 from importlib import resources
 
@@ -117,6 +118,7 @@ def _cmd_run(a) -> int:
     if a.every < 1:
         raise SceneError(f"--every {a.every}: expected at least 1")
     tty = stderr_is_terminal() and not a.quiet
+    t_read = time.perf_counter()
     with Phase("reading the scene", enabled=tty):
         held = open_stage(scene_path)  # held open while loading: its layers are read once
         inputs = [scene_path, *usd_layer_files(held)]
@@ -137,7 +139,7 @@ def _cmd_run(a) -> int:
     with Phase(f"building the model ({points:,} points)", enabled=tty):
         sim = Simulation(scene, device=a.device, surface=not a.no_surface)
     try:
-        summary = sim.run(frames=a.frames, output=out, progress=tty, every=a.every)
+        summary = sim.run(frames=a.frames, output=out, progress=tty, every=a.every, setup_time=time.perf_counter() - t_read)
     except NumericalError as e:
         return _stopped(sim, out, f"{e}", EXIT_NUMERICAL, a.quiet)
     except KeyboardInterrupt as e:

@@ -88,7 +88,9 @@ class RunSummary:
 
     Times [s]: ``wall_time`` is the whole run; ``startup_time`` the part up to the end of the
     first simulated frame, which includes compiling the kernels on first use, so the rate
-    (:attr:`steps_per_second`) is taken over the frames after it when there are any.
+    (:attr:`steps_per_second`) is taken over the frames after it when there are any;
+    ``setup_time`` what came before the run's frames: setting up the output file, and what the
+    caller adds (the CLI: reading the scene and building the model).
     ``output`` is the complete output (None while the run has not completed); ``partial`` the file
     holding the frames finished by a run that stopped early (None if none was finished).
     """
@@ -113,6 +115,7 @@ class RunSummary:
     partial: str | None = None
     first_frame: int = 0
     last_frame: int | None = None
+    setup_time: float = 0.0
 
     @property
     def steps_per_second(self) -> float:
@@ -135,15 +138,17 @@ class RunSummary:
         steady = self.substeps_simulated > self.startup_substeps and self.wall_time > self.startup_time
         rate = f"{self.steps_per_second:,.0f} substeps/s"
         if steady:
-            timing = f"{self.wall_time:.3f} s (start-up {self.startup_time:.3f} s: kernel compilation and frame 1; then {rate})"
+            timing = f"{self.wall_time:.3f} s for the frames (start-up {self.startup_time:.3f} s: kernel compilation and frame 1; then {rate})"
         else:
-            timing = f"{self.wall_time:.3f} s ({rate}, start-up and kernel compilation included)"
+            timing = f"{self.wall_time:.3f} s for the frames ({rate}, start-up and kernel compilation included)"
         lines = [
             f"scene        {self.scene}",
             f"device       {self.device}",
             f"frames       {self.frames} written ({self.frames_simulated} simulated)",
             f"integrator   {self.integrator}: {self.reason}",
             f"substeps     {self.substeps} per frame, dt = {self.dt:.3g} s",
+            *([f"set-up       {self.setup_time:.3f} s (reading the scene, building the model, setting up the output)"]
+              if self.setup_time > 0.0 else []),
             f"wall time    {timing}",
             f"largest displacement  {self.max_displacement:.4g} m",
         ]
@@ -381,7 +386,8 @@ class Simulation:
         return float(np.linalg.norm(q - self.model.host.node_rest_q[None], axis=-1).max())
 
     # -- whole runs ------------------------------------------------------------------------------
-    def run(self, frames: int | None = None, output: str | None = None, progress=None, every: int = 1) -> RunSummary:
+    def run(self, frames: int | None = None, output: str | None = None, progress=None, every: int = 1,
+            setup_time: float = 0.0) -> RunSummary:
         """Simulate from the current frame up to frame ``frames - 1`` and write the frames to ``output``.
 
         Frames keep their numbers: frame k is at time code ``startTimeCode + k`` and frame 0 is
@@ -405,6 +411,8 @@ class Simulation:
             progress: None, or True for a progress bar (and, for a first frame that takes long, a
                 status line while the kernels compile) on stderr.
             every: write every ``every``-th frame (frame numbers divisible by it).
+            setup_time: seconds spent before this call that the summary counts as set-up (the CLI:
+                reading the scene and building the model) [s].
 
         Raises:
             SceneError: ``frames`` or ``every`` out of range, or an output that cannot be written.
@@ -432,14 +440,18 @@ class Simulation:
             self._check_output_fits(len(written))
             inputs = [self.scene.source] if self.scene.source and os.path.exists(self.scene.source) else []
             start_tc = info.start_time_code + (written[0] if written else first)
+            t_setup = time.perf_counter()
             with Phase(f"setting up {os.path.basename(str(output))} ({len(self.scene.tubes):,} tube prims)", enabled=bool(progress), after=1.0):
                 writer = open_writer(output, self.scene, self.surfaces, start_time_code=start_tc, inputs=inputs)
+            setup = time.perf_counter() - t_setup
+        else:
+            setup = 0.0
         summary = RunSummary(
             scene=self.scene.source, device=self.device, frames=0, substeps=self.substeps, dt=self.dt,
             integrator=self.integrator, reason=self.reason, wall_time=0.0, max_displacement=0.0,
             stage_defaults=[k for k in ("metersPerUnit", "upAxis", "timeCodesPerSecond", "startTimeCode", "endTimeCode")
                             if k not in info.authored],
-            first_frame=written[0] if written else first,
+            first_frame=written[0] if written else first, setup_time=setup_time + setup,
         )  # fmt: skip
         self.last_summary = summary
         self._announce_long_run(end - 1 - first)
