@@ -907,3 +907,12 @@ def test_cpu_workers_beyond_the_cores_are_capped_with_a_warning(monkeypatch, cap
     assert "--workers 64: this host gives this process 2 CPU core(s); running 2 worker(s)" in caplog.text
     assert run._devices("cpu", 2, None) == ["cpu", "cpu"] and run._devices("cpu", None, None) == ["cpu"]
     assert run._device_list(devices) == "cpu x 2" and run._device_list(["cuda:0", "cuda:1"]) == "cuda:0, cuda:1"
+
+
+def test_points_of_another_count_name_their_column(tmp_path, capsys):
+    """A points file with fewer points than the scene's curveVertexCounts: the message names the
+    points column (not only the scene's curveVertexCounts) and says to set the counts too."""
+    x = np.linspace(0.0, 20.0, 15)
+    err = _bad(tmp_path, capsys, ["@/World/Tube.points"], [("short.npy",)], files={"short.npy": np.stack([x, 0 * x, 0 * x], 1)})
+    assert "column @/World/Tube.points" in err and "summing to the 15 points" in err
+    assert "set /World/Tube.curveVertexCounts in the table too" in err

@@ -399,6 +399,10 @@ def _collect(scene_path, table, variant_sets, extract, progress):
             except SceneError as e:
                 msg = str(e)
                 col = next((col for col in table.columns if col.target in msg), None)
+                if col is None and ".curveVertexCounts:" in msg:  # the row's points, counted against the scene's curves
+                    col = next((col for col in table.columns if col.attribute == "points" and f"{col.prim}.curveVertexCounts" in msg), None)
+                    if col is not None:
+                        msg += f" (the row's {col.header} gives another point count: set {col.prim}.curveVertexCounts in the table too)"
                 problems.append((r, f"{table.where(r, col)}{' with ' + chosen if chosen else ''}: {msg}"))
                 continue
             seen_rows[cells] = scene
