@@ -239,7 +239,7 @@ def _stage_info(stage) -> StageInfo:
     )  # fmt: skip
 
 
-def _read_tube(file: str, prim, info: StageInfo, frame_times) -> TubeSpec:
+def _read_tube(file: str, prim, info: StageInfo, frame_times, varying: dict | None = None) -> TubeSpec:
     from pxr import Usd, UsdGeom
 
     r = _Reader(file, prim)
@@ -260,7 +260,7 @@ def _read_tube(file: str, prim, info: StageInfo, frame_times) -> TubeSpec:
     if counts.sum() != len(pts) or (counts < 2).any():
         r.fail("curveVertexCounts", counts.tolist(), f"counts >= 2 summing to the {len(pts)} points")
     start_tc = Usd.TimeCode(info.start_time_code)
-    world, scale = to_world(prim, pts, start_tc)
+    world, scale, matrix = to_world(prim, pts, start_tc)
     mpu = info.meters_per_unit
     widths = curves.GetWidthsAttr().Get(start_tc) if curves.GetWidthsAttr().HasAuthoredValue() else None
     if widths is None or len(widths) == 0:
@@ -275,7 +275,7 @@ def _read_tube(file: str, prim, info: StageInfo, frame_times) -> TubeSpec:
         i = int(np.argmax(bad))
         r.fail("widths", f"{widths[i]} at index {i}", "positive finite diameters")
     radius = 0.5 * widths * scale * mpu
-    warn_about_transforms(prim, start_tc, pattr_sampled=curves.GetPointsAttr().GetNumTimeSamples() > 1, where=r.where("points"))
+    warn_about_transforms(prim, matrix, curves.GetPointsAttr().GetNumTimeSamples() > 1, r.where("points"), varying)
     E = r.real("warptube:youngsModulus", positive=True)
     EA = r.real("warptube:stretchStiffness", minimum=0.0)
     EI = r.real("warptube:bendStiffness", minimum=0.0)
@@ -477,7 +477,8 @@ class SceneReader:
                 "warptube:timeStep, warptube:integrator or warptube:gravity"
             )
         settings = _read_settings(path, settings_prims[0]) if settings_prims else SimulationSettings()
-        specs = [_read_tube(path, p, info, frame_times) for p in tubes]
+        varying: dict = {}  # ancestors' animated transforms, looked at once
+        specs = [_read_tube(path, p, info, frame_times, varying) for p in tubes]
         if mesh_prims:
             if extract is None:
                 raise SceneError(
