@@ -119,3 +119,16 @@ def test_the_run_summary_counts_the_set_up_apart(tmp_path, capsys):
     assert main(["run", "-o", str(tmp_path / "tube.usdc"), "--frames", "2"]) == 0
     line = next(x for x in capsys.readouterr().out.splitlines() if x.startswith("set-up"))
     assert float(line.split()[1]) > 0.0
+
+
+def test_a_force_on_a_pinned_point_is_warned_of_in_code_too(caplog):
+    """The USD reader warns of a force on a pinned point; a scene built in code and set_force on
+    such a force warn the same (it does nothing)."""
+    push = ForceSpec("/World/Push", 0, 1, [0.0], [[0.0, 0.01, 0.0]], assistant_line=False)
+    scene = Scene((tube("/World/Tube", pinned=(0, 1)),), (push,), stage=StageInfo(meters_per_unit=1.0, end_time_code=2.0))
+    with caplog.at_level("WARNING"):
+        sim = warp_tube.Simulation(scene, device="cpu", surface=False)
+        sim.set_force(0, (0.0, 0.02, 0.0))
+    text = " ".join(r.getMessage() for r in caplog.records)
+    assert "force /World/Push: point 1 of /World/Tube is pinned: this force does nothing" in text
+    assert "set_force(0): point 1 of /World/Tube is pinned" in text

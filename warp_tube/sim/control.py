@@ -14,11 +14,14 @@ model's :class:`~warp_tube.model.tube.TubeControl` before each frame.
 
 from __future__ import annotations
 
+import logging
 import math
 
 import numpy as np
 
 from ..scene.spec import Scene
+
+log = logging.getLogger(__name__)
 
 __all__ = ["FrameControl", "AssistantLineArrays", "AL_REBUILD_ANGLE", "AL_MIN_ANGLE"]
 
@@ -96,6 +99,10 @@ class FrameControl:
         self._active = np.zeros(control.al_active.shape, dtype=np.int32)  # as TubeModel.control() makes it
         prim_start = model.host.prim_node_start
         self.pinned_nodes = [prim_start[k] + t.pinned for k, t in enumerate(scene.tubes)]
+        if scene.source == "<python>":  # a scene built in code (the USD reader warns as it reads a stage)
+            for f in scene.forces:
+                if f.point in scene.tubes[f.tube].pinned:
+                    log.warning("force %s: point %d of %s is pinned: this force does nothing", f.path, f.point, scene.tubes[f.tube].path)
 
     @property
     def moving_pins(self) -> bool:
@@ -121,6 +128,10 @@ class FrameControl:
             raise ValueError(f"set_force({force!r}): vector of shape {v.shape}: expected three numbers [N]")
         if not np.isfinite(v).all():
             raise ValueError(f"set_force({force!r}): vector {tuple(v.reshape(3).tolist())}: expected finite numbers [N]")
+        f = self.scene.forces[idx]
+        if idx not in self._force_override and np.any(v) and f.point in self.scene.tubes[f.tube].pinned:
+            log.warning("set_force(%r): point %d of %s is pinned: this force does nothing", force, f.point,
+                        self.scene.tubes[f.tube].path)  # fmt: skip
         self._force_override[idx] = v.reshape(3)
 
     def set_pin_targets(self, tube, positions) -> None:
