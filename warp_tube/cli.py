@@ -145,7 +145,7 @@ def _cmd_run(a) -> int:
     except KeyboardInterrupt as e:
         s = sim.last_summary
         how = stopped_by(e)
-        if s.frames == 0 and s.frames_simulated == 0:
+        if s is None or (s.frames == 0 and s.frames_simulated == 0):
             why = f"{how} during start-up (kernel compilation), before any frame was finished"
         else:
             why = f"{how} while simulating frame {s.first_frame + s.frames_simulated + 1}"
@@ -166,7 +166,7 @@ def _cmd_run(a) -> int:
 
 def _stopped(sim, out: str, why: str, status: int, quiet: bool = False) -> int:
     """Print why a run stopped early (after its summary, unless quiet) and where its frames are."""
-    s = getattr(sim, "last_summary", None)  # (None where the run stopped before its first frame began)
+    s = sim.last_summary  # (None where the run stopped before its first frame began)
     if not quiet and s is not None:
         print(s.text(), file=sys.stderr)
     print(f"warp-tube: {why}", file=sys.stderr)

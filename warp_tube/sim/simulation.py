@@ -220,6 +220,7 @@ class Simulation:
         gravity = scene.settings.gravity if m.features.gravity else None
         self.checks = FrameChecks(m, extent=extent, energy_floor=energy_floor, gravity=gravity)
         self.retried_frames = 0
+        self.last_summary: RunSummary | None = None  # the last run's (see run)
         self.max_retry_factor = 1
 
     def _build_surfaces(self):
