@@ -274,9 +274,7 @@ def _define(layer, path, type_name: str):
     """A ``def`` prim spec of ``type_name`` at ``path`` in ``layer`` (its parents must exist)."""
     from pxr import Sdf
 
-    spec = Sdf.PrimSpec(layer.GetPrimAtPath(path.GetParentPath()) if not path.GetParentPath().IsAbsoluteRootPath()
-                        else layer.pseudoRoot, path.name, Sdf.SpecifierDef, type_name)  # fmt: skip
-    return spec
+    return Sdf.PrimSpec(layer.GetPrimAtPath(path.GetParentPath()), path.name, Sdf.SpecifierDef, type_name)  # ("/": the pseudo-root)
 
 
 def _attr(prim_spec, name: str, type_name, value=None, uniform: bool = False):
