@@ -57,7 +57,12 @@ class PushSize:
     @property
     def within_tolerance(self) -> bool:
         """Whether the written force moves the tube within :data:`PUSH_TOLERANCE` of the target."""
-        return abs(self.moved_m / self.target_m - 1.0) <= PUSH_TOLERANCE
+        return _within_tolerance(self.moved_m, self.target_m)
+
+
+def _within_tolerance(moved: float, target: float) -> bool:
+    """``moved`` [m] within :data:`PUSH_TOLERANCE` of ``target`` [m]."""
+    return abs(moved / target - 1.0) <= PUSH_TOLERANCE
 
 
 def largest_displacement(scene, frames: int = PUSH_FRAMES) -> float:
@@ -123,7 +128,7 @@ def size_push(path: str, force_path: str = "/World/Push", radii: float = 2.0, fr
             continue
         runs += 1
         tried.append((factor, d))
-        if not d > 0.0 or abs(d / target - 1.0) <= PUSH_TOLERANCE:
+        if not d > 0.0 or _within_tolerance(d, target):
             break
         (f0, d0), (f1, d1) = tried[-2], tried[-1]
         slope = np.log(d1 / d0) / np.log(f1 / f0) if f1 != f0 and d0 > 0.0 and d1 != d0 else 1.0
