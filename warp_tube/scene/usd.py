@@ -13,7 +13,6 @@ from __future__ import annotations
 import logging
 import math
 import os
-import re
 
 import numpy as np
 
@@ -29,6 +28,7 @@ from .spec import (
     TubeParams,
     TubeSpec,
 )
+from .opening import open_stage, usd_error_in_user_terms
 from .transforms import to_world, warn_about_transforms
 
 log = logging.getLogger(__name__)
@@ -39,94 +39,13 @@ REAL = ("float", "double", "half")
 REAL3 = ("float3", "double3", "half3", "vector3f", "vector3d", "vector3h", "point3f", "point3d", "normal3f", "normal3d")
 
 
-def open_stage(path: str):
-    """Open a USD stage, turning every failure into a :class:`SceneError` naming the file and saying
-    what is wrong in the user's terms (the line and column of a syntax error; a file that is not
-    USD; a damaged binary file; a sublayer, reference or payload that cannot be opened).
-
-    usd-core's own C++ diagnostics, written to stderr, are caught (see
-    :mod:`warp_tube.runtime.native_output`) and not shown.
-    """
-    from pxr import Tf, Usd
-
-    from ..runtime.native_output import native_stderr
-
-    path = os.fspath(path)
-    if not os.path.exists(path):
-        raise SceneError(f"{path}: no such file")
-    if os.path.isdir(path):
-        raise SceneError(f"{path}: is a folder, expected a USD file (.usda, .usdc, .usd)")
-    if not os.access(path, os.R_OK):
-        raise SceneError(f"{path}: cannot be read (permission denied)")
-    stage = None
-    problem = None
-    with native_stderr():
-        try:
-            stage = Usd.Stage.Open(path, Usd.Stage.LoadAll)
-        except Tf.ErrorException as e:
-            problem = usd_error_in_user_terms(path, str(e))
-    if problem is not None:
-        raise SceneError(f"{path}: {problem}")
-    if stage is None:
-        raise SceneError(f"{path}: not a readable USD stage")
-    errors = [str(e) for e in stage.GetCompositionErrors()] if hasattr(stage, "GetCompositionErrors") else []
-    if errors:
-        more = f" (and {len(errors) - 1} more)" if len(errors) > 1 else ""
-        raise SceneError(f"{path}: {_composition_error_in_user_terms(errors[0])}{more}")
-    return stage
-
-
-_TF_MESSAGE = re.compile(r"Error in '[^']*' at line \d+ in file [^:]* : '(.*?)'\s*(?=\n\s*Error in|\Z)", re.S)
-_SYNTAX = re.compile(r"^.*?:(\d+):(\d+):\s*(.*)$", re.S)
-
-
-def usd_error_in_user_terms(path: str, text: str) -> str:
-    """What usd-core's error text ``text`` for opening ``path`` means, without C++ locations."""
-    messages = [m.strip() for m in _TF_MESSAGE.findall(text)] or [text.strip()]
-    for m in messages:
-        hit = _SYNTAX.match(m)
-        if hit:
-            line, col, what = hit.groups()
-            what = re.sub(r"parse error matching \S*pegtl::internal::eof", "unexpected end of file (an unclosed bracket?)", what)
-            what = re.sub(r"pxrInternal_\w+?__pxrReserved__:*|\S*pegtl::\S*", "", what).strip()
-            return f"USD syntax error at line {line}, column {col}: {what}"
-    try:
-        with open(path, "rb") as f:
-            head = f.read(16)
-    except OSError as e:
-        return f"cannot be read ({e.strerror})"
-    if not head:
-        return "empty file: expected a USD stage (a .usda text file starts with '#usda 1.0')"
-    if head.startswith(b"PXR-USDC"):
-        crate = [m for m in messages if "crate" in m.lower() or "bootstrap" in m.lower()]
-        return f"damaged or truncated binary USD (.usdc) file ({(crate or messages)[0]})"
-    if head.startswith(b"#usda"):
-        return f"not a valid USD text file ({messages[0]})"
-    if head.startswith(b"PK"):
-        return f"not a readable USD package (.usdz) ({messages[0]})"
-    printable = all(32 <= b < 127 or b in (9, 10, 13) for b in head)
-    shown = repr(head.decode("ascii").splitlines()[0]) if printable else f"the bytes {head[:8].hex(' ')}"
-    return (f"not a USD file: it starts with {shown}; a USD text file starts with '#usda 1.0' and a binary "
-            "one with 'PXR-USDC'")  # fmt: skip
-
-
-def _composition_error_in_user_terms(message: str) -> str:
-    """A composition error (missing sublayer, reference or payload) as a short sentence."""
-    hit = re.search(r"Could not (?:open|load) (?:asset|sublayer) @([^@]*)@", message)
-    if not hit:
-        return f"cannot be composed: {message}"
-    what = "sublayer" if "sublayer" in message else "payload" if "payload" in message else "reference"
-    where = re.search(r"@[^@]*@<([^>]*)>", message)
-    at = f" (at {where.group(1)})" if where else ""
-    return f"cannot open the {what} {hit.group(1)}{at}: no such file or not a USD file"
-
-
 class _Reader:
     """Typed access to one prim's ``warptube:`` attributes with contract-style errors."""
 
-    def __init__(self, file: str, prim):
+    def __init__(self, file: str, prim, start: float | None = None):
         self.file = file
         self.prim = prim
+        self.start = start  # the stage's startTimeCode: where time-sampled values are read
 
     def where(self, name: str) -> str:
         return f"{self.file}: {self.prim.GetPath()}.{name}"
@@ -147,7 +66,18 @@ class _Reader:
             self.fail(name, f"type {tname}", expected)
         from pxr import Usd
 
-        return a, a.Get(Usd.TimeCode.Default() if time is None else time)
+        if time is not None:
+            return a, a.Get(time)
+        # A value authored as time samples (as DCC tools often write them) is read at the first
+        # frame; the parameters are not animated, which a warning says where the samples differ.
+        at = Usd.TimeCode.EarliestTime() if self.start is None else Usd.TimeCode(self.start)
+        v = a.Get(at)
+        if v is None:
+            raise SceneError(f"{self.where(name)}: no value at the first frame: expected a value (a default or time samples)")
+        if a.ValueMightBeTimeVarying():
+            log.warning("%s: time-sampled: its value at the first frame (%s) is used for the whole run (only "
+                        "warptube:force and points are followed in time)", self.where(name), v)  # fmt: skip
+        return a, v
 
     def real(self, name, default=None, required=False, minimum=None, positive=False):
         a, v = self._typed(name, REAL, "a float or double")
@@ -242,7 +172,7 @@ def _stage_info(stage) -> StageInfo:
 def _read_tube(file: str, prim, info: StageInfo, frame_times, varying: dict | None = None) -> TubeSpec:
     from pxr import Usd, UsdGeom
 
-    r = _Reader(file, prim)
+    r = _Reader(file, prim, info.start_time_code)
     curves = UsdGeom.BasisCurves(prim)
     ctype = curves.GetTypeAttr().Get()
     if ctype != "linear":
@@ -348,7 +278,7 @@ def _read_tube(file: str, prim, info: StageInfo, frame_times, varying: dict | No
 
 
 def _read_force(file: str, prim, tubes_by_path: dict, tube_specs, info: StageInfo) -> ForceSpec:
-    r = _Reader(file, prim)
+    r = _Reader(file, prim, info.start_time_code)
     targets = prim.GetRelationship("warptube:target").GetTargets()
     if len(targets) != 1:
         r.fail("warptube:target", f"{len(targets)} targets", "exactly one tube prim")
@@ -381,8 +311,8 @@ def _read_force(file: str, prim, tubes_by_path: dict, tube_specs, info: StageInf
     )  # fmt: skip
 
 
-def _read_settings(file: str, prim) -> SimulationSettings:
-    r = _Reader(file, prim)
+def _read_settings(file: str, prim, start: float | None = None) -> SimulationSettings:
+    r = _Reader(file, prim, start)
     g = r.vec3("warptube:gravity")
     ts = r.real("warptube:timeStep", positive=True)
     if ts is not None and ts > 10.0:
@@ -452,7 +382,10 @@ class SceneReader:
         info = _stage_info(stage)
         frame_times = [info.start_time_code + k for k in range(info.frame_count)]
         tubes, settings_prims, force_prims, mesh_prims = [], [], [], []
-        for prim in stage.Traverse():
+        from pxr import Usd
+
+        # Into instances too: a tube under an instanceable prim is a tube (at its instance's path).
+        for prim in stage.Traverse(Usd.TraverseInstanceProxies(Usd.PrimDefaultPredicate)):
             names = [a.GetName() for a in prim.GetAttributes() if a.GetName().startswith("warptube:")]
             if prim.GetRelationship("warptube:target"):
                 check_names(path, prim, names, FORCE_ATTRS, "force")
@@ -465,7 +398,7 @@ class SceneReader:
                 tubes.append(prim)
             elif prim.IsA(UsdGeom.Mesh) and "warptube:extract" in names:
                 check_names(path, prim, names, MESH_ATTRS, "Mesh tube")
-                if _Reader(path, prim).boolean("warptube:extract", False):
+                if _Reader(path, prim, info.start_time_code).boolean("warptube:extract", False):
                     mesh_prims.append(prim)
             elif names:
                 check_names(path, prim, names, KNOWN_ATTRS, "warp_tube")
@@ -476,7 +409,7 @@ class SceneReader:
                 f"({', '.join(str(p.GetPath()) for p in settings_prims)}): expected at most one prim carrying "
                 "warptube:timeStep, warptube:integrator or warptube:gravity"
             )
-        settings = _read_settings(path, settings_prims[0]) if settings_prims else SimulationSettings()
+        settings = _read_settings(path, settings_prims[0], info.start_time_code) if settings_prims else SimulationSettings()
         varying: dict = {}  # ancestors' animated transforms, looked at once
         specs = [_read_tube(path, p, info, frame_times, varying) for p in tubes]
         if mesh_prims:
@@ -517,7 +450,7 @@ class SceneReader:
                 forces[k] = _read_force(path, prim, by_path, specs, last["info"])
         settings = scene.settings
         if last["settings_prims"] and below(str(last["settings_prims"][0].GetPath())):
-            settings = _read_settings(path, last["settings_prims"][0])
+            settings = _read_settings(path, last["settings_prims"][0], last["info"].start_time_code)
         scene = Scene(tubes=tuple(specs), forces=tuple(forces), settings=settings, stage=last["info"], source=path)
         last["scene"] = scene
         return scene

@@ -1,0 +1,141 @@
+"""Scenes as DCC tools write them: composition (sublayers, references, payloads, instances), time
+samples on every attribute, BasisCurves options the simulator does not follow, and the messages
+and results each gets from ``warp-tube run``."""
+
+from __future__ import annotations
+
+import numpy as np
+import pytest
+
+from warp_tube.cli import main
+from warp_tube.scene.spec import SceneError
+from warp_tube.scene.usd import load_scene
+
+from .conftest import SHARED, check_output_problems
+
+HEADER = """#usda 1.0
+(
+    metersPerUnit = 0.01
+    upAxis = "Y"
+    timeCodesPerSecond = 24
+    startTimeCode = 0
+    endTimeCode = 2
+)
+"""
+
+#: a 4 cm tube of 5 points along x, clamped at its start (stage units: cm)
+BODY = """
+        uniform token type = "linear"
+        int[] curveVertexCounts = [5]
+        point3f[] points = [(0, 0, 0), (1, 0, 0), (2, 0, 0), (3, 0, 0), (4, 0, 0)]
+        float[] widths = [0.5] (interpolation = "constant")
+        double warptube:youngsModulus = 100000
+        double warptube:density = 1050
+        int[] warptube:pinnedPoints = [0, 1]
+        int warptube:spokes = 4
+"""
+
+
+def tube(body=BODY, name="Tube", meta=""):
+    return f'def BasisCurves "{name}"{meta}\n{{{body}}}\n'
+
+
+def world(inner, meta=""):
+    return f'def Xform "World"{meta}\n{{\n{inner}\n}}\n'
+
+
+def run(args, capsys):
+    """``warp-tube run ... --quiet`` in this process: (exit status, stderr)."""
+    status = main(["run", *map(str, args), "--quiet"])
+    return status, capsys.readouterr().err
+
+
+def centerline(path, time):
+    from pxr import Usd
+
+    stage = Usd.Stage.Open(str(path))
+    prims = [p for p in stage.Traverse() if p.GetName() == "Centerline"]
+    return {str(p.GetParent().GetPath()): np.array(p.GetAttribute("points").Get(time)) for p in prims}
+
+
+def assert_checked(path):
+    if SHARED.is_dir():
+        assert check_output_problems(path) == []
+
+
+# -- time samples on warptube: attributes -------------------------------------------------------
+
+
+def test_time_sampled_parameter_is_read_at_the_first_frame_with_a_warning(tmp_path, capsys):
+    """DCC tools often write every attribute as time samples: the value at startTimeCode is used,
+    a warning names the attribute where the samples differ (before: an internal error)."""
+    body = BODY.replace("double warptube:density = 1050", "double warptube:density.timeSamples = { 0: 1050, 2: 2000 }")
+    body = body.replace("double warptube:youngsModulus = 100000", "double warptube:youngsModulus.timeSamples = { 5: 300000 }")
+    scene = tmp_path / "sampled.usda"
+    scene.write_text(HEADER.replace("startTimeCode = 0", "startTimeCode = 1") + world(tube(body)))
+    params = load_scene(str(scene)).tubes[0].params
+    # at time 1: density halfway between its samples (USD interpolates linearly), the one sample held
+    assert (params.density, params.youngs_modulus) == (1525.0, 300000.0)
+    status, err = run([scene, "-o", tmp_path / "out.usdc"], capsys)
+    assert status == 0, err
+    assert "sampled.usda: /World/Tube.warptube:density: time-sampled" in err
+    assert "youngsModulus" not in err  # one sample: nothing varies
+    assert_checked(tmp_path / "out.usdc")
+
+
+# -- composition --------------------------------------------------------------------------------
+
+
+def test_a_broken_sublayer_is_named_with_its_syntax_error(tmp_path, capsys):
+    (tmp_path / "layer.usda").write_text('#usda 1.0\ndef Xform "World" {\n')
+    scene = tmp_path / "scene.usda"
+    scene.write_text('#usda 1.0\n(\n    subLayers = [@layer.usda@]\n)\n')
+    status, err = run([scene, "-o", tmp_path / "out.usdc"], capsys)
+    assert status == 2
+    assert f"scene.usda: cannot open the sublayer {tmp_path / 'layer.usda'}: USD syntax error at line" in err
+    assert not (tmp_path / "out.usdc").exists()
+
+
+def test_a_truncated_payload_is_named_as_damaged(tmp_path, capsys):
+    from pxr import Sdf
+
+    (tmp_path / "asset.usda").write_text(HEADER + world(tube()))
+    Sdf.Layer.FindOrOpen(str(tmp_path / "asset.usda")).Export(str(tmp_path / "asset.usdc"))
+    data = (tmp_path / "asset.usdc").read_bytes()
+    (tmp_path / "asset.usdc").write_bytes(data[: len(data) // 2])
+    scene = tmp_path / "scene.usda"
+    scene.write_text(HEADER + 'def "Shot" (\n    payload = @asset.usdc@</World>\n)\n{\n}\n')
+    status, err = run([scene, "-o", tmp_path / "out.usdc"], capsys)
+    assert status == 2
+    assert "cannot open the payload" in err and "asset.usdc (at /Shot): damaged or truncated binary USD" in err
+
+
+def test_tubes_under_instanceable_prims_are_simulated_at_their_instances(tmp_path, capsys):
+    """Two instances of one referenced asset, each with its own translation: two tubes, each where
+    its instance puts it, each pushed by its own instance's force (before: 'no tube')."""
+    asset = HEADER + world(
+        tube() + 'def Scope "Push"\n{\n    rel warptube:target = </World/Tube>\n    int warptube:point = 4\n'
+        "    float3 warptube:force = (0, 0.001, 0)\n}\n"
+    )  # fmt: skip
+    (tmp_path / "asset.usda").write_text(asset)
+    inst = lambda name, z: (  # noqa: E731
+        f'def Xform "{name}" (\n    instanceable = true\n    references = @asset.usda@</World>\n)\n{{\n'
+        f'    double3 xformOp:translate = (0, 0, {z})\n    uniform token[] xformOpOrder = ["xformOp:translate"]\n}}\n'
+    )
+    scene = tmp_path / "scene.usda"
+    scene.write_text(HEADER + world(inst("A", 10) + inst("B", 20)))
+    s = load_scene(str(scene))
+    assert [t.path for t in s.tubes] == ["/World/A/Tube", "/World/B/Tube"]
+    assert [(f.path, f.tube) for f in s.forces] == [("/World/A/Push", 0), ("/World/B/Push", 1)]
+    out = tmp_path / "out.usdc"
+    status, err = run([scene, "-o", out], capsys)
+    assert status == 0, err
+    first = centerline(out, 0)
+    # The rest points in world space are the asset's points moved by the instance's translation,
+    # exactly (float32 of small integers).
+    np.testing.assert_array_equal(first["/World/A/Tube"][:, 2], 10.0)
+    np.testing.assert_array_equal(first["/World/B/Tube"][:, 2], 20.0)
+    np.testing.assert_array_equal(first["/World/B/Tube"][:, 0], [0, 1, 2, 3, 4])
+    last = centerline(out, 2)
+    assert last["/World/A/Tube"][4, 1] > 0 and last["/World/B/Tube"][4, 1] > 0  # both tips pushed up
+    assert_checked(out)
