@@ -139,3 +139,55 @@ def test_tubes_under_instanceable_prims_are_simulated_at_their_instances(tmp_pat
     last = centerline(out, 2)
     assert last["/World/A/Tube"][4, 1] > 0 and last["/World/B/Tube"][4, 1] > 0  # both tips pushed up
     assert_checked(out)
+
+
+# -- BasisCurves as DCC tools author them -------------------------------------------------------
+
+
+def _two_curves(widths_line):
+    body = BODY.replace("int[] curveVertexCounts = [5]", "int[] curveVertexCounts = [2, 3]")
+    body = body.replace("int[] warptube:pinnedPoints = [0, 1]", "int[] warptube:pinnedPoints = [0, 2]")
+    return body.replace('float[] widths = [0.5] (interpolation = "constant")', widths_line)
+
+
+@pytest.mark.parametrize(
+    "line, expected",
+    [
+        ('float[] widths = [0.5, 0.8] (interpolation = "uniform")', [0.5, 0.5, 0.8, 0.8, 0.8]),  # one per curve
+        ('float[] primvars:widths = [0.6] (interpolation = "constant")', [0.6] * 5),
+        ('float[] primvars:widths = [0.5, 0.9] (interpolation = "vertex")\n        int[] primvars:widths:indices = [0, 0, 1, 1, 0]',
+         [0.5, 0.5, 0.9, 0.9, 0.5]),  # indexed primvar, flattened
+        ('float[] widths = [0.1]\n        float[] primvars:widths = [0.7] (interpolation = "constant")', [0.7] * 5),  # primvar wins
+    ],
+)  # fmt: skip
+def test_widths_in_every_interpolation_and_as_primvars(tmp_path, line, expected):
+    scene = tmp_path / "widths.usda"
+    scene.write_text(HEADER + world(tube(_two_curves(line))))
+    # radius [m] = diameter / 2 x metersPerUnit 0.01; float32 widths, so 1e-9 relative
+    np.testing.assert_allclose(load_scene(str(scene)).tubes[0].radius, np.array(expected) * 0.005, rtol=1e-7)
+
+
+@pytest.mark.parametrize(
+    "body, words",
+    [
+        (_two_curves('float[] widths = [0.5, 0.8, 0.9] (interpolation = "uniform")'),
+         ["/World/Tube.widths", "3 values", "2 (uniform: one per curve)", "5 (one per point)"]),
+        (BODY.replace('float[] widths = [0.5] (interpolation = "constant")', ""),
+         ["/World/Tube.widths", "missing", "primvars:widths"]),
+        (BODY.replace('float[] widths = [0.5] (interpolation = "constant")', 'float[] primvars:widths = [0.5, -1, 1, 1, 1]'),
+         ["/World/Tube.primvars:widths", "-1.0 at index 1", "positive"]),
+        (BODY + '        uniform token wrap = "periodic"\n', ["/World/Tube.wrap", "'periodic'", "'nonperiodic'"]),
+        (BODY.replace('uniform token type = "linear"', ""), ["/World/Tube.type", "not authored", "'cubic'", '"linear"']),
+    ],
+)  # fmt: skip
+def test_curves_the_simulator_cannot_follow_are_named(tmp_path, capsys, body, words):
+    """A closed (periodic) curve was simulated as an open one without a word; an unauthored type
+    was reported as if 'cubic' had been written; primvars:widths was reported missing."""
+    scene = tmp_path / "curves.usda"
+    scene.write_text(HEADER + world(tube(body)))
+    status, err = run([scene, "-o", tmp_path / "out.usdc"], capsys)
+    assert status == 2
+    assert "curves.usda: " in err
+    for w in words:
+        assert w in err, f"{w!r} not in {err!r}"
+    assert not (tmp_path / "out.usdc").exists()

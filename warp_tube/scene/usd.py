@@ -16,6 +16,7 @@ import os
 
 import numpy as np
 
+from .curves import check_curve_type, curve_widths
 from .attributes import FORCE_ATTRS, KNOWN_ATTRS, MESH_ATTRS, SETTINGS_ATTRS, TUBE_ATTRS, check_names
 from .spec import (
     FRAME_MODES,
@@ -174,9 +175,7 @@ def _read_tube(file: str, prim, info: StageInfo, frame_times, varying: dict | No
 
     r = _Reader(file, prim, info.start_time_code)
     curves = UsdGeom.BasisCurves(prim)
-    ctype = curves.GetTypeAttr().Get()
-    if ctype != "linear":
-        r.fail("type", repr(ctype), "'linear' (each point of a curve is a centerline point)")
+    check_curve_type(r, curves)
     pattr = curves.GetPointsAttr()
     pts = pattr.Get(Usd.TimeCode(info.start_time_code)) if pattr.HasAuthoredValue() else None
     if pts is None or len(pts) == 0:
@@ -192,18 +191,7 @@ def _read_tube(file: str, prim, info: StageInfo, frame_times, varying: dict | No
     start_tc = Usd.TimeCode(info.start_time_code)
     world, scale, matrix = to_world(prim, pts, start_tc)
     mpu = info.meters_per_unit
-    widths = curves.GetWidthsAttr().Get(start_tc) if curves.GetWidthsAttr().HasAuthoredValue() else None
-    if widths is None or len(widths) == 0:
-        raise SceneError(f"{r.where('widths')}: missing: expected float[] diameters (one, or one per point)")
-    widths = np.asarray(widths, dtype=np.float64)
-    if len(widths) == 1:
-        widths = np.full(len(pts), widths[0])
-    elif len(widths) != len(pts):
-        r.fail("widths", f"{len(widths)} values", f"1 (constant) or {len(pts)} (one per point)")
-    bad = ~(np.isfinite(widths) & (widths > 0))
-    if bad.any():
-        i = int(np.argmax(bad))
-        r.fail("widths", f"{widths[i]} at index {i}", "positive finite diameters")
+    widths = curve_widths(r, curves, counts, start_tc)
     radius = 0.5 * widths * scale * mpu
     warn_about_transforms(prim, matrix, curves.GetPointsAttr().GetNumTimeSamples() > 1, r.where("points"), varying)
     E = r.real("warptube:youngsModulus", positive=True)
