@@ -191,3 +191,52 @@ def test_curves_the_simulator_cannot_follow_are_named(tmp_path, capsys, body, wo
     for w in words:
         assert w in err, f"{w!r} not in {err!r}"
     assert not (tmp_path / "out.usdc").exists()
+
+
+def test_a_tube_named_like_an_output_child_is_refused(tmp_path, capsys):
+    """A tube at /World/Surface would put its Centerline and Surface at /World/Surface/..., and
+    /World would hold a child 'Surface' that is not the Mesh the output contract promises."""
+    scene = tmp_path / "named.usda"
+    scene.write_text(HEADER + world(tube(name="Surface")))
+    status, err = run([scene, "-o", tmp_path / "out.usdc"], capsys)
+    assert status == 2
+    assert "named.usda: /World/Surface: a tube prim named Surface" in err
+    assert not (tmp_path / "out.usdc").exists()
+
+
+# -- units and axes of referenced layers --------------------------------------------------------
+
+
+def _asset(tmp_path, metadata):
+    """asset.usda: the tube, with HEADER's metersPerUnit or upAxis replaced by ``metadata``."""
+    key = metadata.split("=")[0].strip()
+    lines = [line for line in HEADER.splitlines(keepends=True) if not line.strip().startswith(key)]
+    lines.insert(2, metadata + '    defaultPrim = "World"\n')
+    (tmp_path / "asset.usda").write_text("".join(lines) + world(tube()))
+
+
+@pytest.mark.parametrize(
+    "metadata, holder, warning",
+    [
+        ("    metersPerUnit = 0.001\n", "", "whose metersPerUnit is 0.001, but the stage's is 0.01"),
+        ('    upAxis = "Z"\n', "", "whose upAxis is Z, but the stage's is Y"),
+        ("    metersPerUnit = 0.001\n", '    float3 xformOp:scale = (0.1, 0.1, 0.1)\n    uniform token[] xformOpOrder = ["xformOp:scale"]\n', None),
+        ('    upAxis = "Z"\n', '    float xformOp:rotateX = -90\n    uniform token[] xformOpOrder = ["xformOp:rotateX"]\n', None),
+    ],
+)  # fmt: skip
+def test_a_reference_in_other_units_or_axes_is_warned_of_unless_made_up_for(tmp_path, caplog, metadata, holder, warning):
+    """USD does not convert a referenced layer's metersPerUnit or upAxis: a millimetre asset in a
+    centimetre stage is silently ten times too large unless the referencing prim scales it."""
+    _asset(tmp_path, metadata)
+    scene = tmp_path / "scene.usda"
+    scene.write_text(HEADER + f'def Xform "Shot" (\n    references = @asset.usda@\n)\n{{\n{holder}}}\n')
+    caplog.set_level("WARNING")
+    s = load_scene(str(scene))
+    found = [r.getMessage() for r in caplog.records if "comes from" in r.getMessage()]
+    if warning is None:
+        assert found == []
+    else:
+        assert len(found) == 1 and "scene.usda: /Shot/Tube.points" in found[0] and warning in found[0]
+    if "scale" in holder:  # made up for: the 4 mm tube is 4 mm long, 0.5 mm across (float32 inputs)
+        np.testing.assert_allclose(s.tubes[0].points[:, 0], [0, 0.001, 0.002, 0.003, 0.004], atol=1e-9)
+        np.testing.assert_allclose(s.tubes[0].radius, 0.00025, rtol=1e-6)

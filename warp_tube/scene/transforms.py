@@ -9,7 +9,7 @@ import numpy as np
 
 log = logging.getLogger("warp_tube.scene.usd")
 
-__all__ = ["to_world", "warn_about_transforms"]
+__all__ = ["to_world", "warn_about_layer_units", "warn_about_transforms"]
 
 
 def warn_about_transforms(prim, matrix: np.ndarray, pattr_sampled: bool, where: str, varying: dict | None = None) -> None:
@@ -60,3 +60,45 @@ def to_world(prim, pts: np.ndarray, time) -> tuple[np.ndarray, float, np.ndarray
     out = pts @ m[:3, :3] + m[3, :3]
     scale = abs(np.linalg.det(m[:3, :3])) ** (1.0 / 3.0)
     return out, scale, m
+
+
+def warn_about_layer_units(prim, points_attr, matrix: np.ndarray, stage_mpu: float, stage_up: str, where: str) -> None:
+    """Warn where a tube's points come from a layer (a reference, payload or sublayer) whose own
+    ``metersPerUnit`` or ``upAxis`` differs from the stage's: USD does not convert them, so the
+    points are taken in the stage's units and axes. No warning where the tube's transform makes up
+    for it (scales by the ratio of the units, turns the layer's up axis to the stage's).
+
+    Args:
+        prim: the tube prim.
+        points_attr: its ``points`` attribute.
+        matrix: its local-to-world matrix at the first frame (4, 4), row vectors (:func:`to_world`).
+        stage_mpu, stage_up: the stage's metersPerUnit and upAxis ("Y" or "Z").
+        where: the prim and attribute, for the message.
+    """
+    specs = points_attr.GetPropertyStack()
+    if not specs:
+        return
+    layer = specs[0].layer
+    root = prim.GetStage().GetRootLayer()
+    if layer == root or layer == prim.GetStage().GetSessionLayer():
+        return
+    info = layer.pseudoRoot
+    name = layer.realPath or layer.identifier
+    m = np.asarray(matrix, dtype=np.float64)[:3, :3]
+    scale = abs(np.linalg.det(m)) ** (1.0 / 3.0)
+    if info.HasInfo("metersPerUnit"):
+        mpu = float(info.GetInfo("metersPerUnit"))
+        if mpu > 0 and abs(mpu / stage_mpu - 1.0) > 1e-6 and abs(scale * stage_mpu / mpu - 1.0) > 1e-3:
+            log.warning("%s: comes from %s, whose metersPerUnit is %g, but the stage's is %g: USD does not convert "
+                        "units between layers, so its points are taken in the stage's units (%g times their size; "
+                        "a scale of %g on the prim that brings it in makes up for it)",
+                        where, name, mpu, stage_mpu, stage_mpu / mpu, mpu / stage_mpu)  # fmt: skip
+    if info.HasInfo("upAxis"):
+        up = str(info.GetInfo("upAxis")).upper()
+        axis = {"Y": np.array([0.0, 1.0, 0.0]), "Z": np.array([0.0, 0.0, 1.0])}
+        if up in axis and up != stage_up.upper():
+            turned = axis[up] @ m
+            if np.dot(turned, axis[stage_up.upper()]) < 0.999 * np.linalg.norm(turned):
+                log.warning("%s: comes from %s, whose upAxis is %s, but the stage's is %s: USD does not turn layers "
+                            "to the stage's up axis, so the tube lies as authored (rotate the prim that brings it in "
+                            "to make up for it)", where, name, up, stage_up.upper())  # fmt: skip

@@ -30,7 +30,7 @@ from .spec import (
     TubeSpec,
 )
 from .opening import open_stage, usd_error_in_user_terms
-from .transforms import to_world, warn_about_transforms
+from .transforms import to_world, warn_about_layer_units, warn_about_transforms
 
 log = logging.getLogger(__name__)
 
@@ -194,6 +194,7 @@ def _read_tube(file: str, prim, info: StageInfo, frame_times, varying: dict | No
     widths = curve_widths(r, curves, counts, start_tc)
     radius = 0.5 * widths * scale * mpu
     warn_about_transforms(prim, matrix, curves.GetPointsAttr().GetNumTimeSamples() > 1, r.where("points"), varying)
+    warn_about_layer_units(prim, pattr, matrix, mpu, info.up_axis, r.where("points"))
     E = r.real("warptube:youngsModulus", positive=True)
     EA = r.real("warptube:stretchStiffness", minimum=0.0)
     EI = r.real("warptube:bendStiffness", minimum=0.0)
@@ -391,6 +392,13 @@ class SceneReader:
             elif names:
                 check_names(path, prim, names, KNOWN_ATTRS, "warp_tube")
                 log.info("%s: %s carries warptube: attributes but is not a tube, force or settings prim: ignored", path, prim.GetPath())
+        for prim in tubes + mesh_prims:
+            if prim.GetName() in ("Centerline", "Surface"):
+                raise SceneError(
+                    f"{path}: {prim.GetPath()}: a tube prim named {prim.GetName()}: expected another name (the output "
+                    f"holds P/Centerline and P/Surface under each tube prim P, so {prim.GetParent().GetPath()} would "
+                    "read as a tube there)"
+                )
         if len(settings_prims) > 1:
             raise SceneError(
                 f"{path}: {len(settings_prims)} simulation settings prims "
