@@ -538,17 +538,17 @@ def near_axis_batches(tmp_path, device: str):
     seen = []
     import warp_tube.batch.control as control
 
-    update = control.WorldControl._update_assistant_lines
+    update = control.WorldControl.update
 
-    def spy(self, f, state):
-        update(self, f, state)
-        seen.append(self._al_active[:, 0].copy())
+    def spy(self, frame, state):
+        update(self, frame, state)
+        seen.append(self.control.al_active.numpy()[:, 0].copy())
 
-    control.WorldControl._update_assistant_lines = spy
+    control.WorldControl.update = spy
     try:
         assert run_batch(str(scene), str(together), str(table), frames=FRAMES_BENT, writers=0, chunk=8, device=device).ok == 8
     finally:
-        control.WorldControl._update_assistant_lines = update
+        control.WorldControl.update = update
     assert run_batch(str(scene), str(apart), str(table), frames=FRAMES_BENT, writers=0, chunk=1, device=device).ok == 8
     return pushes, scene, together, apart, (seen[-1] != 0) & (seen[0] == 0)
 

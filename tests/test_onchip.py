@@ -55,12 +55,28 @@ def batch_inputs(model, seed=3):
     return state, control
 
 
+def lay_line(state, control, slots: slice, x, xp, xd):
+    """Lay a line in ``slots`` of every world at ``xp`` beside tube points ``x`` (float64, (W, n, 3)
+    [m]), moving with ``xd``, its springs unstrained (rest lengths from these positions)."""
+    al_q, al_lo, al_qd = state.al_q.numpy(), state.al_q_lo.numpy(), state.al_qd.numpy()
+    hi = xp.astype(np.float32)
+    al_q[:, slots], al_lo[:, slots], al_qd[:, slots] = hi, (xp - hi).astype(np.float32), xd
+    p0, n = slots.start, slots.stop - slots.start
+    lengths = {name: getattr(control, name).numpy() for name in ("al_link_length", "al_chord_length", "al_fwd_length", "al_bwd_length")}
+    lengths["al_link_length"][:, slots] = np.linalg.norm(xp - x, axis=-1)
+    lengths["al_chord_length"][:, p0 : p0 + n - 1] = np.linalg.norm(xp[:, 1:] - xp[:, :-1], axis=-1)
+    lengths["al_fwd_length"][:, p0 : p0 + n - 1] = np.linalg.norm(x[:, 1:] - xp[:, :-1], axis=-1)
+    lengths["al_bwd_length"][:, p0 + 1 : p0 + n] = np.linalg.norm(x[:, :-1] - xp[:, 1:], axis=-1)
+    for array, values in ((state.al_q, al_q), (state.al_q_lo, al_lo), (state.al_qd, al_qd)):
+        array.assign(values)
+    for name, values in lengths.items():
+        getattr(control, name).assign(values)
+
+
 def integrated(model, substeps, frames, lines, solver_args):
     """The state after ``frames`` frames of ``substeps`` from :func:`batch_inputs` (with
     ``lines``, the force's assistant line laid beside its tube in every world, 1 cm off the axis,
     and active), and the solver."""
-    from warp_tube.sim.control import AssistantLineArrays
-
     solver = SemiImplicitEulerSolver(model, **solver_args)
     s0, control = batch_inputs(model)
     h = model.host
@@ -68,10 +84,7 @@ def integrated(model, substeps, frames, lines, solver_args):
         t = int(h.force_tube[0])
         s, e, p0 = int(h.tube_node_start[t]), int(h.tube_node_start[t + 1]), int(h.al_start[0])
         q = s0.node_q.numpy().astype(np.float64) + s0.node_q_lo.numpy()
-        al = AssistantLineArrays.read(s0, control)
-        x = q[:, s:e]
-        al.build(slice(None), slice(p0, p0 + e - s), x, x + np.array([0.0, 0.0, 0.01]), s0.node_qd.numpy()[:, s:e])
-        al.write(s0, control)
+        lay_line(s0, control, slice(p0, p0 + e - s), q[:, s:e], q[:, s:e] + np.array([0.0, 0.0, 0.01]), s0.node_qd.numpy()[:, s:e])
         control.al_active.fill_(1)
     s1 = model.state()
     dt = 0.5 * critical_time_step(model.host)

@@ -9,73 +9,22 @@ model's :class:`~warp_tube.model.tube.TubeControl` before each frame.
   the force starts or turns by more than :data:`AL_REBUILD_ANGLE` from the direction it was built
   with, and removed when the force becomes zero. It is offset along the force's part across the
   tube at its point, by the tube's radius, and not built while the force is within
-  :data:`AL_MIN_ANGLE` of the tube's axis.
+  :data:`AL_MIN_ANGLE` of the tube's axis. The rule runs on the model's device, world by world
+  (:mod:`warp_tube.sim.assistant_lines`).
 """
 
 from __future__ import annotations
 
 import logging
-import math
 
 import numpy as np
 
 from ..scene.spec import Scene
+from .assistant_lines import AL_MIN_ANGLE, AL_REBUILD_ANGLE, AssistantLines
 
 log = logging.getLogger(__name__)
 
-__all__ = ["FrameControl", "AssistantLineArrays", "AL_REBUILD_ANGLE", "AL_MIN_ANGLE"]
-
-#: the assistant line is rebuilt when its force turns by more than this [rad].
-AL_REBUILD_ANGLE = math.radians(45.0)
-#: no assistant line is built for a force within this angle of the tube's axis [rad].
-AL_MIN_ANGLE = math.radians(15.0)
-
-
-class AssistantLineArrays:
-    """The assistant lines' state and rest lengths, read to the host to build lines and written back
-    whole: entries of lines not rebuilt keep their values bit for bit (the low-order part of the
-    positions included).
-
-    Shapes (W worlds, L line slots): ``q_hi``, ``q_lo``, ``qd`` (W, L, 3) float32 [m, m/s];
-    ``lengths`` by name (W, L) float32 [m] (``al_link_length``, ``al_chord_length``,
-    ``al_fwd_length``, ``al_bwd_length``, as :class:`~warp_tube.model.tube.TubeControl`).
-    """
-
-    LENGTHS = ("al_link_length", "al_chord_length", "al_fwd_length", "al_bwd_length")
-
-    def __init__(self, q_hi: np.ndarray, q_lo: np.ndarray, qd: np.ndarray, lengths: dict):
-        self.q_hi, self.q_lo, self.qd, self.lengths = q_hi, q_lo, qd, lengths
-
-    @classmethod
-    def read(cls, state, control, fetch=None) -> AssistantLineArrays:
-        """Copy the lines' state and rest lengths of ``state`` and ``control`` to the host
-        (``fetch``: a device array to a writable NumPy array; default ``wp.array.numpy``)."""
-        fetch = fetch or (lambda a: a.numpy())
-        lengths = {n: fetch(getattr(control, n)) for n in cls.LENGTHS}
-        return cls(fetch(state.al_q), fetch(state.al_q_lo), fetch(state.al_qd), lengths)
-
-    def build(self, worlds, slots: slice, x: np.ndarray, xp: np.ndarray, xd: np.ndarray) -> None:
-        """Lay a line: slots ``slots`` of ``worlds`` (an index or a slice) at ``xp`` beside the tube
-        points ``x``, both float64 (w, n, 3) [m], moving with the tube's velocities ``xd`` [m/s];
-        its links, chords and diagonals get their rest lengths from these positions (unstrained)."""
-        hi = xp.astype(np.float32)
-        self.q_hi[worlds, slots] = hi
-        self.q_lo[worlds, slots] = (xp - hi).astype(np.float32)
-        self.qd[worlds, slots] = xd
-        p0, n = slots.start, slots.stop - slots.start
-        L = self.lengths
-        L["al_link_length"][worlds, slots] = np.linalg.norm(xp - x, axis=-1)
-        L["al_chord_length"][worlds, p0 : p0 + n - 1] = np.linalg.norm(xp[:, 1:] - xp[:, :-1], axis=-1)
-        L["al_fwd_length"][worlds, p0 : p0 + n - 1] = np.linalg.norm(x[:, 1:] - xp[:, :-1], axis=-1)
-        L["al_bwd_length"][worlds, p0 + 1 : p0 + n] = np.linalg.norm(x[:, :-1] - xp[:, 1:], axis=-1)
-
-    def write(self, state, control) -> None:
-        """Copy the lines back into ``state`` and ``control``."""
-        state.al_q.assign(self.q_hi)
-        state.al_q_lo.assign(self.q_lo)
-        state.al_qd.assign(self.qd)
-        for n, v in self.lengths.items():
-            getattr(control, n).assign(v)
+__all__ = ["FrameControl", "AL_REBUILD_ANGLE", "AL_MIN_ANGLE"]
 
 
 class FrameControl:
@@ -92,11 +41,11 @@ class FrameControl:
         self.frame_dt = scene.stage.frame_dt
         self._force_override: dict[int, np.ndarray] = {}
         self._pin_override: dict[int, np.ndarray] = {}
-        self._al_dir = np.zeros((model.force_count, 3))
         # What this object last wrote into the control (it alone writes these): the point forces
-        # are uploaded only when they change, and the lines' flags are not read back each frame.
+        # are uploaded only when they change.
         self._fe_last = None  # (node_count, 3) [N]
-        self._active = np.zeros(control.al_active.shape, dtype=np.int32)  # as TubeModel.control() makes it
+        self._f_last = None  # (force_count, 3) [N], as the assistant lines' rule last got them
+        self.lines = AssistantLines(model, model.host.node_radius) if model.features.assistant_line else None
         prim_start = model.host.prim_node_start
         self.pinned_nodes = [prim_start[k] + t.pinned for k, t in enumerate(scene.tubes)]
         if scene.source == "<python>":  # a scene built in code (the USD reader warns as it reads a stage)
@@ -188,8 +137,11 @@ class FrameControl:
             if self._fe_last is None or not np.array_equal(fe, self._fe_last):  # held forces: uploaded once
                 c.node_f_ext.assign(np.repeat(fe[None], W, axis=0))
                 self._fe_last = fe
-            if m.features.assistant_line:
-                self._update_assistant_lines(f, state)
+            if self.lines is not None:
+                if self._f_last is None or not np.array_equal(f, self._f_last):
+                    self.lines.set_forces(f)
+                    self._f_last = f
+                self.lines.update(state, c)
         if self.moving_pins:
             q0 = c.pin_q_end.numpy()
             q1 = q0.copy()
@@ -201,55 +153,6 @@ class FrameControl:
                     q1[:, nodes] = t.pin_track[min(frame + 1, len(t.pin_track) - 1)]
             c.pin_q_start.assign(q0)
             c.pin_q_end.assign(q1)
-
-    def _update_assistant_lines(self, f: np.ndarray, state):
-        m, c, h = self.model, self.control, self.model.host
-        active = self._active
-        changed = False
-        state_q = state_qd = lines = None
-        for a in range(m.force_count):
-            if not h.force_uses_al[a]:
-                continue
-            mag = float(np.linalg.norm(f[a]))
-            if mag == 0.0:
-                if active[:, a].any():
-                    active[:, a] = 0
-                    changed = True
-                continue
-            d = f[a] / mag
-            if active[0, a] and float(np.dot(d, self._al_dir[a])) >= math.cos(AL_REBUILD_ANGLE):
-                continue
-            if state_q is None:
-                # Positions in float64 (compensated: float32 + low-order part), so the line is
-                # built unstrained in the kernels' arithmetic.
-                state_q = state.node_q.numpy().astype(np.float64) + state.node_q_lo.numpy()
-                state_qd = state.node_qd.numpy()
-            t = h.force_tube[a]
-            s, e = h.tube_node_start[t], h.tube_node_start[t + 1]
-            # Offset towards the push: the force's part across the tube at its point (world 0).
-            k = h.force_node[a]
-            tangent = state_q[0, min(k + 1, e - 1)] - state_q[0, max(k - 1, s)]
-            tangent = tangent / max(np.linalg.norm(tangent), 1e-30)
-            across = d - np.dot(d, tangent) * tangent
-            self._al_dir[a] = d
-            if np.linalg.norm(across) < math.sin(AL_MIN_ANGLE):
-                if active[:, a].any():
-                    active[:, a] = 0
-                    changed = True
-                continue
-            if lines is None:
-                lines = AssistantLineArrays.read(state, c)
-            offset_dir = across / np.linalg.norm(across)
-            p0 = h.al_start[a]
-            off = h.node_radius[s:e, None] * offset_dir[None]
-            x = state_q[:, s:e]
-            lines.build(slice(None), slice(p0, p0 + e - s), x, x + off[None], state_qd[:, s:e])
-            active[:, a] = 1
-            changed = True
-        if lines is not None:
-            lines.write(state, c)
-        if changed:
-            c.al_active.assign(active)
 
 
 def _index(which, paths: list[str], kind: str) -> int:
