@@ -18,6 +18,7 @@ from concurrent.futures.process import BrokenProcessPool
 
 import numpy as np
 
+from ..runtime.collector import collector_paused
 from ..runtime.log_filters import silenced
 from ..scene.spec import SceneError
 from .execute import ignore_sigint
@@ -56,18 +57,20 @@ def _prepare_part(scene: str, table, variant_sets):
 
     wp.config.log_level = wp.LOG_WARNING
     wp.config.quiet = True
-    variants, problems = collect_variants(scene, table, variant_sets, extract=_extract)
-    if problems:
-        return variants, problems, None
-    try:
-        return variants, [], checked_run_choices(variants)
-    except SceneError as e:
-        return variants, [(table.first_row, str(e))], None
+    with collector_paused():
+        variants, problems = collect_variants(scene, table, variant_sets, extract=_extract)
+        if problems:
+            return variants, problems, None
+        try:
+            return variants, [], checked_run_choices(variants)
+        except SceneError as e:
+            return variants, [(table.first_row, str(e))], None
 
 
 def prepare_batch(scene: str, table, variant_sets, bar, pool: cf.ProcessPoolExecutor | None = None, pool_size: int = 0):
     """Every variant and its run choice, read by one process or, for a large table, several
     (each opening the scene and reading a part of the rows); all problems reported together.
+    The cyclic garbage collector is held off meanwhile (:mod:`warp_tube.runtime.collector`).
 
     Args:
         scene, table, variant_sets: the batch's scene file, its :class:`~warp_tube.batch.table.Table`
@@ -76,6 +79,11 @@ def prepare_batch(scene: str, table, variant_sets, bar, pool: cf.ProcessPoolExec
         pool, pool_size: running worker processes to read with (the writers) and how many they
             are, or None to start some.
     """
+    with collector_paused():
+        return _prepare_batch(scene, table, variant_sets, bar, pool, pool_size)
+
+
+def _prepare_batch(scene, table, variant_sets, bar, pool, pool_size):
     from .variants import Variants, name_width, plain_table, prepare_variants, raise_problems
 
     rows = len(table.rows) if table is not None else 1

@@ -30,6 +30,7 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
+from ..runtime.collector import collector_paused
 from ..runtime.interrupts import kept_interrupts
 from ..scene.spec import SceneError
 from .engine import TIMERS, output_frames
@@ -298,7 +299,8 @@ def _run_batch(scene, out_dir, table, tab, devices, writer_pool, sim_workers, t_
     first = variants.variants[0].scene
     n_frames = first.stage.frame_count if frames is None else int(frames)
     memo: dict = {}
-    keys = [group_key(v.scene, c, surface, memo) for v, c in zip(variants.variants, choices)]
+    with collector_paused():  # (one small key per variant: see runtime.collector)
+        keys = [group_key(v.scene, c, surface, memo) for v, c in zip(variants.variants, choices)]
     journal = Journal(out_dir)
     if chunk is None:
         base = DEFAULT_CHUNK_CUDA if devices[0].startswith("cuda") else DEFAULT_CHUNK_CPU
@@ -318,7 +320,8 @@ def _run_batch(scene, out_dir, table, tab, devices, writer_pool, sim_workers, t_
                      chunk=chunk, variants=len(variants))  # fmt: skip
     result = BatchResult(out_dir=out_dir, variants=len(variants), groups=len({c.group for c in plan}), chunks=len(plan),
                          devices=devices if devices != ["dask"] else [f"dask {scheduler}"], frames=len(F_idx))  # fmt: skip
-    counts = _counts(variants.variants, surface)  # per variant its points and vertices
+    with collector_paused():
+        counts = _counts(variants.variants, surface)  # per variant its points and vertices
     spec = _output_spec(variants, counts, layout, out_dir, journal.dir, surface, time_codes)
     result.prepare_s = time.perf_counter() - t_start
 
