@@ -240,3 +240,69 @@ def test_a_reference_in_other_units_or_axes_is_warned_of_unless_made_up_for(tmp_
     if "scale" in holder:  # made up for: the 4 mm tube is 4 mm long, 0.5 mm across (float32 inputs)
         np.testing.assert_allclose(s.tubes[0].points[:, 0], [0, 0.001, 0.002, 0.003, 0.004], atol=1e-9)
         np.testing.assert_allclose(s.tubes[0].radius, 0.00025, rtol=1e-6)
+
+
+@pytest.mark.parametrize(
+    "old, new, words",
+    [
+        ("float[] widths = [0.5]", "float widths = 0.5", ["/World/Tube.widths", "type float", "float[]"]),
+        ("float[] widths = [0.5]", 'string widths = "0.5"', ["/World/Tube.widths", "type string", "float[]"]),
+        ('float[] widths = [0.5] (interpolation = "constant")',
+         'float[] primvars:widths = [0.5] (interpolation = "vertex")\n        int[] primvars:widths:indices = [0, 0, 7, 0, 0]',
+         ["/World/Tube.primvars:widths:indices", "7 at position 2", "0..0"]),
+        ('uniform token type = "linear"', 'uniform token type = "linear"\n        uniform token wrap = "loop"',
+         ["/World/Tube.wrap", "'loop'", "'nonperiodic'"]),
+    ],
+)  # fmt: skip
+def test_mistyped_curve_attributes_are_named(tmp_path, capsys, old, new, words):
+    """A scalar or string widths was an internal error (or read as a number); out-of-range primvar
+    indices leaked usd-core's own warning and were reported as empty widths."""
+    assert old in BODY
+    scene = tmp_path / "typed.usda"
+    scene.write_text(HEADER + world(tube(BODY.replace(old, new))))
+    status, err = run([scene, "-o", tmp_path / "out.usdc"], capsys)
+    assert status == 2, err
+    assert "typed.usda: " in err and "internal error" not in err and "Warning: in" not in err
+    for w in words:
+        assert w in err, f"{w!r} not in {err!r}"
+
+
+# -- transforms ---------------------------------------------------------------------------------
+
+XFORM = '        {}\n        uniform token[] xformOpOrder = ["{}"]\n'
+
+
+@pytest.mark.parametrize(
+    "on_world, op, words",
+    [
+        (False, 'string xformOp:translate = "x"', ["/World/Tube.xformOpOrder", "cannot be computed", "Invalid combination"]),
+        (False, "double3 xformOp:translate = (nan, 0, 0)", ["/World/Tube.xformOpOrder", "is not finite"]),
+        (True, "float3 xformOp:scale = (1, 0, 1)", ["/World.xformOpOrder", "zero scale", "places the tube /World/Tube"]),
+    ],
+)  # fmt: skip
+def test_a_transform_that_cannot_place_the_tube_is_named(tmp_path, capsys, on_world, op, words):
+    """A mistyped xformOp was an internal error; a NaN or zero scale was reported as NaN points or
+    a zero width, naming the tube instead of the prim whose transform is wrong."""
+    ops = XFORM.format(op, op.split()[1])  # "TYPE xformOp:NAME = VALUE"
+    if on_world:
+        scene_text = HEADER + world(tube()).replace('def Xform "World"\n{\n', 'def Xform "World"\n{\n' + ops, 1)
+    else:
+        scene_text = HEADER + world(tube(BODY + ops))
+    scene = tmp_path / "xf.usda"
+    scene.write_text(scene_text)
+    status, err = run([scene, "-o", tmp_path / "out.usdc"], capsys)
+    assert status == 2, err
+    assert "xf.usda: " in err and "internal error" not in err and "RuntimeWarning" not in err
+    for w in words:
+        assert w in err, f"{w!r} not in {err!r}"
+
+
+def test_a_tiny_uniform_scale_is_a_valid_transform(tmp_path):
+    """1e-4 on every axis is small, not singular: the tube is placed and sized by it exactly."""
+    ops = XFORM.format("float3 xformOp:scale = (1e-4, 1e-4, 1e-4)", "xformOp:scale")
+    scene = tmp_path / "tiny.usda"
+    scene.write_text(HEADER + world(tube(BODY + ops)))
+    t = load_scene(str(scene)).tubes[0]
+    # x [m] = i x 1e-4 x 0.01; float32 scale, so 1e-7 relative
+    np.testing.assert_allclose(t.points[:, 0], np.arange(5) * 1e-6, rtol=1e-6, atol=1e-15)
+    np.testing.assert_allclose(t.radius, 0.25 * 1e-6, rtol=1e-6)

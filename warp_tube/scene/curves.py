@@ -25,6 +25,8 @@ def check_curve_type(r, curves) -> None:
     if ctype != "linear":
         r.fail("type", repr(ctype), "'linear' (each point of a curve is a centerline point)")
     wrap = curves.GetWrapAttr().Get()
+    if wrap not in ("nonperiodic", "periodic", "pinned"):
+        r.fail("wrap", repr(wrap), "'nonperiodic' (or 'pinned', which linear curves ignore)")
     if wrap == "periodic":
         r.fail("wrap", "'periodic' (closed curves)", "'nonperiodic': each curve is a tube with two ends; a closed "
                "loop is not supported (an open curve whose last point repeats the first gives a ring with a seam)")  # fmt: skip
@@ -43,9 +45,19 @@ def curve_widths(r, curves, counts: np.ndarray, time) -> np.ndarray:
     primvar = UsdGeom.PrimvarsAPI(curves.GetPrim()).GetPrimvar("widths")
     if primvar and primvar.HasAuthoredValue():
         name, interpolation = "primvars:widths", primvar.GetInterpolation()
-        values = primvar.ComputeFlattened(time)
+        _check_array_type(r, name, primvar.GetAttr())
+        values = primvar.Get(time)
+        indices = primvar.GetIndices(time) if primvar.IsIndexed() else None
+        if indices is not None and values is not None:
+            indices = np.asarray(indices, dtype=np.int64)
+            bad = (indices < 0) | (indices >= len(values))
+            if bad.any():
+                i = int(np.argmax(bad))
+                r.fail("primvars:widths:indices", f"{indices[i]} at position {i}", f"indices 0..{len(values) - 1} into primvars:widths")
+            values = np.asarray(values, dtype=np.float64)[indices]
     elif curves.GetWidthsAttr().HasAuthoredValue():
         name, interpolation = "widths", curves.GetWidthsInterpolation()
+        _check_array_type(r, name, curves.GetWidthsAttr())
         values = curves.GetWidthsAttr().Get(time)
     else:
         raise SceneError(f"{r.where('widths')}: missing: expected float[] diameters (one, one per curve with "
@@ -65,3 +77,11 @@ def curve_widths(r, curves, counts: np.ndarray, time) -> np.ndarray:
         i = int(np.argmax(bad))
         r.fail(name, f"{widths[i]} at index {i}", "positive finite diameters")
     return widths
+
+
+def _check_array_type(r, name: str, attr) -> None:
+    # the type as authored: for a schema attribute (widths) the attribute reports the schema's type
+    specs = attr.GetPropertyStack()
+    tname = str(specs[0].typeName) if specs else str(attr.GetTypeName())
+    if tname not in ("float[]", "double[]", "half[]"):
+        r.fail(name, f"type {tname}", "float[] diameters")

@@ -236,7 +236,7 @@ class TubeSpec:
             raise SceneError(f"{where}: widths give {rad.shape} radii: expected one or {len(pts)}")
         if not (np.isfinite(rad).all() and (rad > 0).all()):
             bad = int(np.argwhere(~(np.isfinite(rad) & (rad > 0)))[0, 0])
-            raise SceneError(f"{where}: widths[{bad}] = {2 * rad[bad]!r}: expected a positive finite diameter")
+            raise SceneError(f"{where}: widths[{bad}] = {float(2 * rad[bad]):g} m: expected a positive finite diameter")
         object.__setattr__(self, "points", pts)
         object.__setattr__(self, "curve_counts", counts)
         object.__setattr__(self, "radius", rad)

@@ -52,11 +52,22 @@ def warn_about_transforms(prim, matrix: np.ndarray, pattr_sampled: bool, where: 
         p = p.GetParent()
 
 
-def to_world(prim, pts: np.ndarray, time) -> tuple[np.ndarray, float, np.ndarray]:
-    """Points (P, 3) to world space; also the transform's mean length scale and its matrix (4, 4)."""
-    from pxr import UsdGeom
+def to_world(prim, pts: np.ndarray, time, file: str = "") -> tuple[np.ndarray, float, np.ndarray]:
+    """Points (P, 3) to world space; also the transform's mean length scale and its matrix (4, 4).
 
-    m = np.array(UsdGeom.Xformable(prim).ComputeLocalToWorldTransform(time), dtype=np.float64)
+    Raises:
+        SceneError: a transform of the prim or an ancestor that usd-core cannot compute (an xformOp
+            of the wrong type), that is not finite, or that has a zero scale; naming ``file``, that
+            prim and its ``xformOpOrder``.
+    """
+    from pxr import Tf, UsdGeom
+
+    try:
+        m = np.array(UsdGeom.Xformable(prim).ComputeLocalToWorldTransform(time), dtype=np.float64)
+    except Tf.ErrorException:
+        m = None
+    if m is None or not _usable(m):
+        _raise_for_transform(prim, time, file)
     out = pts @ m[:3, :3] + m[3, :3]
     scale = abs(np.linalg.det(m[:3, :3])) ** (1.0 / 3.0)
     return out, scale, m
@@ -102,3 +113,43 @@ def warn_about_layer_units(prim, points_attr, matrix: np.ndarray, stage_mpu: flo
                 log.warning("%s: comes from %s, whose upAxis is %s, but the stage's is %s: USD does not turn layers "
                             "to the stage's up axis, so the tube lies as authored (rotate the prim that brings it in "
                             "to make up for it)", where, name, up, stage_up.upper())  # fmt: skip
+
+
+def _usable(m: np.ndarray) -> bool:
+    """A finite matrix whose linear part keeps volumes (relative to its size) away from zero."""
+    if not np.isfinite(m).all():
+        return False
+    size = np.abs(m[:3, :3]).max()
+    return size > 0.0 and abs(np.linalg.det(m[:3, :3] / size)) > 1e-12
+
+
+def _raise_for_transform(prim, time, file: str):
+    """SceneError naming the prim (``prim`` or the nearest ancestor) whose own transform is wrong."""
+    import re
+
+    from pxr import Tf, UsdGeom
+
+    from .spec import SceneError
+
+    p, what = prim, "cannot be computed"
+    while p and not p.IsPseudoRoot():
+        x = UsdGeom.Xformable(p)
+        if x:
+            try:
+                local = np.array(x.GetLocalTransformation(time), dtype=np.float64)
+            except Tf.ErrorException as e:
+                said = re.findall(r": '(.*?)'\s*(?=\n\s*Error in|\Z)", str(e), re.S)
+                said = re.sub(r"\s*Returning identity matrix\.?", "", said[0] if said else str(e).strip())
+                what = f"cannot be computed ({said})"
+                break
+            if not np.isfinite(local).all():
+                what = "is not finite"
+                break
+            if not _usable(local):
+                what = "has a zero scale"
+                break
+        p = p.GetParent()
+    else:
+        p = prim
+    raise SceneError(f"{file}: {p.GetPath()}.xformOpOrder: its transform {what} (it places the tube {prim.GetPath()}): "
+                     "expected finite xformOps of their own types, with a non-zero scale")  # fmt: skip

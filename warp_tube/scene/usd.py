@@ -189,7 +189,7 @@ def _read_tube(file: str, prim, info: StageInfo, frame_times, varying: dict | No
     if counts.sum() != len(pts) or (counts < 2).any():
         r.fail("curveVertexCounts", counts.tolist(), f"counts >= 2 summing to the {len(pts)} points")
     start_tc = Usd.TimeCode(info.start_time_code)
-    world, scale, matrix = to_world(prim, pts, start_tc)
+    world, scale, matrix = to_world(prim, pts, start_tc, file)
     mpu = info.meters_per_unit
     widths = curve_widths(r, curves, counts, start_tc)
     radius = 0.5 * widths * scale * mpu
@@ -255,7 +255,7 @@ def _read_tube(file: str, prim, info: StageInfo, frame_times, varying: dict | No
             p = np.asarray(pattr.Get(Usd.TimeCode(tc)), dtype=np.float64)
             if p.shape != pts.shape or not np.isfinite(p).all():
                 r.fail("points", f"a sample at time {tc} of shape {p.shape}", f"finite points of shape {pts.shape}")
-            track.append(to_world(prim, p, Usd.TimeCode(tc))[0][pinned])
+            track.append(to_world(prim, p, Usd.TimeCode(tc), file)[0][pinned])
         pin_track = np.asarray(track) * mpu
     try:
         return TubeSpec(
