@@ -252,11 +252,16 @@ def test_a_reference_in_other_units_or_axes_is_warned_of_unless_made_up_for(tmp_
          ["/World/Tube.primvars:widths:indices", "7 at position 2", "0..0"]),
         ('uniform token type = "linear"', 'uniform token type = "linear"\n        uniform token wrap = "loop"',
          ["/World/Tube.wrap", "'loop'", "'nonperiodic'"]),
+        ("point3f[] points = [(0, 0, 0), (1, 0, 0), (2, 0, 0), (3, 0, 0), (4, 0, 0)]", 'string points = "a"',
+         ["/World/Tube.points", "type string", "point3f[]"]),
+        ("point3f[] points = [(0, 0, 0), (1, 0, 0), (2, 0, 0), (3, 0, 0), (4, 0, 0)]", "int[] points = [1, 2, 3, 4, 5]",
+         ["/World/Tube.points", "type int[]", "point3f[]"]),
     ],
 )  # fmt: skip
 def test_mistyped_curve_attributes_are_named(tmp_path, capsys, old, new, words):
-    """A scalar or string widths was an internal error (or read as a number); out-of-range primvar
-    indices leaked usd-core's own warning and were reported as empty widths."""
+    """A scalar or string widths or points was an internal error (or read as numbers, or reported
+    as a curveVertexCounts mismatch); out-of-range primvar indices leaked usd-core's own warning
+    and were reported as empty widths."""
     assert old in BODY
     scene = tmp_path / "typed.usda"
     scene.write_text(HEADER + world(tube(BODY.replace(old, new))))

@@ -7,7 +7,10 @@ import numpy as np
 
 from .spec import SceneError
 
-__all__ = ["check_curve_type", "curve_widths"]
+__all__ = ["check_curve_type", "check_points_type", "curve_widths"]
+
+#: the array types a tube's points may be authored as
+POINT_ARRAYS = ("point3f[]", "point3d[]", "float3[]", "double3[]", "vector3f[]", "vector3d[]", "half3[]", "point3h[]")
 
 
 def check_curve_type(r, curves) -> None:
@@ -79,9 +82,14 @@ def curve_widths(r, curves, counts: np.ndarray, time) -> np.ndarray:
     return widths
 
 
-def _check_array_type(r, name: str, attr) -> None:
-    # the type as authored: for a schema attribute (widths) the attribute reports the schema's type
+def check_points_type(r, attr) -> None:
+    """A SceneError unless ``points`` is authored as an array of 3-vectors."""
+    _check_array_type(r, "points", attr, POINT_ARRAYS, "point3f[] positions")
+
+
+def _check_array_type(r, name: str, attr, allowed=("float[]", "double[]", "half[]"), expected="float[] diameters") -> None:
+    # the type as authored: for a schema attribute (widths, points) the attribute reports the schema's type
     specs = attr.GetPropertyStack()
     tname = str(specs[0].typeName) if specs else str(attr.GetTypeName())
-    if tname not in ("float[]", "double[]", "half[]"):
-        r.fail(name, f"type {tname}", "float[] diameters")
+    if tname not in allowed:
+        r.fail(name, f"type {tname}", expected)

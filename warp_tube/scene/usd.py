@@ -16,7 +16,7 @@ import os
 
 import numpy as np
 
-from .curves import check_curve_type, curve_widths
+from .curves import check_curve_type, check_points_type, curve_widths
 from .attributes import FORCE_ATTRS, KNOWN_ATTRS, MESH_ATTRS, SETTINGS_ATTRS, TUBE_ATTRS, check_names
 from .spec import (
     FRAME_MODES,
@@ -177,6 +177,8 @@ def _read_tube(file: str, prim, info: StageInfo, frame_times, varying: dict | No
     curves = UsdGeom.BasisCurves(prim)
     check_curve_type(r, curves)
     pattr = curves.GetPointsAttr()
+    if pattr.HasAuthoredValue():
+        check_points_type(r, pattr)
     pts = pattr.Get(Usd.TimeCode(info.start_time_code)) if pattr.HasAuthoredValue() else None
     if pts is None or len(pts) == 0:
         raise SceneError(f"{r.where('points')}: missing or empty: expected point3f[] with at least 2 points")
