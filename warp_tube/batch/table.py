@@ -6,11 +6,18 @@ value of its column a file (``@/World/Tube.points``: each cell a path to an ``.n
 ``.txt`` array). A cell is parsed by the attribute's USD type (:mod:`warp_tube.batch.values`).
 Rows are numbered from 0 (row ``r`` is variant ``r`` when no variant sets are crossed with the
 table); messages give the row and its line in the file.
+
+Tables as spreadsheets save them are read: UTF-8 with or without a byte-order mark, UTF-16 with
+one, any line endings, cells separated by ``,`` or, where the header holds no comma, by ``;`` or
+a tab (as some locales save CSV), spaces around cells, and empty columns after the last header
+and empty rows (skipped). A workbook (``.xlsx``, ``.xls``, ``.ods``) is refused with a message
+that says to save it as CSV.
 """
 
 from __future__ import annotations
 
 import csv
+import io
 import os
 import re
 from dataclasses import dataclass
@@ -21,6 +28,11 @@ __all__ = ["Column", "Table", "read_table"]
 
 _PRIM_PATH = re.compile(r"^/(?:[A-Za-z_][A-Za-z0-9_]*)(?:/[A-Za-z_][A-Za-z0-9_]*)*$")
 _ATTRIBUTE = re.compile(r"^[A-Za-z_][A-Za-z0-9_]*(?::[A-Za-z_][A-Za-z0-9_]*)*$")
+_DIGITS = re.compile(r"^[-+]?\d+$")
+_FRACTION = re.compile(r"^\d+(?:[eE][-+]?\d+)?$")
+#: file signatures of spreadsheet workbooks (zip: .xlsx, .ods; OLE2: .xls)
+_WORKBOOKS = (b"PK\x03\x04", b"\xd0\xcf\x11\xe0\xa1\xb1\x1a\xe1")
+_SEPARATORS = {",": "','", ";": "';'", "\t": "a tab"}
 
 
 @dataclass(frozen=True)
@@ -55,6 +67,7 @@ class Table:
         rows: the cells of each row (strings, one per column).
         lines: the line in the file where each row starts (1 = the header).
         first_row: the number of ``rows[0]`` in the file (a part of a table, :meth:`part`).
+        separator: the character between cells (``,``, or ``;`` or a tab as the header showed).
     """
 
     path: str
@@ -62,6 +75,7 @@ class Table:
     rows: tuple[tuple[str, ...], ...]
     lines: tuple[int, ...]
     first_row: int = 0
+    separator: str = ","
 
     def where(self, row: int, column: Column | None = None) -> str:
         """``TABLE: row R (line L)[, column C]`` for messages (``row`` counts from ``first_row``)."""
@@ -70,7 +84,8 @@ class Table:
 
     def part(self, start: int, stop: int) -> "Table":
         """Rows ``start`` to ``stop`` (of this table's rows) as a table of their own."""
-        return Table(self.path, self.columns, self.rows[start:stop], self.lines[start:stop], self.first_row + start)
+        return Table(self.path, self.columns, self.rows[start:stop], self.lines[start:stop], self.first_row + start,
+                     self.separator)  # fmt: skip
 
     @property
     def folder(self) -> str:
@@ -78,55 +93,108 @@ class Table:
         return os.path.dirname(os.path.abspath(self.path))
 
 
-def _column(path: str, k: int, cell: str) -> Column:
+def _column(path: str, line: int, k: int, cell: str) -> Column:
     text = cell.strip()
     files = text.startswith("@")
     body = text[1:].strip() if files else text
     prim, dot, attr = body.rpartition(".")
     if not dot or not _PRIM_PATH.match(prim) or not _ATTRIBUTE.match(attr):
         raise SceneError(
-            f"{path}: line 1, column {k + 1} {cell!r}: expected PRIM_PATH.ATTRIBUTE, e.g. "
+            f"{path}: line {line}, column {k + 1} {cell!r}: expected PRIM_PATH.ATTRIBUTE, e.g. "
             "/World/Tube.warptube:youngsModulus (or @PRIM_PATH.ATTRIBUTE for a column of file names)"
         )
     return Column(header=text, prim=prim, attribute=attr, files=files)
+
+
+def _text(path: str) -> str:
+    """The file's text: UTF-8 (a byte-order mark dropped) or UTF-16 with its byte-order mark."""
+    with open(path, "rb") as f:
+        raw = f.read()
+    if raw.startswith(_WORKBOOKS):
+        raise SceneError(f"{path}: a spreadsheet workbook, not CSV text: save it as CSV (UTF-8), one row per variant")
+    try:
+        if raw.startswith((b"\xff\xfe", b"\xfe\xff")):
+            return raw.decode("utf-16")
+        return raw.decode("utf-8-sig")
+    except UnicodeDecodeError as e:
+        line = raw[: e.start].count(b"\n") + 1
+        raise SceneError(
+            f"{path}: line {line}: not UTF-8 text (byte 0x{raw[e.start]:02x}): save the table as CSV UTF-8"
+        ) from None
+
+
+def _separator(text: str) -> str:
+    """``,``; or ``;`` or a tab where the header (the first line with text) has one outside quotes
+    and no comma (as spreadsheets of some locales save CSV)."""
+    header = next((line for line in text.splitlines() if line.strip()), "")
+    outside = "".join(header.split('"')[::2])  # (PRIM_PATH.ATTRIBUTE never holds a separator)
+    if "," in outside:
+        return ","
+    return next((s for s in (";", "\t") if s in outside), ",")
+
+
+def _hint(row: list[str], columns: int, separator: str) -> str:
+    """Why a row has more cells than the header, where it can be told."""
+    if separator == "," and any(_DIGITS.match(a.strip()) and _FRACTION.match(b.strip()) for a, b in zip(row, row[1:])):
+        return ": a decimal comma (1,5) splits a number: write a decimal point (1.5)"
+    if any(c.strip()[:1] in "([" or c.strip()[-1:] in ")]" for c in row):
+        return ': a vector or array holds commas, so quote its cell, e.g. "(0, 0.02, 0)"'
+    return ""
 
 
 def read_table(path: str) -> Table:
     """Read and check the table's structure (not its values: they need the scene's types).
 
     Raises:
-        SceneError: no such file, no header, a header cell that is not ``PRIM_PATH.ATTRIBUTE``, the
-            same attribute twice, no rows, or a row with more or fewer cells than the header.
+        SceneError: no such file, not CSV text, no header, a header cell that is not
+            ``PRIM_PATH.ATTRIBUTE``, the same attribute twice, no rows, a row with more or fewer
+            cells than the header, or a quoted cell that runs over lines (an unclosed quote).
     """
     path = os.fspath(path)
     if not os.path.isfile(path):
         raise SceneError(f"{path}: no such file (the variants table)")
+    text = _text(path)
+    separator = _separator(text)
+    records = []  # (line where the record starts, cells)
     try:
-        with open(path, newline="", encoding="utf-8-sig") as f:
-            records = [(reader.line_num, row) for reader in [csv.reader(f)] for row in reader]
-    except (UnicodeDecodeError, csv.Error) as e:
-        raise SceneError(f"{path}: not a readable CSV file ({e})") from None
-    # csv.reader's line_num is the line where a record ends; records span one line unless quoted.
+        reader = csv.reader(io.StringIO(text, newline=""), delimiter=separator, skipinitialspace=True)
+        start = 1
+        for row in reader:
+            records.append((start, row))
+            start = reader.line_num + 1
+    except csv.Error as e:
+        raise SceneError(f"{path}: line {start}: not readable as CSV ({e})") from None
     records = [(line, row) for line, row in records if any(cell.strip() for cell in row)]
     if not records:
         raise SceneError(f"{path}: empty: expected a header row of PRIM_PATH.ATTRIBUTE columns and a row per variant")
-    header = records[0][1]
-    columns = tuple(_column(path, k, cell) for k, cell in enumerate(header))
+    head_line, header = records[0]
+    width = len(header)
+    while width > 0 and not header[width - 1].strip():  # empty columns after the last header
+        width -= 1
+    columns = tuple(_column(path, head_line, k, cell) for k, cell in enumerate(header[:width]))
     seen = {}
     for k, c in enumerate(columns):
         if c.target in seen:
-            raise SceneError(f"{path}: line 1: columns {seen[c.target] + 1} and {k + 1} both set {c.target}")
+            raise SceneError(f"{path}: line {head_line}: columns {seen[c.target] + 1} and {k + 1} both set {c.target}")
         seen[c.target] = k
     rows, lines = [], []
     for line, row in records[1:]:
-        if len(row) != len(columns):
-            r = len(rows)
-            hint = ""
-            if len(row) > len(columns) and any(c.strip()[:1] in "([" or c.strip()[-1:] in ")]" for c in row):
-                hint = ': a vector or array holds commas, so quote its cell, e.g. "(0, 0.02, 0)"'
+        r = len(rows)
+        for k, cell in enumerate(row):
+            if "\n" in cell or "\r" in cell:
+                body = cell.rstrip("\r\n").replace("\r\n", "\n")
+                end = line + body.count("\n") + body.count("\r")
+                name = columns[k].header if k < len(columns) else k + 1
+                raise SceneError(f"{path}: row {r} (line {line}), column {name}: the cell runs over lines {line} to "
+                                 f"{end}: an unclosed quote (\")?")  # fmt: skip
+        extra = [k for k in range(len(columns), len(row)) if row[k].strip()]
+        if len(row) < len(columns) or (extra and extra[-1] >= len(header)):
+            hint = _hint(row, len(columns), separator) if len(row) > len(columns) else ""
             raise SceneError(f"{path}: row {r} (line {line}): {len(row)} cells for {len(columns)} columns{hint}")
-        rows.append(tuple(cell.strip() for cell in row))
+        if extra:
+            raise SceneError(f"{path}: row {r} (line {line}), column {extra[0] + 1}: a value under an empty header cell")
+        rows.append(tuple(cell.strip() for cell in row[: len(columns)]))
         lines.append(line)
     if not rows:
         raise SceneError(f"{path}: no rows: expected one row per variant under the header")
-    return Table(path=path, columns=columns, rows=tuple(rows), lines=tuple(lines))
+    return Table(path=path, columns=columns, rows=tuple(rows), lines=tuple(lines), separator=separator)

@@ -19,6 +19,7 @@ as a default value in a stronger layer).
 from __future__ import annotations
 
 import functools
+import math
 import os
 import re
 
@@ -27,6 +28,15 @@ import numpy as np
 __all__ = ["parse_value", "parse_plain", "CONTRACT_TYPES"]
 
 REALS = ("double", "float", "half", "timecode")
+#: the largest finite value of each real type (also by the suffix of point3f, color3h ...)
+_REAL_MAX = {"double": 1.7976931348623157e308, "timecode": 1.7976931348623157e308, "float": 3.4028234663852886e38,
+             "half": 65504.0, "d": 1.7976931348623157e308, "f": 3.4028234663852886e38, "h": 65504.0}  # fmt: skip
+_INT_RANGES = {"int": (-(2**31), 2**31 - 1), "uint": (0, 2**32 - 1), "int64": (-(2**63), 2**63 - 1),
+               "uint64": (0, 2**64 - 1), "uchar": (0, 255), "int2": (-(2**31), 2**31 - 1),
+               "int3": (-(2**31), 2**31 - 1), "int4": (-(2**31), 2**31 - 1)}  # fmt: skip
+_DIGIT = re.compile(r"\d")
+_DECIMAL_COMMA = re.compile(r"^\s*[-+]?\d+,\d+(?:[eE][-+]?\d+)?\s*$")
+_UNIT = re.compile(r"^\s*[-+]?(?:\d+\.?\d*|\.\d+)(?:[eE][-+]?\d+)?\s*[A-Za-z%\u00b0\u00b5/]+[A-Za-z0-9/^*.\u00b2\u00b3]*\s*$")
 INTS = ("int", "uint", "int64", "uint64", "uchar")
 TEXTS = ("token", "string")
 _VECTOR = re.compile(r"^(?:(half|float|double|int)([234])|(point|vector|normal|color|texCoord)([234])([hfd]))$")
@@ -77,15 +87,50 @@ def _describe(type_name: str) -> str:
             "text": f"a {type_name}"}[kind]  # fmt: skip
 
 
+def _number(t: str, kind: str):
+    """One token as an int (``int``: also ``8.0``, ``1e3``: a number with no fraction) or a float;
+    None where it is not one."""
+    try:
+        return int(t) if kind == "int" else float(t)
+    except ValueError:
+        pass
+    if kind != "int":
+        return None
+    try:
+        x = float(t)
+    except ValueError:
+        return None
+    return int(x) if math.isfinite(x) and x.is_integer() else None
+
+
 def _numbers(text: str, kind: str):
-    tokens = [t for t in _SPLIT.split(text) if t]
     out = []
-    for t in tokens:
-        try:
-            out.append(int(t) if kind == "int" else float(t))
-        except ValueError:
+    for t in (t for t in _SPLIT.split(text) if t):
+        x = _number(t, kind)
+        if x is None:
             return None
+        out.append(x)
     return out
+
+
+def _check_range(text: str, nums: list, type_name: str) -> None:
+    """Raise ValueError where ``nums`` (of cell ``text``) do not fit ``type_name``: a number beyond
+    what the type holds (``1e400``, ``1e39`` for a float; ``inf`` written as such is left to the
+    scene's checks), an integer beyond the integer type's range."""
+    base = type_name[:-2] if type_name.endswith("[]") else type_name
+    limits = _INT_RANGES.get(base)
+    if limits is not None:
+        bad = next((x for x in nums if not limits[0] <= x <= limits[1]), None)
+        if bad is not None:
+            raise ValueError(f"found {text!r}: {bad} is beyond what {base} holds ({limits[0]} to {limits[1]})")
+        return
+    m = _VECTOR.match(base)
+    real = base if base in REALS else (m.group(1) or {"h": "half", "f": "float", "d": "double"}[m.group(5)]) if m else "double"
+    top = _REAL_MAX.get(real, _REAL_MAX["double"])
+    if "inf" in text.lower() or "nan" in text.lower():
+        return
+    if any(not abs(x) <= top for x in nums):
+        raise ValueError(f"found {text!r}: beyond the largest {real} ({top:.6g})")
 
 
 def _load_file(name: str, folder: str, files: dict):
@@ -95,19 +140,22 @@ def _load_file(name: str, folder: str, files: dict):
     if not os.path.isfile(path):
         raise ValueError(f"no such file {path}")
     ext = os.path.splitext(path)[1].lower()
+    if ext not in (".npy", ".csv", ".txt"):
+        raise ValueError(f"{path}: extension {ext or '(none)'}: expected .npy, .csv or .txt")
     try:
         if ext == ".npy":
             arr = np.load(path, allow_pickle=False)
-        elif ext in (".csv", ".txt"):
-            with open(path, encoding="utf-8") as f:
-                first = f.readline()
-            arr = np.loadtxt(path, delimiter="," if "," in first else None, ndmin=1)
         else:
-            raise ValueError(f"{path}: extension {ext or '(none)'}: expected .npy, .csv or .txt")
-    except ValueError:
-        raise
-    except Exception as e:  # a corrupt .npy raises what NumPy's reader raises
-        raise ValueError(f"{path}: not a readable array ({e})") from None
+            with open(path, encoding="utf-8-sig") as f:
+                first = f.readline()
+            delimiter = "," if "," in first else ";" if ";" in first else None
+            names = _numbers(first, "real") is None and not _DIGIT.search(first)  # a line of column names: x,y,z
+            arr = np.loadtxt(path, delimiter=delimiter, ndmin=1, encoding="utf-8-sig", skiprows=int(names))
+    except Exception as e:  # a corrupt file raises what NumPy's reader raises
+        if ext == ".npy":
+            raise ValueError(f"{path}: not a readable .npy array (damaged, not NumPy's format, or Python objects)") from None
+        why = (str(e).splitlines() or [type(e).__name__])[0].split(";")[0].rstrip(".")
+        raise ValueError(f"{path}: not a readable array ({why}): expected numbers, one element per line") from None
     files[path] = arr
     return arr
 
@@ -130,13 +178,25 @@ def parse_plain(text: str, type_name: str):
         return None
     try:
         if n == 1:
-            return float(text)
+            x = float(text)
+            return x if abs(x) <= _REAL_MAX[type_name] else None
         parts = text.strip().strip("()[]").split(",")
         if len(parts) != 3:
             return None
-        return (float(parts[0]), float(parts[1]), float(parts[2]))
+        out = (float(parts[0]), float(parts[1]), float(parts[2]))
     except ValueError:
         return None
+    top = _REAL_MAX[type_name[:-1]]
+    return out if all(abs(x) <= top for x in out) else None
+
+
+def _why(text: str, kind: str, n: int, array: bool) -> str:
+    """A hint for a cell that is not the number it should be: a decimal comma, a unit, a fraction."""
+    if n == 1 and not array and _DECIMAL_COMMA.match(text):
+        return f" (a decimal comma? write {text.strip().replace(',', '.')})"
+    if _UNIT.match(text):
+        return " (no units: the scene's units, SI for warptube: attributes)"
+    return ""
 
 
 def parse_value(text: str, type_name: str, *, folder: str = ".", is_file: bool = False, files: dict | None = None):
@@ -191,14 +251,16 @@ def parse_value(text: str, type_name: str, *, folder: str = ".", is_file: bool =
         raise ValueError(f"found {text!r}: expected {expected}")
     nums = _numbers(text, "int" if kind == "int" else "real")
     if nums is None or len(nums) == 0:
-        raise ValueError(f"found {text!r}: expected {expected}")
+        raise ValueError(f"found {text!r}: expected {expected}{_why(text, kind, n, array)}")
     if array:
         if len(nums) % n:
             raise ValueError(f"found {text!r}: {len(nums)} numbers, not a multiple of {n}: expected {expected}")
+        _check_range(text, nums, type_name)
         arr = np.asarray(nums, dtype=np.int64 if kind == "int" else np.float64)
         return arr.reshape(-1, n) if n > 1 else arr
     if len(nums) != n:
-        raise ValueError(f"found {text!r}: {len(nums)} number(s): expected {expected}")
+        raise ValueError(f"found {text!r}: {len(nums)} number(s): expected {expected}{_why(text, kind, n, array)}")
+    _check_range(text, nums, type_name)
     if n == 1:
         return nums[0]
     return tuple(nums)

@@ -1,0 +1,124 @@
+"""warp-tube batch with tables as spreadsheets save them and careless output folders: what is
+read, what is refused (exit status 2, a message naming the row, its line and the column, nothing
+written) and what is kept."""
+
+from __future__ import annotations
+
+import csv
+import os
+import zipfile
+
+import numpy as np
+import pytest
+
+from tests.conftest import SCENES
+from warp_tube.cli import main as cli
+
+DEFAULT = SCENES / "default.usda"
+E = "/World/Tube.warptube:youngsModulus"
+DENSITY = "/World/Tube.warptube:density"
+SPOKES = "/World/Tube.warptube:spokes"
+
+
+def batch(table, out, *args):
+    return cli(["batch", str(DEFAULT), "--variants", str(table), "-o", str(out), "--frames", "2", "--no-surface",
+                "--quiet", *args])  # fmt: skip
+
+
+def summary(out):
+    with open(out / "summary.csv", newline="", encoding="utf-8") as f:
+        return list(csv.DictReader(f))
+
+
+def refused(tmp_path, capsys, data: bytes, name="t.csv") -> str:
+    """Run a batch of table ``data``: exit status 2, nothing written, no traceback; the message."""
+    table = tmp_path / name
+    table.write_bytes(data)
+    out = tmp_path / "out"
+    assert batch(table, out) == 2
+    err = capsys.readouterr().err
+    assert not out.exists() and "Traceback" not in err and "internal error" not in err, err
+    return err
+
+
+# -- tables as spreadsheets save them --------------------------------------------------------------
+
+
+def test_excel_table_with_bom_crlf_quoted_headers_and_empty_columns_and_rows(tmp_path):
+    table = tmp_path / "excel.csv"
+    text = f'"{E}", " {DENSITY} ",,\r\n 1e5 ,1050,,\r\n2e5,1100,,\r\n,,,\r\n\r\n'
+    table.write_bytes(b"\xef\xbb\xbf" + text.encode())
+    out = tmp_path / "out"
+    assert batch(table, out) == 0
+    rows = summary(out)
+    assert [(r[E], r[DENSITY], r["status"]) for r in rows] == [("1e5", "1050", "ok"), ("2e5", "1100", "ok")]
+    assert sorted(p.name for p in out.glob("variant_*")) == ["variant_00000.usdc", "variant_00001.usdc"]
+
+
+@pytest.mark.parametrize("sep, encoding", [(";", "utf-8"), ("\t", "utf-16")], ids=["semicolons", "utf16-tabs"])
+def test_semicolon_and_tab_separated_tables_are_read(tmp_path, sep, encoding):
+    table = tmp_path / "t.csv"
+    table.write_bytes(f"{E}{sep}{DENSITY}\r\n1e5{sep}1050\r\n2e5{sep}1100\r\n".encode(encoding))
+    out = tmp_path / "out"
+    assert batch(table, out) == 0
+    assert [(r[E], r[DENSITY]) for r in summary(out)] == [("1e5", "1050"), ("2e5", "1100")]
+
+
+def test_decimal_commas_are_named_with_row_line_and_column(tmp_path, capsys):
+    err = refused(tmp_path, capsys, f"{E};{DENSITY}\n1e5;1050\n1,5e5;1100\n".encode())
+    assert f"row 1 (line 3), column {E}: found '1,5e5'" in err and "decimal comma? write 1.5e5" in err
+    err = refused(tmp_path, capsys, f"{E}\n1e5\n2,5e5\n".encode())  # commas split it: two cells
+    assert "row 1 (line 3): 2 cells for 1 columns: a decimal comma (1,5) splits a number" in err
+
+
+def test_a_workbook_or_other_text_encoding_is_refused_with_what_to_do(tmp_path, capsys):
+    book = tmp_path / "book.xlsx"
+    with zipfile.ZipFile(book, "w") as z:
+        z.writestr("[Content_Types].xml", "<Types/>")
+    err = refused(tmp_path, capsys, book.read_bytes(), name="book.csv")
+    assert "a spreadsheet workbook, not CSV text: save it as CSV" in err
+    err = refused(tmp_path, capsys, f"{E}\n1e5\n2e5 \xe9\n".encode("latin-1"))
+    assert "line 3: not UTF-8 text (byte 0xe9)" in err
+
+
+def test_an_unclosed_quote_is_named_not_read_as_one_long_cell(tmp_path, capsys):
+    err = refused(tmp_path, capsys, f'{E},{DENSITY}\n1e5,1050\n"2e5,1100\n3e5,1100\n4e5,1100\n'.encode())
+    assert f"row 1 (line 3), column {E}: the cell runs over lines 3 to 5: an unclosed quote" in err
+
+
+def test_a_header_after_blank_lines_and_a_value_under_an_empty_header(tmp_path, capsys):
+    err = refused(tmp_path, capsys, f"\n\n{E},Tube.density\n1e5,1050\n".encode())
+    assert "line 3, column 2 'Tube.density': expected PRIM_PATH.ATTRIBUTE" in err
+    err = refused(tmp_path, capsys, f"{E},,\n1e5,,\n2e5,,7\n".encode())
+    assert "row 1 (line 3), column 3: a value under an empty header cell" in err
+
+
+# -- values ---------------------------------------------------------------------------------------
+
+
+def test_units_overflow_and_fractions_name_row_line_and_column(tmp_path, capsys):
+    err = refused(tmp_path, capsys, f"{E},{SPOKES}\n30kPa,8\n1e400,8\n1e5,8.5\n1e5,1e10\n".encode())
+    assert f"row 0 (line 2), column {E}: found '30kPa': expected a number (a double) (no units" in err
+    assert f"row 1 (line 3), column {E}: found '1e400': beyond the largest double" in err
+    assert f"row 2 (line 4), column {SPOKES}: found '8.5': expected an integer" in err
+    assert f"row 3 (line 5), column {SPOKES}: found '1e10': 10000000000 is beyond what int holds" in err
+    assert "4 problem(s)" in err
+
+
+def test_integers_written_as_whole_floats_are_read(tmp_path):
+    table = tmp_path / "t.csv"
+    table.write_text(f"{SPOKES}\n8.0\n1.2e1\n")  # as a spreadsheet or pandas writes whole numbers
+    out = tmp_path / "out"
+    assert batch(table, out) == 0
+    assert [r["status"] for r in summary(out)] == ["ok", "ok"]
+
+
+def test_point_files_bad_ones_named_and_a_line_of_column_names_skipped(tmp_path, capsys):
+    points = np.zeros((21, 3))
+    points[:, 0] = np.arange(21)
+    np.savetxt(tmp_path / "named.csv", points, delimiter=",", header="x,y,z", comments="")
+    (tmp_path / "garbage.npy").write_bytes(b"not numpy at all")
+    err = refused(tmp_path, capsys, b"@/World/Tube.points\nnamed.csv\ngarbage.npy\n")
+    assert "row 0" not in err  # the line x,y,z is column names, skipped
+    assert "row 1 (line 3), column @/World/Tube.points:" in err and "garbage.npy: not a readable .npy array" in err
+    assert "pickled" not in err
