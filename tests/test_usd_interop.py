@@ -311,3 +311,15 @@ def test_a_tiny_uniform_scale_is_a_valid_transform(tmp_path):
     # x [m] = i x 1e-4 x 0.01; float32 scale, so 1e-7 relative
     np.testing.assert_allclose(t.points[:, 0], np.arange(5) * 1e-6, rtol=1e-6, atol=1e-15)
     np.testing.assert_allclose(t.radius, 0.25 * 1e-6, rtol=1e-6)
+
+
+def test_time_sampled_widths_are_read_at_the_first_frame_with_a_warning(tmp_path, caplog):
+    body = BODY.replace('float[] widths = [0.5] (interpolation = "constant")',
+                        'float[] widths.timeSamples = { 0: [0.4], 2: [0.8] }')  # fmt: skip
+    scene = tmp_path / "w.usda"
+    scene.write_text(HEADER.replace("startTimeCode = 0", "startTimeCode = 1") + world(tube(body)))
+    caplog.set_level("WARNING")
+    t = load_scene(str(scene)).tubes[0]
+    # diameter 0.6 at time 1 (USD interpolates linearly), radius 0.3 cm = 0.003 m; float32 inputs
+    np.testing.assert_allclose(t.radius, 0.003, rtol=1e-6)
+    assert any("w.usda: /World/Tube.widths: time-sampled" in r.getMessage() for r in caplog.records)

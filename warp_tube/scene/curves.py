@@ -3,9 +3,13 @@ diameters from ``widths`` or ``primvars:widths`` in any of their interpolations.
 
 from __future__ import annotations
 
+import logging
+
 import numpy as np
 
 from .spec import SceneError
+
+log = logging.getLogger("warp_tube.scene.usd")
 
 __all__ = ["check_curve_type", "check_points_type", "curve_widths"]
 
@@ -65,6 +69,10 @@ def curve_widths(r, curves, counts: np.ndarray, time) -> np.ndarray:
     else:
         raise SceneError(f"{r.where('widths')}: missing: expected float[] diameters (one, one per curve with "
                          "interpolation \"uniform\", or one per point), as widths or primvars:widths")  # fmt: skip
+    attr = primvar.GetAttr() if name == "primvars:widths" else curves.GetWidthsAttr()
+    if attr.ValueMightBeTimeVarying():
+        log.warning("%s: time-sampled: the diameters at the first frame are used for the whole run (a tube's "
+                    "widths are not animated)", r.where(name))  # fmt: skip
     if values is None or len(values) == 0:
         raise SceneError(f"{r.where(name)}: empty: expected float[] diameters (one, or one per point)")
     widths = np.asarray(values, dtype=np.float64).reshape(-1)
