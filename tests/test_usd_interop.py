@@ -323,3 +323,15 @@ def test_time_sampled_widths_are_read_at_the_first_frame_with_a_warning(tmp_path
     # diameter 0.6 at time 1 (USD interpolates linearly), radius 0.3 cm = 0.003 m; float32 inputs
     np.testing.assert_allclose(t.radius, 0.003, rtol=1e-6)
     assert any("w.usda: /World/Tube.widths: time-sampled" in r.getMessage() for r in caplog.records)
+
+
+def test_a_transform_that_puts_the_tube_past_any_size_is_refused(tmp_path, capsys):
+    """A scale of 1e30 ran (exit 0) with overflow warnings from NumPy and a surface flattened to
+    zero thickness in one axis."""
+    ops = XFORM.format("float3 xformOp:scale = (1e30, 1e30, 1e30)", "xformOp:scale")
+    scene = tmp_path / "huge.usda"
+    scene.write_text(HEADER + world(tube(BODY + ops)))
+    status, err = run([scene, "-o", tmp_path / "out.usdc"], capsys)
+    assert status == 2
+    assert "huge.usda: /World/Tube.points: found a coordinate or radius of 4e+28 m" in err
+    assert "RuntimeWarning" not in err and not (tmp_path / "out.usdc").exists()

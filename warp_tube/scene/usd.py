@@ -37,6 +37,8 @@ log = logging.getLogger(__name__)
 __all__ = ["load_scene", "open_stage", "save_scene", "usd_error_in_user_terms", "SceneReader"]
 
 REAL = ("float", "double", "half")
+#: the largest coordinate or radius a tube may have in world space [m]
+MAX_WORLD_M = 1e6
 REAL3 = ("float3", "double3", "half3", "vector3f", "vector3d", "vector3h", "point3f", "point3d", "normal3f", "normal3d")
 
 
@@ -195,6 +197,10 @@ def _read_tube(file: str, prim, info: StageInfo, frame_times, varying: dict | No
     mpu = info.meters_per_unit
     widths = curve_widths(r, curves, counts, start_tc)
     radius = 0.5 * widths * scale * mpu
+    far = max(float(np.abs(world).max()) * mpu, float(radius.max()))
+    if far > MAX_WORLD_M:
+        r.fail("points", f"a coordinate or radius of {far:.3g} m (after the transforms and metersPerUnit)",
+               f"at most {MAX_WORLD_M:g} m (past any tube: a transform or metersPerUnit is likely wrong)")  # fmt: skip
     warn_about_transforms(prim, matrix, curves.GetPointsAttr().GetNumTimeSamples() > 1, r.where("points"), varying)
     warn_about_layer_units(prim, pattr, matrix, mpu, info.up_axis, r.where("points"))
     E = r.real("warptube:youngsModulus", positive=True)
