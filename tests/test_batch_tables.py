@@ -122,3 +122,89 @@ def test_point_files_bad_ones_named_and_a_line_of_column_names_skipped(tmp_path,
     assert "row 0" not in err  # the line x,y,z is column names, skipped
     assert "row 1 (line 3), column @/World/Tube.points:" in err and "garbage.npy: not a readable .npy array" in err
     assert "pickled" not in err
+
+
+# -- output folders and --resume ------------------------------------------------------------------
+
+
+def files_of(folder):
+    return {p.name: p.read_bytes() for p in folder.iterdir() if p.is_file()}
+
+
+def test_resume_refuses_a_points_file_changed_since_the_batch_began(tmp_path, capsys):
+    from warp_tube.batch import BatchInterrupted, run_batch
+
+    points = np.zeros((21, 3))
+    points[:, 0] = np.arange(21)
+    np.save(tmp_path / "a.npy", points)
+    np.save(tmp_path / "b.npy", points)
+    table = tmp_path / "t.csv"
+    table.write_text(f"@/World/Tube.points,{E}\na.npy,1e5\nb.npy,2e5\n")
+    out = tmp_path / "out"
+    with pytest.raises(BatchInterrupted):  # stopped after the first variant
+        run_batch(str(DEFAULT), str(out), str(table), frames=2, chunk=1, writers=0, surface=False,
+                  on_chunk=lambda c: (_ for _ in ()).throw(KeyboardInterrupt()))  # fmt: skip
+    before = files_of(out)
+    assert "variant_00000.usdc" in before and "variant_00001.usdc" not in before
+    points[:, 1] = 0.1 * np.arange(21)
+    np.save(tmp_path / "b.npy", points)  # edited before the resume
+    args = ["--resume"]
+    assert cli(["batch", str(DEFAULT), "--variants", str(table), "-o", str(out), "--frames", "2", "--no-surface", *args]) == 2
+    err = capsys.readouterr().err
+    assert "--resume: the batch there was made with other files the table names: b.npy changed" in err, err
+    assert files_of(out) == before
+
+
+def test_resume_names_each_option_that_differs_and_a_damaged_record(tmp_path, capsys):
+    table = tmp_path / "t.csv"
+    table.write_text(f"{E}\n1e5\n2e5\n")
+    out = tmp_path / "out"
+    assert batch(table, out) == 0
+    before = files_of(out)
+    assert cli(["batch", str(DEFAULT), "--variants", str(table), "-o", str(out), "--frames", "3", "--resume"]) == 2
+    assert "made with other --frames (2 then, 3 now); Surface (not written then, written now: --no-surface" in capsys.readouterr().err
+    (out / ".batch-finished.json").write_text("{")
+    assert batch(table, out, "--resume") == 2
+    assert ".batch-finished.json is damaged" in capsys.readouterr().err
+    before[".batch-finished.json"] = b"{"
+    assert files_of(out) == before
+
+
+@pytest.mark.parametrize("resume", [False, True], ids=["new", "resume"])
+def test_a_table_named_as_an_output_of_its_batch_folder_is_refused_and_kept(tmp_path, capsys, resume):
+    out = tmp_path / "out"
+    out.mkdir()
+    table = out / "summary.csv"
+    table.write_text(f"{E}\n1e5\n2e5\n")
+    assert batch(table, out, *(["--resume"] if resume else [])) == 2
+    err = capsys.readouterr().err
+    assert "the variants table is in" in err and "under a name the batch writes there (summary.csv)" in err, err
+    assert files_of(out) == {"summary.csv": f"{E}\n1e5\n2e5\n".encode()}
+
+
+def test_resume_where_a_summary_csv_is_not_a_batch_summary(tmp_path, capsys):
+    table = tmp_path / "t.csv"
+    table.write_text(f"{E}\n1e5\n2e5\n")
+    out = tmp_path / "out"
+    out.mkdir()
+    (out / "summary.csv").write_text("a,b\n1,2\n")
+    assert batch(table, out, "--resume") == 2
+    err = capsys.readouterr().err
+    assert "no batch there to resume" in err and "internal error" not in err, err
+    assert files_of(out) == {"summary.csv": b"a,b\n1,2\n"}
+
+
+def test_an_empty_output_name_is_refused(tmp_path, capsys, monkeypatch):
+    table = tmp_path / "t.csv"
+    table.write_text(f"{E}\n1e5\n2e5\n")
+    monkeypatch.chdir(tmp_path)
+    assert batch(table, "") == 2
+    assert "-o '': expected a folder name" in capsys.readouterr().err
+    assert sorted(os.listdir(tmp_path)) == ["t.csv"]
+
+
+def test_every_beyond_the_frames_is_warned_of_as_run_does(tmp_path, capsys):
+    table = tmp_path / "t.csv"
+    table.write_text(f"{E}\n1e5\n2e5\n")
+    assert batch(table, tmp_path / "out", "--every", "5") == 0
+    assert "--every 5: of frames 0 to 1 only frame 0 is written" in capsys.readouterr().err

@@ -52,7 +52,22 @@ class Journal:
 
     @staticmethod
     def _differ(old: dict, signature: dict, ignore=()) -> list[str]:
-        return sorted(k for k in set(old) | set(signature) if k not in ignore and old.get(k) != signature.get(k))
+        """What differs, in words: ``table contents``, ``--frames (3 then, 4 now)`` ..."""
+        keys = sorted(k for k in set(old) | set(signature) if k not in ignore and old.get(k) != signature.get(k))
+        if {"table", "table_sha256"} <= set(keys):  # another table: one item
+            keys.remove("table_sha256")
+        return [_what(k, old.get(k), signature.get(k)) for k in keys]
+
+    def _read(self, path: str) -> dict:
+        try:
+            with open(path, encoding="utf-8") as f:
+                data = json.load(f)
+            if isinstance(data, dict):
+                return data
+        except (OSError, ValueError):
+            pass
+        raise SceneError(f"{self.out_dir}: --resume: {path} is damaged: the batch there cannot be resumed; "
+                         "write to another folder")  # fmt: skip
 
     def check_finished(self, signature: dict) -> None:
         """For ``--resume`` of a batch that finished: refuse where it was made with other inputs
@@ -63,12 +78,11 @@ class Journal:
         """
         if not os.path.exists(self.finished_path):
             return  # finished before its signature was kept: nothing to compare
-        with open(self.finished_path, encoding="utf-8") as f:
-            old = json.load(f)
+        old = self._read(self.finished_path)
         differ = self._differ(old, signature, ignore=("chunk",))
         if differ:
             raise SceneError(
-                f"{self.out_dir}: --resume: the batch there is finished and was made with other {', '.join(differ)}; "
+                f"{self.out_dir}: --resume: the batch there is finished and was made with other {'; '.join(differ)}; "
                 "write to another folder"
             )
 
@@ -81,12 +95,11 @@ class Journal:
         """
         self.signature = signature
         if resume and self.exists():
-            with open(self.state_path, encoding="utf-8") as f:
-                old = json.load(f)
+            old = self._read(self.state_path)
             differ = self._differ(old, signature)
             if differ:
                 raise SceneError(
-                    f"{self.out_dir}: --resume: the batch there was made with other {', '.join(differ)}; "
+                    f"{self.out_dir}: --resume: the batch there was made with other {'; '.join(differ)}; "
                     "resume with the same scene, table and options, or write to another folder"
                 )
             done = {}
@@ -116,6 +129,28 @@ class Journal:
         with open(tmp, "w", encoding="utf-8") as f:
             f.write(text)
         os.replace(tmp, path)
+
+
+#: a signature's entries in words
+_NAMES = {"scene": "scene", "scene_sha256": "scene contents (the file changed)", "table": "table",
+          "table_sha256": "table contents (the file changed)", "table_files": "files the table names",
+          "variant_sets": "--variant-sets", "layout": "--layout", "every": "--every", "frames": "--frames",
+          "surface": "Surface", "chunk": "--chunk", "variants": "number of variants",
+          "version": "batch format"}  # fmt: skip
+
+
+def _what(key: str, old, new) -> str:
+    name = _NAMES.get(key, key)
+    if key.endswith("sha256"):
+        return name
+    if key == "table_files":
+        old, new = old or {}, new or {}
+        changed = sorted(k for k in set(old) | set(new) if old.get(k) != new.get(k))
+        return f"{name}: {', '.join(changed[:3])}{' ...' if len(changed) > 3 else ''} changed"
+    if key == "surface":
+        old, new = ("written" if x else "not written" for x in (old, new))
+        return f"Surface ({old} then, {new} now: --no-surface, --surface-arrays)"
+    return f"{name} ({old} then, {new} now)"
 
 
 def _to_columns(record: dict) -> dict:

@@ -24,6 +24,7 @@ from __future__ import annotations
 import logging
 import math
 import os
+import re
 import signal
 import time
 from dataclasses import dataclass, field
@@ -203,6 +204,42 @@ def _check_out_dir(out_dir: str, resume: bool) -> None:
                          "or write to another folder")  # fmt: skip
 
 
+_OUTPUT_NAME = re.compile(r"^(?:variant_\d+(?:\.partial(?:-\d+)?)?\.usdc|\.batch.*)$")
+
+
+def _check_inputs_not_outputs(out_dir: str, scene: str, table: str | None) -> None:
+    """Refuse a scene or table that is (also through a link) a file the batch writes in ``out_dir``."""
+    real_dir = os.path.realpath(out_dir)
+    for what, path in (("the scene", scene), ("the variants table", table)):
+        if path is None:
+            continue
+        real = os.path.realpath(os.fspath(path))
+        folder, name = os.path.split(real)
+        grid = os.path.join(real_dir, "grid")
+        written = folder == real_dir and (name in BATCH_FILES or _OUTPUT_NAME.match(name))
+        if written or folder == grid or folder.startswith(grid + os.sep) or folder.startswith(real_dir + os.sep + ".batch"):
+            raise SceneError(f"{path}: {what} is in {out_dir} under a name the batch writes there ({name}): "
+                             "move or rename it, or write the batch to another folder")  # fmt: skip
+
+
+def _named_files(tab) -> dict[str, str]:
+    """The files the table's cells name (``@`` columns, ``@FILE`` cells), as written, with the
+    SHA-256 of their bytes: a file changed between a batch and its ``--resume`` is seen."""
+    if tab is None:
+        return {}
+    names = set()
+    for j, col in enumerate(tab.columns):
+        for cells in tab.rows:
+            cell = cells[j]
+            if col.files or cell.startswith("@"):
+                names.add(cell[1:].strip() if cell.startswith("@") else cell)
+    out = {}
+    for name in sorted(names):
+        path = name if os.path.isabs(name) else os.path.join(tab.folder, name)
+        out[name] = file_digest(path) if os.path.isfile(path) else None
+    return out
+
+
 def _remove_stray_partials(out_dir: str) -> None:
     """Remove partial files that an interrupted writer left (never a complete output)."""
     for folder in (out_dir, os.path.join(out_dir, "grid")):
@@ -253,6 +290,8 @@ def run_batch(scene: str, out_dir: str, table: str | None = None, *, variant_set
     if variant_sets is not None and not isinstance(variant_sets, str):
         variant_sets = ",".join(str(v) for v in variant_sets)
     t_start = time.perf_counter()
+    if not str(os.fspath(out_dir)).strip():
+        raise SceneError("-o '': expected a folder name (the batch folder)")
     out_dir = os.path.abspath(os.fspath(out_dir))
     if layout not in LAYOUTS:
         raise SceneError(f"--layout {layout}: expected one of {', '.join(LAYOUTS)}")
@@ -265,6 +304,7 @@ def run_batch(scene: str, out_dir: str, table: str | None = None, *, variant_set
     if writers is not None and writers < 0:
         raise SceneError(f"--writers {writers}: expected 0 or more")
     surface = (layout != "arrays") if surface is None else bool(surface)
+    _check_inputs_not_outputs(out_dir, scene, table)
     _check_out_dir(out_dir, resume)
     devices = _devices(device, workers, scheduler)
     tab = read_table(table) if table is not None else None
@@ -318,6 +358,11 @@ def _run_batch(scene, out_dir, table, tab, devices, writer_pool, sim_workers, t_
                      table=os.path.abspath(table) if table else None, table_sha256=file_digest(table),
                      variant_sets=variant_sets, layout=layout, every=every, frames=n_frames, surface=surface,
                      chunk=chunk, variants=len(variants))  # fmt: skip
+    named = _named_files(tab)
+    if named:  # (left out where there are none: a batch begun before they were recorded resumes)
+        signature["table_files"] = named
+    if len(F_idx) == 1 and n_frames > 1:
+        log.warning("--every %d: of frames 0 to %d only frame 0 is written", every, n_frames - 1)
     result = BatchResult(out_dir=out_dir, variants=len(variants), groups=len({c.group for c in plan}), chunks=len(plan),
                          devices=devices if devices != ["dask"] else [f"dask {scheduler}"], frames=len(F_idx))  # fmt: skip
     with collector_paused():
@@ -386,7 +431,10 @@ def _finished(out_dir: str, result: BatchResult, t_start: float) -> BatchResult:
     if not os.path.exists(path):
         raise SceneError(f"{out_dir}: no unfinished batch (.batch) and no summary.csv: nothing to resume")
     with open(path, newline="", encoding="utf-8") as f:
-        rows = list(csv.DictReader(f))
+        reader = csv.DictReader(f)
+        rows = list(reader)
+    if not {"name", "status", "reason"} <= set(reader.fieldnames or ()):
+        raise SceneError(f"{out_dir}: no batch there to resume ({path} is not a batch's summary)")
     result.resumed = len(rows)
     result.ok = sum(r["status"] == "ok" for r in rows)
     result.failed = len(rows) - result.ok
