@@ -193,15 +193,28 @@ def test_curves_the_simulator_cannot_follow_are_named(tmp_path, capsys, body, wo
     assert not (tmp_path / "out.usdc").exists()
 
 
-def test_a_tube_named_like_an_output_child_is_refused(tmp_path, capsys):
-    """A tube at /World/Surface would put its Centerline and Surface at /World/Surface/..., and
-    /World would hold a child 'Surface' that is not the Mesh the output contract promises."""
-    scene = tmp_path / "named.usda"
-    scene.write_text(HEADER + world(tube(name="Surface")))
+def test_a_tube_named_surface_under_another_tube_is_refused(tmp_path, capsys):
+    """/World/Tube/Surface as a tube under the tube /World/Tube: the output wrote the outer tube's
+    Surface Mesh and the inner tube's Xform at one path (a Mesh holding a Centerline and a Surface)."""
+    inner = tube(BODY.replace("(0, 0, 0), (1, 0, 0)", "(0, 5, 0), (1, 5, 0)"), name="Surface")
+    scene = tmp_path / "nested.usda"
+    scene.write_text(HEADER + world(tube(BODY + inner)))
     status, err = run([scene, "-o", tmp_path / "out.usdc"], capsys)
     assert status == 2
-    assert "named.usda: /World/Surface: a tube prim named Surface" in err
+    assert "nested.usda: /World/Tube/Surface: a tube prim named Surface under the tube /World/Tube" in err
     assert not (tmp_path / "out.usdc").exists()
+
+
+def test_a_lone_tube_named_surface_runs_with_a_warning(tmp_path, capsys):
+    """As `warp-tube extract Surface.stl` names it: its parent then holds a child 'Surface' that is
+    not a Mesh, which the warning says; the tube itself is written as the contract says."""
+    scene = tmp_path / "lone.usda"
+    scene.write_text(HEADER + world(tube(name="Surface")))
+    out = tmp_path / "out.usdc"
+    status, err = run([scene, "-o", out], capsys)
+    assert status == 0
+    assert "lone.usda: /World/Surface: a tube prim named Surface: in the output /World holds a child Surface" in err
+    np.testing.assert_array_equal(centerline(out, 0)["/World/Surface"][:, 0], [0, 1, 2, 3, 4])
 
 
 # -- units and axes of referenced layers --------------------------------------------------------

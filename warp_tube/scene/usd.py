@@ -317,6 +317,22 @@ def _read_settings(file: str, prim, start: float | None = None) -> SimulationSet
     return SimulationSettings(time_step=ts, integrator=r.token("warptube:integrator", INTEGRATORS, "auto"), gravity=g)
 
 
+def _check_output_names(path: str, tube_prims) -> None:
+    """The output holds ``P/Centerline`` and ``P/Surface`` under each tube prim P: a tube so named
+    directly under another tube would take the place of that tube's own (an error); elsewhere its
+    parent merely looks like a tube to a reader of the output (a warning)."""
+    tube_paths = {p.GetPath() for p in tube_prims}
+    for prim in tube_prims:
+        if prim.GetName() not in ("Centerline", "Surface"):
+            continue
+        parent = prim.GetParent().GetPath()
+        if parent in tube_paths:
+            raise SceneError(f"{path}: {prim.GetPath()}: a tube prim named {prim.GetName()} under the tube {parent}: expected "
+                             f"another name (the output writes {parent}'s own {prim.GetName()} there)")  # fmt: skip
+        log.warning("%s: %s: a tube prim named %s: in the output %s holds a child %s as a tube does; another name "
+                    "keeps the output plain", path, prim.GetPath(), prim.GetName(), parent, prim.GetName())  # fmt: skip
+
+
 def load_scene(path: str, extract=None) -> Scene:
     """Read and validate the scene at ``path``.
 
@@ -400,13 +416,7 @@ class SceneReader:
             elif names:
                 check_names(path, prim, names, KNOWN_ATTRS, "warp_tube")
                 log.info("%s: %s carries warptube: attributes but is not a tube, force or settings prim: ignored", path, prim.GetPath())
-        for prim in tubes + mesh_prims:
-            if prim.GetName() in ("Centerline", "Surface"):
-                raise SceneError(
-                    f"{path}: {prim.GetPath()}: a tube prim named {prim.GetName()}: expected another name (the output "
-                    f"holds P/Centerline and P/Surface under each tube prim P, so {prim.GetParent().GetPath()} would "
-                    "read as a tube there)"
-                )
+        _check_output_names(path, tubes + mesh_prims)
         if len(settings_prims) > 1:
             raise SceneError(
                 f"{path}: {len(settings_prims)} simulation settings prims "
