@@ -348,3 +348,12 @@ def test_a_transform_that_puts_the_tube_past_any_size_is_refused(tmp_path, capsy
     assert status == 2
     assert "huge.usda: /World/Tube.points: found a coordinate or radius of 4e+28 m" in err
     assert "RuntimeWarning" not in err and not (tmp_path / "out.usdc").exists()
+
+
+def test_time_sampled_curve_vertex_counts_are_read(tmp_path):
+    """curveVertexCounts written as time samples (as DCC exports of animated curves are) was read
+    at the default time, found unauthored, and the two curves silently joined into one tube."""
+    body = BODY.replace("int[] curveVertexCounts = [5]", "int[] curveVertexCounts.timeSamples = { 0: [2, 3] }")
+    scene = tmp_path / "counts.usda"
+    scene.write_text(HEADER + world(tube(body.replace("pinnedPoints = [0, 1]", "pinnedPoints = [0, 2]"))))
+    assert load_scene(str(scene)).tubes[0].curve_counts.tolist() == [2, 3]

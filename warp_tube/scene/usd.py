@@ -188,7 +188,7 @@ def _read_tube(file: str, prim, info: StageInfo, frame_times, varying: dict | No
     if not np.isfinite(pts).all():
         i = int(np.argmax(~np.isfinite(pts).all(axis=1)))
         r.fail("points", f"{pts[i].tolist()} at index {i}", "finite values")
-    counts = curves.GetCurveVertexCountsAttr().Get()
+    counts = curves.GetCurveVertexCountsAttr().Get(Usd.TimeCode(info.start_time_code))  # also where time-sampled
     counts = np.asarray(counts if counts is not None else [len(pts)], dtype=np.int64)
     if counts.sum() != len(pts) or (counts < 2).any():
         r.fail("curveVertexCounts", counts.tolist(), f"counts >= 2 summing to the {len(pts)} points")
