@@ -131,9 +131,18 @@ def files_of(folder):
     return {p.name: p.read_bytes() for p in folder.iterdir() if p.is_file()}
 
 
-def test_resume_refuses_a_points_file_changed_since_the_batch_began(tmp_path, capsys):
+def _interrupted_after_one_variant(scene, out, table):
     from warp_tube.batch import BatchInterrupted, run_batch
 
+    with pytest.raises(BatchInterrupted):
+        run_batch(str(scene), str(out), str(table), frames=2, chunk=1, writers=0, surface=False,
+                  on_chunk=lambda c: (_ for _ in ()).throw(KeyboardInterrupt()))  # fmt: skip
+    kept = files_of(out)
+    assert "variant_00000.usdc" in kept and "variant_00001.usdc" not in kept
+    return kept
+
+
+def test_resume_refuses_a_points_file_changed_since_the_batch_began(tmp_path, capsys):
     points = np.zeros((21, 3))
     points[:, 0] = np.arange(21)
     np.save(tmp_path / "a.npy", points)
@@ -141,17 +150,29 @@ def test_resume_refuses_a_points_file_changed_since_the_batch_began(tmp_path, ca
     table = tmp_path / "t.csv"
     table.write_text(f"@/World/Tube.points,{E}\na.npy,1e5\nb.npy,2e5\n")
     out = tmp_path / "out"
-    with pytest.raises(BatchInterrupted):  # stopped after the first variant
-        run_batch(str(DEFAULT), str(out), str(table), frames=2, chunk=1, writers=0, surface=False,
-                  on_chunk=lambda c: (_ for _ in ()).throw(KeyboardInterrupt()))  # fmt: skip
-    before = files_of(out)
-    assert "variant_00000.usdc" in before and "variant_00001.usdc" not in before
+    before = _interrupted_after_one_variant(DEFAULT, out, table)
     points[:, 1] = 0.1 * np.arange(21)
     np.save(tmp_path / "b.npy", points)  # edited before the resume
-    args = ["--resume"]
-    assert cli(["batch", str(DEFAULT), "--variants", str(table), "-o", str(out), "--frames", "2", "--no-surface", *args]) == 2
+    assert batch(table, out, "--resume") == 2
     err = capsys.readouterr().err
     assert "--resume: the batch there was made with other files the table names: b.npy changed" in err, err
+    assert files_of(out) == before
+
+
+def test_resume_refuses_a_scene_whose_sublayer_changed(tmp_path, capsys):
+    scene = tmp_path / "top.usda"
+    scene.write_text(f'#usda 1.0\n(\n    subLayers = [@./params.usda@, @{DEFAULT}@]\n)\n')
+    params = tmp_path / "params.usda"
+    params.write_text('#usda 1.0\nover "World"\n{\n    over "Tube"\n    {\n        double warptube:density = 1200\n    }\n}\n')
+    table = tmp_path / "t.csv"
+    table.write_text(f"{E}\n1e5\n2e5\n")
+    out = tmp_path / "out"
+    before = _interrupted_after_one_variant(scene, out, table)
+    params.write_text(params.read_text().replace("1200", "900"))
+    args = ["batch", str(scene), "--variants", str(table), "-o", str(out), "--frames", "2", "--no-surface", "--resume"]
+    assert cli(args) == 2
+    err = capsys.readouterr().err
+    assert "made with other layers and assets the scene uses:" in err and "params.usda changed" in err, err
     assert files_of(out) == before
 
 
@@ -208,3 +229,11 @@ def test_every_beyond_the_frames_is_warned_of_as_run_does(tmp_path, capsys):
     table.write_text(f"{E}\n1e5\n2e5\n")
     assert batch(table, tmp_path / "out", "--every", "5") == 0
     assert "--every 5: of frames 0 to 1 only frame 0 is written" in capsys.readouterr().err
+
+
+def test_an_empty_variant_sets_option_is_refused(tmp_path, capsys):
+    table = tmp_path / "t.csv"
+    table.write_text(f"{E}\n1e5\n2e5\n")
+    assert batch(table, tmp_path / "out", "--variant-sets", "") == 2
+    assert "--variant-sets '': expected all, or SET or /PRIM{SET} names" in capsys.readouterr().err
+    assert not (tmp_path / "out").exists()

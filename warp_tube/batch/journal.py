@@ -134,6 +134,7 @@ class Journal:
 #: a signature's entries in words
 _NAMES = {"scene": "scene", "scene_sha256": "scene contents (the file changed)", "table": "table",
           "table_sha256": "table contents (the file changed)", "table_files": "files the table names",
+          "scene_files": "layers and assets the scene uses",
           "variant_sets": "--variant-sets", "layout": "--layout", "every": "--every", "frames": "--frames",
           "surface": "Surface", "chunk": "--chunk", "variants": "number of variants",
           "version": "batch format"}  # fmt: skip
@@ -143,7 +144,7 @@ def _what(key: str, old, new) -> str:
     name = _NAMES.get(key, key)
     if key.endswith("sha256"):
         return name
-    if key == "table_files":
+    if key in ("table_files", "scene_files"):
         old, new = old or {}, new or {}
         changed = sorted(k for k in set(old) | set(new) if old.get(k) != new.get(k))
         return f"{name}: {', '.join(changed[:3])}{' ...' if len(changed) > 3 else ''} changed"

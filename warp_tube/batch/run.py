@@ -240,6 +240,20 @@ def _named_files(tab) -> dict[str, str]:
     return out
 
 
+def _scene_files(scene: str) -> dict[str, str]:
+    """The files the scene brings in (sublayers, references, payloads, assets; not itself), with
+    the SHA-256 of their bytes: a layer changed between a batch and its ``--resume`` is seen."""
+    from pxr import UsdUtils
+
+    try:
+        layers, assets, _ = UsdUtils.ComputeAllDependencies(os.fspath(scene))
+    except Exception:  # (an unreadable scene: its reading says why)
+        return {}
+    root = os.path.realpath(scene)
+    paths = {os.path.realpath(p) for p in [layer.realPath for layer in layers] + list(assets) if p}
+    return {p: file_digest(p) for p in sorted(paths - {root}) if os.path.isfile(p)}
+
+
 def _remove_stray_partials(out_dir: str) -> None:
     """Remove partial files that an interrupted writer left (never a complete output)."""
     for folder in (out_dir, os.path.join(out_dir, "grid")):
@@ -288,7 +302,9 @@ def run_batch(scene: str, out_dir: str, table: str | None = None, *, variant_set
     from .table import read_table
 
     if variant_sets is not None and not isinstance(variant_sets, str):
-        variant_sets = ",".join(str(v) for v in variant_sets)
+        variant_sets = ",".join(str(v) for v in variant_sets) or None
+    elif variant_sets is not None and not variant_sets.strip():
+        raise SceneError("--variant-sets '': expected all, or SET or /PRIM{SET} names")
     t_start = time.perf_counter()
     if not str(os.fspath(out_dir)).strip():
         raise SceneError("-o '': expected a folder name (the batch folder)")
@@ -358,9 +374,11 @@ def _run_batch(scene, out_dir, table, tab, devices, writer_pool, sim_workers, t_
                      table=os.path.abspath(table) if table else None, table_sha256=file_digest(table),
                      variant_sets=variant_sets, layout=layout, every=every, frames=n_frames, surface=surface,
                      chunk=chunk, variants=len(variants))  # fmt: skip
-    named = _named_files(tab)
+    named, layers = _named_files(tab), _scene_files(scene)
     if named:  # (left out where there are none: a batch begun before they were recorded resumes)
         signature["table_files"] = named
+    if layers:
+        signature["scene_files"] = layers
     if len(F_idx) == 1 and n_frames > 1:
         log.warning("--every %d: of frames 0 to %d only frame 0 is written", every, n_frames - 1)
     result = BatchResult(out_dir=out_dir, variants=len(variants), groups=len({c.group for c in plan}), chunks=len(plan),
