@@ -65,10 +65,11 @@ def test_semicolon_and_tab_separated_tables_are_read(tmp_path, sep, encoding):
 
 
 def test_decimal_commas_are_named_with_row_line_and_column(tmp_path, capsys):
-    err = refused(tmp_path, capsys, f"{E};{DENSITY}\n1e5;1050\n1,5e5;1100\n".encode())
+    err = refused(tmp_path, capsys, f"{E};{DENSITY}\n1e5;1050\n1,5e5;1100\n100,000;1100\n".encode())
     assert f"row 1 (line 3), column {E}: found '1,5e5'" in err and "decimal comma? write 1.5e5" in err
+    assert f"row 2 (line 4), column {E}: found '100,000'" in err and "no thousands separators" in err
     err = refused(tmp_path, capsys, f"{E}\n1e5\n2,5e5\n".encode())  # commas split it: two cells
-    assert "row 1 (line 3): 2 cells for 1 columns: a decimal comma (1,5) splits a number" in err
+    assert "row 1 (line 3): 2 cells for 1 columns: a decimal comma (1,5) or a thousands separator (1,000) splits a number" in err
 
 
 def test_a_workbook_or_other_text_encoding_is_refused_with_what_to_do(tmp_path, capsys):
@@ -237,3 +238,14 @@ def test_an_empty_variant_sets_option_is_refused(tmp_path, capsys):
     assert batch(table, tmp_path / "out", "--variant-sets", "") == 2
     assert "--variant-sets '': expected all, or SET or /PRIM{SET} names" in capsys.readouterr().err
     assert not (tmp_path / "out").exists()
+
+
+def test_a_cell_longer_than_the_csv_modules_default_limit_is_read(tmp_path):
+    n = 8000  # an inline array of 8,000 points: ~150,000 characters in one cell
+    points = ", ".join(f"({20 * i / (n - 1):.6f}, 0, 0)" for i in range(n))
+    table = tmp_path / "t.csv"
+    table.write_text(f'/World/Tube.points,/World/Tube.curveVertexCounts,/World/Push.warptube:point\n"[{points}]",[{n}],10\n')
+    assert table.stat().st_size > 131072
+    out = tmp_path / "out"
+    assert batch(table, out) == 0
+    assert [r["status"] for r in summary(out)] == ["ok"]

@@ -32,7 +32,8 @@ _DIGITS = re.compile(r"^[-+]?\d+$")
 _FRACTION = re.compile(r"^\d+(?:[eE][-+]?\d+)?$")
 #: file signatures of spreadsheet workbooks (zip: .xlsx, .ods; OLE2: .xls)
 _WORKBOOKS = (b"PK\x03\x04", b"\xd0\xcf\x11\xe0\xa1\xb1\x1a\xe1")
-_SEPARATORS = {",": "','", ";": "';'", "\t": "a tab"}
+#: the longest cell read (the csv module's process-wide limit is raised to it)
+_CELL_LIMIT = 2**31 - 1
 
 
 @dataclass(frozen=True)
@@ -136,7 +137,7 @@ def _separator(text: str) -> str:
 def _hint(row: list[str], columns: int, separator: str) -> str:
     """Why a row has more cells than the header, where it can be told."""
     if separator == "," and any(_DIGITS.match(a.strip()) and _FRACTION.match(b.strip()) for a, b in zip(row, row[1:])):
-        return ": a decimal comma (1,5) splits a number: write a decimal point (1.5)"
+        return ": a decimal comma (1,5) or a thousands separator (1,000) splits a number: write 1.5, 1000"
     if any(c.strip()[:1] in "([" or c.strip()[-1:] in ")]" for c in row):
         return ': a vector or array holds commas, so quote its cell, e.g. "(0, 0.02, 0)"'
     return ""
@@ -156,6 +157,8 @@ def read_table(path: str) -> Table:
     text = _text(path)
     separator = _separator(text)
     records = []  # (line where the record starts, cells)
+    if csv.field_size_limit() < _CELL_LIMIT:  # (131,072 characters by default: an inline array of 5,000 points)
+        csv.field_size_limit(_CELL_LIMIT)
     try:
         reader = csv.reader(io.StringIO(text, newline=""), delimiter=separator, skipinitialspace=True)
         start = 1

@@ -35,6 +35,7 @@ _INT_RANGES = {"int": (-(2**31), 2**31 - 1), "uint": (0, 2**32 - 1), "int64": (-
                "uint64": (0, 2**64 - 1), "uchar": (0, 255), "int2": (-(2**31), 2**31 - 1),
                "int3": (-(2**31), 2**31 - 1), "int4": (-(2**31), 2**31 - 1)}  # fmt: skip
 _DIGIT = re.compile(r"\d")
+_THOUSANDS = re.compile(r"^\s*[-+]?\d{1,3}(?:,\d{3})+\s*$")
 _DECIMAL_COMMA = re.compile(r"^\s*[-+]?\d+,\d+(?:[eE][-+]?\d+)?\s*$")
 _UNIT = re.compile(r"^\s*[-+]?(?:\d+\.?\d*|\.\d+)(?:[eE][-+]?\d+)?\s*[A-Za-z%\u00b0\u00b5/]+[A-Za-z0-9/^*.\u00b2\u00b3]*\s*$")
 INTS = ("int", "uint", "int64", "uint64", "uchar")
@@ -192,6 +193,8 @@ def parse_plain(text: str, type_name: str):
 
 def _why(text: str, kind: str, n: int, array: bool) -> str:
     """A hint for a cell that is not the number it should be: a decimal comma, a unit, a fraction."""
+    if n == 1 and not array and _THOUSANDS.match(text):
+        return " (numbers take a decimal point and no thousands separators, e.g. 100000 or 1.5)"
     if n == 1 and not array and _DECIMAL_COMMA.match(text):
         return f" (a decimal comma? write {text.strip().replace(',', '.')})"
     if _UNIT.match(text):
