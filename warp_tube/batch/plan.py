@@ -78,7 +78,11 @@ def _group_arrays(t) -> tuple:
     return tuple(t.curve_counts.tolist()), t.pinned.tobytes(), t.points.tobytes(), mean_spoke_length(t)
 
 
-def run_choices(scenes: list[Scene], block: int = 1024) -> list[RunChoice]:
+#: scenes of one layout are discretised together up to this many nodes at a time (run_choices)
+CHOICE_BLOCK_NODES = 1 << 20
+
+
+def run_choices(scenes: list[Scene], block: int | None = None) -> list[RunChoice]:
     """The integrator and substeps ``Simulation(scene)`` chooses for each scene alone.
 
     The policy is the one ``Simulation`` applies (:func:`warp_tube.centerline.policy.choose_integrator`), given each scene's stability
@@ -86,7 +90,8 @@ def run_choices(scenes: list[Scene], block: int = 1024) -> list[RunChoice]:
     one layout (curve point counts, and the forces' tubes and lines) are discretised together,
     ``block`` at a time (the per-node parameters of a scene holding them all, with the layout's
     topology; read per scene), and scenes whose tubes agree in everything the bound depends on
-    share one answer.
+    share one answer. ``block``: scenes at a time (default: up to :data:`CHOICE_BLOCK_NODES`
+    nodes).
     """
     out: list = [None] * len(scenes)
     first_of: dict = {}  # content key -> index of the first scene with it
@@ -105,8 +110,10 @@ def run_choices(scenes: list[Scene], block: int = 1024) -> list[RunChoice]:
         layouts.setdefault(layout, []).append(i)
     for members in layouts.values():
         one = None  # the layout's topology, built once
-        for b in range(0, len(members), block):
-            idx = members[b : b + block]
+        nodes = sum(len(t.points) for t in scenes[members[0]].tubes)
+        size = block or max(1, CHOICE_BLOCK_NODES // max(nodes, 1))
+        for b in range(0, len(members), size):
+            idx = members[b : b + size]
             one = one or _topology(scenes[idx[0]])
             for i, choice in zip(idx, _choices_of([scenes[i] for i in idx], one)):
                 out[i] = choice
