@@ -196,6 +196,23 @@ def _is_mesh(stage, path: str) -> bool:
     return bool(prim) and prim.IsA(UsdGeom.Mesh)
 
 
+def _in_instances(table: Table, columns) -> list[str]:
+    """Per column whose prim lies inside an instance (which usd-core does not edit), a problem:
+    such a column can be taken only by rows made from the base scene (fastread)."""
+    out = []
+    for col, (attr, _, _) in zip(table.columns, columns):
+        prim = attr.GetPrim() if attr is not None else None
+        if prim is None or not prim.IsInstanceProxy():
+            continue
+        holder = prim.GetParent()
+        while holder and not holder.IsInstance():
+            holder = holder.GetParent()
+        out.append(f"{table.path}: column {col.header}: {col.prim} lies inside the instance {holder.GetPath()}, which "
+                   f"usd-core does not edit (plain values of warptube: parameters and forces are taken; these rows' are "
+                   f"not): make {holder.GetPath()} not instanceable in the scene")  # fmt: skip
+    return out
+
+
 def _resolve_columns(stage, table: Table, context: str):
     """Per column: the attribute to author and its USD type name (or a problem message)."""
     from pxr import Sdf
@@ -205,6 +222,10 @@ def _resolve_columns(stage, table: Table, context: str):
         prim = stage.GetPrimAtPath(col.prim)
         if not prim:
             out.append((None, None, f"{table.path}: column {col.header}: no prim {col.prim} in {context}"))
+            continue
+        if col.attribute == "widths" and prim.GetAttribute("primvars:widths").HasAuthoredValue():
+            out.append((None, None, f"{table.path}: column {col.header}: {col.prim} authors primvars:widths, which "
+                                    f"takes precedence over widths: name the column {col.prim}.primvars:widths"))  # fmt: skip
             continue
         attr = prim.GetAttribute(col.attribute)
         if attr and attr.GetTypeName():
@@ -350,6 +371,11 @@ def _collect(scene_path, table, variant_sets, extract, progress):
         changed = sorted({col.prim for col in table.columns})
         plain = PlainColumns.of(base, _targets(stage, table, columns))
         made = _plain_scenes(plain, table, columns) if plain is not None else None
+        if made is None or any(m is None for m in made):  # rows authored in the stage
+            inside = _in_instances(table, columns)
+            if inside:
+                problems += [(-1, f"{msg} ({context})") for msg in inside]
+                continue
         seen_rows: dict = {}
         folder = table.folder
         for r, cells in enumerate(table.rows, start=table.first_row):

@@ -1,0 +1,99 @@
+"""Batch columns on prims the table cannot simply author: widths a scene gives as primvars:widths,
+and tubes inside an instance."""
+
+import subprocess
+import sys
+
+import numpy as np
+import pytest
+
+from warp_tube.batch import run_batch
+from warp_tube.scene.spec import SceneError
+
+TUBE = """
+        uniform token type = "linear"
+        int[] curveVertexCounts = [6]
+        point3f[] points = [(0, 0, 0), (1, 0, 0), (2, 0, 0), (3, 0, 0), (4, 0, 0), (5, 0, 0)]
+        {widths}
+        double warptube:youngsModulus = 100000
+        double warptube:density = 1000
+        int[] warptube:pinnedPoints = [0, 1]
+"""
+HEAD = """#usda 1.0
+(
+    defaultPrim = "World"
+    metersPerUnit = 0.01
+    upAxis = "Y"
+    endTimeCode = 4
+)
+
+def Scope "Simulation"
+{
+    float3 warptube:gravity = (0, -9.81, 0)
+}
+"""
+
+
+def write(path, text):
+    path.write_text(text)
+    return str(path)
+
+
+def cli(*args):
+    return subprocess.run([sys.executable, "-m", "warp_tube", *map(str, args)], capture_output=True, text=True)
+
+
+def test_a_widths_column_where_the_scene_authors_primvars_widths_is_refused_and_the_primvar_is_taken(tmp_path):
+    """The reader takes primvars:widths over widths (as USD does), so a widths column would change
+    nothing: refused, naming the column to use; that column changes the variants' radii."""
+    widths = 'float[] primvars:widths = [1] (interpolation = "constant")'
+    scene = write(tmp_path / "s.usda", HEAD + 'def Xform "World"\n{\ndef BasisCurves "Tube"\n{' + TUBE.format(widths=widths) + "}\n}\n")
+    bad = write(tmp_path / "bad.csv", "/World/Tube.widths\n1\n3\n")
+    r = cli("batch", scene, "--variants", bad, "-o", tmp_path / "out", "--frames", 3, "--layout", "arrays")
+    assert r.returncode == 2, r.stderr
+    assert "column /World/Tube.widths" in r.stderr and "name the column /World/Tube.primvars:widths" in r.stderr
+    assert not (tmp_path / "out").exists()
+    good = write(tmp_path / "good.csv", "/World/Tube.primvars:widths\n1\n3\n")
+    out = tmp_path / "good"
+    assert run_batch(scene, str(out), good, layout="arrays", frames=3).ok == 2
+    q = np.load(out / "centerline.npy")
+    # Under gravity a thicker tube of the same material sags differently (stiffness grows as r^4,
+    # weight as r^2): the two variants' tips part by far more than float round-off.
+    assert np.abs(q[0, -1] - q[1, -1]).max() > 1e-4
+
+
+INSTANCED = HEAD + """
+class Xform "Proto"
+{
+    def BasisCurves "Tube"
+    {""" + TUBE.format(widths='float[] widths = [1] (interpolation = "constant")') + """    }
+}
+
+def Xform "World"
+{
+    def Xform "Holder" (
+        instanceable = true
+        references = </Proto>
+    )
+    {
+    }
+}
+"""
+
+
+def test_a_tube_inside_an_instance_takes_plain_values_and_names_the_instance_otherwise(tmp_path):
+    """Plain values (a warptube: parameter) are made from the base scene and need no edit of the
+    instance: taken, each variant its own; a column usd-core would have to author inside the
+    instance (an int[] pinnedPoints) is refused before anything runs, naming the instance."""
+    scene = write(tmp_path / "inst.usda", INSTANCED)
+    plain = write(tmp_path / "plain.csv", "/World/Holder/Tube.warptube:youngsModulus\n20000\n200000\n")
+    out = tmp_path / "plain"
+    assert run_batch(scene, str(out), plain, layout="arrays", frames=3).ok == 2
+    q = np.load(out / "centerline.npy")
+    # A 10x stiffer tube sags about 10x less under its weight: the tips part by far more than round-off.
+    assert np.abs(q[0, -1] - q[1, -1]).max() > 1e-4
+    staged = write(tmp_path / "staged.csv", '/World/Holder/Tube.warptube:pinnedPoints\n"[0, 1]"\n"[0, 1, 2]"\n')
+    with pytest.raises(SceneError, match=r"column /World/Holder/Tube.warptube:pinnedPoints: .* inside the instance "
+                                         r"/World/Holder.*make /World/Holder not instanceable"):  # fmt: skip
+        run_batch(scene, str(tmp_path / "staged"), staged, layout="arrays", frames=3)
+    assert not (tmp_path / "staged").exists()
