@@ -2,7 +2,8 @@
 
 For each tube prim at path P the stage holds an ``Xform`` at P with ``P/Centerline`` (BasisCurves,
 ``points`` time-sampled) and, unless disabled, ``P/Surface`` (Mesh: static triangle topology and
-``primvars:st``; ``points``, ``normals`` and ``extent`` time-sampled). Samples are written straight
+``primvars:st``, ``doubleSided`` where the tube has no caps; ``points``, ``normals`` and ``extent``
+time-sampled). Samples are written straight
 into the layer, which no stage has open after the prims are defined (``Sdf.Layer.SetTimeSample`` of
 ``Vt.Vec3fArray`` values: about 1 us less per sample than through an open stage). The layer is
 saved under a hidden temporary name beside the target (:func:`warp_tube.scene.files.temp_path`) and
@@ -151,6 +152,10 @@ class StageWriter:
                 if surf is not None:
                     mesh = _define(layer, path_p.AppendChild("Surface"), "Mesh")
                     _attr(mesh, "subdivisionScheme", T.Token, UsdGeom.Tokens.none, uniform=True)
+                    if not _closed(surf):
+                        # an open tube is seen from inside through its ends: without this, usdview
+                        # (Storm) culls the inner wall and Blender turns on backface culling
+                        _attr(mesh, "doubleSided", T.Bool, True, uniform=True)
                     _attr(mesh, "faceVertexCounts", T.IntArray,
                           Vt.IntArray.FromNumpy(np.ascontiguousarray(surf.face_vertex_counts, dtype=np.int32)))  # fmt: skip
                     _attr(mesh, "faceVertexIndices", T.IntArray,
@@ -268,6 +273,18 @@ def save_error(path: str, error: Exception) -> OSError:
         if code is not None and os.strerror(code) in text:
             return OSError(code, os.strerror(code), path)
     return OSError(errno.EIO, "usd-core could not save the stage", path)
+
+
+def _closed(surf) -> bool:
+    """Whether a surface topology is closed (its tubes capped): ``surf.caps`` where it says so,
+    else no edge of its triangles belongs to one face only."""
+    caps = getattr(surf, "caps", None)
+    if caps is not None:
+        return bool(caps)
+    tris = np.asarray(surf.face_vertex_indices, dtype=np.int64).reshape(-1, 3)
+    edges = np.sort(np.concatenate([tris[:, [0, 1]], tris[:, [1, 2]], tris[:, [2, 0]]]), axis=1)
+    _, counts = np.unique(edges, axis=0, return_counts=True)
+    return bool(len(counts)) and not (counts == 1).any()
 
 
 def _define(layer, path, type_name: str):
