@@ -3,10 +3,12 @@
 Reads a stage written per DESIGN.md's output contract (tube prims holding a ``Surface`` Mesh with
 time-sampled ``points``) and writes, through trimesh, one file per frame (or one frame):
 
-- OBJ: all Surface meshes of the stage merged into one mesh, in stage units and axes (OBJ has
-  none of its own), with vertex normals where the stage has them.
+- OBJ: one object (``o`` and ``g``, named after its prim path) per Surface mesh, in stage units
+  and axes (OBJ has none of its own; a comment at the top of each file names them), with vertex
+  normals where the stage has them.
 - GLB: one node per Surface mesh (named after its prim path), converted to glTF's metres and
-  Y-up (``metersPerUnit`` and ``upAxis`` of the stage).
+  Y-up (``metersPerUnit`` and ``upAxis`` of the stage), with a plain grey material, double-sided
+  for an open Surface (no caps, or ``doubleSided`` in the stage) so viewers draw its inner wall.
 
 Texture coordinates are not exported (the stage's ``st`` are face-varying; both formats would need
 the seam vertices split).
@@ -106,8 +108,17 @@ def surface_at(mesh, time) -> tuple[np.ndarray, np.ndarray, np.ndarray | None]:
     return verts, _triangles(np.asarray(counts), np.asarray(indices)), normals
 
 
-def _frame_name(time: float) -> str:
-    return f"{int(round(time)):04d}" if float(time).is_integer() else f"{time:09.3f}".replace(".", "_")
+def _frame_names(times) -> list[str]:
+    """File-name frame numbers of a sequence: integer time codes zero-padded to one width (at least
+    4, more where a frame needs it: 9999 and 10000 give ``09999`` and ``10000``), so the names sort
+    in frame order; others as ``00012_500``."""
+    ints = [int(round(t)) for t in times if float(t).is_integer()]
+    width = max([4] + [len(str(abs(i))) for i in ints])
+    return [
+        (f"-{-int(round(t)):0{width}d}" if t < 0 else f"{int(round(t)):0{width}d}")
+        if float(t).is_integer() else f"{t:09.3f}".replace(".", "_")
+        for t in times
+    ]
 
 
 def export(usd_path, fmt: str = "obj", out=None, frame=None, overwrite: bool = False) -> list[Path]:
@@ -170,7 +181,7 @@ def export(usd_path, fmt: str = "obj", out=None, frame=None, overwrite: bool = F
             if same_file(folder, usd_path):
                 raise SceneError(f"{folder}: is the input stage: -o takes a folder, or one .{fmt} file with --frame")
             raise SceneError(f"{folder}: exists and is not a folder: -o takes a folder, or one .{fmt} file with --frame")
-        paths = [folder / f"{usd_path.stem}.{_frame_name(t)}.{fmt}" for t in times]
+        paths = [folder / f"{usd_path.stem}.{name}.{fmt}" for name in _frame_names(times)]
     for p in paths:
         if same_file(p, usd_path):
             raise SceneError(f"{p}: is the input stage: refusing to write over it")
@@ -184,33 +195,77 @@ def export(usd_path, fmt: str = "obj", out=None, frame=None, overwrite: bool = F
 
     to_gltf = np.eye(3)
     scale = 1.0
+    mpu = UsdGeom.GetStageMetersPerUnit(stage)
+    z_up = UsdGeom.GetStageUpAxis(stage) == UsdGeom.Tokens.z
     if fmt == "glb":
-        scale = UsdGeom.GetStageMetersPerUnit(stage)
-        if UsdGeom.GetStageUpAxis(stage) == UsdGeom.Tokens.z:
+        scale = mpu
+        if z_up:
             to_gltf = np.array([[1.0, 0.0, 0.0], [0.0, 0.0, -1.0], [0.0, 1.0, 0.0]])  # rows: x->x, y->-z, z->y
+        render = partial(_render_glb, meshes, [_open_surface(m) for m in meshes], scale, to_gltf)
+    else:
+        render = partial(_render_obj, meshes, usd_path.name, mpu, "Z" if z_up else "Y")
 
-    _write_all(paths[0].parent, [(path, partial(_render, fmt, meshes, t, scale, to_gltf)) for t, path in zip(times, paths)])
+    _write_all(paths[0].parent, [(path, partial(render, t)) for t, path in zip(times, paths)])
     return paths
 
 
-def _render(fmt: str, meshes, time, scale: float, to_gltf: np.ndarray) -> bytes:
-    """The bytes of one exported file: every Surface mesh at a time code, as one OBJ mesh or as
-    one GLB node each."""
-    import trimesh
+def _open_surface(mesh) -> bool:
+    """Whether a Surface is seen from inside: ``doubleSided`` in the stage, or an edge of its
+    triangles that belongs to one face only (an uncapped tube)."""
+    if mesh.GetDoubleSidedAttr().Get():
+        return True
+    counts, indices = mesh.GetFaceVertexCountsAttr().Get(), mesh.GetFaceVertexIndicesAttr().Get()
+    if counts is None or indices is None or not len(indices):
+        return False
+    tris = _triangles(np.asarray(counts), np.asarray(indices))
+    edges = np.sort(np.concatenate([tris[:, [0, 1]], tris[:, [1, 2]], tris[:, [2, 0]]]), axis=1)
+    return bool((np.unique(edges, axis=0, return_counts=True)[1] == 1).any())
 
-    parts = []
-    for mesh in meshes:
+
+def _render_glb(meshes, open_surfaces, scale: float, to_gltf: np.ndarray, time) -> bytes:
+    """The bytes of one GLB file: every Surface mesh at a time code, one node each."""
+    import trimesh
+    from trimesh.visual.material import PBRMaterial
+
+    scene = trimesh.Scene()
+    for mesh, two_sided in zip(meshes, open_surfaces):
         verts, faces, normals = surface_at(mesh, time)
         verts = scale * verts @ to_gltf
         normals = None if normals is None else normals @ to_gltf
-        parts.append((str(mesh.GetPath()), trimesh.Trimesh(verts, faces, vertex_normals=normals, process=False)))
-    if fmt == "obj":
-        merged = trimesh.util.concatenate([m for _, m in parts]) if len(parts) > 1 else parts[0][1]
-        return merged.export(file_type="obj", include_normals=True).encode("utf-8")
-    scene = trimesh.Scene()
-    for name, m in parts:
+        m = trimesh.Trimesh(verts, faces, vertex_normals=normals, process=False)
+        # glTF's defaults would make a material fully metallic: a plain grey dielectric instead
+        material = PBRMaterial(name="tube", baseColorFactor=[0.8, 0.8, 0.8, 1.0], metallicFactor=0.0,
+                               roughnessFactor=0.6, doubleSided=bool(two_sided))  # fmt: skip
+        m.visual = trimesh.visual.TextureVisuals(material=material)
+        name = str(mesh.GetPath())
         scene.add_geometry(m, node_name=name, geom_name=name)
     return scene.export(file_type="glb")
+
+
+def _render_obj(meshes, stage_name: str, mpu: float, up: str, time) -> bytes:
+    """The bytes of one OBJ file: every Surface mesh at a time code, one object each (``o`` for
+    Blender, ``g`` for Houdini and Maya), in stage units and axes, which a comment names."""
+    out = [
+        f"# {stage_name}, time code {time:g}: Surface meshes written by warp_tube\n"
+        f"# units: the stage's, 1 unit = {mpu:g} m (metersPerUnit); up axis: {up} (the stage's)\n"
+    ]
+    v_base = n_base = 0
+    for mesh in meshes:
+        verts, faces, normals = surface_at(mesh, time)
+        name = str(mesh.GetPath())
+        out.append(f"o {name}\ng {name}\n")
+        out.append(("v %.9g %.9g %.9g\n" * len(verts)) % tuple(verts.ravel().tolist()))
+        f = faces.astype(np.int64) + 1 + v_base
+        if normals is not None:
+            out.append(("vn %.9g %.9g %.9g\n" * len(normals)) % tuple(normals.ravel().tolist()))
+            fn = faces.astype(np.int64) + 1 + n_base
+            corners = np.stack([f, fn], axis=2).reshape(len(f), 6)
+            out.append(("f %d//%d %d//%d %d//%d\n" * len(f)) % tuple(corners.ravel().tolist()))
+            n_base += len(normals)
+        else:
+            out.append(("f %d %d %d\n" * len(f)) % tuple(f.ravel().tolist()))
+        v_base += len(verts)
+    return "".join(out).encode("utf-8")
 
 
 def _write_all(folder: Path, files: list[tuple[Path, Callable[[], bytes]]]) -> None:
