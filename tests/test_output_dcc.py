@@ -244,3 +244,17 @@ def test_frame_names_keep_one_width_so_they_sort_in_frame_order(tmp_path):
     assert main(["export", str(path), "-o", str(tmp_path / "seq")]) == 0
     names = sorted(p.name for p in (tmp_path / "seq").iterdir())
     assert names == ["s.09998.obj", "s.09999.obj", "s.10000.obj"]
+
+
+def test_export_warns_of_an_earlier_longer_sequence_in_its_folder_and_keeps_it(stage_path, tmp_path, capsys):
+    folder = tmp_path / "seq"
+    folder.mkdir()
+    (folder / "tubes.usda.out.1004.obj").write_bytes(b"earlier export")
+    (folder / "notes.txt").write_bytes(b"mine")
+    assert main(["export", str(stage_path), "-o", str(folder)]) == 0
+    err = capsys.readouterr().err
+    assert "holds 1 other frame file(s) of this name (tubes.usda.out.1004.obj)" in err
+    assert (folder / "tubes.usda.out.1004.obj").read_bytes() == b"earlier export"
+    assert sorted(p.name for p in folder.iterdir()) == ["notes.txt"] + [f"tubes.usda.out.{int(t)}.obj" for t in FRAMES + [1004.0]]
+    assert main(["export", str(stage_path), "-o", str(tmp_path / "fresh")]) == 0
+    assert "other frame file" not in capsys.readouterr().err

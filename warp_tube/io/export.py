@@ -185,6 +185,8 @@ def export(usd_path, fmt: str = "obj", out=None, frame=None, overwrite: bool = F
     for p in paths:
         if same_file(p, usd_path):
             raise SceneError(f"{p}: is the input stage: refusing to write over it")
+    if not names_file and frame is None:
+        _warn_of_other_frames(paths, usd_path.stem, fmt)
     if not overwrite:
         refuse_existing(paths)
     for p in paths:
@@ -207,6 +209,26 @@ def export(usd_path, fmt: str = "obj", out=None, frame=None, overwrite: bool = F
 
     _write_all(paths[0].parent, [(path, partial(render, t)) for t, path in zip(times, paths)])
     return paths
+
+
+def _warn_of_other_frames(paths: list[Path], stem: str, fmt: str) -> None:
+    """Warn where the folder holds frames of this name not in this export (an earlier, longer
+    export's): a sequence importer would read them with the new ones. They are left as they are."""
+    import logging
+    import re
+
+    folder = paths[0].parent
+    if not folder.is_dir():
+        return
+    pattern = re.compile(rf"{re.escape(stem)}\.-?\d+(_\d+)?\.{fmt}")
+    ours = {p.name for p in paths}
+    others = sorted(n for n in os.listdir(folder) if pattern.fullmatch(n) and n not in ours)
+    if others:
+        logging.getLogger(__name__).warning(
+            "%s: holds %d other frame file(s) of this name (%s%s), not from this export: an importer "
+            "of the sequence would read them too; they are left as they are",
+            folder, len(others), others[0], f" ... {others[-1]}" if len(others) > 1 else "",
+        )
 
 
 def _open_surface(mesh) -> bool:
