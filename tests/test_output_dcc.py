@@ -258,3 +258,27 @@ def test_export_warns_of_an_earlier_longer_sequence_in_its_folder_and_keeps_it(s
     assert sorted(p.name for p in folder.iterdir()) == ["notes.txt"] + [f"tubes.usda.out.{int(t)}.obj" for t in FRAMES + [1004.0]]
     assert main(["export", str(stage_path), "-o", str(tmp_path / "fresh")]) == 0
     assert "other frame file" not in capsys.readouterr().err
+
+
+def test_writer_given_a_topology_without_a_caps_flag_finds_the_open_one_by_its_edges(tmp_path):
+    from types import SimpleNamespace
+
+    import warp_tube
+    from warp_tube.io.writer import StageWriter
+
+    (tmp_path / "tubes.usda").write_text(SCENE)
+    scene = warp_tube.load_scene(str(tmp_path / "tubes.usda"))
+    closed = [[0, 2, 1], [0, 1, 3], [1, 2, 3], [0, 3, 2]]  # a tetrahedron: every edge in two faces
+    strip = [[0, 1, 2], [0, 2, 3]]  # a square: four edges in one face only
+
+    def topology(faces):
+        return SimpleNamespace(face_vertex_counts=np.full(len(faces), 3), face_vertex_indices=np.ravel(faces),
+                               st=np.zeros((3 * len(faces), 2)), st_interpolation="faceVarying")  # fmt: skip
+
+    w = StageWriter(str(tmp_path / "o.usda"), scene, [topology(closed), topology(strip)])
+    corners = np.array([[0, 0, 0], [1, 0, 0], [0, 1, 0], [0, 0, 1]], dtype=np.float32)
+    w.write_frame(1001, [t.points for t in scene.tubes], [(corners, corners), (corners, corners)])
+    w.close()
+    st = Usd.Stage.Open(str(tmp_path / "o.usda"))
+    assert not surface(st, CAPPED).GetDoubleSidedAttr().HasAuthoredValue()
+    assert surface(st, OPEN).GetDoubleSidedAttr().Get() is True
