@@ -108,7 +108,7 @@ def _cmd_run(a) -> int:
     from . import load_scene
     from .scene.files import default_run_output, usd_layer_files
     from .io.writer import check_output_path
-    from .runtime.progress import Phase, format_seconds, stderr_is_terminal
+    from .runtime.progress import Phase, PlainProgress, format_seconds, stderr_is_terminal
     from .scene.usd import open_stage
     from .sim.simulation import NumericalError, Simulation
 
@@ -139,7 +139,9 @@ def _cmd_run(a) -> int:
     with Phase(f"building the model ({points:,} points)", enabled=tty):
         sim = Simulation(scene, device=a.device, surface=not a.no_surface)
     try:
-        summary = sim.run(frames=a.frames, output=out, progress=tty, every=a.every, setup_time=time.perf_counter() - t_read)
+        # On a terminal a progress bar; elsewhere (a log file) a plain line every 30 s, unless --quiet.
+        progress = tty or (None if a.quiet else PlainProgress())
+        summary = sim.run(frames=a.frames, output=out, progress=progress, every=a.every, setup_time=time.perf_counter() - t_read)
     except NumericalError as e:
         return _stopped(sim, out, f"{e}", EXIT_NUMERICAL, a.quiet)
     except KeyboardInterrupt as e:

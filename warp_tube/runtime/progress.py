@@ -3,17 +3,23 @@
 :class:`Phase` writes ``<what> ... 12 s`` on stderr while a block runs, starting only after
 ``after`` seconds so that quick phases print nothing, and clears the line when the block ends.
 :class:`Heartbeat` calls a function every second from a background thread (used to keep a progress
-bar's clock moving while one long frame runs). Kernel launches and NumPy release Python's lock, and
+bar's clock moving while one long frame runs). Where stderr is not a terminal (a log file, a job
+scheduler), :class:`PlainProgress` writes a plain line with the estimate of the time left every
+:data:`PLAIN_INTERVAL` seconds instead of a bar. Kernel launches and NumPy release Python's lock, and
 Python code yields it every few milliseconds, so the thread runs during every phase.
 """
 
 from __future__ import annotations
 
+import os
 import sys
 import threading
 import time
 
-__all__ = ["Phase", "Heartbeat", "format_seconds", "stderr_is_terminal"]
+#: seconds [s] between two lines of :class:`PlainProgress`.
+PLAIN_INTERVAL = 30.0
+
+__all__ = ["Phase", "Heartbeat", "PlainProgress", "frame_bar", "format_seconds", "stderr_is_terminal"]
 
 
 def stderr_is_terminal() -> bool:
@@ -105,3 +111,53 @@ class Phase:
                     sys.stderr.write("\r\033[K")
                     sys.stderr.flush()
         return False
+
+
+def frame_bar(total: int):
+    """A tqdm bar on stderr over ``total`` frames, counting the first as done (started after it: its
+    rate and estimate leave the start-up out), and a started :class:`Heartbeat` that keeps its clock
+    moving through long frames; returns ``(bar, heartbeat)``."""
+    from tqdm import tqdm
+
+    try:  # a terminal that reports no size (some consoles and ptys): tqdm would draw nothing
+        size = os.get_terminal_size(sys.stderr.fileno())
+        known = size.columns > 0 and size.lines > 0
+    except (OSError, ValueError, AttributeError):
+        known = False
+    bar = tqdm(total=total, initial=1, unit="frame", desc="simulating", leave=False, file=sys.stderr,
+               **({} if known else {"ncols": 80, "nrows": 20}))  # fmt: skip
+    beat = Heartbeat(bar.refresh)
+    beat.__enter__()
+    return bar, beat
+
+
+class PlainProgress:
+    """Progress of a run as plain lines, for a stderr that is not a terminal: called as
+    ``progress(done, total)`` after each frame (see :meth:`Simulation.run
+    <warp_tube.sim.simulation.Simulation.run>`), it writes ``warp-tube: simulating: 600 of 2,000
+    frames (30%), 1.0 min so far, about 2.3 min left`` at most every ``interval`` seconds [s]. The
+    estimate is taken from the first call on (the start-up, kernel compilation, left out).
+
+    Args:
+        interval: seconds between two lines [s] (default :data:`PLAIN_INTERVAL`).
+        stream: where to write (default: ``sys.stderr`` at each line).
+        clock: the time [s] (``time.monotonic``; a test may give its own).
+    """
+
+    def __init__(self, interval: float | None = None, stream=None, clock=time.monotonic):
+        self.interval = PLAIN_INTERVAL if interval is None else interval
+        self.stream, self.clock = stream, clock
+        self._t0 = self._first = self._last = None
+
+    def __call__(self, done: int, total: int) -> None:
+        now = self.clock()
+        if self._t0 is None:
+            self._t0, self._first, self._last = now, done, now
+            return
+        if now - self._last < self.interval or done >= total:
+            return
+        self._last = now
+        rate = (done - self._first) / (now - self._t0) if now > self._t0 else 0.0
+        left = f", about {format_seconds((total - done) / rate)} left" if rate > 0 else ""
+        print(f"warp-tube: simulating: {done:,} of {total:,} frames ({100 * done // max(total, 1)}%), "
+              f"{format_seconds(now - self._t0)} so far{left}", file=self.stream or sys.stderr, flush=True)  # fmt: skip

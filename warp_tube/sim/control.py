@@ -24,7 +24,13 @@ from .assistant_lines import AL_MIN_ANGLE, AL_REBUILD_ANGLE, AssistantLines
 
 log = logging.getLogger(__name__)
 
-__all__ = ["FrameControl", "AL_REBUILD_ANGLE", "AL_MIN_ANGLE"]
+__all__ = ["FrameControl", "AL_REBUILD_ANGLE", "AL_MIN_ANGLE", "MAX_FORCE_N", "MAX_PIN_M"]
+
+#: the largest force component :meth:`FrameControl.set_force` takes [N] (as the scene reader).
+MAX_FORCE_N = 1e9
+#: the largest pin target coordinate :meth:`FrameControl.set_pin_targets` takes [m] (as the scene
+#: reader's largest coordinate: past any tube).
+MAX_PIN_M = 1e6
 
 
 class FrameControl:
@@ -41,6 +47,7 @@ class FrameControl:
         self.frame_dt = scene.stage.frame_dt
         self._force_override: dict[int, np.ndarray] = {}
         self._pin_override: dict[int, np.ndarray] = {}
+        self._pins_written = False  # whether update last moved the pins (pin_q_start holds where from)
         # What this object last wrote into the control (it alone writes these): the point forces
         # are uploaded only when they change.
         self._fe_last = None  # (node_count, 3) [N]
@@ -66,17 +73,18 @@ class FrameControl:
         Raises:
             KeyError: no force at that prim path. IndexError: no force with that index. TypeError: neither
             an index nor a path (a float, a bool).
-            ValueError: ``vector`` is not three finite numbers (checked here, before any step).
+            ValueError: ``vector`` is not three finite numbers of at most :data:`MAX_FORCE_N` (checked
+            here, before any step).
         """
         idx = self.force_index(force)
-        try:
-            v = np.asarray(vector, dtype=np.float64)
-        except (TypeError, ValueError):
-            raise ValueError(f"set_force({force!r}): vector {vector!r}: expected three numbers [N]") from None
+        v = _numbers(vector, f"set_force({force!r}): vector {vector!r}: expected three numbers [N]")
         if v.shape not in ((3,), (1, 3)):
             raise ValueError(f"set_force({force!r}): vector of shape {v.shape}: expected three numbers [N]")
         if not np.isfinite(v).all():
             raise ValueError(f"set_force({force!r}): vector {tuple(v.reshape(3).tolist())}: expected finite numbers [N]")
+        if np.abs(v).max() > MAX_FORCE_N:
+            raise ValueError(f"set_force({force!r}): vector {tuple(v.reshape(3).tolist())}: expected at most "
+                             "1e9 N a component (as a scene's warptube:force)")  # fmt: skip
         f = self.scene.forces[idx]
         if idx not in self._force_override and np.any(v) and f.point in self.scene.tubes[f.tube].pinned:
             log.warning("set_force(%r): point %d of %s is pinned: this force does nothing", force, f.point,
@@ -92,20 +100,22 @@ class FrameControl:
             KeyError / IndexError: no such tube prim. ValueError: wrong shape, points or non-finite values.
         """
         k = self.tube_index(tube)
-        pinned = self.scene.tubes[k].pinned
+        pinned, path = self.scene.tubes[k].pinned, self.scene.tubes[k].path
         if isinstance(positions, dict):  # point index -> position, every pinned point once
-            if sorted(int(i) for i in positions) != pinned.tolist():
-                raise ValueError(f"pin targets of {self.scene.tubes[k].path}: points {sorted(positions)}: expected every "
-                                 f"pinned point once, {pinned.tolist()}")  # fmt: skip
+            keys = list(positions)
+            if not all(isinstance(i, (int, np.integer)) and not isinstance(i, bool) for i in keys) or \
+                    sorted(int(i) for i in keys) != pinned.tolist():  # fmt: skip
+                raise ValueError(f"pin targets of {path}: points {keys!r}: expected every pinned point once, "
+                                 f"{pinned.tolist()}")  # fmt: skip
             positions = [positions[i] for i in pinned.tolist()]
-        try:
-            p = np.asarray(positions, dtype=np.float64) * self.scene.stage.meters_per_unit
-        except (TypeError, ValueError):
-            raise ValueError(f"pin targets of {self.scene.tubes[k].path}: {positions!r}: expected numbers") from None
-        if p.shape != (len(self.scene.tubes[k].pinned), 3):
-            raise ValueError(f"pin targets of {self.scene.tubes[k].path}: shape {p.shape}, expected ({len(self.scene.tubes[k].pinned)}, 3)")
+        p = _numbers(positions, f"pin targets of {path}: {positions!r}: expected numbers") * self.scene.stage.meters_per_unit
+        if p.shape != (len(pinned), 3):
+            raise ValueError(f"pin targets of {path}: shape {p.shape}, expected ({len(pinned)}, 3)")
         if not np.isfinite(p).all():
-            raise ValueError(f"pin targets of {self.scene.tubes[k].path}: non-finite values: expected finite positions")
+            raise ValueError(f"pin targets of {path}: non-finite values: expected finite positions")
+        if np.abs(p).max(initial=0.0) > MAX_PIN_M:
+            raise ValueError(f"pin targets of {path}: a coordinate of {np.abs(p).max():.3g} m: expected at most "
+                             f"1e6 m (metersPerUnit {self.scene.stage.meters_per_unit:g})")  # fmt: skip
         self._pin_override[k] = p
 
     def force_index(self, force) -> int:
@@ -153,6 +163,26 @@ class FrameControl:
                     q1[:, nodes] = t.pin_track[min(frame + 1, len(t.pin_track) - 1)]
             c.pin_q_start.assign(q0)
             c.pin_q_end.assign(q1)
+            self._pins_written = True
+
+    def undo_pins(self) -> None:
+        """Put the pins' end positions back where the frame last written by :meth:`update` started
+        them (that frame failed and was not kept: the next one starts from there)."""
+        if self._pins_written:
+            self.control.pin_q_end.assign(self.control.pin_q_start.numpy().copy())
+            self._pins_written = False
+
+
+def _numbers(value, message: str) -> np.ndarray:
+    """``value`` as float64 numbers, or a ValueError with ``message`` (bools, strings and complex
+    numbers are not numbers here)."""
+    try:
+        raw = np.asarray(value)
+        if raw.dtype.kind in "bcSUV" or (raw.dtype.kind == "O" and any(isinstance(x, (bool, np.bool_)) for x in raw.flat)):
+            raise TypeError
+        return np.asarray(value, dtype=np.float64)
+    except (TypeError, ValueError):
+        raise ValueError(message) from None
 
 
 def _index(which, paths: list[str], kind: str) -> int:

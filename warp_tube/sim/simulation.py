@@ -20,22 +20,24 @@ import math
 import os
 import re
 import sys
+import threading
 import time
-from dataclasses import dataclass, field
 
 import numpy as np
 import warp as wp
 
 from ..centerline.explicit import SemiImplicitEulerSolver
-from ..centerline.policy import IMPLICIT_COST_RATIO, RUN_WARNING, choose_integrator, implicit_cost_ratio, implicit_substeps
+from ..centerline.policy import RUN_WARNING, choose_integrator, implicit_cost_ratio, implicit_substeps
 from ..centerline.stability import critical_time_step
 from ..model.tube import build_model
 from ..runtime.interrupts import kept_interrupts, raise_if_interrupted
 from ..scene.spec import Scene, SceneError
+from .budget import CPU_SEMI_STEP_COST, LARGE_OUTPUT_BYTES, LONG_RUN_SECONDS, OUTPUT_MEMORY_FACTOR, RunBudget, check_world_count, whole_number  # noqa: F401 (re-exported)
 from .checks import FrameChecks
 from .control import FrameControl
 from .output import open_writer
 from .proximity import ContactMonitor
+from .summary import RunSummary
 
 log = logging.getLogger(__name__)
 
@@ -43,17 +45,6 @@ __all__ = ["Simulation", "NumericalError", "RunSummary", "resolve_device"]
 
 #: the largest substep multiplier ``auto`` tries for a frame that blew up.
 MAX_RETRY_FACTOR = 16
-#: CPU cost of one semi-implicit substep per centerline point [s], for the up-front estimate of a
-#: long run only (implicit substeps cost IMPLICIT_COST_RATIO times more); benchmarks/bench_estimates.py
-#: measures it (0.18 us for the 21 points and assistant line of the default scene on a busy core).
-CPU_SEMI_STEP_COST = 0.15e-6
-#: a run's memory over its output's samples (usd-core's layer, the simulation, the frame being
-#: written): measured 2.7-3.8x on the CPU for outputs of 0.5-2 GB, a 0.3 GB process included.
-OUTPUT_MEMORY_FACTOR = 2.5
-#: a run whose output is estimated to hold more than this [bytes] is announced before it starts.
-LARGE_OUTPUT_BYTES = 4e9
-#: a run estimated to take longer than this [s] is announced with its estimate before it starts.
-LONG_RUN_SECONDS = 60.0
 #: environment variable that pauses a run at a known point, for the interrupt tests:
 #: "compile" (before the first frame, where kernels compile) or "frame:K" (after frame K is written).
 PAUSE_ENV = "WARP_TUBE_PAUSE_AT"
@@ -85,106 +76,41 @@ def resolve_device(device=None) -> str:
     return name
 
 
-@dataclass
-class RunSummary:
-    """What a run did (printed by the CLI).
-
-    Times [s]: ``wall_time`` is the whole run; ``startup_time`` the part up to the end of the
-    first simulated frame, which includes compiling the kernels on first use, so the rate
-    (:attr:`steps_per_second`) is taken over the frames after it when there are any;
-    ``setup_time`` what came before the run's frames: setting up the output file, and what the
-    caller adds (the CLI: reading the scene and building the model).
-    ``output`` is the complete output (None while the run has not completed); ``partial`` the file
-    holding the frames finished by a run that stopped early (None if none was finished).
-    """
-
-    scene: str
-    device: str
-    frames: int
-    substeps: int
-    dt: float
-    integrator: str
-    reason: str
-    wall_time: float
-    max_displacement: float
-    output: str | None = None
-    stopped: str | None = None
-    warnings: list = field(default_factory=list)
-    stage_defaults: list = field(default_factory=list)
-    frames_simulated: int = 0
-    substeps_simulated: int = 0
-    startup_time: float = 0.0
-    startup_substeps: int = 0
-    partial: str | None = None
-    first_frame: int = 0
-    last_frame: int | None = None
-    setup_time: float = 0.0
-
-    @property
-    def steps_per_second(self) -> float:
-        """Substeps per second after the start-up (over the whole run if it was all start-up)."""
-        steps = self.substeps_simulated - self.startup_substeps
-        seconds = self.wall_time - self.startup_time
-        if steps <= 0 or seconds <= 0:
-            steps, seconds = self.substeps_simulated, self.wall_time
-        return steps / seconds if seconds > 0 else float("nan")
-
-    def frames_written_text(self) -> str:
-        """``frames 0-11 (12 frames)`` for the frames written, or ``no frame``."""
-        if self.frames == 0 or self.last_frame is None:
-            return "no frame"
-        if self.frames == 1:
-            return f"frame {self.last_frame} only"
-        return f"frames {self.first_frame}-{self.last_frame} ({self.frames} frames)"
-
-    def text(self) -> str:
-        steady = self.substeps_simulated > self.startup_substeps and self.wall_time > self.startup_time
-        rate = f"{self.steps_per_second:,.0f} substeps/s"
-        if steady:
-            timing = f"{self.wall_time:.3f} s for the frames (start-up {self.startup_time:.3f} s: kernel compilation and frame 1; then {rate})"
-        else:
-            timing = f"{self.wall_time:.3f} s for the frames ({rate}, start-up and kernel compilation included)"
-        lines = [
-            f"scene        {self.scene}",
-            f"device       {self.device}",
-            f"frames       {self.frames} written ({self.frames_simulated} simulated)",
-            f"integrator   {self.integrator}: {self.reason}",
-            f"substeps     {self.substeps} per frame, dt = {self.dt:.3g} s",
-            *([f"set-up       {self.setup_time:.3f} s (reading the scene, building the model, setting up the output)"]
-              if self.setup_time > 0.0 else []),
-            f"wall time    {timing}",
-            f"largest displacement  {self.max_displacement:.4g} m",
-        ]
-        if self.stage_defaults:
-            lines.append("stage        unauthored, USD fallback used: " + ", ".join(self.stage_defaults))
-        if self.output:
-            lines.append(f"output       {self.output}")
-        if self.partial:
-            lines.append(f"partial      {self.partial} ({self.frames_written_text()})")
-        lines += [f"warning      {w}" for w in self.warnings]
-        if self.stopped:
-            lines.append(f"stopped      {self.stopped}")
-        return "\n".join(lines)
-
-
-class Simulation:
+class Simulation(RunBudget):
     """A scene on a device, advanced one output frame per :meth:`step`.
 
+    Units: positions read and set through this class are in stage units (``metersPerUnit``),
+    forces in N, times in s, :meth:`max_displacement` in m. Arrays are NumPy, one per tube prim.
+
     Args:
-        scene: the scene.
-        device: "cpu", "cuda:N" or None (CUDA when available).
-        world_count: copies of the scene run side by side (batch layout), each with the same input.
-        surface: build the hubs-and-spokes surface (needed for :meth:`surface_points` and output).
+        scene: the scene (:func:`warp_tube.load_scene`, or built in Python).
+        device: "cpu", "cuda", "cuda:N" or None (CUDA when available).
+        world_count: copies of the scene run side by side (batch layout), each with the same input;
+            a whole number, at least 1.
+        surface: build the hubs-and-spokes surface (needed for :meth:`surface`,
+            :meth:`surface_points` and the output's Surface meshes).
+
+    Raises:
+        SceneError: an unknown or missing device, or a ``world_count`` below 1 or not a whole number.
 
     Attributes:
+        frame: the current output frame (0, the rest state, for a new Simulation).
+        substeps: substeps per frame; ``dt``: the substep [s]; ``frame_dt``: a frame [s].
+        integrator, reason: the integrator in use and why it was chosen.
+        warnings: the run warnings so far (each logged once).
+        last_summary: the :class:`RunSummary` of the last :meth:`run` (also of one that stopped).
         contact_frame: the first frame at whose end distant parts of the tubes (world 0) were
             closer than the sum of their radii (warned of once; contact is not modelled), or None.
+
+    One thread at a time: :meth:`step` and :meth:`run` called from two threads run one after the
+    other. A Simulation holds device arrays and cannot be pickled or copied: pickle its scene.
     """
 
     def __init__(self, scene: Scene, device=None, world_count: int = 1, surface: bool = True):
         self.scene = scene
         self.device = resolve_device(device)
-        self.model = build_model(scene, world_count=world_count, device=self.device)
+        self._lock = threading.RLock()  # step and run: one thread at a time
+        self.model = build_model(scene, world_count=check_world_count(world_count), device=self.device)
         m = self.model
         self.frame_dt = scene.stage.frame_dt
         spring_damping = max((t.params.spring_damping for t in scene.tubes), default=0.0)
@@ -223,6 +149,10 @@ class Simulation:
         self.last_summary: RunSummary | None = None  # the last run's (see run)
         self.max_retry_factor = 1
 
+    def __reduce__(self):
+        raise TypeError("a warp_tube Simulation holds arrays on its device and cannot be pickled or copied: pickle "
+                        "its scene (sim.scene) and make a new Simulation from it, or keep centerline_points()")
+
     def _build_surfaces(self):
         from ..surface.builder import SurfaceBuilder
 
@@ -241,13 +171,26 @@ class Simulation:
 
     # -- interactive control ---------------------------------------------------------------------
     def set_force(self, force, vector) -> None:
-        """Override a scene force from now on: ``force`` is its index or prim path; ``vector`` [N]."""
+        """Override a scene force from the next frame on: ``force`` is its index or prim path;
+        ``vector`` [N], three finite numbers of at most 1e9 N (a list, tuple, NumPy array of shape
+        (3,) or (1, 3), ``Gf.Vec3f``), in world axes; held until the next call.
+
+        Raises:
+            KeyError: no force at that prim path. IndexError: no force with that index.
+            TypeError: neither an index nor a path. ValueError: not three finite numbers, or beyond 1e9 N.
+        """
         self.controls.set_force(force, vector)
 
     def set_pin_targets(self, tube, positions) -> None:
-        """Move a tube prim's pinned points: ``positions`` [stage units], shape (pinned, 3) with one
-        row per pinned point in ascending order of its index, or a dict from point index to position
-        (:meth:`FrameControl.set_pin_targets <warp_tube.sim.control.FrameControl.set_pin_targets>`)."""
+        """Move a tube prim's pinned points, reached at the end of the next frame (linearly over it)
+        and held there: ``positions`` [stage units], world space, shape (pinned, 3) with one row per
+        pinned point in ascending order of its index, or a dict from point index to position.
+
+        Raises:
+            KeyError / IndexError: no such tube prim. ValueError: a wrong shape or set of points, or
+            values that are not finite numbers (:meth:`FrameControl.set_pin_targets
+            <warp_tube.sim.control.FrameControl.set_pin_targets>`).
+        """
         self.controls.set_pin_targets(tube, positions)
 
     def _warn(self, msg: str) -> None:
@@ -266,9 +209,19 @@ class Simulation:
         semi-implicit Euler still fails, with implicit Euler for the rest of the run.
 
         Raises:
-            NumericalError: the frame still fails; :attr:`state` keeps the last good frame.
+            NumericalError: the frame still fails; :attr:`state` keeps the last good frame, and the
+                pinned points stay where that frame left them.
         """
-        self.controls.update(self.frame, self.state)
+        with self._lock:
+            self.controls.update(self.frame, self.state)
+            try:
+                self._advance()
+            except NumericalError:
+                self.controls.undo_pins()  # the next frame starts its pins from the last good one
+                raise
+
+    def _advance(self) -> None:
+        """The frame of :meth:`step` whose control is written."""
         self.checks.pin_allowance[:] = np.inf if self.controls.moving_pins else 0.0
         factor = 1
         while True:
@@ -361,12 +314,19 @@ class Simulation:
         return [q[s : s + n].copy() for s, n in zip(self._prim_start, self._prim_count)]
 
     def surface_points(self, world: int = 0) -> list[np.ndarray]:
-        """Surface vertices per tube prim [stage units], each shape (V, 3)."""
+        """Surface vertices per tube prim [stage units], each shape (V, 3): point i spoke j at
+        ``i * spokes + j``, cap vertices after all rings.
+
+        Raises:
+            RuntimeError: made with ``surface=False``. IndexError: no such world."""
         return [out[0] for out in self.surface(world)]
 
     def surface(self, world: int = 0):
         """Surface ``(points, normals, extent)`` per tube prim: points [stage units] and unit
-        normals, each shape (V, 3), and the points' ``[min, max]`` corners [stage units], (2, 3)."""
+        normals, each shape (V, 3), and the points' ``[min, max]`` corners [stage units], (2, 3).
+
+        Raises:
+            RuntimeError: made with ``surface=False``. IndexError: no such world."""
         if self.surfaces is None:
             raise RuntimeError("this Simulation was made with surface=False")
         world = self._world(world)
@@ -385,7 +345,8 @@ class Simulation:
         return out
 
     def max_displacement(self) -> float:
-        """Largest distance of a point from its rest position [m]."""
+        """Largest distance of a centerline point from its rest position [m] (not stage units),
+        over every world."""
         q = self.state.node_q.numpy()
         return float(np.linalg.norm(q - self.model.host.node_rest_q[None], axis=-1).max())
 
@@ -412,22 +373,37 @@ class Simulation:
                 count; must be more than the current frame.
             output: path of the output stage (.usdc, .usda, .usd), or None to write nothing; never
                 the scene's own file.
-            progress: None, or True for a progress bar (and, for a first frame that takes long, a
-                status line while the kernels compile) on stderr.
+            progress: None; True for a progress bar with its estimate of the time left (and, for a
+                first frame that takes long, a status line while the kernels compile) on stderr; or
+                a function called after each simulated frame as ``progress(done, total)``: frames
+                simulated by this call so far and in all (``total`` is ``frames - 1 - `` the
+                starting frame). An exception it raises stops the run as any other would.
             every: write every ``every``-th frame (frame numbers divisible by it).
             setup_time: seconds spent before this call that the summary counts as set-up (the CLI:
                 reading the scene and building the model) [s].
 
+        Returns:
+            the :class:`RunSummary` (also kept in :attr:`last_summary`).
+
         Raises:
-            SceneError: ``frames`` or ``every`` out of range, or an output that cannot be written.
+            SceneError: ``frames`` or ``every`` not a whole number or out of range, or an output that
+                cannot be written or would not fit in the memory available or on its disk.
             NumericalError: after keeping the frames finished so far.
             KeyboardInterrupt: after keeping the frames finished so far.
         """
+
+        with self._lock:
+            return self._run(frames, output, progress, whole_number("every", every), setup_time)
+
+    def _run(self, frames, output, progress, every: int, setup_time: float) -> RunSummary:
+        from ..runtime.interrupts import stopped_by
         from ..runtime.progress import Phase
 
         info = self.scene.stage
         first = self.frame
-        end = info.frame_count if frames is None else int(frames)
+        end = info.frame_count if frames is None else whole_number("frames", frames)
+        report = progress if callable(progress) else None  # (else True: the bar)
+        progress = report is None and bool(progress)
         if end < 1:
             raise SceneError(f"frames {end}: expected at least 1")
         if end <= first:
@@ -441,7 +417,7 @@ class Simulation:
         if output and len(written) == 1 and end - first > 1:
             self._warn(f"every {every}: of frames {first} to {end - 1} only frame {written[0]} is written")
         if output:
-            self._check_output_fits(len(written))
+            self._check_output_fits(len(written), output)
             inputs = [self.scene.source] if self.scene.source and os.path.exists(self.scene.source) else []
             start_tc = info.start_time_code + (written[0] if written else first)
             t_setup = time.perf_counter()
@@ -463,7 +439,7 @@ class Simulation:
             self._announce_large_output(len(written))
         pause = os.environ.get(PAUSE_ENV, "")
         bar = beat = None
-        startup = Phase("compiling kernels (first run only) and simulating frame 1", enabled=bool(progress), after=0.5)
+        startup = Phase("compiling kernels (first run only) and simulating frame 1", enabled=progress, after=0.5)
         startup.__enter__()
         t0 = time.perf_counter()
         interrupts = kept_interrupts()
@@ -485,6 +461,8 @@ class Simulation:
                             bar, beat = self._progress_bar(end - 1 - first)
                     elif bar is not None:
                         bar.update(1)
+                    if report is not None:
+                        report(summary.frames_simulated, end - 1 - first)
                 elif pause == "compile":
                     _pause_for_tests(pause)
                 if writer and k % every == 0:
@@ -495,7 +473,7 @@ class Simulation:
                 if pause == f"frame:{k}":
                     _pause_for_tests(pause)
         except BaseException as e:
-            summary.stopped = (str(e) or type(e).__name__) if not isinstance(e, KeyboardInterrupt) else "interrupted"
+            summary.stopped = (str(e) or type(e).__name__) if not isinstance(e, KeyboardInterrupt) else stopped_by(e)
             if writer:
                 summary.partial = writer.keep_partial()
             raise
@@ -528,68 +506,9 @@ class Simulation:
     def _progress_bar(self, total: int):
         """A tqdm bar over ``total`` frames, started after frame 1 (its rate and estimate leave the
         start-up out), and a heartbeat that keeps its clock moving through long frames."""
-        from tqdm import tqdm
+        from ..runtime.progress import frame_bar
 
-        from ..runtime.progress import Heartbeat
-
-        bar = tqdm(total=total, initial=1, unit="frame", desc="simulating", leave=False, file=sys.stderr)
-        beat = Heartbeat(bar.refresh)
-        beat.__enter__()
-        return bar, beat
-
-    def estimated_seconds(self, frames: int) -> float:
-        """Rough time [s] to simulate ``frames`` frames: substeps x points x a per-point cost
-        (:data:`CPU_SEMI_STEP_COST`, x :data:`IMPLICIT_COST_RATIO` for implicit Euler). On CUDA,
-        where points run in parallel, 10 us per substep at the least."""
-        per_step = self.model.node_count * self.model.world_count * CPU_SEMI_STEP_COST
-        if self.integrator == "implicitEuler":
-            per_step *= IMPLICIT_COST_RATIO
-        if self.device != "cpu":
-            per_step = max(per_step / 1000.0, 10e-6)
-        return frames * self.substeps * per_step
-
-    def _announce_long_run(self, frames: int) -> None:
-        """Warn before a run that will take long, with the estimate and why."""
-        seconds = self.estimated_seconds(frames)
-        if seconds < LONG_RUN_SECONDS:
-            return
-        from ..runtime.progress import format_seconds
-
-        log.warning(
-            "this run will take about %s: %s frames x %s substeps a frame (%s) x %s points; --frames N runs fewer frames",
-            format_seconds(seconds), f"{frames:,}", f"{self.substeps:,}", self.reason, f"{self.model.node_count:,}",
-        )  # fmt: skip
-
-
-    def output_bytes_per_frame(self) -> int:
-        """Bytes a written frame adds to the output (float32 centerline points, and surface points
-        and normals)."""
-        vertices = sum(b.vertex_count for b in self.surfaces) if self.surfaces else 0
-        return 12 * (self.model.node_count + 2 * vertices)
-
-    def _check_output_fits(self, frames: int) -> None:
-        """Refuse, before anything is written, an output larger than the memory available now:
-        usd-core holds a stage's samples in memory until it is saved, so such a run would end
-        killed by the system with nothing saved."""
-        from ..runtime.memory import available_memory
-
-        size, free = frames * self.output_bytes_per_frame(), available_memory()
-        if free is not None and OUTPUT_MEMORY_FACTOR * size > free:
-            raise SceneError(
-                f"the output would hold about {size / 1e9:.1f} GB ({frames:,} frames x {self.output_bytes_per_frame():,} bytes), "
-                f"and a run holds ~{OUTPUT_MEMORY_FACTOR:g}x that while usd-core keeps it until the run ends: more than the "
-                f"{free / 1e9:.1f} GB of memory available; --every K or --frames N write fewer frames"
-            )  # fmt: skip
-
-    def _announce_large_output(self, frames: int) -> None:
-        """Warn before a run whose output gets large (usd-core holds it in memory until it is saved)."""
-        size = frames * self.output_bytes_per_frame()
-        if size < LARGE_OUTPUT_BYTES:
-            return
-        log.warning(
-            "the output will hold about %.1f GB (%s frames x %s bytes), kept in memory until the run ends; "
-            "--every K or --frames N write fewer frames", size / 1e9, f"{frames:,}", f"{self.output_bytes_per_frame():,}",
-        )  # fmt: skip
+        return frame_bar(total)
 
 
 def _pause_for_tests(point: str) -> None:
