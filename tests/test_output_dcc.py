@@ -282,3 +282,16 @@ def test_writer_given_a_topology_without_a_caps_flag_finds_the_open_one_by_its_e
     st = Usd.Stage.Open(str(tmp_path / "o.usda"))
     assert not surface(st, CAPPED).GetDoubleSidedAttr().HasAuthoredValue()
     assert surface(st, OPEN).GetDoubleSidedAttr().Get() is True
+
+
+def test_centerline_is_a_guide_beside_its_surface_and_plain_without_one(stage_path, tmp_path):
+    st = Usd.Stage.Open(str(stage_path))
+    for tube in (CAPPED, OPEN):
+        # a render (purpose render / default) leaves guides out: only the Surface is drawn
+        assert UsdGeom.Imageable(st.GetPrimAtPath(tube + "/Centerline")).ComputePurpose() == "guide"
+        assert UsdGeom.Imageable(st.GetPrimAtPath(tube + "/Surface")).ComputePurpose() == "default"
+    (tmp_path / "tubes.usda").write_text(SCENE)
+    out = tmp_path / "bare.usda"
+    assert main(["run", str(tmp_path / "tubes.usda"), "-o", str(out), "--frames", "2", "--quiet", "--no-surface"]) == 0
+    bare = Usd.Stage.Open(str(out))
+    assert UsdGeom.Imageable(bare.GetPrimAtPath(OPEN + "/Centerline")).ComputePurpose() == "default"

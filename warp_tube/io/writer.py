@@ -1,9 +1,9 @@
 """Time-sampled USD output (the output contract in the README).
 
 For each tube prim at path P the stage holds an ``Xform`` at P with ``P/Centerline`` (BasisCurves,
-``points`` time-sampled) and, unless disabled, ``P/Surface`` (Mesh: static triangle topology and
-``primvars:st``, ``doubleSided`` where the tube has no caps; ``points``, ``normals`` and ``extent``
-time-sampled). Samples are written straight
+``points`` time-sampled; ``purpose = "guide"`` where a Surface is written) and, unless disabled,
+``P/Surface`` (Mesh: static triangle topology and ``primvars:st``, ``doubleSided`` where the tube
+has no caps; ``points``, ``normals`` and ``extent`` time-sampled). Samples are written straight
 into the layer, which no stage has open after the prims are defined (``Sdf.Layer.SetTimeSample`` of
 ``Vt.Vec3fArray`` values: about 1 us less per sample than through an open stage). The layer is
 saved under a hidden temporary name beside the target (:func:`warp_tube.scene.files.temp_path`) and
@@ -150,6 +150,9 @@ class StageWriter:
                 widths.SetInfo(UsdGeom.Tokens.interpolation, UsdGeom.Tokens.vertex)
                 entry = {"centerline": _attr(cl, "points", T.Point3fArray).path, "surface": None}
                 if surf is not None:
+                    # beside its Surface the curve is a guide: renderers (Karma, Cycles) would draw
+                    # it as a second, round tube of the same diameter through the mesh's flat faces
+                    _attr(cl, "purpose", T.Token, UsdGeom.Tokens.guide, uniform=True)
                     mesh = _define(layer, path_p.AppendChild("Surface"), "Mesh")
                     _attr(mesh, "subdivisionScheme", T.Token, UsdGeom.Tokens.none, uniform=True)
                     if not _closed(surf):
