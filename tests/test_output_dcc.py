@@ -295,3 +295,16 @@ def test_centerline_is_a_guide_beside_its_surface_and_plain_without_one(stage_pa
     assert main(["run", str(tmp_path / "tubes.usda"), "-o", str(out), "--frames", "2", "--quiet", "--no-surface"]) == 0
     bare = Usd.Stage.Open(str(out))
     assert UsdGeom.Imageable(bare.GetPrimAtPath(OPEN + "/Centerline")).ComputePurpose() == "default"
+
+
+def test_texture_coordinates_are_face_varying_over_the_documented_ranges(stage_path):
+    st = Usd.Stage.Open(str(stage_path))
+    for tube, cap in ((OPEN, 0.0), (CAPPED, np.pi * 5.0 / 2 / 100.0)):  # quarter circle of r = 5 over L = 100
+        mesh = surface(st, tube)
+        primvar = UsdGeom.PrimvarsAPI(mesh).GetPrimvar("st")
+        assert primvar.GetInterpolation() == "faceVarying" and primvar.GetTypeName() == "texCoord2f[]"
+        uv = np.array(primvar.ComputeFlattened())
+        assert len(uv) == len(mesh.GetFaceVertexIndicesAttr().Get())  # one per face corner
+        # u: 0 to 1 around; v: 0 to 1 along the body, caps beyond by their arc (float32 values)
+        np.testing.assert_allclose([uv[:, 0].min(), uv[:, 0].max()], [0.0, 1.0], atol=1e-7)
+        np.testing.assert_allclose([uv[:, 1].min(), uv[:, 1].max()], [-cap, 1.0 + cap], atol=1e-6)
