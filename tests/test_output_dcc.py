@@ -308,3 +308,12 @@ def test_texture_coordinates_are_face_varying_over_the_documented_ranges(stage_p
         # u: 0 to 1 around; v: 0 to 1 along the body, caps beyond by their arc (float32 values)
         np.testing.assert_allclose([uv[:, 0].min(), uv[:, 0].max()], [0.0, 1.0], atol=1e-7)
         np.testing.assert_allclose([uv[:, 1].min(), uv[:, 1].max()], [-cap, 1.0 + cap], atol=1e-6)
+
+
+def test_obj_comment_stays_one_line_for_a_stage_named_with_a_line_break(stage_path, tmp_path):
+    odd = tmp_path / "two\nlines.usda"
+    odd.write_bytes(stage_path.read_bytes())
+    assert main(["export", str(odd), "--frame", "1001", "-o", str(tmp_path / "f.obj")]) == 0
+    lines = (tmp_path / "f.obj").read_text().splitlines()
+    assert lines[0].startswith("# two lines.usda, time code 1001") and lines[1].startswith("# units:")
+    assert lines[2] == "o " + CAPPED + "/Surface"

@@ -205,7 +205,8 @@ def export(usd_path, fmt: str = "obj", out=None, frame=None, overwrite: bool = F
             to_gltf = np.array([[1.0, 0.0, 0.0], [0.0, 0.0, -1.0], [0.0, 1.0, 0.0]])  # rows: x->x, y->-z, z->y
         render = partial(_render_glb, meshes, [_open_surface(m) for m in meshes], scale, to_gltf)
     else:
-        render = partial(_render_obj, meshes, usd_path.name, mpu, "Z" if z_up else "Y")
+        name = " ".join(usd_path.name.split())  # one comment line, whatever the file's name holds
+        render = partial(_render_obj, meshes, name, mpu, "Z" if z_up else "Y")
 
     _write_all(paths[0].parent, [(path, partial(render, t)) for t, path in zip(times, paths)])
     return paths
