@@ -249,3 +249,26 @@ def test_a_cell_longer_than_the_csv_modules_default_limit_is_read(tmp_path):
     out = tmp_path / "out"
     assert batch(table, out) == 0
     assert [r["status"] for r in summary(out)] == ["ok"]
+
+
+def test_resume_simulates_again_a_finished_variant_whose_file_was_deleted(tmp_path, capsys):
+    table = tmp_path / "t.csv"
+    table.write_text(f"{E}\n1e5\n2e5\n")
+    out = tmp_path / "out"
+    _interrupted_after_one_variant(DEFAULT, out, table)
+    (out / "variant_00000.usdc").unlink()
+    assert batch(table, out, "--resume") == 0
+    assert "variant_00000.usdc, written before, is missing: 1 finished chunk(s) are simulated again" in capsys.readouterr().err
+    whole = tmp_path / "whole"
+    assert batch(table, whole, "--chunk", "1") == 0
+    assert files_of(out) == files_of(whole)
+
+
+def test_a_folder_holding_a_file_named_like_variant_but_no_batch_takes_a_new_batch(tmp_path):
+    out = tmp_path / "out"
+    out.mkdir()
+    (out / "variant_list.txt").write_text("my notes\n")
+    table = tmp_path / "t.csv"
+    table.write_text(f"{E}\n1e5\n2e5\n")
+    assert batch(table, out) == 0
+    assert (out / "variant_list.txt").read_text() == "my notes\n" and (out / "variant_00001.usdc").exists()

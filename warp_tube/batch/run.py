@@ -194,7 +194,7 @@ def _check_out_dir(out_dir: str, resume: bool) -> None:
         raise SceneError(f"{out_dir}: folder is not writable")
     journal = Journal(out_dir)
     found = [n for n in BATCH_FILES if os.path.exists(os.path.join(out_dir, n))]
-    found += sorted(n for n in os.listdir(out_dir) if n.startswith("variant_"))[:1]
+    found += sorted(n for n in os.listdir(out_dir) if n.startswith("variant_") and _OUTPUT_NAME.match(n))[:1]
     if resume:
         if not journal.exists() and not found:
             raise SceneError(f"{out_dir}: no batch there to resume")
@@ -252,6 +252,28 @@ def _scene_files(scene: str) -> dict[str, str]:
     root = os.path.realpath(scene)
     paths = {os.path.realpath(p) for p in [layer.realPath for layer in layers] + list(assets) if p}
     return {p: file_digest(p) for p in sorted(paths - {root}) if os.path.isfile(p)}
+
+
+def _outputs_kept(done: dict, layout: str, out_dir: str, work_dir: str) -> dict:
+    """The finished chunks of a batch being resumed whose outputs are all still there; the others
+    (a file deleted or moved since) are simulated again, with a warning naming the first."""
+    if not done:
+        return done
+    if layout == "arrays":  # every chunk's frames are in the partial arrays
+        path = os.path.join(work_dir, "centerline.npy")
+        missing = {c: path for c in done} if not os.path.exists(path) else {}
+    else:
+        missing = {}
+        for c, rec in done.items():
+            names = [rec["layer"]] if layout == "grid" else [r["output"] for r in rec["rows"].values()]
+            gone = next((n for n in names if n and not os.path.exists(os.path.join(out_dir, n))), None)
+            if gone is not None:
+                missing[c] = os.path.join(out_dir, gone)
+    if missing:
+        first = missing[min(missing)]
+        log.warning("--resume: %s, written before, is missing: %d finished chunk(s) are simulated again",
+                    first, len(missing))  # fmt: skip
+    return {c: rec for c, rec in done.items() if c not in missing}
 
 
 def _remove_stray_partials(out_dir: str) -> None:
@@ -394,7 +416,7 @@ def _run_batch(scene, out_dir, table, tab, devices, writer_pool, sim_workers, t_
     if scheduler:
         dask_client(scheduler).close()  # the scheduler answers: checked before anything is written
     os.makedirs(out_dir, exist_ok=True)
-    done = journal.begin(signature, resume)
+    done = _outputs_kept(journal.begin(signature, resume), layout, out_dir, journal.dir)
     _remove_stray_partials(out_dir)
     if layout == "arrays":
         prepare_arrays(spec, resume=bool(done))
