@@ -242,3 +242,66 @@ def test_an_output_larger_than_the_free_disk_space_is_refused_before_it_starts(t
     assert f"more than the 0.0 MB free in {tmp_cwd}" in err and "write fewer frames" in err and "internal error" not in err
     assert sorted(p.name for p in tmp_cwd.iterdir()) == ["out.usdc", "scene.usda"]
     assert (tmp_cwd / "out.usdc").read_bytes() == KEEP
+
+
+# -- Ctrl-C while saving ------------------------------------------------------------------------------
+
+
+@pytest.fixture
+def interrupted_saves(monkeypatch):
+    """usd-core's Save interrupted by Ctrl-C: the signal arrives while the native save runs, so
+    Python handles it as soon as the save returns."""
+    from warp_tube.io.writer import StageWriter
+
+    class Layer:
+        def __init__(self, layer):
+            object.__setattr__(self, "_layer", layer)
+
+        def __getattr__(self, name):
+            return getattr(self._layer, name)
+
+        def __setattr__(self, name, value):
+            setattr(self._layer, name, value)
+
+        def Save(self):
+            done = self._layer.Save()
+            signal.raise_signal(signal.SIGINT)
+            return done
+
+    real = StageWriter._save_to
+
+    def save_to(self, final):
+        self.layer = Layer(self.layer)
+        return real(self, final)
+
+    monkeypatch.setattr(StageWriter, "_save_to", save_to)
+
+
+def _times(path):
+    from pxr import Usd, UsdGeom
+
+    st = Usd.Stage.Open(str(path))
+    return list(UsdGeom.BasisCurves(st.GetPrimAtPath("/World/Tube/Centerline")).GetPointsAttr().GetTimeSamples())
+
+
+def test_ctrl_c_while_the_result_is_saved_keeps_the_complete_result(sim, tmp_cwd, interrupted_saves):
+    s = sim.run(frames=4, output="out.usdc")
+    assert s.output == str(tmp_cwd / "out.usdc") and _times(tmp_cwd / "out.usdc") == [0.0, 1.0, 2.0, 3.0]
+    assert sim.warnings == ["interrupted while saving out.usdc: the save was finished: the output is complete"]
+    assert sorted(p.name for p in tmp_cwd.iterdir()) == ["out.usdc"]
+
+
+def test_a_second_ctrl_c_while_the_partial_is_saved_keeps_it(sim, tmp_cwd, interrupted_saves, monkeypatch):
+    real = Simulation.step
+
+    def step(self):
+        if self.frame == 2:
+            raise KeyboardInterrupt
+        real(self)
+
+    monkeypatch.setattr(Simulation, "step", step)
+    with pytest.raises(KeyboardInterrupt):
+        sim.run(frames=5, output="out.usdc")
+    assert sim.last_summary.partial == str(tmp_cwd / "out.partial.usdc")
+    assert _times(tmp_cwd / "out.partial.usdc") == [0.0, 1.0, 2.0]
+    assert sorted(p.name for p in tmp_cwd.iterdir()) == ["out.partial.usdc"]

@@ -10,6 +10,10 @@ SIGTERM and SIGHUP (``timeout``, a job scheduler, a closed terminal) stop a comm
 while :func:`terminate_as_interrupt` is active: they raise :class:`Terminated`, a
 ``KeyboardInterrupt``, so a run keeps its finished frames and removes its temporary file as after
 Ctrl-C; :func:`exit_status` gives 128 + the signal's number.
+
+A save that is under way is not thrown away by Ctrl-C: usd-core's save is native code, so the
+interrupt is raised when it returns, in the middle of putting the file in place, and the finished
+file would be removed. :func:`deferred_interrupts` holds these signals back over such a block.
 """
 
 from __future__ import annotations
@@ -18,7 +22,8 @@ import contextlib
 import signal
 import threading
 
-__all__ = ["kept_interrupts", "raise_if_interrupted", "terminate_as_interrupt", "Terminated", "exit_status", "stopped_by"]
+__all__ = ["kept_interrupts", "raise_if_interrupted", "terminate_as_interrupt", "deferred_interrupts", "Terminated",
+           "exit_status", "stopped_by"]  # fmt: skip
 
 _pending = None  # the signal (SIGINT, SIGTERM, SIGHUP) that arrived and may not have been delivered
 
@@ -108,3 +113,37 @@ def raise_if_interrupted() -> None:
     if _pending is not None:
         signum, _pending = _pending, None
         raise _interrupt(signum)
+
+
+def _defer(signum, frame):
+    global _pending
+    _pending = signum
+
+
+@contextlib.contextmanager
+def deferred_interrupts():
+    """SIGINT (and SIGTERM and SIGHUP where :func:`terminate_as_interrupt` handles them) remembered
+    but not raised in the block, in the main thread, where Python's or this module's handler is
+    installed (a program's own handler is left alone).
+
+    Yields:
+        a list that, after the block, holds the number of the signal that arrived in it (empty if none).
+    """
+    global _pending
+    got = []
+    if threading.current_thread() is not threading.main_thread():
+        yield got
+        return
+    old = {}
+    for sig in (signal.SIGINT, *_TERMINATING):
+        if signal.getsignal(sig) in (signal.default_int_handler, _on_sigint, _on_terminate):
+            old[sig] = signal.signal(sig, _defer)
+    before, _pending = _pending, None
+    try:
+        yield got
+    finally:
+        for sig, handler in old.items():
+            signal.signal(sig, handler)
+        if _pending is not None:
+            got.append(_pending)
+        _pending = before

@@ -30,7 +30,7 @@ from ..centerline.explicit import SemiImplicitEulerSolver
 from ..centerline.policy import RUN_WARNING, choose_integrator, implicit_cost_ratio, implicit_substeps
 from ..centerline.stability import critical_time_step
 from ..model.tube import build_model
-from ..runtime.interrupts import kept_interrupts, raise_if_interrupted
+from ..runtime.interrupts import Terminated, deferred_interrupts, kept_interrupts, raise_if_interrupted
 from ..scene.spec import Scene, SceneError
 from .budget import CPU_SEMI_STEP_COST, LARGE_OUTPUT_BYTES, LONG_RUN_SECONDS, OUTPUT_MEMORY_FACTOR, RunBudget, check_world_count, whole_number  # noqa: F401 (re-exported)
 from .checks import FrameChecks
@@ -475,15 +475,18 @@ class Simulation(RunBudget):
         except BaseException as e:
             summary.stopped = (str(e) or type(e).__name__) if not isinstance(e, KeyboardInterrupt) else stopped_by(e)
             if writer:
-                summary.partial = writer.keep_partial()
+                with deferred_interrupts():  # a second Ctrl-C does not throw the partial file away
+                    summary.partial = writer.keep_partial()
             raise
         else:
             if writer:
                 if bar is not None:  # (the saving line takes its place)
                     bar.close()
                     bar = None
-                with Phase(f"saving {os.path.basename(str(output))}", enabled=bool(progress), after=1.0):
+                with Phase(f"saving {os.path.basename(str(output))}", enabled=progress, after=1.0), deferred_interrupts() as late:
                     summary.output = writer.close()
+                if late:  # the run is complete: its result is kept, not thrown away
+                    self._warn(f"{stopped_by(Terminated(late[0]))} while saving {output}: the save was finished: the output is complete")
         finally:
             interrupts.__exit__(None, None, None)
             summary.wall_time = time.perf_counter() - t0
