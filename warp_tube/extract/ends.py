@@ -12,7 +12,9 @@ Choice (in the voxel graph of :mod:`warp_tube.extract.distance_map`):
   it passes the same test.
 - Two or more terminal open loops: the tube's ends are the two of them farthest apart along the
   inside. One: it is one end, the other is the sealed cut farthest from it, or without one the
-  inside point farthest from it. None, but sealed cuts: the same among the cuts. None of either (a
+  inside point farthest from it. None, but sealed cuts: the same among the cuts (where the two
+  farthest apart are nearer each other than half the inside's length, they close one end, e.g. two
+  flat facets of one tip, and the other end is the inside point farthest from them). None of either (a
   closed mesh with rounded tips, or one with openings in its side only): the two ends of the
   longest geodesic, found by a double sweep from the widest point (the farthest-apart rule). The
   loops that are not ends are reported with their size.
@@ -61,8 +63,11 @@ _CAP_FIT = np.linspace(0.3, 1.5, 49)  # candidate distances of a closed end's hu
 _POLE_WEIGHT = 0.6  # the pole is one vertex, the cap rings S each: its distance counts this much
 _CAP_TOLERANCE = 0.2  # a closed tip is capped where the best cap lies within this x end radius of it
 _FLAT = 0.03  # a closed end is a flat cut where the surface ahead lies within this x end radius of a plane
+_FLAT_REACH = 0.6  # ... over a disc of at least this x the tube's radius, where a cone of rays
+_FLAT_CONE = 45.0  # ... up to this half-angle [degrees] (35 at least) reaches it
 _CUT_MARGIN = 0.02  # a trimmed end ring stays this x end radius before the cut's plane
 _RING_RATIO = 3.0  # an end ring's longest spoke is at most this x its shortest (no degenerate end ring)
+_SAME_END = 0.5  # two sealed cuts closer than this x the inside's reach from one close one end
 
 
 @dataclass(frozen=True)
@@ -146,6 +151,11 @@ def choose_ends(dm: dmap.DistanceMap, loops: list[BoundaryLoop], cuts: list[Flat
     if pool is not None:
         ia, ib = farthest_pair(pool)
         a, b, end_a, end_b = voxels[ia], voxels[ib], cand[ia], cand[ib]
+        if pool is sealed:
+            d_a = dmap.shortest_tree(dm.length_graph, a)[0]
+            d_a = np.where(np.isfinite(d_a), d_a, -1.0)
+            if d_a[b] < _SAME_END * d_a.max():  # two flat faces of one end (facets of one tip): the
+                b, end_b = int(np.argmax(d_a)), None  # other end is the inside point farthest away
     elif open_ends or sealed:
         ia = (open_ends or sealed)[0]
         a, end_a = voxels[ia], cand[ia]
@@ -260,13 +270,21 @@ def _best_cap(q: MeshQueries, ext: np.ndarray, r_end: float, diag: float, spokes
     return best, best_score
 
 
-def _cut_plane(q: MeshQueries, hub: np.ndarray, out: np.ndarray, r_end: float, diag: float):
+def _cut_plane(q: MeshQueries, hub: np.ndarray, out: np.ndarray, r_end: float, diag: float, r_tube: float | None = None):
     """The plane of a flat cut closing the tube ahead of ``hub`` (looking along unit ``out``), as
     ``(point, unit normal)``, or None when the closed surface there is not flat: the hits of rays
-    in a cone of 35 degrees around ``out`` lie within 3 % of the end radius of their best plane."""
+    in a cone around ``out`` lie within 3 % of the end radius of their best plane. The cone is 35
+    degrees wide, or wider (up to :data:`_FLAT_CONE`) until it meets the surface ahead at :data:`_FLAT_REACH` times
+    ``r_tube`` (the tube's radius behind the end) from its axis: a hub near a rounded tip sees only
+    its top, which is flat where the tip is a staircase of voxels."""
+    ahead = float(q.rays(q.closed, hub[None], out[None], diag)[0])
+    if ahead <= 0.0:
+        return None
+    wide = np.arctan2(_FLAT_REACH * max(r_tube or 0.0, r_end), ahead)
+    wide = float(np.clip(wide, np.radians(35.0), np.radians(_FLAT_CONE)))
     r, s = plane_basis(out[None])
     dirs = [out]
-    for angle in (np.radians(20.0), np.radians(35.0)):
+    for angle in (wide * 20.0 / 35.0, wide):
         ring = spoke_directions(r, s, 8)[0]
         dirs += list(np.cos(angle) * out + np.sin(angle) * ring)
     dirs = np.asarray(dirs)
@@ -280,6 +298,13 @@ def _cut_plane(q: MeshQueries, hub: np.ndarray, out: np.ndarray, r_end: float, d
     if np.abs((pts - centre) @ normal).max() > _FLAT * r_end:
         return None
     return centre, normal
+
+
+def _tube_radius(q: MeshQueries, line: np.ndarray, r_end: float, diag: float) -> float:
+    """The tube's radius behind the closed end where ``line`` starts: the largest distance from the
+    closed surface of the line's points within three ``r_end`` of its start (at least ``r_end``)."""
+    near = line[arclength(line) <= 3.0 * r_end]
+    return max(r_end, float(q.distance(near, diag).max())) if len(near) else r_end
 
 
 def _extend(q: MeshQueries, line: np.ndarray, r_end: float, diag: float, cut: FlatCut | None):
@@ -358,7 +383,7 @@ def fit_closed_end(q: MeshQueries, line: np.ndarray, diag: float, spokes: int, c
         normal = cut.normal if np.dot(cut.normal, out) > 0.0 else -cut.normal
         seal = (cut.centroid, normal, max(cut.radius, r_end))
     else:
-        plane = _cut_plane(q, line[0], out, r_end, diag)
+        plane = _cut_plane(q, line[0], out, r_end, diag, _tube_radius(q, line, r_end, diag))
         seal = None if plane is None else (*plane, 1.5 * r_end)
     if seal is not None:
         best = _inside_cut(q, ext, s, seal[:2], r_end, diag, spokes)

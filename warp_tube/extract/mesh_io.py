@@ -37,6 +37,7 @@ log = logging.getLogger(__name__)
 MIN_EDGE = 10.0 * trimesh.tol.merge
 """Least median edge length of a mesh after scaling [units of the result]: trimesh merges vertices
 closer than ``trimesh.tol.merge`` (1e-8), which collapses the faces of a smaller mesh."""
+_TREADS = 0.25  # a flat patch with parallel faces of this x its area just off its plane is a terrace
 _FORMATS = {"stl": "STL", "stl_ascii": "STL", "ply": "PLY", "obj": "OBJ", "off": "OFF", "glb": "glTF", "gltf": "glTF"}
 
 
@@ -363,6 +364,28 @@ class FlatCut:
     radius: float
 
 
+def _is_terrace(patch: dict, n: np.ndarray, area: np.ndarray, c: np.ndarray, cos: float) -> bool:
+    """Whether ``patch`` is the flat top of a staircase: faces (normals ``n``, areas, centres ``c``)
+    facing as it does (normals within ``cos`` of its own), behind it by 1 % to 100 % of its disc's
+    radius and within two radii of its centre, of :data:`_TREADS` times its area or more, all round
+    it (in each of eight sectors about its normal). Behind a seal across a tube of voxels that
+    leans to it, such faces of the wall lie on one side only."""
+    rc = float(np.sqrt(patch["area"] / np.pi))
+    rel = c - patch["centre"]
+    depth = rel @ patch["normal"]
+    flat = rel - depth[:, None] * patch["normal"]
+    behind = (depth < -0.01 * rc) & (depth >= -rc) & (np.linalg.norm(rel, axis=1) <= 2.0 * rc)
+    tread = behind & (n @ patch["normal"] > cos)
+    if area[tread].sum() < _TREADS * patch["area"]:
+        return False
+    u = np.cross(patch["normal"], [1.0, 0.0, 0.0] if abs(patch["normal"][0]) < 0.9 else [0.0, 1.0, 0.0])
+    u /= np.linalg.norm(u)
+    w = np.cross(patch["normal"], u)
+    sector = (np.floor((np.arctan2(flat[tread] @ w, flat[tread] @ u) + np.pi) / (0.25 * np.pi)).astype(int)) % 8
+    per = np.bincount(sector, weights=area[tread], minlength=8)
+    return bool((per >= 0.01 * patch["area"]).all())
+
+
 def flat_cuts(mesh: trimesh.Trimesh, min_area: float, angle_deg: float = 1.0) -> list[FlatCut]:
     """Planar patches of ``mesh`` of at least ``min_area``, largest first.
 
@@ -371,8 +394,11 @@ def flat_cuts(mesh: trimesh.Trimesh, min_area: float, angle_deg: float = 1.0) ->
     1 % of the radius of ``min_area``'s disc) whose centres lie within four such radii are merged
     (a sealed cut is often split by a row of bent triangles). Left out: groups whose bordering
     faces turn less than about 53 degrees away from them on average (a facet of a faceted wall,
-    not a seal meeting the wall at a crease), and patches much longer than wide (area below 0.3 pi
-    times the square of their largest distance from the centre: flat strips of a straight wall).
+    not a seal meeting the wall at a crease), patches much longer than wide (area below 0.3 pi
+    times the square of their largest distance from the centre: flat strips of a straight wall),
+    and the terraces of a staircase (a surface made of voxel faces, whose rounded tip has a flat
+    top): patches with faces parallel to them all round, just out of their plane
+    (:func:`_is_terrace`; a seal meets the tube's wall there, across it).
     """
     n = np.asarray(mesh.face_normals)
     area = np.asarray(mesh.area_faces)
@@ -426,6 +452,7 @@ def flat_cuts(mesh: trimesh.Trimesh, min_area: float, angle_deg: float = 1.0) ->
         reach = float(np.linalg.norm(p["corners"] - p["centre"], axis=1).max())
         # A cut across a tube is about as wide as it is long (a disc or an ellipse); a flat strip
         # of a faceted wall is long and thin.
-        if p["area"] >= min_area and p["area"] >= 0.3 * np.pi * reach**2:
+        if p["area"] >= min_area and p["area"] >= 0.3 * np.pi * reach**2 and \
+                not _is_terrace(p, n, area, c, cos):  # fmt: skip
             out.append(FlatCut(p["centre"], p["normal"], p["area"], float(np.sqrt(p["area"] / np.pi))))
     return sorted(out, key=lambda x: -x.area)
