@@ -34,6 +34,16 @@ __all__ = ["Writers", "SimWorkers", "writer_count", "run_here", "run_pooled", "i
            "write_tasks"]
 
 
+def terminate_pool(pool: cf.ProcessPoolExecutor) -> None:
+    """Stop a process pool's processes at once and let it go without waiting for their work."""
+    processes = list((getattr(pool, "_processes", None) or {}).values())
+    pool.shutdown(wait=False, cancel_futures=True)
+    for proc in processes:
+        proc.terminate()
+    for proc in processes:
+        proc.join(timeout=5)
+
+
 def ignore_sigint():
     """Worker processes leave Ctrl-C to the batch, which stops them in order."""
     signal.signal(signal.SIGINT, signal.SIG_IGN)
@@ -180,6 +190,13 @@ class Writers:
     def shutdown(self):
         if self.pool is not None:
             self.pool.shutdown(wait=True, cancel_futures=True)
+
+    def terminate(self):
+        """Stop the processes at once (interrupted while they read the table: nothing of theirs
+        is kept); threads are left to finish."""
+        if self.processes and self.pool is not None:
+            terminate_pool(self.pool)
+            self.pool = None
 
 
 def _warm_writer():

@@ -21,7 +21,7 @@ import numpy as np
 from ..runtime.collector import collector_paused
 from ..runtime.log_filters import silenced
 from ..scene.spec import SceneError
-from .execute import ignore_sigint
+from .execute import ignore_sigint, terminate_pool
 from .plan import run_choice, run_choices
 
 log = logging.getLogger(__name__)
@@ -51,12 +51,10 @@ def _extract(file, prim, info):
 
 def _prepare_part(scene: str, table, variant_sets):
     """Read part of a table's variants and their run choices (in a worker process)."""
-    import warp as wp
-
+    from ..runtime.warp_setup import init_warp
     from .variants import collect_variants
 
-    wp.config.log_level = wp.LOG_WARNING
-    wp.config.quiet = True
+    init_warp()  # quietly: no missing-driver line from each process on a machine without a GPU
     with collector_paused():
         variants, problems = collect_variants(scene, table, variant_sets, extract=_extract)
         if problems:
@@ -106,9 +104,9 @@ def _prepare_batch(scene, table, variant_sets, bar, pool, pool_size):
     open_stage(scene)  # a missing or unreadable scene: one message, before any process starts
     bounds = np.linspace(0, rows, parts + 1).round().astype(int)
     own = None
-    if pool is None:
-        own = pool = cf.ProcessPoolExecutor(parts, mp_context=multiprocessing.get_context("spawn"), initializer=ignore_sigint)
     try:
+        if pool is None:
+            own = pool = cf.ProcessPoolExecutor(parts, mp_context=multiprocessing.get_context("spawn"), initializer=ignore_sigint)
         futures = [pool.submit(_prepare_part, scene, table.part(a, b), variant_sets) for a, b in zip(bounds[:-1], bounds[1:])]
         results = []
         for f in futures:
@@ -118,6 +116,11 @@ def _prepare_batch(scene, table, variant_sets, bar, pool, pool_size):
         # e.g. a main module the processes cannot import (a script piped to python): read here
         log.warning("the processes reading the table stopped; reading it in this process")
         return read_here()
+    except KeyboardInterrupt:
+        if own is not None:  # stop the readers now, rather than wait for their parts
+            terminate_pool(own)
+            own = None
+        raise
     finally:
         if own is not None:
             own.shutdown(wait=True, cancel_futures=True)

@@ -372,7 +372,11 @@ def _run_batch(scene, out_dir, table, tab, devices, writer_pool, sim_workers, t_
 
     bar = Progress(progress)
     readers = writer_pool.pool if writer_pool.processes else None  # idle until the first chunk is simulated
-    variants, choices = prepare_batch(scene, tab, variant_sets, bar, readers, writer_pool.count)
+    try:
+        variants, choices = prepare_batch(scene, tab, variant_sets, bar, readers, writer_pool.count)
+    except KeyboardInterrupt:
+        writer_pool.terminate()  # (they may be reading parts of the table: not worth waiting for)
+        raise
     bar.close_reading()
     first = variants.variants[0].scene
     n_frames = first.stage.frame_count if frames is None else int(frames)
