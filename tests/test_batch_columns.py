@@ -97,3 +97,20 @@ def test_a_tube_inside_an_instance_takes_plain_values_and_names_the_instance_oth
                                          r"/World/Holder.*make /World/Holder not instanceable"):  # fmt: skip
         run_batch(scene, str(tmp_path / "staged"), staged, layout="arrays", frames=3)
     assert not (tmp_path / "staged").exists()
+
+
+def test_a_mistyped_column_names_the_closest_prim_or_attribute(tmp_path):
+    """A typo in a header's prim path or attribute is refused (exit 2, nothing written) with the
+    closest name the scene has, so the user sees what was meant."""
+    from pathlib import Path
+
+    scene = Path(__file__).resolve().parents[1] / "scenes" / "default.usda"
+    for header, hint in (("/World/Tub.warptube:youngsModulus", "(did you mean /World/Tube?)"),
+                         ("/World/Tube.warptube:youngModulus", "(did you mean warptube:youngsModulus?)")):  # fmt: skip
+        table = write(tmp_path / "t.csv", f"{header}\n100000\n")
+        r = cli("batch", scene, "--variants", table, "-o", tmp_path / "out", "--frames", 2)
+        assert r.returncode == 2 and hint in r.stderr, r.stderr
+        assert not (tmp_path / "out").exists()
+    table = write(tmp_path / "t.csv", "/World/Elsewhere.warptube:youngsModulus\n100000\n")
+    r = cli("batch", scene, "--variants", table, "-o", tmp_path / "out", "--frames", 2)
+    assert r.returncode == 2 and "no prim /World/Elsewhere" in r.stderr and "did you mean" not in r.stderr

@@ -213,6 +213,14 @@ def _in_instances(table: Table, columns) -> list[str]:
     return out
 
 
+def _did_you_mean(name: str, choices: list[str]) -> str:
+    """`` (did you mean X?)`` for the closest of ``choices`` to a mistyped ``name``, or ""."""
+    import difflib
+
+    close = difflib.get_close_matches(name, choices, n=1, cutoff=0.75)
+    return f" (did you mean {close[0]}?)" if close else ""
+
+
 def _resolve_columns(stage, table: Table, context: str):
     """Per column: the attribute to author and its USD type name (or a problem message)."""
     from pxr import Sdf
@@ -221,7 +229,8 @@ def _resolve_columns(stage, table: Table, context: str):
     for col in table.columns:
         prim = stage.GetPrimAtPath(col.prim)
         if not prim:
-            out.append((None, None, f"{table.path}: column {col.header}: no prim {col.prim} in {context}"))
+            paths = [str(p.GetPath()) for p in stage.Traverse()]
+            out.append((None, None, f"{table.path}: column {col.header}: no prim {col.prim} in {context}{_did_you_mean(col.prim, paths)}"))
             continue
         if col.attribute == "widths" and prim.GetAttribute("primvars:widths").HasAuthoredValue():
             out.append((None, None, f"{table.path}: column {col.header}: {col.prim} authors primvars:widths, which "
@@ -234,8 +243,10 @@ def _resolve_columns(stage, table: Table, context: str):
             t = CONTRACT_TYPES[col.attribute]
             out.append((prim.CreateAttribute(col.attribute, Sdf.ValueTypeNames.Find(t)), t, None))
         else:
+            names = list(prim.GetPropertyNames()) + list(CONTRACT_TYPES)
             out.append((None, None, f"{table.path}: column {col.header}: {col.prim} has no attribute {col.attribute} "
-                                    f"in {context} (and it is not a warptube: scene attribute)"))  # fmt: skip
+                                    f"in {context} (and it is not a warptube: scene attribute)"
+                                    f"{_did_you_mean(col.attribute, names)}"))  # fmt: skip
     return out
 
 
