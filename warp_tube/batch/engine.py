@@ -238,7 +238,8 @@ def _run_alone(scene: Scene, w: int, device: str, frames: int, every: int, surfa
     for k in range(frames):
         if k > 0:
             try:
-                sim.step()
+                with silenced("warp_tube.sim.simulation"):  # its warnings go into the variant's row
+                    sim.step()
             except NumericalError as e:
                 reason = str(e)
                 break
@@ -259,6 +260,8 @@ def _run_alone(scene: Scene, w: int, device: str, frames: int, every: int, surfa
     qd = sim.state.node_qd.numpy()
     ke = 0.5 * float(np.einsum("wn,wnk,wnk->", free_mass, qd, qd, dtype=np.float64))
     note = f"failed a check among the worlds; ran alone ({sim.retried_frames} frame(s) redone with more substeps)"
+    if sim.warnings:
+        note += "; " + "; ".join(sim.warnings)
     # work_J: what Simulation's own checks counted over the frames it kept
     return dict(status="failed" if reason else "ok", reason=reason or note, frames=written,
                 frames_simulated=simulated, integrator=sim.integrator, substeps=sim.substeps, rerun=True,
