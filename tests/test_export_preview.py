@@ -76,6 +76,25 @@ def test_export_glb_one_frame_in_metres_y_up(stage_path, tmp_path):
     np.testing.assert_allclose(np.sort(verts, axis=0), np.sort(expected, axis=0), atol=1e-6)
 
 
+def test_cli_export_takes_its_format_from_the_file_named(stage_path, tmp_path):
+    """``-o FILE.glb`` without ``--format`` writes glTF binary; ``--format`` given wins, and one
+    that disagrees with the file's suffix is refused (exit 2, no file)."""
+    import subprocess
+    import sys
+
+    def cli(*args):
+        return subprocess.run([sys.executable, "-m", "warp_tube", "export", str(stage_path), *map(str, args)],
+                              capture_output=True, text=True)  # fmt: skip
+
+    r = cli("--frame", 1, "-o", tmp_path / "f.glb")
+    assert r.returncode == 0, r.stderr
+    assert (tmp_path / "f.glb").read_bytes()[:4] == b"glTF"  # the binary glTF magic
+    r = cli("--frame", 1, "-o", tmp_path / "g.glb", "--format", "obj")
+    assert r.returncode == 2 and "expected .obj" in r.stderr and not (tmp_path / "g.glb").exists()
+    r = cli("-o", tmp_path / "seq")
+    assert r.returncode == 0 and sorted(p.suffix for p in (tmp_path / "seq").iterdir()) == [".obj"] * len(FRAMES)
+
+
 def test_export_errors(stage_path, tmp_path):
     with pytest.raises(SceneError, match="no such file"):
         export(tmp_path / "missing.usdc", "obj")

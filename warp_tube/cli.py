@@ -82,7 +82,7 @@ def _parser() -> argparse.ArgumentParser:
 
     x = sub.add_parser("export", help="export an output stage's Surface as OBJ or glTF binary")
     x.add_argument("stage", help="output stage written by run or batch (.usdc, .usda)")
-    x.add_argument("--format", choices=("obj", "glb"), default="obj")
+    x.add_argument("--format", choices=("obj", "glb"), help="file format (default: the suffix of -o FILE, else obj)")
     x.add_argument("-o", "--output", help="folder for the files, or one file with --frame (default: a folder "
                    "<stage name>_<format> beside the stage; with --frame, the file beside the stage)")
     x.add_argument("--frame", type=float, help="only this time code")
@@ -243,7 +243,11 @@ def _cmd_preview(a) -> int:
 def _cmd_export(a) -> int:
     from .io.export import export
 
-    for path in export(a.stage, fmt=a.format, out=a.output, frame=a.frame, overwrite=a.force):
+    fmt = a.format
+    if fmt is None:  # -o FILE.glb means glTF binary; a folder or anything else: OBJ
+        suffix = os.path.splitext(a.output or "")[1].lower().lstrip(".")
+        fmt = suffix if suffix in ("obj", "glb") else "obj"
+    for path in export(a.stage, fmt=fmt, out=a.output, frame=a.frame, overwrite=a.force):
         print(path)
     return EXIT_OK
 
