@@ -162,3 +162,16 @@ def test_coarse_voxel_tube_is_not_ended_twice_at_one_tip():
     # placed to about one voxel, a third of r, each; measured 0.99).
     true = float(np.linalg.norm(axis_v[-1] - axis_v[0])) + 2.0 * RADIUS / voxel
     assert abs(tube.tip_to_tip / true - 1.0) < 0.1
+
+
+def test_a_tube_just_too_short_is_not_reported_at_the_bound():
+    # A capsule 4 radii long from tip to tip measures a hair under 4 between its extracted tips
+    # (the caps' polygons lie inside the true sphere), and was reported as "4.0 mean radii long
+    # ...; a tube is at least 4". The figure is rounded down, so it reads below the bound.
+    from warp_tube.extract.tubelike import MIN_LENGTH_RADII, NOT_A_TUBE
+
+    tube = extract_centerline(trimesh.creation.capsule(height=2.0, radius=1.0, count=[32, 32]))
+    short = [w for w in tube.warnings if w.startswith(NOT_A_TUBE) and "mean radii long" in w]
+    assert len(short) == 1
+    said = float(short[0].split(": ")[1].split(" mean radii")[0])
+    assert said < MIN_LENGTH_RADII and said >= tube.tip_to_tip / float(tube.spoke_lengths.mean()) - 0.1

@@ -51,7 +51,8 @@ def check(tube: ExtractedTube, open_rays: np.ndarray, *, hubs_given: bool) -> li
     reach = tube.tip_to_tip
     if reach < MIN_LENGTH_RADII * radius:
         out.append(
-            f"{NOT_A_TUBE}: {reach / radius:.1f} mean radii long from end to end (mean radius {radius:.4g}); "
+            f"{NOT_A_TUBE}: {np.floor(10.0 * reach / radius) / 10.0:.1f} mean radii long from end to end (mean "
+            f"radius {radius:.4g}); "  # rounded down: a length just short of the bound never reads as the bound
             f"a tube is at least {MIN_LENGTH_RADII:g}"
         )
     inner = np.asarray(open_rays)[1:-1]
