@@ -175,3 +175,27 @@ def test_a_tube_just_too_short_is_not_reported_at_the_bound():
     assert len(short) == 1
     said = float(short[0].split(": ")[1].split(" mean radii")[0])
     assert said < MIN_LENGTH_RADII and said >= tube.tip_to_tip / float(tube.spoke_lengths.mean()) - 0.1
+
+
+@pytest.mark.parametrize(
+    "written, named, said",
+    [("stl", "obj", "a binary STL: rename it to .stl"), ("ply", "stl", "a PLY: rename it to .ply"),
+     ("stl_ascii", "ply", "an ASCII STL: rename it to .stl"), ("obj", "ply", "an OBJ: rename it to .obj"),
+     ("glb", "stl", "a glTF binary: rename it to .glb"), ("off", "obj", "an OFF: rename it to .off")],
+)  # fmt: skip
+def test_a_mesh_file_with_the_wrong_extension_is_named_for_what_it_holds(tmp_path, monkeypatch, capsys, written,
+                                                                           named, said):  # fmt: skip
+    # A mesh saved under another format's extension was "damaged, truncated or not OBJ" (or read
+    # as an empty OBJ: "empty mesh"), without saying what it is.
+    from warp_tube.cli import main
+
+    monkeypatch.chdir(tmp_path)
+    data = trimesh.creation.capsule(height=6.0, radius=1.0).export(file_type=written)
+    (tmp_path / f"tube.{named}").write_bytes(data if isinstance(data, bytes) else data.encode())
+    before = (tmp_path / f"tube.{named}").read_bytes()
+    assert main(["extract", f"tube.{named}", "-o", "s.usda"]) == 2
+    err = capsys.readouterr().err.strip()
+    assert err.startswith(f"warp-tube: tube.{named}: ") and err.endswith(said), err
+    assert len(err.splitlines()) == 1, err
+    assert not (tmp_path / "s.usda").exists()
+    assert (tmp_path / f"tube.{named}").read_bytes() == before

@@ -139,6 +139,32 @@ def _file_type(path: str) -> str:
     return found
 
 
+def _sniff(path: str) -> tuple[str, str] | None:
+    """What the start of a mesh file says it is, as ``(description, extension)``, or None: binary
+    STL (its triangle count matches its size), ASCII STL, PLY, OFF, glTF binary, OBJ."""
+    try:
+        with open(path, "rb") as fh:
+            head = fh.read(512)
+        size = os.path.getsize(path)
+    except OSError:
+        return None
+    if len(head) >= 84 and 84 + 50 * int.from_bytes(head[80:84], "little") == size:
+        return "a binary STL", "stl"
+    for magic, found in ((b"ply", ("a PLY", "ply")), (b"glTF", ("a glTF binary", "glb"))):
+        if head.startswith(magic):
+            return found
+    if any(b < 9 for b in head):
+        return None  # binary, and none of the binary formats above
+    text = head.lstrip().lower()
+    for magic, found in ((b"solid", ("an ASCII STL", "stl")), (b"off", ("an OFF", "off"))):
+        if text.startswith(magic):
+            return found
+    words = [ln.split(None, 1)[0] for ln in text.splitlines()[:-1] if ln.strip() and not ln.startswith(b"#")]
+    if b"v" in words and all(w in (b"v", b"vn", b"vt", b"f", b"o", b"g", b"s", b"mtllib", b"usemtl") for w in words):
+        return "an OBJ", "obj"
+    return None
+
+
 def load_mesh(path, scale=(1.0, 1.0, 1.0)) -> trimesh.Trimesh:
     """Read a triangle mesh file (STL, PLY, OBJ, ... as trimesh reads them) and clean it.
 
@@ -166,10 +192,16 @@ def load_mesh(path, scale=(1.0, 1.0, 1.0)) -> trimesh.Trimesh:
     except Exception as e:  # trimesh raises many kinds (ValueError, KeyError, IndexError, UnicodeDecodeError, ...)
         log.debug("%s: trimesh: %s: %s", path, type(e).__name__, e)
         kind = _FORMATS.get(file_type, file_type.upper())
-        raise SceneError(f"{path}: not a readable {kind} mesh: the file is damaged, truncated or not {kind}") from None
+        real = _sniff(path)
+        hint = f": its content is {real[0]}: rename it to .{real[1]}" if real and real[1] != file_type else ""
+        raise SceneError(f"{path}: not a readable {kind} mesh: the file is damaged, truncated or not {kind}{hint}") from None
     if isinstance(mesh, trimesh.Scene) or not hasattr(mesh, "faces"):
         raise SceneError(f"{path}: holds no triangle faces: expected a surface mesh")
     if len(mesh.faces) == 0:
+        real = _sniff(path)
+        if real and real[1] != file_type:  # e.g. an OFF file named .obj reads as an OBJ with nothing in it
+            raise SceneError(f"{path}: no mesh read as {_FORMATS.get(file_type, file_type.upper())}: its content is "
+                             f"{real[0]}: rename it to .{real[1]}")  # fmt: skip
         try:
             points = len(trimesh.load(path, process=False).vertices)  # as the file has them (a point cloud)
         except Exception:
