@@ -334,7 +334,7 @@ def cases() -> list[Case]:
     exp("files that exist in the folder, without --force", ["out.usdc", "-o", "objs"],
         files={"objs": _folder, "objs/out.0001.obj": KEEP})  # fmt: skip
     exp("-o one file for several frames", ["out.usdc", "-o", "all.obj"])
-    exp("-o .glb with --format obj", ["out.usdc", "--frame", "0", "-o", "f.glb"])
+    exp("-o .glb with --format obj", ["out.usdc", "--frame", "0", "-o", "f.glb", "--format", "obj"])
     exp("a stage written with --no-surface", ["nosurf.usdc"])
     exp("-o a file where a folder is needed", ["out.usdc", "-o", "keep.usdc"])
 

@@ -68,7 +68,7 @@ def _parser() -> argparse.ArgumentParser:
     c.add_argument("scene", help="scene .usda/.usdc to validate")
 
     e = sub.add_parser("extract", help="extract a tube scene from a surface mesh (STL, PLY, OBJ)")
-    e.add_argument("mesh", help="tube surface mesh: .stl, .ply or .obj")
+    e.add_argument("mesh", help="tube surface mesh: .stl, .ply, .obj, .off or .glb")
     e.add_argument("-o", "--output", required=True, help="scene to write: .usda (text), .usdc or .usd (binary)")
     e.add_argument("--hubs", type=int, help="centerline points (default: from length and radius)")
     e.add_argument("--spokes", type=int, default=16, help="spokes per hub (default 16)")

@@ -47,7 +47,10 @@ def prim_name(text: str) -> str:
     """A valid USD prim name from a file name or label (``"VHF aorta.ply"`` -> ``"VHF_aorta"``)."""
     stem = os.path.splitext(os.path.basename(str(text)))[0]
     name = re.sub(r"[^A-Za-z0-9_]", "_", stem).strip("_") or "Tube"
-    return name if not name[0].isdigit() else "_" + name
+    name = name if not name[0].isdigit() else "_" + name
+    # the output writes a Centerline and a Surface under each tube: a tube of either name would
+    # read as a tube's part
+    return name + "_tube" if name in ("Centerline", "Surface") else name
 
 
 def push_force(tube: ExtractedTube, meters_per_unit: float, youngs_modulus: float) -> np.ndarray:
@@ -200,13 +203,23 @@ def write_scene(
     return str(curves.GetPath())
 
 
-def _attr_value(prim, name, types):
+def _attr_value(prim, name, types, start: float):
+    """The attribute's value at the first frame (time code ``start``), or None where unauthored; a
+    value authored as time samples, as DCC tools often write them, is read there (with a warning
+    where the samples may differ: parameters are not animated)."""
+    from pxr import Usd
+
     a = prim.GetAttribute(name)
     if not a or not a.HasAuthoredValue():
         return None
     if str(a.GetTypeName()) not in types:
         raise SceneError(f"{prim.GetPath()}.{name}: found type {a.GetTypeName()}: expected {' or '.join(types)}")
-    return a.Get()
+    v = a.Get(Usd.TimeCode(start))
+    if v is None:
+        raise SceneError(f"{prim.GetPath()}.{name}: no value at the first frame: expected a value (a default or time samples)")
+    if a.ValueMightBeTimeVarying():
+        log.warning("%s.%s: time-sampled: its value at the first frame (%s) is used for the whole run", prim.GetPath(), name, v)
+    return v
 
 
 def tube_from_mesh_prim(file: str, prim, info: StageInfo) -> TubeSpec:
@@ -224,17 +237,18 @@ def tube_from_mesh_prim(file: str, prim, info: StageInfo) -> TubeSpec:
     """
     where = f"{file}: {prim.GetPath()}"
     real = ("float", "double")
+    t0 = info.start_time_code
     try:
-        hubs = _attr_value(prim, "warptube:hubs", ("int", "int64", "uint"))
-        spokes = _attr_value(prim, "warptube:spokes", ("int", "int64", "uint"))
+        hubs = _attr_value(prim, "warptube:hubs", ("int", "int64", "uint"), t0)
+        spokes = _attr_value(prim, "warptube:spokes", ("int", "int64", "uint"), t0)
         spokes = 16 if spokes is None else int(spokes)
-        vals = {k: _attr_value(prim, f"warptube:{k}", real) for k in (
+        vals = {k: _attr_value(prim, f"warptube:{k}", real, t0) for k in (
             "density", "youngsModulus", "stretchStiffness", "bendStiffness", "damping", "springDamping",
             "anchorStiffness")}  # fmt: skip
-        frames = _attr_value(prim, "warptube:frames", ("token", "string"))
-        caps = _attr_value(prim, "warptube:caps", ("bool",))
-        pinned = _attr_value(prim, "warptube:pinnedPoints", ("int[]", "int64[]"))
-        anchors = _attr_value(prim, "warptube:anchorPoints", ("int[]", "int64[]"))
+        frames = _attr_value(prim, "warptube:frames", ("token", "string"), t0)
+        caps = _attr_value(prim, "warptube:caps", ("bool",), t0)
+        pinned = _attr_value(prim, "warptube:pinnedPoints", ("int[]", "int64[]"), t0)
+        anchors = _attr_value(prim, "warptube:anchorPoints", ("int[]", "int64[]"), t0)
     except SceneError as e:
         raise SceneError(f"{file}: {e}") from None
     if vals["density"] is None:
