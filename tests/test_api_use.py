@@ -24,6 +24,7 @@ from warp_tube.scene.spec import SceneError
 
 from .bad_inputs import KEEP, scene
 from .conftest import ROOT, SCENES
+from .layer_proxy import LayerProxy
 
 
 @pytest.fixture(scope="module")
@@ -253,16 +254,7 @@ def interrupted_saves(monkeypatch):
     Python handles it as soon as the save returns."""
     from warp_tube.io.writer import StageWriter
 
-    class Layer:
-        def __init__(self, layer):
-            object.__setattr__(self, "_layer", layer)
-
-        def __getattr__(self, name):
-            return getattr(self._layer, name)
-
-        def __setattr__(self, name, value):
-            setattr(self._layer, name, value)
-
+    class Layer(LayerProxy):
         def Save(self):
             done = self._layer.Save()
             signal.raise_signal(signal.SIGINT)

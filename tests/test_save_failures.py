@@ -10,23 +10,15 @@ from warp_tube.cli import main
 from warp_tube.io.writer import StageWriter, save_error
 
 from .bad_inputs import KEEP, scene
+from .layer_proxy import LayerProxy
 
 #: what usd-core's exception says when the disk fills while a crate file is saved
 DISK_FULL = ("Error in 'pxrInternal::ArFilesystemWritableAsset::Write' at line 78: 'Error occurred writing file: "
              "No space left on device'")  # fmt: skip
 
 
-class _FullDisk:
+class _FullDisk(LayerProxy):
     """An Sdf.Layer whose Save fails as usd-core's does on a full disk."""
-
-    def __init__(self, layer):
-        object.__setattr__(self, "_layer", layer)
-
-    def __getattr__(self, name):
-        return getattr(self._layer, name)
-
-    def __setattr__(self, name, value):
-        setattr(self._layer, name, value)
 
     def Save(self):
         raise RuntimeError(DISK_FULL)
