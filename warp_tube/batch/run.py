@@ -38,6 +38,7 @@ from .engine import TIMERS, output_frames
 from .cluster import check_dask, dask_client, run_dask
 from .execute import SimWorkers, Writers, run_here, run_pooled, writer_count
 from .journal import Journal, file_digest
+from .lock import BatchLock
 from .outputs import LAYOUTS, OutputSpec, finish_arrays, prepare_arrays, surface_topology, write_grid_root, write_summary
 from .plan import by_identity, group_key, plan_chunks
 from .prepare import prepare_batch
@@ -192,6 +193,7 @@ def _check_out_dir(out_dir: str, resume: bool) -> None:
         return
     if not os.access(out_dir, os.W_OK):
         raise SceneError(f"{out_dir}: folder is not writable")
+    BatchLock(out_dir).check()  # another batch writing there now: said before anything else
     journal = Journal(out_dir)
     found = [n for n in BATCH_FILES if os.path.exists(os.path.join(out_dir, n))]
     found += sorted(n for n in os.listdir(out_dir) if n.startswith("variant_") and _OUTPUT_NAME.match(n))[:1]
@@ -349,10 +351,11 @@ def run_batch(scene: str, out_dir: str, table: str | None = None, *, variant_set
     sims = 0 if scheduler else len(devices)
     sim_workers = SimWorkers(devices) if sims > 1 else None  # up while the variants are read
     writer_pool = None
+    lock = BatchLock(out_dir)
     try:
         writer_pool = Writers(layout, 0 if scheduler else writer_count(writers, sims, layout))
         with kept_interrupts():  # a Ctrl-C dropped in a finalizer stops the batch at the next frame
-            return _run_batch(scene, out_dir, table, tab, devices, writer_pool, sim_workers, t_start,
+            return _run_batch(scene, out_dir, table, tab, devices, writer_pool, sim_workers, t_start, lock,
                               variant_sets=variant_sets, layout=layout, every=every, frames=frames, surface=surface,
                               device=device, chunk=chunk, scheduler=scheduler, resume=resume, progress=progress,
                               on_chunk=on_chunk)  # fmt: skip
@@ -365,9 +368,10 @@ def run_batch(scene: str, out_dir: str, table: str | None = None, *, variant_set
             writer_pool.shutdown()
         if sim_workers is not None:
             sim_workers.shutdown()
+        lock.release()  # (after the writers: their files are complete or gone)
 
 
-def _run_batch(scene, out_dir, table, tab, devices, writer_pool, sim_workers, t_start, *, variant_sets, layout, every,
+def _run_batch(scene, out_dir, table, tab, devices, writer_pool, sim_workers, t_start, lock, *, variant_sets, layout, every,
                frames, surface, device, chunk, scheduler, resume, progress, on_chunk) -> BatchResult:  # fmt: skip
 
     bar = Progress(progress)
@@ -420,6 +424,7 @@ def _run_batch(scene, out_dir, table, tab, devices, writer_pool, sim_workers, t_
     if scheduler:
         dask_client(scheduler).close()  # the scheduler answers: checked before anything is written
     os.makedirs(out_dir, exist_ok=True)
+    lock.acquire()  # before anything is written there (released by run_batch, however it ends)
     done = _outputs_kept(journal.begin(signature, resume), layout, out_dir, journal.dir)
     _remove_stray_partials(out_dir)
     if layout == "arrays":
