@@ -18,7 +18,8 @@ Discretisation (SI units):
   This gives the elastica with second-order convergence in the segment length.
 - Returning springs: ``anchor_stiffness`` [N/m] to each anchor point's rest position.
 - Damping: mass-proportional ``alpha`` [1/s] (force ``-alpha m v``) and stiffness-proportional
-  ``beta`` [s] along every spring (``kd = beta ke``).
+  ``beta`` [s] along the structural and returning springs (``kd = beta ke``); the angular springs
+  are not damped.
 """
 
 from __future__ import annotations
