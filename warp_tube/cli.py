@@ -50,52 +50,68 @@ def _version() -> str:
 
 def _parser() -> argparse.ArgumentParser:
     p = _Parser(prog="warp-tube", description="Simulate tube-shaped soft bodies: USD scene in, time-sampled USD out.")
-    p.add_argument("-v", "--verbose", action="store_true", help="log details")
+    p.add_argument("-v", "--verbose", action="store_true",
+                   help="show details: info messages, Warp's start-up and module-load lines, tracebacks of internal errors")
     p.add_argument("--version", action="version", version=f"%(prog)s {_version()}")
     sub = p.add_subparsers(dest="command", required=True, parser_class=_Parser)
 
-    r = sub.add_parser("run", help="simulate a scene and write a time-sampled USD stage")
+    r = sub.add_parser("run", help="simulate a scene and write a time-sampled USD stage",
+                       description="Simulate the tubes of a USD scene and write their Centerline and Surface as a "
+                       "time-sampled USD stage; prints a summary.")
     r.add_argument("scene", nargs="?", help="scene .usda/.usdc (default: the embedded default scene)")
     r.add_argument("-o", "--output", help="output stage (.usdc, .usda); default: <scene name>.out.usdc here "
                    "(tube.usdc for the embedded scene)")
     r.add_argument("--device", help="cpu or cuda:N (default: CUDA when available)")
     r.add_argument("--frames", type=int, help="frames to simulate, frame 0 (rest) included (default: the scene's)")
-    r.add_argument("--every", type=int, default=1, help="write every K-th of them (frame 0 always)")
+    r.add_argument("--every", type=int, default=1, help="write every K-th of them (frame 0 always; default 1: every frame)")
     r.add_argument("--no-surface", action="store_true", help="write the Centerline only")
     r.add_argument("--quiet", action="store_true", help="no progress bar, no summary")
 
-    c = sub.add_parser("check", help="validate a scene without simulating")
+    c = sub.add_parser("check", help="validate a scene without simulating",
+                       description="Validate a scene as run does, without simulating or writing anything.")
     c.add_argument("scene", help="scene .usda/.usdc to validate")
 
-    e = sub.add_parser("extract", help="extract a tube scene from a surface mesh (STL, PLY, OBJ)")
+    e = sub.add_parser("extract", help="extract a tube scene from a surface mesh (STL, PLY, OBJ, OFF, glTF binary)",
+                       description="Extract a tube's centerline and spoke lengths from a segmented surface mesh into a "
+                       "scene (metres) with a push sized to move it by two radii.")
     e.add_argument("mesh", help="tube surface mesh: .stl, .ply, .obj, .off or .glb")
     e.add_argument("-o", "--output", required=True, help="scene to write: .usda (text), .usdc or .usd (binary)")
     e.add_argument("--hubs", type=int, help="centerline points (default: from length and radius)")
     e.add_argument("--spokes", type=int, default=16, help="spokes per hub (default 16)")
-    e.add_argument("--scale", type=float, nargs="+", metavar="F", help="F, or FX FY FZ: mesh units to metres")
+    e.add_argument("--scale", type=float, nargs="+", metavar="F", help="F, or FX FY FZ: metres per mesh unit (default 1: the mesh is in metres)")
     e.add_argument("--strict", action="store_true", help="refuse a mesh that is not tube-like instead of warning")
 
-    v = sub.add_parser("preview", help="render a contact sheet of an output stage to PNG")
+    v = sub.add_parser("preview", help="render a contact sheet of an output stage to PNG",
+                       description="Render evenly spaced frames of an output stage's Surface meshes side by side into a "
+                       "PNG (320 x 320 pixels a tile, 8 tiles a row); each tile after the first shows frame 0 in "
+                       "light grey behind, so the motion shows.")
     v.add_argument("stage", help="output stage written by run or batch (.usdc, .usda)")
     v.add_argument("-o", "--output", required=True, help="PNG to write")
-    v.add_argument("--frames", type=int, default=4, help="frames on the sheet (default 4)")
+    v.add_argument("--frames", type=int, default=4, help="frames on the sheet, the first and last included (default 4)")
 
-    x = sub.add_parser("export", help="export an output stage's Surface as OBJ or glTF binary")
+    x = sub.add_parser("export", help="export an output stage's Surface as OBJ or glTF binary",
+                       description="Write the Surface meshes of an output stage, one file per frame, for tools "
+                       "without USD (OBJ in the stage's units and up axis; glTF binary in metres, Y up).")
     x.add_argument("stage", help="output stage written by run or batch (.usdc, .usda)")
     x.add_argument("--format", choices=("obj", "glb"), help="file format (default: the suffix of -o FILE, else obj)")
     x.add_argument("-o", "--output", help="folder for the files, or one file with --frame (default: a folder "
                    "<stage name>_<format> beside the stage; with --frame, the file beside the stage)")
-    x.add_argument("--frame", type=float, help="only this time code")
-    x.add_argument("--force", action="store_true", help="replace existing files")
+    x.add_argument("--frame", type=float, help="only this time code (default: every frame)")
+    x.add_argument("--force", action="store_true", help="replace existing files (default: an existing file is an error)")
 
     from .batch.command import add_parser as add_batch_parser
 
     add_batch_parser(sub)
 
-    b = sub.add_parser("bench", help="speed against error beside peer simulators; results, report and plots")
-    b.add_argument("-o", "--output", help="folder for results.json, report.md and the plots (with --replot: default "
-                   "the results' own folder)")
-    b.add_argument("--suite", choices=("accuracy", "speed", "all"), default="all")
+    b = sub.add_parser("bench", help="speed against error beside peer simulators; results, report and plots",
+                       description="Time to the answer, accuracy and throughput of warp_tube beside PyElastica and "
+                       "Newton (those installed), each in its own process; writes results.json, report.md and "
+                       "PNG plots (with matplotlib) into -o DIR.")
+    b.add_argument("-o", "--output", help="folder for results.json, report.md and the plots; required (with --replot: "
+                   "default the results' own folder)")
+    b.add_argument("--suite", choices=("accuracy", "speed", "all"), default="all",
+                   help="accuracy: cantilevers, frequency, curved tube; speed: throughput of 1 to 65,536 tubes "
+                   "(default all)")
     b.add_argument("--peers", help="pyelastica,newton (default: both where installed) or none")
     b.add_argument("--device", help="cpu or cuda:N (default: CUDA when available)")
     b.add_argument("--quick", action="store_true", help="the small problem set (tests, a first look)")
