@@ -3,7 +3,9 @@
 Each tile is one frame, rendered by an orthographic camera fitted to the bounding sphere of all
 shown frames (so motion between tiles is visible at one scale), looking down a fixed oblique
 direction with the stage's up axis up, with two-sided Lambert shading lit from the camera
-(:func:`~warp_tube.kernels.shading.shade_orthographic_kernel` against a ``wp.Mesh``).
+(:func:`~warp_tube.kernels.shading.shade_orthographic_kernel` against a ``wp.Mesh``). Every tile
+after the first shows the first frame's silhouette in light grey behind the tube, so that motion
+small against the tube's size (a sag, a push of a few radii) shows.
 """
 
 from __future__ import annotations
@@ -21,6 +23,7 @@ __all__ = ["preview"]
 
 BACKGROUND = np.array([245, 245, 242], dtype=np.float64)
 TISSUE = np.array([214, 120, 112], dtype=np.float64)
+GHOST = np.array([222, 221, 216], dtype=np.float64)  # the first frame's silhouette behind later tiles
 LABEL = (70, 70, 70)  # the frame label's colour (RGB)
 LABEL_MIN_TILE = 96  # tiles smaller than this [pixels] get no label
 SHEET_COLUMNS = 8  # tiles per row of the sheet; more frames wrap into further rows
@@ -35,7 +38,8 @@ def _pick_frames(times: list[float], count: int) -> list[float]:
 
 def preview(usd_path, png_path, frames: int = 4, size: int = 320, device=None) -> Path:
     """Render ``frames`` evenly spaced frames of the Surface meshes side by side into a PNG
-    (:data:`SHEET_COLUMNS` to a row, further rows below).
+    (:data:`SHEET_COLUMNS` to a row, further rows below), the first and last frames included; each
+    tile after the first shows the first frame's silhouette in light grey (:data:`GHOST`) behind.
 
     Args:
         usd_path: output stage written by ``warp-tube run``.
@@ -101,6 +105,7 @@ def preview(usd_path, png_path, frames: int = 4, size: int = 320, device=None) -
     sheet = np.empty((size * rows, size * columns, 3), dtype=np.uint8)
     sheet[:] = BACKGROUND.astype(np.uint8)  # (a last row's empty tiles)
     image = wp.zeros((size, size), dtype=float, device=device)
+    first = None  # the first frame's silhouette, drawn behind the later tiles
     for k, (verts, faces) in enumerate(geometry):
         mesh = wp.Mesh(
             points=wp.array(verts.astype(np.float32), dtype=wp.vec3, device=device),
@@ -114,7 +119,10 @@ def preview(usd_path, png_path, frames: int = 4, size: int = 320, device=None) -
             device=device,
         )
         shade = image.numpy()[..., None].astype(np.float64)
-        tile = np.where(shade < 0.0, BACKGROUND, TISSUE * np.clip(shade, 0.0, 1.0))
+        if first is None:
+            first = shade >= 0.0
+        behind = np.where(first, GHOST, BACKGROUND) if k > 0 else BACKGROUND
+        tile = np.where(shade < 0.0, behind, TISSUE * np.clip(shade, 0.0, 1.0))
         r, c = divmod(k, columns)
         sheet[r * size : (r + 1) * size, c * size : (c + 1) * size] = np.clip(np.round(tile), 0, 255).astype(np.uint8)
     picture = Image.fromarray(sheet)
