@@ -4,7 +4,7 @@ interleaved (warp_tube, then each peer, then again), medians; results, report an
 Output: ``DIR/logs/CODE-REP.log`` (each worker's progress: one JSON line per measurement),
 ``DIR/results.json`` (every figure, each repetition's and the medians, with device,
 versions, command and date), ``DIR/report.md`` (tables, :mod:`.report`) and, with matplotlib
-installed (``pip install warp-tube[plots]``), ``DIR/*.png`` (:mod:`.plots`).
+installed (``pip install "warp-tube[plots]"``), ``DIR/*.png`` (:mod:`.plots`).
 """
 
 from __future__ import annotations
@@ -147,7 +147,8 @@ def write_outputs(results: dict, out_dir: str, log=print) -> None:
     try:
         from .plots import write_plots
     except ImportError as e:
-        log(f"plots skipped: matplotlib is not installed ({e}); pip install warp-tube[plots]")
+        log(f"plots skipped: matplotlib is not installed ({e}); install it with "
+            'pip install "warp-tube[plots]" (from a checkout: pip install -e ".[plots]")')
         return
     for path in write_plots(results, out_dir):
         log(path)

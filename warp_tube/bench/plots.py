@@ -1,4 +1,4 @@
-"""Plots of ``warp-tube bench`` (matplotlib, ``pip install warp-tube[plots]``).
+"""Plots of ``warp-tube bench`` (matplotlib, ``pip install "warp-tube[plots]"``).
 
 - ``error_vs_time.png``: tip error against wall time to the answer, log-log, every code and
   resolution of the headline cantilever (configurations that never get within the tolerance are
@@ -16,6 +16,7 @@ import matplotlib
 matplotlib.use("Agg")
 import matplotlib.pyplot as plt  # noqa: E402
 import numpy as np  # noqa: E402
+from matplotlib.ticker import FuncFormatter, NullFormatter  # noqa: E402
 
 from .problems import ANSWER_TOLERANCE  # noqa: E402
 from .report import HEADLINE, label  # noqa: E402
@@ -42,6 +43,27 @@ def _blown_note(ax, rows):
            if r["kind"] == "static" and r["problem"] == HEADLINE and "failed" not in r and not r["error"] <= BLOWN_UP]  # fmt: skip
     if bad:
         ax.figure.text(0.01, 0.005, "blew up (not drawn): " + "; ".join(bad), fontsize=6, color="gray")
+
+
+def _short_log_ticks(ax):
+    """Plain numbers (0.012, not 1.2 x 10^-2) on log axes. An axis spanning under two decades (one
+    or no decade to label) gets labels on minor ticks too: 2 and 5 of each decade where it spans
+    more than one, else at most about five of them, so that the labels never run into each other."""
+    plain = FuncFormatter(lambda v, _: f"{v:g}")
+    for axis, (lo, hi) in ((ax.xaxis, ax.get_xlim()), (ax.yaxis, ax.get_ylim())):
+        if axis.get_scale() != "log" or not 0 < lo < hi:
+            continue
+        axis.set_major_formatter(plain)
+        decades = np.log10(hi / lo)
+        if decades >= 2.0:
+            axis.set_minor_formatter(NullFormatter())
+            continue
+        minors = [t for t in axis.get_minorticklocs() if lo <= t <= hi]
+        if decades >= 1.0:
+            shown = {t for t in minors if round(t / 10 ** np.floor(np.log10(t) + 1e-9), 6) in (2.0, 5.0)}
+        else:
+            shown = set(minors[:: max(1, -(-len(minors) // 5))])
+        axis.set_minor_formatter(FuncFormatter(lambda v, _, shown=shown: f"{v:g}" if v in shown else ""))
 
 
 def _title(results, what):
@@ -75,7 +97,7 @@ def _static_plots(results, rows, out_dir):
         for r, ti, ei in zip(rs, t, e):
             ax.plot(ti, ei, m, color=c, mfc=c if r["answer_time"] is not None else "none", label=name if r is rs[0] else None)
             ax.annotate(str(r["config"]["segments"]), (ti, ei), textcoords="offset points", xytext=(4, 3), fontsize=7, color=c)
-    ax.axhline(ANSWER_TOLERANCE, color="gray", ls=":", lw=1)
+    ax.axhline(ANSWER_TOLERANCE, color="gray", ls=":", lw=1, label=f"answer: within {100 * ANSWER_TOLERANCE:g}% of L")
     _blown_note(ax, rows)
     ax.set_xscale("log")
     ax.set_yscale("log")
@@ -84,6 +106,7 @@ def _static_plots(results, rows, out_dir):
     ax.set_title(_title(results, f"{HEADLINE}: error against time (labels: segments)"), fontsize=9)
     ax.legend(fontsize=7)
     ax.grid(True, which="both", alpha=0.3)
+    _short_log_ticks(ax)
     paths.append(_save(fig, out_dir, "error_vs_time.png"))
     # convergence
     fig, ax = plt.subplots(figsize=(7, 5))
@@ -98,7 +121,7 @@ def _static_plots(results, rows, out_dir):
     n = np.array([5.0, 320.0])
     for p, ls in ((1, "--"), (2, ":")):
         ax.plot(n, 0.05 * (n / n[0]) ** -p, ls, color="gray", lw=1, label=f"slope {p}")
-    ax.axhline(ANSWER_TOLERANCE, color="gray", ls="-.", lw=0.8)
+    ax.axhline(ANSWER_TOLERANCE, color="gray", ls="-.", lw=0.8, label=f"{100 * ANSWER_TOLERANCE:g}% of L")
     _blown_note(ax, rows)
     ax.set_xscale("log")
     ax.set_yscale("log")
@@ -107,6 +130,7 @@ def _static_plots(results, rows, out_dir):
     ax.set_title(_title(results, f"{HEADLINE}: convergence"), fontsize=9)
     ax.legend(fontsize=7, loc="upper right")
     ax.grid(True, which="both", alpha=0.3)
+    _short_log_ticks(ax)
     paths.append(_save(fig, out_dir, "convergence.png"))
     return paths
 
@@ -124,6 +148,7 @@ def _throughput_plot(results, fam, out_dir):
     ax.set_title(_title(results, "throughput at each code's 0.2%-of-L configuration"), fontsize=9)
     ax.legend(fontsize=7)
     ax.grid(True, which="both", alpha=0.3)
+    _short_log_ticks(ax)
     return _save(fig, out_dir, "throughput.png")
 
 

@@ -22,6 +22,10 @@ def _fmt(x, spec="{:.3g}"):
     return "-" if x is None else spec.format(x)
 
 
+def _ratio(x):
+    return "-" if x is None else f"{x:.2f}x" if x < 1 else f"{x:.1f}x"
+
+
 def _pct(x):
     return "-" if x is None else f"{100 * x:.3f}%"
 
@@ -39,12 +43,13 @@ def best_answers(rows: list, problem: str = HEADLINE) -> dict:
 
 
 def answer_ratios(rows: list, problem: str = HEADLINE) -> dict:
-    """Each peer family's fastest answer time over warp_tube's through ``Simulation``: label -> ratio."""
+    """Each family's fastest answer time (peers' and warp_tube's solver API) over warp_tube's
+    through ``Simulation``: label -> ratio."""
     best = best_answers(rows, problem)
     base = best.get("warp_tube Simulation")
     if base is None:
         return {}
-    return {k: r["answer_time"] / base["answer_time"] for k, r in best.items() if not k.startswith("warp_tube")}
+    return {k: r["answer_time"] / base["answer_time"] for k, r in best.items() if k != "warp_tube Simulation"}
 
 
 def throughput_ratios(rows: list) -> list[str]:
@@ -86,7 +91,9 @@ def report_markdown(results: dict) -> str:
         f"- devices: " + ", ".join(f"{c} on {d}" for c, d in devices.items()) + (f" ({results['gpu']})" if results.get("gpu") else ""),
         f"- host: {results['host']['platform']}, {results['host']['cpu_count']} CPUs",
         "- versions: " + ", ".join(f"{k} {v}" for k, v in sorted(versions.items())),
-        f"- repetitions: {results['repeat']} (interleaved, one process per code each; medians; `reps` < {results['repeat']}: slow configurations run once)",
+        f"- repetitions: {results['repeat']}" + (
+            f" (interleaved, one process per code each; medians; `reps` < {results['repeat']}: slow configurations run once)"
+            if results["repeat"] > 1 else " (one process per code)"),
     ]
     for code, why in results.get("skipped", {}).items():
         out.append(f"- skipped {code}: {why}")
@@ -96,7 +103,7 @@ def report_markdown(results: dict) -> str:
     best = best_answers(rows)
     ratios = answer_ratios(rows)
     for k, r in sorted(best.items(), key=lambda kv: kv[1]["answer_time"]):
-        ratio = "1" if k == "warp_tube Simulation" else _fmt(ratios.get(k), "{:.1f}x") if k in ratios else "-"
+        ratio = "1" if k == "warp_tube Simulation" else _ratio(ratios.get(k))
         out.append(f"| {k} | {r['config']['segments']} | {_pct(r['error'])} | {_fmt(r['answer_time'])} | {ratio} | "
                    f"{_fmt(r['setup_time'])} | {_fmt(r['wall_per_simulated_s'])} |")  # fmt: skip
     missing = sorted({label(r) for r in rows if r["kind"] == "static" and r["problem"] == HEADLINE} - set(best))

@@ -40,7 +40,8 @@ def available():
     try:
         import newton  # noqa: F401
     except Exception as e:  # noqa: BLE001 (any import failure means "not available", said in the report)
-        return False, f"Newton not importable ({type(e).__name__}: {e}); pip install warp-tube[peers]"
+        return False, (f"Newton not importable ({type(e).__name__}: {e}); install it with "
+                       'pip install "warp-tube[peers]" (from a checkout: pip install -e ".[peers]")')
     return True, ""
 
 
