@@ -14,7 +14,7 @@ from warp_tube.cli import _parser, main
 from .conftest import SCENES
 
 #: subcommands whose options are described in ``warp_tube/cli.py`` (batch's live in its own module)
-CLI_COMMANDS = ("run", "check", "extract", "preview", "export", "bench")
+CLI_COMMANDS = ("run", "check", "extract", "preview", "export", "batch", "bench")
 
 
 def _subparsers():
@@ -31,7 +31,7 @@ def test_every_option_is_explained_with_its_default():
             if isinstance(action, argparse._HelpAction):
                 continue
             assert action.help, f"{name} {action.option_strings or action.dest}: no help"
-            if action.option_strings and action.default not in (None, False):
+            if action.option_strings and action.default not in (None, False, argparse.SUPPRESS):
                 assert "default" in action.help, f"{name} {action.option_strings}: default {action.default!r} not said"
 
 
@@ -140,3 +140,30 @@ def test_bench_plots_label_short_log_axes_without_overlap(tmp_path):
     boxes = sorted((t.get_window_extent() for t in labels), key=lambda b: b.x0)
     assert all(a.x1 < b.x0 for a, b in zip(boxes, boxes[1:]))  # no label runs into the next
     plt.close(fig)
+
+
+def test_verbose_is_taken_after_the_command_and_bench_records_its_own_arguments(tmp_path):
+    """``warp-tube run -v`` is ``warp-tube -v run``; the arguments a command records as its command
+    line are its own, whether ``-v`` came before it or not."""
+    from warp_tube.cli import _parser
+
+    assert _parser().parse_args(["run", "-v"]).verbose and _parser().parse_args(["-v", "run"]).verbose
+    assert not _parser().parse_args(["run"]).verbose
+    seen = {}
+    import warp_tube.cli as cli
+
+    def fake_bench(a):
+        seen["argv"] = a.argv
+        return 0
+
+    handler = cli._cmd_bench
+    cli._cmd_bench = fake_bench
+    try:
+        assert main(["-v", "bench", "-o", str(tmp_path), "--quick"]) == 0
+    finally:
+        cli._cmd_bench = handler
+        from warp_tube.runtime.warp_setup import set_verbose
+
+        set_verbose(False)  # (main's -v is process-wide: the tests after this one run quiet)
+        cli._configure_logging(False)
+    assert seen["argv"] == ["-o", str(tmp_path), "--quick"]

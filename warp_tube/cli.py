@@ -117,6 +117,9 @@ def _parser() -> argparse.ArgumentParser:
     b.add_argument("--quick", action="store_true", help="the small problem set (tests, a first look)")
     b.add_argument("--repeat", type=int, help="interleaved repetitions (default 3; 1 with --quick)")
     b.add_argument("--replot", metavar="RESULTS", help="only rewrite report and plots from an earlier results.json")
+    for command in sub.choices.values():  # -v after the command too (warp-tube run -v ...)
+        command.add_argument("-v", "--verbose", action="store_true", default=argparse.SUPPRESS,
+                             help="as warp-tube -v: info messages, Warp's start-up lines, tracebacks of internal errors")
     return p
 
 
@@ -336,7 +339,8 @@ def main(argv=None) -> int:
     from .runtime.warp_setup import set_verbose
 
     args = _parser().parse_args(argv)
-    args.argv = list(sys.argv[2:] if argv is None else argv[1:])
+    raw = list(sys.argv[1:] if argv is None else argv)
+    args.argv = raw[raw.index(args.command) + 1 :]  # the command's own arguments (after any -v before it)
     set_verbose(args.verbose)
     _configure_logging(args.verbose)
     _RUN_WARNINGS.summary_prints_them = False

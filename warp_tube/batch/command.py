@@ -10,15 +10,17 @@ __all__ = ["add_parser", "run"]
 
 def add_parser(sub) -> None:
     """Add the ``batch`` subcommand to the ``warp-tube`` subparsers ``sub``."""
-    b = sub.add_parser("batch", help="simulate many variants of a scene (a table of overrides, variantSets)")
+    b = sub.add_parser("batch", help="simulate many variants of a scene (a table of overrides, variantSets)",
+                       description="Simulate every variant of a scene, a row of a CSV table of overrides each (and/or the "
+                       "scene's variantSets), as worlds of one launch; writes the outputs and DIR/summary.csv.")
     b.add_argument("scene", help="scene .usda/.usdc")
     b.add_argument("--variants", metavar="TABLE", help="CSV: a PRIM_PATH.ATTRIBUTE column per override, a row per variant")
-    b.add_argument("--variant-sets", metavar="SETS", help="cross with the scene's variantSets: all, or SET,/PRIM{SET},...")
+    b.add_argument("--variant-sets", metavar="SETS", help="cross with the scene's variantSets: all, or SET,/PRIM{SET},... (default: none)")
     b.add_argument("-o", "--output", required=True, metavar="DIR", help="batch folder (created)")
     b.add_argument("--layout", choices=("files", "grid", "arrays"), default="files",
-                   help="files: DIR/variant_00000.usdc ...; grid: one stage, side by side; arrays: centerline.npy")  # fmt: skip
-    b.add_argument("--every", type=int, default=1, help="write every K-th frame")
-    b.add_argument("--frames", type=int, help="frames per variant, frame 0 (rest) included")
+                   help="files: DIR/variant_00000.usdc ...; grid: one stage, side by side; arrays: centerline.npy (default files)")  # fmt: skip
+    b.add_argument("--every", type=int, default=1, help="write every K-th frame (default 1: every frame)")
+    b.add_argument("--frames", type=int, help="frames per variant, frame 0 (rest) included (default: the scene's start to end time code)")
     b.add_argument("--no-surface", action="store_true", help="files, grid: write the Centerline only")
     b.add_argument("--surface-arrays", action="store_true", help="arrays: also write surface.npy")
     b.add_argument("--device", help="cpu or cuda:N (default: every GPU, else the CPU)")
