@@ -43,7 +43,9 @@ BAD = {
     "huge force": (mutate("24: (0, 0.02, 0)", "24: (0, 1e12, 0)"), ["warptube:force", "1e+12"]),
     "misspelled attribute": (mutate("warptube:density = 1050", "warptube:densty = 1050"), ["/World/Tube.warptube:densty", "unknown attribute", "did you mean warptube:density"]),
     "force attribute on a tube": (mutate("warptube:density = 1050", "warptube:density = 1050\n        bool warptube:assistantLine = true"), ["/World/Tube.warptube:assistantLine", "not an attribute of a tube prim"]),
-    "syntax error": (BASE.replace("def Xform", "def Xform {{"), ["USD syntax error at line 16", "unexpected end of file"]),
+    # the line of the broken `def Xform`, counted in the scene as it is
+    "syntax error": (BASE.replace("def Xform", "def Xform {{"),
+                     [f"USD syntax error at line {BASE[: BASE.index('def Xform')].count(chr(10)) + 1}", "unexpected end of file"]),
 }
 
 
