@@ -435,20 +435,28 @@ def test_surface_of_a_translating_tapered_tube_is_its_rest_surface_moved():
         assert np.abs(ring @ u).max() < 1e-7
 
 
-def test_a_push_without_assistant_line_gives_a_free_tube_its_impulse():
-    # A tent-shaped force (0 -> F -> 0 over 2 s, impulse F x 1 s) is linear within each frame, so
-    # its value at the middle of the frame, held over it, integrates it exactly.
-    n, F = 11, 1e-3
+PUSH_N = 1e-3  # [N], the peak of pushed_momentum's tent-shaped force
+
+
+def pushed_momentum(assistant_line: bool) -> np.ndarray:
+    """Momentum [kg m/s] of a free 11-point tube after 1 s of a tent-shaped push at point 5 (0 -> F
+    -> 0 over 2 s, impulse F x 1 s) and its release, 1 s later."""
+    n = 11
     pts = segments(n - 1, 0.2)
     tube = TubeSpec("/T", pts, [n], np.full(n, 0.01), TubeParams(density=1000.0, youngs_modulus=1e6))
-    push = ForceSpec("/F", 0, 5, [0.0, 1.0, 2.0], [[0, 0, 0], [0, F, 0], [0, 0, 0]], assistant_line=False)
+    push = ForceSpec("/F", 0, 5, [0.0, 1.0, 2.0], [[0, 0, 0], [0, PUSH_N, 0], [0, 0, 0]], assistant_line=assistant_line)
     sim = Simulation(Scene((tube,), (push,), stage=stage(60)), device="cpu", surface=False)
     for _ in range(60):
         sim.step()
     v = sim.state.node_qd.numpy()[0].astype(np.float64)
-    momentum = (sim.model.host.node_mass[:, None] * v).sum(axis=0)
-    # float32 velocities over ~1,000 substeps; measured 1.3e-7 relative.
-    np.testing.assert_allclose(momentum, [0.0, F * 1.0, 0.0], atol=1e-5 * F)
+    return (sim.model.host.node_mass[:, None] * v).sum(axis=0)
+
+
+def test_a_push_without_assistant_line_gives_a_free_tube_its_impulse():
+    # A tent-shaped force is linear within each frame, so its value at the middle of the frame,
+    # held over it, integrates it exactly. float32 velocities over ~1,000 substeps; measured
+    # 1.3e-7 relative.
+    np.testing.assert_allclose(pushed_momentum(False), [0.0, PUSH_N * 1.0, 0.0], atol=1e-5 * PUSH_N)
 
 
 # -- known problems (kernel changes; see docs/MODEL.md) -------------------------------------------
@@ -480,13 +488,4 @@ def test_a_push_gives_a_free_tube_its_impulse():
     # A free tube pushed with a tent-shaped force (impulse F x 1 s) and released: its momentum
     # is the impulse. Without the assistant line it is, to 1e-7; with it, the line's points carry
     # half of it while the force acts, and that half is dropped when the line is removed.
-    n, F = 11, 1e-3
-    pts = segments(n - 1, 0.2)
-    tube = TubeSpec("/T", pts, [n], np.full(n, 0.01), TubeParams(density=1000.0, youngs_modulus=1e6))
-    push = ForceSpec("/F", 0, 5, [0.0, 1.0, 2.0], [[0, 0, 0], [0, F, 0], [0, 0, 0]], assistant_line=True)
-    sim = Simulation(Scene((tube,), (push,), stage=stage(60)), device="cpu", surface=False)
-    for _ in range(60):
-        sim.step()
-    v = sim.state.node_qd.numpy()[0].astype(np.float64)
-    momentum = (sim.model.host.node_mass[:, None] * v).sum(axis=0)
-    assert abs(momentum[1] / (F * 1.0) - 1) < 1e-4  # measured 0.49998
+    assert abs(pushed_momentum(True)[1] / (PUSH_N * 1.0) - 1) < 1e-4  # measured 0.49998
