@@ -69,7 +69,7 @@ def resolve_device(device=None) -> str:
             raise SceneError(f"device {name!r}: expected cpu, cuda or cuda:N with N = 0, 1, ...")
         idx = int(m.group(1) or 0)
         if idx >= count:
-            raise SceneError(f"device {name}: no such CUDA device ({count} found): use --device cpu")
+            raise SceneError(f"device {name}: no such CUDA device ({count} found): use the CPU (--device cpu; device=\"cpu\" in Python)")
         return f"cuda:{idx}"
     if name != "cpu":
         raise SceneError(f"device {name!r}: expected cpu or cuda:N")
