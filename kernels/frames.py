@@ -251,3 +251,21 @@ def hub_local_frame(
     r = rotate_minimal(node_rest_t[pw, i], t, node_rest_r[pw, i])
     hub_t_out[w, i] = t
     hub_r_out[w, i] = wp.normalize(r - wp.dot(r, t) * t)
+
+
+@wp.func(inline=True)
+def twist_terms(t: wp.vec3, target: wp.vec3, kb: wp.vec3, k: float) -> wp.vec2:
+    """A stencil's share ``(A, B)`` of its tube's bending energy as a function of a twist ``psi``
+    of the first frame, which turns every target about its edge's tangent ``t``: the energy is
+    ``C - A cos psi - B sin psi``, minimal at ``psi = atan2(B, A)`` summed over the tube.
+    ``target`` untwisted, ``kb`` the stencil's curvature binormal, ``k`` its stiffness [N m]."""
+    perp = target - t * wp.dot(target, t)
+    return wp.vec2(k * wp.dot(kb, perp), k * wp.dot(kb, wp.cross(t, perp)))
+
+
+@wp.func(inline=True)
+def twisted(t: wp.vec3, target: wp.vec3, c: float, s: float) -> wp.vec3:
+    """``target`` turned about the unit tangent ``t`` by the angle of cosine ``c`` and sine ``s``."""
+    along = t * wp.dot(target, t)
+    perp = target - along
+    return along + perp * c + wp.cross(t, perp) * s

@@ -53,6 +53,7 @@ import functools
 
 import warp as wp
 
+from .frames import twist_terms, twisted
 from .options import CUDA_OPTIONS
 from .warp_shuffle import shfl_down, shfl_down3, shfl_up3, shfl_up_quat
 from .assistant_line import al_point_forces, al_springs
@@ -63,6 +64,8 @@ from .springs import (
     NodeTerms,
     StateArrays,
     bend_gradients,
+    curvature_binormal,
+    first_edge_free,
     first_edge_normal,
     first_frame_gradient,
     holonomy_stencil,
@@ -81,13 +84,15 @@ MAX_BLOCK_DIM = 1024
 
 @functools.cache
 def make_onchip_kernel(features: Features, block_dim: int, al_lines: int = 0, max_registers: int | None = None,
-                       exchange: str = "shared"):  # fmt: skip
+                       exchange: str = "shared", twist_free: bool = False):  # fmt: skip
     """The on-chip substep kernel for ``features``, ``block_dim`` threads per block and at most
     ``al_lines`` assistant lines per tube; cached. ``max_registers`` caps the registers per thread
     on CUDA (more blocks resident per multiprocessor, at the price of spills); None: the compiler's
     choice. ``exchange`` (see the module docstring): "shared" (shared memory), "shuffle" (warp
     shuffles; CUDA, no tube spanning two warps) or "mixed" (CUDA: the scans of a curved tube by
-    warp shuffles with one shared-memory carry between warps, the rest through shared memory)."""
+    warp shuffles with one shared-memory carry between warps, the rest through shared memory).
+    ``twist_free``: some curved tube's first edge may turn, so its first frame is twisted to the
+    bending energy's minimum (:func:`~.springs.curvature_targets`; shared memory only)."""
     features = Features(*(bool(v) for v in features))
     if not 1 <= block_dim <= MAX_BLOCK_DIM:
         raise ValueError(f"block_dim must be in [1, {MAX_BLOCK_DIM}], got {block_dim}")
@@ -101,6 +106,9 @@ def make_onchip_kernel(features: Features, block_dim: int, al_lines: int = 0, ma
         raise ValueError(f"{exchange} exchanges need whole warps: block_dim {B} is not a multiple of 32")
     BENDING = features.bending
     CURVED = features.curved and features.bending
+    FREE = CURVED and bool(twist_free)  # the first frames of tubes free to turn: twisted to the minimum
+    if FREE and exchange != "shared":
+        raise ValueError("twist_free needs the shared-memory exchange")
     SD = features.spring_damping
     K = int(al_lines) if features.assistant_line else 0
     KL = max(K, 1)  # register arrays need a row even without lines
@@ -157,6 +165,7 @@ def make_onchip_kernel(features: Features, block_dim: int, al_lines: int = 0, ma
         t_rest = wp.vec3(1.0, 0.0, 0.0)
         u_rest = wp.vec3(0.0, 1.0, 0.0)
         kappa_rest = zero
+        free_tube = False
         start = int(0)
         end = int(0)
         im = float(0.0)
@@ -206,6 +215,8 @@ def make_onchip_kernel(features: Features, block_dim: int, al_lines: int = 0, ma
                 t_rest = wp.normalize(model.node_rest_q[pw, start + 1] - model.node_rest_q[pw, start])
                 u_rest = first_edge_normal(t_rest)
                 kappa_rest = model.node_kappa_rest[pw, i]
+                if wp.static(FREE):
+                    free_tube = first_edge_free(model.node_inv_mass, pw, start)
             if wp.static(K > 0):
                 for m in range(K):
                     a = model.tube_al_force[t, m]
@@ -231,6 +242,8 @@ def make_onchip_kernel(features: Features, block_dim: int, al_lines: int = 0, ma
         if wp.static(CURVED and not SCAN_SHUFFLE):
             frames = wp.tile_zeros(shape=(2, B), dtype=wp.quat, storage="shared")
             weights = wp.tile_zeros(shape=(2, B), dtype=float, storage="shared")
+        if wp.static(FREE):
+            sums = wp.tile_zeros(shape=(2, B), dtype=wp.vec2, storage="shared")
         if wp.static(CURVED and MIXED):
             carry_q = wp.tile_zeros(shape=(B,), dtype=wp.quat, storage="shared")
             carry_m = wp.tile_zeros(shape=(B,), dtype=float, storage="shared")
@@ -375,6 +388,27 @@ def make_onchip_kernel(features: Features, block_dim: int, al_lines: int = 0, ma
                 if has_prev and kb != 0.0:
                     u = wp.quat_rotate(wp.normalize(r_prev), u_rest)
                     target = kappa_target(wp.normalize(e_prev), u, kappa_rest)
+                if wp.static(FREE):
+                    # A tube whose first edge may turn: every target twisted by the angle that
+                    # minimises its bending energy, the stencils' (A, B) summed over the tube by a
+                    # suffix scan and read at its first node (springs.curvature_targets).
+                    ab = wp.vec2(0.0)
+                    if has_prev and kb != 0.0 and free_tube:
+                        ab = twist_terms(wp.normalize(e_prev), target, curvature_binormal(e_prev, e), kb)
+                    sums[0, lane] = ab
+                    rd = int(0)
+                    d = int(1)
+                    while d < span:
+                        if active and i + d < end:
+                            ab += sums[rd, lane + d]
+                        rd = 1 - rd
+                        sums[rd, lane] = ab
+                        d = d * 2
+                    if has_prev and kb != 0.0 and free_tube:
+                        total = sums[rd, lane - (i - start)]
+                        if total[0] != 0.0 or total[1] != 0.0:
+                            psi = wp.atan2(total[1], total[0])
+                            target = twisted(wp.normalize(e_prev), target, wp.cos(psi), wp.sin(psi))
 
             # 3. The bending stencil at i, its frame terms, the node terms, the line springs.
             ga = zero

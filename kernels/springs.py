@@ -42,7 +42,7 @@ from typing import NamedTuple
 
 import warp as wp
 
-from .frames import rotate_minimal, transport
+from .frames import rotate_minimal, transport, twist_terms, twisted
 
 EPS = wp.constant(1.0e-12)
 
@@ -305,6 +305,13 @@ def stencil_forces(ga: wp.vec3, gb: wp.vec3, grad_a: wp.vec3, grad_b: wp.vec3):
 
 
 @wp.func
+def first_edge_free(node_inv_mass: wp.array2d[float], pw: int, start: int) -> bool:
+    """Whether a tube's first edge may turn (not both of its nodes pinned): its first frame is
+    then twisted to the bending energy's minimum (:func:`twist_terms`) instead of fixed by a clamp."""
+    return node_inv_mass[pw, start] > 0.0 or node_inv_mass[pw, start + 1] > 0.0
+
+
+@wp.func
 def curvature_targets(
     w: int,
     pw: int,
@@ -313,22 +320,38 @@ def curvature_targets(
     node_q: wp.array2d[wp.vec3],
     node_rest_q: wp.array2d[wp.vec3],
     node_kappa_rest: wp.array2d[wp.vec3],
+    node_bend_k: wp.array2d[float],
+    node_inv_mass: wp.array2d[float],
     node_kappa_target_out: wp.array2d[wp.vec3],
 ):
     """Bending targets of one tube's interior nodes (:func:`kappa_target`), its Bishop normal
     carried edge to edge in order (the sequential form of the on-chip kernel's scan of
-    :func:`transport`), each step's round-off taken out by keeping ``u`` unit and normal to ``t``."""
+    :func:`transport`), each step's round-off taken out by keeping ``u`` unit and normal to ``t``.
+    A tube whose first edge may turn (:func:`first_edge_free`) has no clamp to fix its first
+    frame's twist: the frame is twisted to the energy's minimum (:func:`twist_terms`), so a rigid
+    turn of the whole tube changes nothing; there the stencils' ``mu`` sum to zero, so
+    :func:`first_frame_gradient` vanishes and the forces stay the energy's exact gradient."""
     t_rest = wp.normalize(node_rest_q[pw, start + 1] - node_rest_q[pw, start])
     t = wp.normalize(node_q[w, start + 1] - node_q[w, start])
     u = rotate_minimal(t_rest, t, first_edge_normal(t_rest))
     node_kappa_target_out[w, start] = wp.vec3(0.0)
     node_kappa_target_out[w, end - 1] = wp.vec3(0.0)
+    ab = wp.vec2(0.0)
     for j in range(start + 1, end - 1):
-        node_kappa_target_out[w, j] = kappa_target(t, u, node_kappa_rest[pw, j])
+        target = kappa_target(t, u, node_kappa_rest[pw, j])
+        node_kappa_target_out[w, j] = target
         t_next = wp.normalize(node_q[w, j + 1] - node_q[w, j])
+        ab += twist_terms(t, target, curvature_binormal(node_q[w, j] - node_q[w, j - 1], node_q[w, j + 1] - node_q[w, j]), node_bend_k[pw, j])
         u = rotate_minimal(t, t_next, u)
         u = wp.normalize(u - t_next * wp.dot(u, t_next))
         t = t_next
+    if first_edge_free(node_inv_mass, pw, start) and (ab[0] != 0.0 or ab[1] != 0.0):
+        psi = wp.atan2(ab[1], ab[0])
+        c = wp.cos(psi)
+        s = wp.sin(psi)
+        for j in range(start + 1, end - 1):
+            t_j = wp.normalize(node_q[w, j] - node_q[w, j - 1])
+            node_kappa_target_out[w, j] = twisted(t_j, node_kappa_target_out[w, j], c, s)
 
 
 @wp.func

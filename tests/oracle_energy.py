@@ -32,15 +32,30 @@ def _kappa_targets(host: HostArrays, q: np.ndarray) -> np.ndarray:
         tc = q[s + 1] - q[s]
         tc /= np.linalg.norm(tc)
         u = rotate_minimal(t_rest, tc, first_edge_normal(t_rest))
+        tangents = {}
         for j in range(s + 1, e - 1):
             c = kr[j]
             out[j] = tc * c[0] + u * c[1] + np.cross(tc, u) * c[2]
+            tangents[j] = tc
             tn = q[j + 1] - q[j]
             tn /= np.linalg.norm(tn)
             u = rotate_minimal(tc, tn, u)
             u -= tn * np.dot(u, tn)
             u /= np.linalg.norm(u)
             tc = tn
+        if host.node_inv_mass[s] > 0 or host.node_inv_mass[s + 1] > 0:
+            # No clamp fixes the first frame's twist: the twist psi that minimises the bending
+            # energy, sum k/2 |kb - T(psi)|^2 with every target turned by psi about its edge.
+            idx = np.arange(s + 1, e - 1)
+            tj = np.array([tangents[j] for j in idx])
+            kb = curvature_binormal(q[idx] - q[idx - 1], q[idx + 1] - q[idx])
+            perp = out[idx] - tj * np.sum(out[idx] * tj, axis=1)[:, None]
+            k = host.node_bend_k[idx]
+            a = np.sum(k * np.sum(kb * perp, axis=1))
+            b = np.sum(k * np.sum(kb * np.cross(tj, perp), axis=1))
+            if a != 0.0 or b != 0.0:
+                psi = np.arctan2(b, a)
+                out[idx] = out[idx] - perp + perp * np.cos(psi) + np.cross(tj, perp) * np.sin(psi)
     return out
 
 

@@ -15,9 +15,12 @@ WORLDS = 5
 LENGTHS = (16, 11, 3, 40)  # curves of one prim: a 3-point tube, and one longer than a 32-thread block
 
 
-def batch_model(world_count=WORLDS, lengths=LENGTHS, curved=False, spring_damping=0.0, assistant_line=False, device="cpu", curve_all=False):
+def batch_model(world_count=WORLDS, lengths=LENGTHS, curved=False, spring_damping=0.0, assistant_line=False, device="cpu",
+                curve_all=False, clamp_all=False):  # fmt: skip
     """Straight tubes of different lengths in one prim, with pins at both ends of the first, an
-    anchor, gravity, mass damping and a point force; segment stiffness and damping vary by world."""
+    anchor, gravity, mass damping and a point force; segment stiffness and damping vary by world.
+    ``clamp_all``: every tube's first two points pinned too (curved tubes that cannot turn, whose
+    first frames the clamps fix: what every exchange runs)."""
     pts = []
     for k, n in enumerate(lengths):
         s = np.linspace(0.0, 0.02 * (n - 1), n)
@@ -28,7 +31,8 @@ def batch_model(world_count=WORLDS, lengths=LENGTHS, curved=False, spring_dampin
     anchors = [int(starts[k] + lengths[k] // 3) for k in range(min(1, len(lengths) - 1), len(lengths))]
     tube = TubeSpec(
         "/World/T", np.concatenate(pts), list(lengths), np.full(starts[-1], 0.01), params,
-        pinned=[0, 1, starts[1] - 1], anchors=anchors,
+        pinned=sorted({0, 1, int(starts[1] - 1)} | ({int(p) for a in starts[1:-1] for p in (a, a + 1)} if clamp_all else set())),
+        anchors=anchors,
     )  # fmt: skip
     force = ForceSpec("/World/F", 0, int(starts[-2] + lengths[-1] // 2), [0.0], [[0.0, 0.0, 0.01]], assistant_line=assistant_line)
     scene = Scene((tube,), (force,), settings=SimulationSettings(gravity=(0.0, -9.81, 0.0)))
@@ -73,12 +77,14 @@ def lay_line(state, control, slots: slice, x, xp, xd):
         getattr(control, name).assign(values)
 
 
-def integrated(model, substeps, frames, lines, solver_args):
+def integrated(model, substeps, frames, lines, solver_args, still_pins=False):
     """The state after ``frames`` frames of ``substeps`` from :func:`batch_inputs` (with
     ``lines``, the force's assistant line laid beside its tube in every world, 1 cm off the axis,
-    and active), and the solver."""
+    and active; ``still_pins``: the pins held where they are), and the solver."""
     solver = SemiImplicitEulerSolver(model, **solver_args)
     s0, control = batch_inputs(model)
+    if still_pins:
+        control.pin_q_end.assign(control.pin_q_start.numpy())
     h = model.host
     if lines and model.al_slots:
         t = int(h.force_tube[0])
@@ -196,10 +202,10 @@ def test_warp_alignment_of_layouts():
     assert SemiImplicitEulerSolver(model, onchip=True).onchip_exchange == "shared"
 
 
-def run_with_lines(model, substeps=150, frames=2, **solver_args):
+def run_with_lines(model, substeps=150, frames=2, still_pins=False, **solver_args):
     """As :func:`run`, with the force's assistant line active from the start; also the lines'
     positions."""
-    s0, solver = integrated(model, substeps, frames, True, solver_args)
+    s0, solver = integrated(model, substeps, frames, True, solver_args, still_pins)
     q = s0.node_q.numpy().astype(np.float64) + s0.node_q_lo.numpy()
     return q, s0.node_qd.numpy(), s0.al_q.numpy(), solver
 
@@ -230,12 +236,16 @@ def test_onchip_shuffle_exchange_matches_shared_memory_on_cuda(features):
     # (crossing warp boundaries): shuffles take a layout of one world a warp.
     every = features.startswith("every")
     lengths = (20,) if features.endswith("padded") else (32, 16, 8, 8)
-    kw = dict(lengths=lengths, curved=every, spring_damping=1e-4 if every else 0.0, assistant_line=every, curve_all=every)
+    # Every tube clamped (a curved tube free to turn takes the shared-memory exchange only), the
+    # clamps held still: the force's tube is clamped too, and its line points beside moving pins
+    # part the kernels by up to 5e-3 m (each against the CPU's too), which is not round-off.
+    kw = dict(lengths=lengths, curved=every, spring_damping=1e-4 if every else 0.0, assistant_line=every, curve_all=every,
+              clamp_all=True)
     model = batch_model(device="cuda:0", **kw)
     assert model.features.assistant_line == every and model.features.curved == every
     out = {}
     for exchange in ("shuffle", "shared"):
-        q, qd, al, solver = run_with_lines(model, onchip=True, exchange=exchange)
+        q, qd, al, solver = run_with_lines(model, onchip=True, exchange=exchange, still_pins=True)
         assert solver.onchip_exchange == exchange
         if lengths == (20,):
             assert solver._onchip_slot == (32 if exchange == "shuffle" else 20)
@@ -252,7 +262,7 @@ def test_onchip_shuffle_exchange_matches_shared_memory_on_cuda(features):
     np.testing.assert_allclose(al_sh, al_sm, rtol=0, atol=1e-5)
     # and against the per-tube kernel on the CPU: fast math and FMA on the GPU, a few float32
     # ulp per substep (as test_onchip_cuda_matches_cpu)
-    q_cpu, _, _, _ = run_with_lines(batch_model(**kw), onchip=False)
+    q_cpu, _, _, _ = run_with_lines(batch_model(**kw), onchip=False, still_pins=True)
     np.testing.assert_allclose(out["shuffle"][0], q_cpu, rtol=0, atol=1e-5)
 
 
@@ -265,11 +275,11 @@ def test_onchip_mixed_exchange_matches_shared_memory_on_cuda(block_dim):
     # block to 64 and spans two. The scans run within warps by shuffles and are carried between
     # warps through shared memory: the same products and sums in another order, so float32
     # round-off apart (bounds as in the shuffle test above).
-    kw = dict(curved=True, spring_damping=1e-4, assistant_line=True, curve_all=True)
+    kw = dict(curved=True, spring_damping=1e-4, assistant_line=True, curve_all=True, clamp_all=True)  # (clamps still: as above)
     model = batch_model(device="cuda:0", **kw)
     out = {}
     for exchange in ("mixed", "shared"):
-        q, qd, al, solver = run_with_lines(model, onchip=True, exchange=exchange, block_dim=block_dim)
+        q, qd, al, solver = run_with_lines(model, onchip=True, exchange=exchange, block_dim=block_dim, still_pins=True)
         assert solver.onchip_exchange == exchange
         out[exchange] = (q, qd, al)
     # by request only: "auto" keeps shared memory here (the scans' order would depend on where a

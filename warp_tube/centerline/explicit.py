@@ -67,6 +67,17 @@ def warp_aligned(tube_start: np.ndarray, group_start: np.ndarray, slot: int, cop
     return bool(np.all((c + first) // 32 == (c + last) // 32))
 
 
+def twist_free(model: TubeModel) -> bool:
+    """Whether a curved tube of ``model`` has a first edge that may turn (not both of its nodes
+    pinned): its first frame is twisted to the bending energy's minimum
+    (:func:`warp_tube.kernels.springs.curvature_targets`)."""
+    if not (model.features.curved and model.features.bending):
+        return False
+    starts = np.asarray(model.host.tube_node_start, dtype=np.int64)
+    inv = np.asarray(model.host.node_inv_mass)  # (the pins every world of a batch shares)
+    return bool(np.any((np.diff(starts) >= 3) & ((inv[starts[:-1]] > 0) | (inv[starts[:-1] + 1] > 0))))
+
+
 class SemiImplicitEulerSolver:
     """Semi-implicit (symplectic) Euler, specialised to the model's features.
 
@@ -148,8 +159,11 @@ class SemiImplicitEulerSolver:
             slot = 1 << (slot - 1).bit_length()
             copies = block // slot
             aligned = True
+        free = twist_free(m)
         if exchange == "auto":
-            exchange = "shuffle" if self.device.is_cuda and aligned else "shared"
+            exchange = "shuffle" if self.device.is_cuda and aligned and not free else "shared"
+        elif exchange != "shared" and free:
+            raise ValueError(f"exchange {exchange!r}: a curved tube free to turn needs the shared-memory exchange")
         elif exchange == "shuffle" and not (self.device.is_cuda and aligned):
             raise ValueError("exchange 'shuffle' needs a CUDA device and tubes that each lie within one warp of 32 threads")
         elif exchange == "mixed" and not self.device.is_cuda:
@@ -161,7 +175,8 @@ class SemiImplicitEulerSolver:
         self._onchip_group = wp.array(group.astype(np.int32), dtype=int, device=self.device)
         lines = m.al_lines if m.features.assistant_line else 0
         self.onchip_exchange = exchange
-        self.onchip_kernel = make_onchip_kernel(m.features, block, lines, exchange=exchange)
+        self._onchip_free = free
+        self.onchip_kernel = make_onchip_kernel(m.features, block, lines, exchange=exchange, twist_free=free)
         self._onchip_lines = lines
         self._onchip_registers_checked = not self.device.is_cuda
         return True
@@ -173,7 +188,8 @@ class SemiImplicitEulerSolver:
         props = wp.get_cuda_kernel_properties(self.onchip_kernel, self.device, self.onchip_block_dim)
         if props["register_count"] > ONCHIP_MAX_REGISTERS:
             self.onchip_kernel = make_onchip_kernel(self.model.features, self.onchip_block_dim, self._onchip_lines,
-                                                    max_registers=ONCHIP_MAX_REGISTERS, exchange=self.onchip_exchange)  # fmt: skip
+                                                    max_registers=ONCHIP_MAX_REGISTERS, exchange=self.onchip_exchange,
+                                                    twist_free=self._onchip_free)  # fmt: skip
 
     def _launch_onchip(self, s_in: TubeState, s_out: TubeState, c: TubeControl, dt: float, substeps: int):
         m = self.model
