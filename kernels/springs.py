@@ -336,16 +336,18 @@ def curvature_targets(
     u = rotate_minimal(t_rest, t, first_edge_normal(t_rest))
     node_kappa_target_out[w, start] = wp.vec3(0.0)
     node_kappa_target_out[w, end - 1] = wp.vec3(0.0)
+    free = first_edge_free(node_inv_mass, pw, start)
     ab = wp.vec2(0.0)
     for j in range(start + 1, end - 1):
         target = kappa_target(t, u, node_kappa_rest[pw, j])
         node_kappa_target_out[w, j] = target
         t_next = wp.normalize(node_q[w, j + 1] - node_q[w, j])
-        ab += twist_terms(t, target, curvature_binormal(node_q[w, j] - node_q[w, j - 1], node_q[w, j + 1] - node_q[w, j]), node_bend_k[pw, j])
+        if free:
+            ab += twist_terms(t, target, curvature_binormal(node_q[w, j] - node_q[w, j - 1], node_q[w, j + 1] - node_q[w, j]), node_bend_k[pw, j])
         u = rotate_minimal(t, t_next, u)
         u = wp.normalize(u - t_next * wp.dot(u, t_next))
         t = t_next
-    if first_edge_free(node_inv_mass, pw, start) and (ab[0] != 0.0 or ab[1] != 0.0):
+    if free and (ab[0] != 0.0 or ab[1] != 0.0):
         psi = wp.atan2(ab[1], ab[0])
         c = wp.cos(psi)
         s = wp.sin(psi)

@@ -112,9 +112,8 @@ class WorldControl:
                     fe[:, node] += f[:, a]
                 c.node_f_ext.assign(fe)
                 self._f_last = f
-                if self.lines is not None:
-                    self.lines.set_forces(f)
             if self.lines is not None:
+                self.lines.set_forces(f)
                 self.lines.update(state, c)
         if self._pins:
             q0 = c.pin_q_end.numpy()

@@ -52,13 +52,18 @@ class AssistantLines:
         # recorded launch costs a few microseconds on the CPU, a new one tens. Each holds its
         # arrays, so their addresses identify them for as long as it is kept.
         self._launches: dict = {}
+        self._forces_last = None  # the forces last uploaded (held forces go up once)
 
     def set_forces(self, forces: np.ndarray) -> None:
-        """Each world's model forces [N], (W, F, 3) or (F, 3) for every world alike (model order)."""
+        """Each world's model forces [N], (W, F, 3) or (F, 3) for every world alike (model order);
+        uploaded only where they differ from the last ones given."""
+        if self._forces_last is not None and (forces is self._forces_last or np.array_equal(forces, self._forces_last)):
+            return
         f = np.asarray(forces, dtype=np.float64)
         if f.ndim == 2:
             f = np.broadcast_to(f, (self.model.world_count, *f.shape))
         self.force.assign(np.ascontiguousarray(f))
+        self._forces_last = forces
 
     def update(self, state, control) -> None:
         """Build, keep or remove each world's lines for the frame starting from ``state`` (the

@@ -51,7 +51,6 @@ class FrameControl:
         # What this object last wrote into the control (it alone writes these): the point forces
         # are uploaded only when they change.
         self._fe_last = None  # (node_count, 3) [N]
-        self._f_last = None  # (force_count, 3) [N], as the assistant lines' rule last got them
         self.lines = AssistantLines(model, model.host.node_radius) if model.features.assistant_line else None
         prim_start = model.host.prim_node_start
         self.pinned_nodes = [prim_start[k] + t.pinned for k, t in enumerate(scene.tubes)]
@@ -148,9 +147,7 @@ class FrameControl:
                 c.node_f_ext.assign(np.repeat(fe[None], W, axis=0))
                 self._fe_last = fe
             if self.lines is not None:
-                if self._f_last is None or not np.array_equal(f, self._f_last):
-                    self.lines.set_forces(f)
-                    self._f_last = f
+                self.lines.set_forces(f)
                 self.lines.update(state, c)
         if self.moving_pins:
             q0 = c.pin_q_end.numpy()
