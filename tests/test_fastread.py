@@ -158,3 +158,45 @@ def test_plain_cells_parse_as_the_general_parser_does():
     assert taken >= 16  # the plain spellings are taken: numbers, and triples with or without brackets
     assert parse_plain("(1 2 3)", "double3") is None and parse_value("(1 2 3)", "double3") == (1.0, 2.0, 3.0)
     assert parse_plain("1", "int") is None and parse_plain("x", "double") is None
+
+
+@pytest.mark.parametrize("type_name", ["double", "float", "double3", "float3"])
+def test_a_column_parses_as_its_cells_do(type_name):
+    """parse_plain_column gives parse_plain's values for a column of plain cells, and None (so
+    that the cells are parsed one by one) where any cell is not plain."""
+    from warp_tube.batch.values import parse_plain, parse_plain_column
+
+    rng = np.random.default_rng(2)
+    if type_name.endswith("3"):
+        cells = [f"({a:.6g}, {b!r}, {c:.3e})" for a, b, c in rng.normal(size=(50, 3)).tolist()] + ["[1,2,3]", " ( 1 , -2.5e3 , 3 ) ", "1, 2, 3"]
+        bad = ["(1, 2)", "(1, 2, 3, 4)", "(1,,3)", "(a, b, c)", "(1, 2, 1e400)", "@x.npy"]
+    else:
+        cells = [f"{x!r}" for x in (rng.normal(size=50) * 1e4).tolist()] + [" 2.5 ", "-3e-4", "1_000", "7"]
+        bad = ["nan", "1e400", "abc", "", "1,5", "@x.npy"]
+    got = parse_plain_column(cells, type_name)
+    assert got == [parse_plain(c, type_name) for c in cells]
+    assert all(type(g) is type(parse_plain(c, type_name)) for g, c in zip(got, cells))
+    for b in bad:
+        assert parse_plain_column(cells + [b], type_name) is None, b
+
+
+def test_plain_variants_take_the_shortcuts_to_the_same_choices_and_keys(tmp_path):
+    """A table of plain values: its variants are marked plain, and their run choices and group
+    keys, worked out by the shortcuts (one layout, the key from the choice), are those of the
+    general path, variant by variant."""
+    from warp_tube.batch.plan import group_key, plain_group_keys, run_choices
+
+    good = [r for r in ROWS if not r[0].startswith("-") and r[0] != "1e14" and "1e39" not in r[4] and r[3] != "0"]
+    table = tmp_path / "plain.csv"
+    table.write_text(",".join(HEADER) + "\n" + "\n".join(",".join(f'"{c}"' if "," in c else c for c in r) for r in good) + "\n")
+    variants, problems = collect_variants(str(SCENE), read_table(str(table)))
+    assert not problems and variants.plain
+    scenes = [v.scene for v in variants.variants]
+    choices = run_choices(scenes, plain=True)
+    assert choices == run_choices(scenes)
+    general = [group_key(s, c, True) for s, c in zip(scenes, choices)]
+    assert plain_group_keys(scenes[0], choices, True) == general
+    # a table that sets anything else is not plain
+    other = tmp_path / "other.csv"
+    other.write_text("/World/Bowel.warptube:spokes\n8\n12\n")
+    assert not collect_variants(str(SCENE), read_table(str(other)))[0].plain

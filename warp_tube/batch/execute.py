@@ -419,7 +419,8 @@ def run_here(todo, device, context, result) -> None:
             settle(block=False)
             t0 = time.perf_counter()
             while len(pending) >= 2:  # at most two chunks wait for writers
-                cf.wait([f for fs, _ in pending.values() for f in fs], return_when=cf.FIRST_COMPLETED)
+                # (on the futures not done yet: a chunk partly written would otherwise return at once, a spin)
+                cf.wait([f for fs, _ in pending.values() for f in fs if not f.done()], return_when=cf.FIRST_COMPLETED)
                 settle(block=False)
             result.write_wait_s += time.perf_counter() - t0
         t0 = time.perf_counter()
@@ -516,7 +517,7 @@ def run_pooled(todo, devices, workers: SimWorkers, context, result) -> None:
                 settle_written(block=not simulating)
             else:
                 waiting = list(simulating) + [f for fs, _ in writing.values() for f in fs]
-                cf.wait(waiting, return_when=cf.FIRST_COMPLETED)
+                cf.wait([f for f in waiting if not f.done()], return_when=cf.FIRST_COMPLETED)  # (done ones: no spin)
             for fut in [f for f in simulating if f.done()]:
                 c = simulating.pop(fut)
                 rows, paths, timings = fut.result()  # paths None: the worker writes the chunk itself

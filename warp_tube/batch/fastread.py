@@ -112,13 +112,29 @@ class PlainColumns:
             v.flags.writeable = False
         times = np.zeros(1)
         times.flags.writeable = False  # shared by every variant's constant forces
+        # Copies of the frozen specs made as replace_checked makes them (the values checked above,
+        # per column), from each spec's fields taken once, not keyword dictionaries per row.
+        new = object.__new__
+        tube_items = [(k, type(t), dict(t.__dict__), type(t.params), dict(t.params.__dict__), fields) for k, t, fields in tube_items]
+        force_items = [(k, type(base_forces[k]), dict(base_forces[k].__dict__, times=times), v) for k, v in force_items]
+        scene_type, scene_fields = type(self.base), self.base.__dict__
         for r in np.flatnonzero(good).tolist():
             tubes = base_tubes.copy()
-            for k, t, fields in tube_items:
-                params = replace_checked(t.params, **{f: a[r] for f, a in fields})  # checked above, per column
-                tubes[k] = replace_checked(t, params=params)
+            for k, tube_type, tube_fields, params_type, params_fields, fields in tube_items:
+                params = new(params_type)
+                params.__dict__.update(params_fields)
+                for f, a in fields:
+                    params.__dict__[f] = a[r]
+                tube = tubes[k] = new(tube_type)
+                tube.__dict__.update(tube_fields)
+                tube.__dict__["params"] = params
             forces = base_forces.copy()
-            for k, v in force_items:
-                forces[k] = replace_checked(forces[k], times=times, values=v[r])
-            out[r] = replace_checked(self.base, tubes=tuple(tubes), forces=tuple(forces))
+            for k, force_type, force_fields, v in force_items:
+                force = forces[k] = new(force_type)
+                force.__dict__.update(force_fields)
+                force.__dict__["values"] = v[r]
+            scene = out[r] = new(scene_type)
+            scene.__dict__.update(scene_fields)
+            scene.__dict__["tubes"] = tuple(tubes)
+            scene.__dict__["forces"] = tuple(forces)
         return out

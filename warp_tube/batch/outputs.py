@@ -37,7 +37,7 @@ import numpy as np
 
 from ..scene.spec import Scene
 
-__all__ = ["OutputSpec", "WriteTask", "write", "surface_topology", "grid_offset", "write_summary", "SUMMARY_FIELDS",
+__all__ = ["OutputSpec", "WriteTask", "write", "surface_topology", "grid_offset", "write_summary", "summary_lines", "SUMMARY_FIELDS",
            "prepare_arrays", "finish_arrays", "write_grid_root", "LAYOUTS"]  # fmt: skip
 
 LAYOUTS = ("files", "grid", "arrays")
@@ -366,11 +366,19 @@ def _fmt(v) -> str:
     return str(v)
 
 
-def write_summary(path: str, parameter_columns: list[str], variants, rows: dict) -> None:
-    """``summary.csv``: one row per variant in batch order (``rows``: batch index -> fields)."""
+def write_summary(path: str, parameter_columns: list[str], variants, rows: dict, body: str | None = None) -> None:
+    """``summary.csv``: one row per variant in batch order (``rows``: batch index -> fields), or
+    the header and ``body``, the rows' lines already made (:func:`summary_lines`, in order)."""
+    buf = io.StringIO()
+    csv.writer(buf, lineterminator="\n").writerow(["variant", "name", *parameter_columns, *SUMMARY_FIELDS])
+    buf.write(summary_lines(variants, rows) if body is None else body)
+    _atomic_text(path, buf.getvalue())
+
+
+def summary_lines(variants, rows: dict) -> str:
+    """The summary's lines of ``variants`` (in their order; ``rows``: batch index -> fields)."""
     buf = io.StringIO()
     out = csv.writer(buf, lineterminator="\n")
-    out.writerow(["variant", "name", *parameter_columns, *SUMMARY_FIELDS])
     nan3 = [math.nan] * 3
     tip_axis = {"tip_x": 0, "tip_y": 1, "tip_z": 2}
     found = [rows[v.index] for v in variants]
@@ -380,4 +388,4 @@ def write_summary(path: str, parameter_columns: list[str], variants, rows: dict)
     # only a column holding something else (None) goes through _fmt
     columns = [c if set(map(type, c)) <= _AS_STR else [_fmt(x) for x in c] for c in columns]
     out.writerows([v.index, v.name, *v.cells, *v.selection, *fields] for v, fields in zip(variants, zip(*columns)))
-    _atomic_text(path, buf.getvalue())
+    return buf.getvalue()

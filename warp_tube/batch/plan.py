@@ -22,18 +22,19 @@ from __future__ import annotations
 import math
 from dataclasses import dataclass
 from types import SimpleNamespace
+from typing import NamedTuple
 
 import numpy as np
 
 from ..scene.spec import Scene
 
-__all__ = ["Chunk", "RunChoice", "run_choice", "run_choices", "group_key", "plan_chunks", "by_identity"]
+__all__ = ["Chunk", "RunChoice", "run_choice", "run_choices", "group_key", "plain_group_keys", "plan_chunks", "by_identity"]
 
 
-@dataclass(frozen=True)
-class RunChoice:
+class RunChoice(NamedTuple):
     """What ``Simulation`` would pick for a scene alone: integrator, why, substeps per frame and
-    the substep [s]; ``min_segment`` [m] is its shortest rest segment."""
+    the substep [s]; ``min_segment`` [m] is its shortest rest segment. (A named tuple: one per
+    variant, made faster than a frozen dataclass.)"""
 
     integrator: str
     reason: str
@@ -82,7 +83,7 @@ def _group_arrays(t) -> tuple:
 CHOICE_BLOCK_NODES = 1 << 20
 
 
-def run_choices(scenes: list[Scene], block: int | None = None) -> list[RunChoice]:
+def run_choices(scenes: list[Scene], block: int | None = None, plain: bool = False) -> list[RunChoice]:
     """The integrator and substeps ``Simulation(scene)`` chooses for each scene alone.
 
     The policy is the one ``Simulation`` applies (:func:`warp_tube.centerline.policy.choose_integrator`), given each scene's stability
@@ -91,14 +92,15 @@ def run_choices(scenes: list[Scene], block: int | None = None) -> list[RunChoice
     ``block`` at a time (the per-node parameters of a scene holding them all, with the layout's
     topology; read per scene), and scenes whose tubes agree in everything the bound depends on
     share one answer. ``block``: scenes at a time (default: up to :data:`CHOICE_BLOCK_NODES`
-    nodes).
+    nodes). ``plain``: the scenes were made from one base scene by plain values (``Variants.plain``):
+    one layout, and equal scenes are not looked for.
     """
     out: list = [None] * len(scenes)
     first_of: dict = {}  # content key -> index of the first scene with it
     keys: list = []
-    layouts: dict = {}
+    layouts: dict = {None: list(range(len(scenes)))} if plain and scenes else {}
     memo: dict = {}
-    for i, s in enumerate(scenes):
+    for i, s in enumerate(scenes if not plain else ()):
         tubes = tuple(_tube_key(t, memo) for t in s.tubes)
         # the forces' tubes and lines: how many lines each tube carries, which the bound counts
         lines = tuple((f.tube, f.assistant_line) for f in s.forces)
@@ -117,7 +119,7 @@ def run_choices(scenes: list[Scene], block: int | None = None) -> list[RunChoice
             one = one or _topology(scenes[idx[0]])
             for i, choice in zip(idx, _choices_of([scenes[i] for i in idx], one)):
                 out[i] = choice
-    for i, key in enumerate(keys):
+    for i, key in enumerate(keys):  # (the scenes equal to an earlier one)
         if out[i] is None:
             out[i] = out[first_of[key]]
     return out
@@ -198,6 +200,22 @@ def group_key(scene: Scene, choice: RunChoice, surface: bool, memo: dict | None 
            s.time_codes_per_second, s.frames_per_second, s.meters_per_unit, s.up_axis)  # fmt: skip
     implicit = choice.min_segment if choice.integrator == "implicitEuler" else None
     return (tuple(tubes), forces, run, implicit, tuple(shape) if surface else None)
+
+
+def plain_group_keys(first: Scene, choices: list[RunChoice], surface: bool, memo: dict | None = None) -> list:
+    """:func:`group_key` of each variant made by plain values (``Variants.plain``), ``first`` the
+    first of them: they differ only in tube materials and force vectors, which no key holds, so a
+    key follows from the run choice's integrator, substeps and shortest segment, worked out once
+    for each."""
+    by_choice: dict = {}
+    out = []
+    for c in choices:
+        k = (c.integrator, c.substeps, c.min_segment)
+        key = by_choice.get(k)
+        if key is None:
+            key = by_choice[k] = group_key(first, c, surface, memo)
+        out.append(key)
+    return out
 
 
 def plan_chunks(keys: list, chunk: int) -> list[Chunk]:

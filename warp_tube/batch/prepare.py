@@ -10,7 +10,6 @@ simulated); otherwise processes are started for it.
 from __future__ import annotations
 
 import concurrent.futures as cf
-import dataclasses
 import logging
 import multiprocessing
 import os
@@ -128,10 +127,11 @@ def _prepare_batch(scene, table, variant_sets, bar, pool, pool_size):
     width = name_width(sum(len(r[0].variants) for r in results))
     merged, choices = [], []
     for part, _, part_choices in results:
-        merged += [dataclasses.replace(v, name=f"variant_{v.index:0{width}d}") for v in part.variants]
+        merged += [v._replace(name=f"variant_{v.index:0{width}d}") for v in part.variants]
         choices += part_choices
     first = results[0][0]
-    out = Variants(scene_path=scene, table=table, axes=first.axes, variants=tuple(merged))
+    out = Variants(scene_path=scene, table=table, axes=first.axes, variants=tuple(merged),
+                   plain=all(r[0].plain for r in results))  # fmt: skip
     warn_forced(out, choices)
     return out, choices
 
@@ -159,7 +159,7 @@ def _checked_run_choices(variants) -> list:
 
     scenes = [v.scene for v in variants.variants]
     try:
-        return run_choices(scenes)
+        return run_choices(scenes, plain=variants.plain)
     except SceneError:
         pass
     problems = []  # find which variants: one at a time

@@ -38,9 +38,10 @@ from .engine import TIMERS, output_frames
 from .cluster import check_dask, dask_client, run_dask
 from .execute import SimWorkers, Writers, run_here, run_pooled, writer_count
 from .journal import Journal, file_digest
+from .books import Books
 from .lock import BatchLock
 from .outputs import LAYOUTS, OutputSpec, finish_arrays, prepare_arrays, surface_topology, write_grid_root, write_summary
-from .plan import by_identity, group_key, plan_chunks
+from .plan import by_identity, group_key, plain_group_keys, plan_chunks
 from .prepare import prepare_batch
 from .progress import Progress
 
@@ -347,7 +348,8 @@ def run_batch(scene: str, out_dir: str, table: str | None = None, *, variant_set
     _check_inputs_not_outputs(out_dir, scene, table)
     _check_out_dir(out_dir, resume)
     devices = _devices(device, workers, scheduler)
-    tab = read_table(table) if table is not None else None
+    with collector_paused():  # (a tuple per row: see runtime.collector)
+        tab = read_table(table) if table is not None else None
     sims = 0 if scheduler else len(devices)
     sim_workers = SimWorkers(devices) if sims > 1 else None  # up while the variants are read
     writer_pool = None
@@ -386,7 +388,10 @@ def _run_batch(scene, out_dir, table, tab, devices, writer_pool, sim_workers, t_
     n_frames = first.stage.frame_count if frames is None else int(frames)
     memo: dict = {}
     with collector_paused():  # (one small key per variant: see runtime.collector)
-        keys = [group_key(v.scene, c, surface, memo) for v, c in zip(variants.variants, choices)]
+        if variants.plain:
+            keys = plain_group_keys(variants.variants[0].scene, choices, surface, memo)
+        else:
+            keys = [group_key(v.scene, c, surface, memo) for v, c in zip(variants.variants, choices)]
     journal = Journal(out_dir)
     if chunk is None:
         base = DEFAULT_CHUNK_CUDA if devices[0].startswith("cuda") else DEFAULT_CHUNK_CPU
@@ -413,8 +418,8 @@ def _run_batch(scene, out_dir, table, tab, devices, writer_pool, sim_workers, t_
         log.warning("--every %d: of frames 0 to %d only frame 0 is written", every, n_frames - 1)
     result = BatchResult(out_dir=out_dir, variants=len(variants), groups=len({c.group for c in plan}), chunks=len(plan),
                          devices=devices if devices != ["dask"] else [f"dask {scheduler}"], frames=len(F_idx))  # fmt: skip
-    with collector_paused():
-        counts = _counts(variants.variants, surface)  # per variant its points and vertices
+    with collector_paused():  # per variant its points and vertices
+        counts = _counts(variants.variants[:1], surface) * len(variants) if variants.plain else _counts(variants.variants, surface)
     spec = _output_spec(variants, counts, layout, out_dir, journal.dir, surface, time_codes)
     result.prepare_s = time.perf_counter() - t_start
 
@@ -437,11 +442,13 @@ def _run_batch(scene, out_dir, table, tab, devices, writer_pool, sim_workers, t_
     todo = [c for c in plan if c.id not in done]
     bar.start(sum(len(c.indices) for c in todo) * max(n_frames - 1, 1), len(variants), result.resumed)
 
+    books = Books(journal, variants)  # (the journal records and summary lines, on a thread)
+
     def finish(chunk_id: int, rows: list, outputs: list):
         c = plan[chunk_id]
         rec = {"rows": {str(i): _json_row(r, o) for i, r, o in zip(c.indices, rows, outputs)},
                "layer": f"grid/chunk_{chunk_id:05d}.usdc" if layout == "grid" and any(r["status"] == "ok" for r in rows) else ""}  # fmt: skip
-        journal.record(chunk_id, rec)
+        books.record(chunk_id, c.indices, rec)
         records[chunk_id] = rec
         bar.variants_done(len(c.indices))
         if on_chunk is not None:
@@ -450,22 +457,28 @@ def _run_batch(scene, out_dir, table, tab, devices, writer_pool, sim_workers, t_
     context = dict(variants=variants, plan=plan, choices=choices, frames=n_frames, every=every, surface=surface,
                    spec=spec, writers=writer_pool, device=device, scheduler=scheduler, bar=bar, finish=finish)  # fmt: skip
     try:
-        if not todo:
-            pass
-        elif scheduler:
-            run_dask(todo, context, result)
-        elif len(devices) == 1:
-            run_here(todo, devices[0], context, result)
-        else:
-            run_pooled(todo, devices, sim_workers, context, result)
+        try:
+            if not todo:
+                pass
+            elif scheduler:
+                run_dask(todo, context, result)
+            elif len(devices) == 1:
+                run_here(todo, devices[0], context, result)
+            else:
+                run_pooled(todo, devices, sim_workers, context, result)
+        finally:
+            t0 = time.perf_counter()
+            books.close()  # (interrupted too: the chunks finished are recorded)
+            result.write_wait_s += time.perf_counter() - t0  # waiting for the journal and summary lines
     except KeyboardInterrupt as e:
         bar.close()
         _tally(result, records, variants)
         result.pending = len(variants) - sum(len(r["rows"]) for r in records.values())
         result.wall_s = time.perf_counter() - t_start
         raise BatchInterrupted(result, getattr(e, "signum", signal.SIGINT)) from None
+    books.wait()
     bar.close()
-    _finish_outputs(spec, variants, counts, records, first, out_dir)
+    _finish_outputs(spec, variants, counts, records, first, out_dir, books.summary_body())
     journal.finish()
     _tally(result, records, variants)
     result.wall_s = time.perf_counter() - t_start
@@ -558,7 +571,8 @@ def _output_spec(variants, counts: list, layout, out_dir, work_dir, surface, tim
                       up_axis=first.up_axis)  # fmt: skip
 
 
-def _finish_outputs(spec: OutputSpec, variants, counts: list, records: dict, first_scene, out_dir: str) -> None:
+def _finish_outputs(spec: OutputSpec, variants, counts: list, records: dict, first_scene, out_dir: str,
+                    summary_body: str | None) -> None:  # fmt: skip
     rows = {int(i): r for rec in records.values() for i, r in rec["rows"].items()}
     vs = variants.variants
     if spec.layout == "arrays":
@@ -568,5 +582,5 @@ def _finish_outputs(spec: OutputSpec, variants, counts: list, records: dict, fir
         layers = [records[c]["layer"] for c in sorted(records) if records[c]["layer"]]
         ok = [v.name for v in vs if rows[v.index]["status"] == "ok"]
         write_grid_root(spec, first_scene.stage, layers, ok)
-    write_summary(os.path.join(out_dir, "summary.csv"), variants.parameter_columns(), vs, rows)
+    write_summary(os.path.join(out_dir, "summary.csv"), variants.parameter_columns(), vs, rows, summary_body)
 

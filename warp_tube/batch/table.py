@@ -163,14 +163,15 @@ def read_table(path: str) -> Table:
         reader = csv.reader(io.StringIO(text, newline=""), delimiter=separator, skipinitialspace=True)
         start = 1
         for row in reader:
-            records.append((start, row))
-            start = reader.line_num + 1
+            end = reader.line_num
+            records.append((start, row, end > start))  # (a record over several lines: a cell holds a line break)
+            start = end + 1
     except csv.Error as e:
         raise SceneError(f"{path}: line {start}: not readable as CSV ({e})") from None
-    records = [(line, row) for line, row in records if any(cell.strip() for cell in row)]
+    records = [rec for rec in records if "".join(rec[1]).strip()]  # (empty rows skipped)
     if not records:
         raise SceneError(f"{path}: empty: expected a header row of PRIM_PATH.ATTRIBUTE columns and a row per variant")
-    head_line, header = records[0]
+    head_line, header, _ = records[0]
     width = len(header)
     while width > 0 and not header[width - 1].strip():  # empty columns after the last header
         width -= 1
@@ -181,7 +182,13 @@ def read_table(path: str) -> Table:
             raise SceneError(f"{path}: line {head_line}: columns {seen[c.target] + 1} and {k + 1} both set {c.target}")
         seen[c.target] = k
     rows, lines = [], []
-    for line, row in records[1:]:
+    n_columns = len(columns)
+    strip = str.strip
+    for line, row, multi in records[1:]:
+        if not multi and len(row) == n_columns:  # (most rows: one line, a cell per column)
+            rows.append(tuple(map(strip, row)))
+            lines.append(line)
+            continue
         r = len(rows)
         for k, cell in enumerate(row):
             if "\n" in cell or "\r" in cell:

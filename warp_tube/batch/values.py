@@ -191,6 +191,37 @@ def parse_plain(text: str, type_name: str):
     return out if all(abs(x) <= top for x in out) else None
 
 
+def parse_plain_column(texts: list[str], type_name: str) -> list | None:
+    """``[parse_plain(t, type_name) for t in texts]`` for a whole column at once, or None where
+    some cell is not written plainly (the caller then parses cell by cell, as before): the same
+    values, read by ``float`` from the same tokens, a few times faster for a column of thousands."""
+    n = _PLAIN_LENGTH.get(type_name)
+    if n is None or not texts or any(t.startswith("@") for t in texts):
+        return None
+    try:
+        if n == 1:
+            values = list(map(float, texts))
+            top = _REAL_MAX[type_name]
+        else:
+            stripped = [t.strip().strip("()[]") for t in texts]
+            if any(c != 2 for c in map(_count_commas, stripped)):
+                return None
+            values = list(map(float, ",".join(stripped).split(",")))
+            top = _REAL_MAX[type_name[:-1]]
+    except ValueError:
+        return None
+    a = np.abs(np.asarray(values, dtype=np.float64))
+    if not (a <= top).all():  # (NaN too: parse_plain leaves those to parse_value)
+        return None
+    if n == 1:
+        return values
+    return [tuple(v) for v in np.asarray(values, dtype=np.float64).reshape(-1, 3).tolist()]
+
+
+def _count_commas(text: str) -> int:
+    return text.count(",")
+
+
 def _why(text: str, kind: str, n: int, array: bool) -> str:
     """A hint for a cell that is not the number it should be: a decimal comma, a unit, a fraction."""
     if n == 1 and not array and _THOUSANDS.match(text):

@@ -18,14 +18,15 @@ from __future__ import annotations
 import itertools
 import logging
 from dataclasses import dataclass
+from typing import NamedTuple
 
 import numpy as np
 
 from ..runtime.log_filters import once_each, silenced
 from ..scene.spec import Scene, SceneError
-from .fastread import PlainColumns
+from .fastread import TUBE_SCALARS, PlainColumns
 from .table import Table
-from .values import CONTRACT_TYPES, parse_plain, parse_value
+from .values import CONTRACT_TYPES, parse_plain, parse_plain_column, parse_value
 
 log = logging.getLogger(__name__)
 
@@ -55,9 +56,8 @@ class VariantSetAxis:
         return f"{self.prim}{{{self.name}}}"
 
 
-@dataclass(frozen=True)
-class Variant:
-    """One variant of the batch.
+class Variant(NamedTuple):
+    """One variant of the batch (a named tuple: one per variant, made faster than a frozen dataclass).
 
     Attributes:
         index: its place in the batch (table row major, variant selections minor).
@@ -84,6 +84,9 @@ class Variants:
     table: Table | None
     axes: tuple[VariantSetAxis, ...]
     variants: tuple[Variant, ...]
+    #: every variant made from the one base scene by plain values (:mod:`warp_tube.batch.fastread`):
+    #: they differ in tube materials and force vectors only, their layout and geometry the base's
+    plain: bool = False
 
     def __len__(self) -> int:
         return len(self.variants)
@@ -262,22 +265,13 @@ def prepare_variants(scene_path: str, table: Table | None = None, variant_sets: 
 
 
 def plain_table(scene_path: str, table: Table | None) -> bool:
-    """Whether ``table`` sets plain values only (its variants made from the base scene, see
-    :mod:`warp_tube.batch.fastread`); False for anything that does not read cleanly."""
+    """Whether ``table``'s columns may all be read as plain values (:mod:`warp_tube.batch.fastread`),
+    judged by their attributes alone (a tube's scalar parameter or a force's vector, no file
+    column), without reading the scene: what deciding how many processes read the table needs.
+    Whether each row is read that way is decided when it is read (``scene_path``: unused here)."""
     if table is None:
         return False
-    from ..scene.usd import SceneReader, open_stage
-
-    with silenced("warp_tube.scene.usd"):  # warnings: once, by the real read
-        try:
-            stage = open_stage(scene_path)
-            base = SceneReader(stage, scene_path).read()
-        except SceneError:
-            return False
-    columns = _resolve_columns(stage, table, scene_path)
-    if any(msg for _, _, msg in columns):
-        return False
-    return PlainColumns.of(base, _targets(stage, table, columns)) is not None
+    return all(not c.files and (c.attribute in TUBE_SCALARS or c.attribute == "warptube:force") for c in table.columns)
 
 
 def raise_problems(problems: list) -> None:
@@ -315,8 +309,13 @@ def _plain_scenes(plain: PlainColumns, table: Table, columns) -> list:
     """Per row of ``table``, its variant made from the base scene by ``plain`` (all rows at
     once), or None where the row must go through the stage (a cell not written plainly, or one
     the reader would refuse or warn about: that path parses it again and names the problem)."""
-    parsed = []
+    parsed, whole = [], 0
     for j, (col, (_, type_name, _)) in enumerate(zip(table.columns, columns)):
+        values = None if col.files else parse_plain_column([cells[j] for cells in table.rows], type_name)
+        if values is not None:  # (every cell plain: read as one column)
+            parsed.append(values)
+            whole += 1
+            continue
         cache: dict = {}
         values = []
         for cells in table.rows:
@@ -326,11 +325,13 @@ def _plain_scenes(plain: PlainColumns, table: Table, columns) -> list:
                 v = cache[text] = None if col.files else parse_plain(text, type_name)
             values.append(v)
         parsed.append(values)
-    ok = [all(col[r] is not None for col in parsed) for r in range(len(table.rows))]
-    rows = [r for r, good in enumerate(ok) if good]
+    if whole == len(parsed):
+        rows = list(range(len(table.rows)))
+    else:
+        rows = [r for r in range(len(table.rows)) if all(col[r] is not None for col in parsed)]
     if not rows:
         return [None] * len(table.rows)
-    made = plain.scenes([[col[r] for r in rows] for col in parsed])
+    made = plain.scenes(parsed if len(rows) == len(table.rows) else [[col[r] for r in rows] for col in parsed])
     out: list = [None] * len(table.rows)
     for r, scene in zip(rows, made):
         out[r] = scene
@@ -358,6 +359,7 @@ def _collect(scene_path, table, variant_sets, extract, progress):
     out: list = [None] * (n_rows * len(combos))
     problems: list[tuple[int, str]] = []  # (row or -1, message)
     files: dict = {}
+    made = None  # per row its variant made from the base scene (plain values), or None
     parsed_cache: dict = {}
     done = 0
     for c, combo in enumerate(combos):
@@ -449,4 +451,5 @@ def _collect(scene_path, table, variant_sets, extract, progress):
                 progress(done)
         if len(problems) > 10 * MAX_PROBLEMS:
             break
-    return Variants(scene_path=scene_path, table=table, axes=tuple(axes), variants=tuple(out)), problems
+    plain = not axes and table is not None and made is not None and all(m is not None for m in made) and not problems
+    return Variants(scene_path=scene_path, table=table, axes=tuple(axes), variants=tuple(out), plain=plain), problems

@@ -11,7 +11,7 @@ from __future__ import annotations
 
 import logging
 import math
-from dataclasses import dataclass
+from typing import NamedTuple
 
 from ..scene.spec import SimulationSettings
 
@@ -35,8 +35,7 @@ IMPLICIT_AL_COST = 3.0
 RUN_WARNING = {"run_warning": True}
 
 
-@dataclass(frozen=True)
-class IntegratorChoice:
+class IntegratorChoice(NamedTuple):
     """An integrator (``"semiImplicitEuler"`` or ``"implicitEuler"``), why, and its substep [s]."""
 
     integrator: str

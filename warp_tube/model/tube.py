@@ -309,9 +309,12 @@ def node_parameters(scene: Scene) -> tuple[dict, bool]:
     spring_damping = material(p.spring_damping for p in params)
 
     # Segment i joins nodes i and i + 1; `inside` is False where they belong to different curves.
-    inside = np.ones(n - 1, dtype=bool)
-    inside[last[:-1]] = False
-    seg = np.linalg.norm(x[1:] - x[:-1], axis=1)
+    if shared:  # the first prim's segments, prim after prim (the segment between two: not inside)
+        inside, seg = _shared_segments(s0.points, s0.curve_counts, P)
+    else:
+        inside = np.ones(n - 1, dtype=bool)
+        inside[last[:-1]] = False
+        seg = np.linalg.norm(x[1:] - x[:-1], axis=1)
     r_seg = 0.5 * (r[1:] + r[:-1])
     m_seg = np.where(inside, head(density) * np.pi * r_seg**2 * seg, 0.0)
     mass = np.zeros(n)
@@ -344,6 +347,20 @@ def node_parameters(scene: Scene) -> tuple[dict, bool]:
         prim_node_start=prim_start[:-1],
     )  # fmt: skip
     return per_node, bool(np.abs(kappa).max() > 1e-6)
+
+
+def _shared_segments(points: np.ndarray, counts: np.ndarray, copies: int) -> tuple[np.ndarray, np.ndarray]:
+    """``inside`` and the lengths [m] of the segments of ``copies`` prims in a row, each of the
+    ``points`` (n, 3) [m] in curves of ``counts`` points: as for their nodes concatenated, the
+    segment from one prim's last node to the next prim's first not inside a curve."""
+    n = len(points)
+    inside = np.ones((copies, n), dtype=bool)
+    inside[:, np.cumsum(counts)[:-1] - 1] = False  # between the prim's curves
+    inside[:, -1] = False  # to the next prim
+    seg = np.zeros((copies, n))
+    seg[:, :-1] = np.linalg.norm(points[1:] - points[:-1], axis=1)
+    seg[:, -1] = np.linalg.norm(points[0] - points[-1])  # (to the next prim's first point)
+    return inside.reshape(-1)[:-1], seg.reshape(-1)[:-1]
 
 
 def _curves_kappa(x: np.ndarray, counts: np.ndarray) -> np.ndarray:

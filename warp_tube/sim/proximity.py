@@ -96,13 +96,34 @@ class ContactMonitor:
         largest = int(np.bincount(self.group).max()) if n else 0
         if largest <= small:
             # Every pair of a group that could ever count, fixed once: per frame only distances.
-            i, j = _group_pairs(self.group)
-            rsum = self.radius[i] + self.radius[j]
-            keep = (self.tube[i] != self.tube[j]) | (np.abs(self.arc[i] - self.arc[j]) > 0.5 * np.pi * rsum)
-            self._pairs = (wp.array(i[keep], dtype=int, device=d), wp.array(j[keep], dtype=int, device=d))
+            i, j = self._distant_pairs()
+            self._pairs = (wp.array(i, dtype=int, device=d), wp.array(j, dtype=int, device=d))
         else:
             dim = int(np.clip(round(n ** (1.0 / 3.0)), 8, 128))
             self._grid = wp.HashGrid(dim, dim, dim, device=d)
+
+    def _distant_pairs(self) -> tuple[np.ndarray, np.ndarray]:
+        """Every pair ``i < j`` of a group whose points are distant along the tubes (see the module
+        docstring). Groups that are equal blocks in a row with the same radii, arclengths and
+        tubes (a batch's worlds of one geometry) share one block's pairs, offset block after block."""
+        n = self.node_count
+        sizes = np.bincount(self.group)
+        b = int(sizes[0])
+        if len(sizes) > 1 and (sizes == b).all() and np.array_equal(self.group, np.repeat(np.arange(len(sizes)), b)):
+            radius, arc = self.radius.reshape(-1, b), self.arc.reshape(-1, b)
+            tube = self.tube.reshape(-1, b)
+            tube = tube - tube[:, :1]  # (each block's own tubes, numbered from its first)
+            if (radius == radius[:1]).all() and (arc == arc[:1]).all() and (tube == tube[:1]).all():
+                i, j = self._keep(*np.triu_indices(b, 1))
+                offset = (np.arange(n // b) * b)[:, None]
+                return (i[None] + offset).reshape(-1), (j[None] + offset).reshape(-1)
+        return self._keep(*_group_pairs(self.group))
+
+    def _keep(self, i: np.ndarray, j: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+        """The pairs of ``i``, ``j`` whose points are distant along the tubes."""
+        rsum = self.radius[i] + self.radius[j]
+        keep = (self.tube[i] != self.tube[j]) | (np.abs(self.arc[i] - self.arc[j]) > 0.5 * np.pi * rsum)
+        return i[keep], j[keep]
 
     def deepest(self, q: wp.array) -> np.ndarray:
         """The deepest overlap of each group, ``distance - (r_i + r_j)`` [m], shape (groups,): 0
