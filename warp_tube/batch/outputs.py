@@ -366,12 +366,11 @@ def _fmt(v) -> str:
     return str(v)
 
 
-def write_summary(path: str, parameter_columns: list[str], variants, rows: dict, body: str | None = None) -> None:
-    """``summary.csv``: one row per variant in batch order (``rows``: batch index -> fields), or
-    the header and ``body``, the rows' lines already made (:func:`summary_lines`, in order)."""
+def write_summary(path: str, parameter_columns: list[str], variants, rows: dict) -> None:
+    """``summary.csv``: one row per variant in batch order (``rows``: batch index -> fields)."""
     buf = io.StringIO()
     csv.writer(buf, lineterminator="\n").writerow(["variant", "name", *parameter_columns, *SUMMARY_FIELDS])
-    buf.write(summary_lines(variants, rows) if body is None else body)
+    buf.write(summary_lines(variants, rows))
     _atomic_text(path, buf.getvalue())
 
 

@@ -38,7 +38,6 @@ from .engine import TIMERS, output_frames
 from .cluster import check_dask, dask_client, run_dask
 from .execute import SimWorkers, Writers, run_here, run_pooled, writer_count
 from .journal import Journal, file_digest
-from .books import Books
 from .lock import BatchLock
 from .outputs import LAYOUTS, OutputSpec, finish_arrays, prepare_arrays, surface_topology, write_grid_root, write_summary
 from .plan import by_identity, group_key, plain_group_keys, plan_chunks
@@ -442,13 +441,11 @@ def _run_batch(scene, out_dir, table, tab, devices, writer_pool, sim_workers, t_
     todo = [c for c in plan if c.id not in done]
     bar.start(sum(len(c.indices) for c in todo) * max(n_frames - 1, 1), len(variants), result.resumed)
 
-    books = Books(journal, variants)  # (the journal records and summary lines, on a thread)
-
     def finish(chunk_id: int, rows: list, outputs: list):
         c = plan[chunk_id]
         rec = {"rows": {str(i): _json_row(r, o) for i, r, o in zip(c.indices, rows, outputs)},
                "layer": f"grid/chunk_{chunk_id:05d}.usdc" if layout == "grid" and any(r["status"] == "ok" for r in rows) else ""}  # fmt: skip
-        books.record(chunk_id, c.indices, rec)
+        journal.record(chunk_id, rec)
         records[chunk_id] = rec
         bar.variants_done(len(c.indices))
         if on_chunk is not None:
@@ -457,28 +454,22 @@ def _run_batch(scene, out_dir, table, tab, devices, writer_pool, sim_workers, t_
     context = dict(variants=variants, plan=plan, choices=choices, frames=n_frames, every=every, surface=surface,
                    spec=spec, writers=writer_pool, device=device, scheduler=scheduler, bar=bar, finish=finish)  # fmt: skip
     try:
-        try:
-            if not todo:
-                pass
-            elif scheduler:
-                run_dask(todo, context, result)
-            elif len(devices) == 1:
-                run_here(todo, devices[0], context, result)
-            else:
-                run_pooled(todo, devices, sim_workers, context, result)
-        finally:
-            t0 = time.perf_counter()
-            books.close()  # (interrupted too: the chunks finished are recorded)
-            result.write_wait_s += time.perf_counter() - t0  # waiting for the journal and summary lines
+        if not todo:
+            pass
+        elif scheduler:
+            run_dask(todo, context, result)
+        elif len(devices) == 1:
+            run_here(todo, devices[0], context, result)
+        else:
+            run_pooled(todo, devices, sim_workers, context, result)
     except KeyboardInterrupt as e:
         bar.close()
         _tally(result, records, variants)
         result.pending = len(variants) - sum(len(r["rows"]) for r in records.values())
         result.wall_s = time.perf_counter() - t_start
         raise BatchInterrupted(result, getattr(e, "signum", signal.SIGINT)) from None
-    books.wait()
     bar.close()
-    _finish_outputs(spec, variants, counts, records, first, out_dir, books.summary_body())
+    _finish_outputs(spec, variants, counts, records, first, out_dir)
     journal.finish()
     _tally(result, records, variants)
     result.wall_s = time.perf_counter() - t_start
@@ -571,8 +562,7 @@ def _output_spec(variants, counts: list, layout, out_dir, work_dir, surface, tim
                       up_axis=first.up_axis)  # fmt: skip
 
 
-def _finish_outputs(spec: OutputSpec, variants, counts: list, records: dict, first_scene, out_dir: str,
-                    summary_body: str | None) -> None:  # fmt: skip
+def _finish_outputs(spec: OutputSpec, variants, counts: list, records: dict, first_scene, out_dir: str) -> None:
     rows = {int(i): r for rec in records.values() for i, r in rec["rows"].items()}
     vs = variants.variants
     if spec.layout == "arrays":
@@ -582,5 +572,5 @@ def _finish_outputs(spec: OutputSpec, variants, counts: list, records: dict, fir
         layers = [records[c]["layer"] for c in sorted(records) if records[c]["layer"]]
         ok = [v.name for v in vs if rows[v.index]["status"] == "ok"]
         write_grid_root(spec, first_scene.stage, layers, ok)
-    write_summary(os.path.join(out_dir, "summary.csv"), variants.parameter_columns(), vs, rows, summary_body)
+    write_summary(os.path.join(out_dir, "summary.csv"), variants.parameter_columns(), vs, rows)
 
