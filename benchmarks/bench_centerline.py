@@ -25,6 +25,10 @@ Cases (each timed after a warm-up; medians of ``--reps`` repetitions, all in one
   ``_shuffle`` cases run the same batches with shared memory, or with shuffles in a layout padded
   to whole warps (e.g. 20-point tubes) where the default was shared memory; and both at 32, 64,
   256 and 512 threads per block.
+- ``batch_onchip_curved_free_turning`` / ``_all_features_free_turning``: the curved and the
+  all-features batches with each tube held at its first point only (its first edge free to turn,
+  so its first frame is twisted to the bending energy's minimum: one more scan a substep, and on
+  CUDA the shared-memory exchange), with ``over_minimal``.
 - ``batch_per_tube_minimal`` / ``_all_features``: the same batches on the per-tube kernel (the CPU
   path; on CUDA the path of tubes longer than a block).
 - ``batch_onchip_only_<feature>`` / ``batch_onchip_without_<feature>`` (``--breakdown``): the
@@ -81,7 +85,9 @@ def _features(extras) -> frozenset:
     return frozenset(extras or ())
 
 
-def tube(n_points, extras=False, length=1.0):
+def tube(n_points, extras=False, length=1.0, pinned=(0, 1)):
+    """The benchmark's tube: clamped at its start (``pinned``: its first two points), or with
+    ``pinned=(0,)`` held at one point, its first edge free to turn."""
     f = _features(extras)
     s = np.linspace(0.0, length, n_points)
     pts = np.stack([s, 0.1 * np.sin(2 * s) if "curved" in f else 0 * s, 0 * s], axis=1)
@@ -89,19 +95,19 @@ def tube(n_points, extras=False, length=1.0):
         density=RHO, youngs_modulus=E, damping=1.0 if "mass_damping" in f else 0.0,
         spring_damping=1e-4 if "spring_damping" in f else 0.0, anchor_stiffness=100.0 if "anchors" in f else 0.0,
     )  # fmt: skip
-    return TubeSpec("/World/Tube", pts, [n_points], np.full(n_points, R), params, pinned=[0, 1],
+    return TubeSpec("/World/Tube", pts, [n_points], np.full(n_points, R), params, pinned=list(pinned),
                     anchors=[n_points // 2] if "anchors" in f else [])  # fmt: skip
 
 
-def scene(n_points, extras=False, fps=60.0):
-    """A clamped tube; ``extras`` as in :func:`_features` (a pushed point with its assistant line
-    for "assistant_line")."""
+def scene(n_points, extras=False, fps=60.0, pinned=(0, 1)):
+    """A clamped tube (``pinned``: as :func:`tube`); ``extras`` as in :func:`_features` (a pushed
+    point with its assistant line for "assistant_line")."""
     f = _features(extras)
     push = ForceSpec("/World/Push", 0, n_points - 3, [0.0], [[0.0, 0.0, 0.01]], assistant_line=True)
     forces = (push,) if "assistant_line" in f else ()
     stage = StageInfo(meters_per_unit=1.0, time_codes_per_second=fps, frames_per_second=fps, end_time_code=fps)
     settings = SimulationSettings(gravity=(0.0, -9.81, 0.0)) if "gravity" in f else SimulationSettings()
-    return Scene((tube(n_points, extras=f),), forces, settings=settings, stage=stage)
+    return Scene((tube(n_points, extras=f, pinned=pinned),), forces, settings=settings, stage=stage)
 
 
 def timed(fn, reps, sync):
@@ -115,8 +121,9 @@ def timed(fn, reps, sync):
     return float(np.median(out)), out
 
 
-def substep_case(device, n_points, extras, reps, worlds=1, substeps=None, block_dim=None, onchip=None, exchange="auto"):
-    sim = Simulation(scene(n_points, extras), device=device, world_count=worlds, surface=False)
+def substep_case(device, n_points, extras, reps, worlds=1, substeps=None, block_dim=None, onchip=None, exchange="auto",
+                 pinned=(0, 1)):  # fmt: skip
+    sim = Simulation(scene(n_points, extras, pinned=pinned), device=device, world_count=worlds, surface=False)
     sim.step()  # builds the assistant line, compiles
     solver = SemiImplicitEulerSolver(sim.model, block_dim=block_dim, onchip=onchip, exchange=exchange)
     n = substeps or sim.substeps
@@ -275,8 +282,14 @@ def main():
                         res[f"batch_onchip_{name}_block{bd}"] = substep_case(device, P, extras, a.reps, worlds=worlds, substeps=n, block_dim=bd, onchip=True)
                     except Exception as e:  # noqa: BLE001
                         res[f"batch_onchip_{name}_block{bd}"] = {"error": f"{type(e).__name__}: {e}"}
+    # A curved tube held at one point, its first edge free to turn: its first frame is twisted to
+    # the bending energy's minimum, one more scan a substep (on CUDA: shared-memory exchange).
+    base = res["batch_onchip_minimal"]["time_per_substep_us"]
+    for name, extras in (("curved", {"curved"}), ("all_features", True)):
+        c = substep_case(device, P, extras, a.reps, worlds=worlds, substeps=n, onchip=True, pinned=(0,))
+        c["over_minimal"] = c["time_per_substep_us"] / base
+        res[f"batch_onchip_{name}_free_turning"] = c
     if a.breakdown:
-        base = res["batch_onchip_minimal"]["time_per_substep_us"]
         for feat in FEATURES:
             for label, feats in (("only", {feat}), ("without", set(FEATURES) - {feat})):
                 c = substep_case(device, P, feats, a.reps, worlds=worlds, substeps=n, onchip=True)
