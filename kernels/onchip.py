@@ -55,7 +55,7 @@ import warp as wp
 
 from .frames import twist_terms, twisted
 from .options import CUDA_OPTIONS
-from .warp_shuffle import shfl_down, shfl_down3, shfl_up3, shfl_up_quat
+from .warp_shuffle import shfl_down, shfl_down3, shfl_up, shfl_up3, shfl_up_quat
 from .assistant_line import al_point_forces, al_springs
 from .springs import (
     ControlArrays,
@@ -92,7 +92,8 @@ def make_onchip_kernel(features: Features, block_dim: int, al_lines: int = 0, ma
     shuffles; CUDA, no tube spanning two warps) or "mixed" (CUDA: the scans of a curved tube by
     warp shuffles with one shared-memory carry between warps, the rest through shared memory).
     ``twist_free``: some curved tube's first edge may turn, so its first frame is twisted to the
-    bending energy's minimum (:func:`~.springs.curvature_targets`; shared memory only)."""
+    bending energy's minimum (:func:`~.springs.curvature_targets`; shared memory or shuffles,
+    not mixed)."""
     features = Features(*(bool(v) for v in features))
     if not 1 <= block_dim <= MAX_BLOCK_DIM:
         raise ValueError(f"block_dim must be in [1, {MAX_BLOCK_DIM}], got {block_dim}")
@@ -107,8 +108,8 @@ def make_onchip_kernel(features: Features, block_dim: int, al_lines: int = 0, ma
     BENDING = features.bending
     CURVED = features.curved and features.bending
     FREE = CURVED and bool(twist_free)  # the first frames of tubes free to turn: twisted to the minimum
-    if FREE and exchange != "shared":
-        raise ValueError("twist_free needs the shared-memory exchange")
+    if FREE and MIXED:
+        raise ValueError("twist_free needs the shared-memory or the shuffle exchange")
     SD = features.spring_damping
     K = int(al_lines) if features.assistant_line else 0
     KL = max(K, 1)  # register arrays need a row even without lines
@@ -242,7 +243,7 @@ def make_onchip_kernel(features: Features, block_dim: int, al_lines: int = 0, ma
         if wp.static(CURVED and not SCAN_SHUFFLE):
             frames = wp.tile_zeros(shape=(2, B), dtype=wp.quat, storage="shared")
             weights = wp.tile_zeros(shape=(2, B), dtype=float, storage="shared")
-        if wp.static(FREE):
+        if wp.static(FREE and not SHUFFLE):
             sums = wp.tile_zeros(shape=(2, B), dtype=wp.vec2, storage="shared")
         if wp.static(CURVED and MIXED):
             carry_q = wp.tile_zeros(shape=(B,), dtype=wp.quat, storage="shared")
@@ -395,17 +396,31 @@ def make_onchip_kernel(features: Features, block_dim: int, al_lines: int = 0, ma
                     ab = wp.vec2(0.0)
                     if has_prev and kb != 0.0 and free_tube:
                         ab = twist_terms(wp.normalize(e_prev), target, curvature_binormal(e_prev, e), kb)
-                    sums[0, lane] = ab
-                    rd = int(0)
-                    d = int(1)
-                    while d < span:
-                        if active and i + d < end:
-                            ab += sums[rd, lane + d]
-                        rd = 1 - rd
-                        sums[rd, lane] = ab
-                        d = d * 2
+                    total = wp.vec2(0.0)
+                    if wp.static(SHUFFLE):  # (the same sums in the same order, through registers)
+                        d = int(1)
+                        while d < span:
+                            ab_from = wp.vec2(shfl_down(ab[0], d), shfl_down(ab[1], d))
+                            if active and i + d < end and wl + d < 32:
+                                ab += ab_from
+                            d = d * 2
+                        back = int(0)  # from the tube's first lane (within this warp)
+                        if active:
+                            back = i - start
+                        total = wp.vec2(shfl_up(ab[0], back), shfl_up(ab[1], back))
+                    else:
+                        sums[0, lane] = ab
+                        rd = int(0)
+                        d = int(1)
+                        while d < span:
+                            if active and i + d < end:
+                                ab += sums[rd, lane + d]
+                            rd = 1 - rd
+                            sums[rd, lane] = ab
+                            d = d * 2
+                        if has_prev and kb != 0.0 and free_tube:
+                            total = sums[rd, lane - (i - start)]
                     if has_prev and kb != 0.0 and free_tube:
-                        total = sums[rd, lane - (i - start)]
                         if total[0] != 0.0 or total[1] != 0.0:
                             psi = wp.atan2(total[1], total[0])
                             target = twisted(wp.normalize(e_prev), target, wp.cos(psi), wp.sin(psi))

@@ -8,7 +8,7 @@ import warp as wp
 
 from warp_tube.model.tube import build_model
 from warp_tube.scene.spec import ForceSpec, Scene, SimulationSettings, TubeParams, TubeSpec
-from warp_tube.centerline.explicit import SemiImplicitEulerSolver
+from warp_tube.centerline.explicit import SemiImplicitEulerSolver, twist_free
 from warp_tube.centerline.stability import critical_time_step
 
 WORLDS = 5
@@ -241,14 +241,17 @@ def test_onchip_shuffle_exchange_matches_shared_memory_on_cuda(features):
     # allows the same ~30 ulp as the CPU comparisons above.
     # "padded": a 20-point tube a world, six worlds to a 128-thread block in the compact layout
     # (crossing warp boundaries): shuffles take a layout of one world a warp.
+    # Every tube clamped, the force's tube too (its line points beside the moving clamps); "free to
+    # turn": only the first tube clamped, the others' first frames twisted to the energy's minimum
+    # (a sum over each tube, through shuffles or shared memory).
     every = features.startswith("every")
+    free = features.endswith("free to turn")
     lengths = (20,) if features.endswith("padded") else (32, 16, 8, 8)
-    # Every tube clamped (a curved tube free to turn takes the shared-memory exchange only); the
-    # force's tube too, its line points beside the moving clamps.
     kw = dict(lengths=lengths, curved=every, spring_damping=1e-4 if every else 0.0, assistant_line=every, curve_all=every,
-              clamp_all=True)
+              clamp_all=not free)
     model = batch_model(device="cuda:0", **kw)
     assert model.features.assistant_line == every and model.features.curved == every
+    assert twist_free(model) == free
     out = {}
     for exchange in ("shuffle", "shared"):
         q, qd, al, solver = run_with_lines(model, onchip=True, exchange=exchange)

@@ -161,9 +161,9 @@ class SemiImplicitEulerSolver:
             aligned = True
         free = twist_free(m)
         if exchange == "auto":
-            exchange = "shuffle" if self.device.is_cuda and aligned and not free else "shared"
-        elif exchange != "shared" and free:
-            raise ValueError(f"exchange {exchange!r}: a curved tube free to turn needs the shared-memory exchange")
+            exchange = "shuffle" if self.device.is_cuda and aligned else "shared"
+        elif exchange == "mixed" and free:
+            raise ValueError("exchange 'mixed': a curved tube free to turn needs the shared-memory or the shuffle exchange")
         elif exchange == "shuffle" and not (self.device.is_cuda and aligned):
             raise ValueError("exchange 'shuffle' needs a CUDA device and tubes that each lie within one warp of 32 threads")
         elif exchange == "mixed" and not self.device.is_cuda:
