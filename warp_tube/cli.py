@@ -55,7 +55,7 @@ def _parser() -> argparse.ArgumentParser:
     p.add_argument("--version", action="version", version=f"%(prog)s {_version()}")
     sub = p.add_subparsers(dest="command", required=True, parser_class=_Parser)
 
-    r = sub.add_parser("run", help="simulate a scene and write a time-sampled USD stage",
+    r = sub.add_parser("run", allow_abbrev=False, help="simulate a scene and write a time-sampled USD stage",
                        description="Simulate the tubes of a USD scene and write their Centerline and Surface as a "
                        "time-sampled USD stage; prints a summary.")
     r.add_argument("scene", nargs="?", help="scene .usda/.usdc (default: the embedded default scene)")
@@ -67,7 +67,7 @@ def _parser() -> argparse.ArgumentParser:
     r.add_argument("--no-surface", action="store_true", help="write the Centerline only")
     r.add_argument("--quiet", action="store_true", help="no progress bar, no summary")
 
-    c = sub.add_parser("check", help="validate a scene without simulating",
+    c = sub.add_parser("check", allow_abbrev=False, help="validate a scene without simulating",
                        description="Validate a scene as run does, without simulating or writing anything.")
     c.add_argument("scene", help="scene .usda/.usdc to validate")
 
@@ -81,7 +81,7 @@ def _parser() -> argparse.ArgumentParser:
     e.add_argument("--scale", type=float, nargs="+", metavar="F", help="F, or FX FY FZ: metres per mesh unit (default 1: the mesh is in metres)")
     e.add_argument("--strict", action="store_true", help="refuse a mesh that is not tube-like instead of warning")
 
-    v = sub.add_parser("preview", help="render a contact sheet of an output stage to PNG",
+    v = sub.add_parser("preview", allow_abbrev=False, help="render a contact sheet of an output stage to PNG",
                        description="Render evenly spaced frames of an output stage's Surface meshes side by side into a "
                        "PNG (320 x 320 pixels a tile, 8 tiles a row); each tile after the first shows frame 0 in "
                        "light grey behind, so the motion shows.")
@@ -89,7 +89,7 @@ def _parser() -> argparse.ArgumentParser:
     v.add_argument("-o", "--output", required=True, help="PNG to write")
     v.add_argument("--frames", type=int, default=4, help="frames on the sheet, the first and last included (default 4)")
 
-    x = sub.add_parser("export", help="export an output stage's Surface as OBJ or glTF binary",
+    x = sub.add_parser("export", allow_abbrev=False, help="export an output stage's Surface as OBJ or glTF binary",
                        description="Write the Surface meshes of an output stage, one file per frame, for tools "
                        "without USD (OBJ in the stage's units and up axis; glTF binary in metres, Y up).")
     x.add_argument("stage", help="output stage written by run or batch (.usdc, .usda)")
@@ -117,6 +117,7 @@ def _parser() -> argparse.ArgumentParser:
     b.add_argument("--quick", action="store_true", help="the small problem set (tests, a first look)")
     b.add_argument("--repeat", type=int, help="interleaved repetitions (default 3; 1 with --quick)")
     b.add_argument("--replot", metavar="RESULTS", help="only rewrite report and plots from an earlier results.json")
+    p.commands = sub.choices  # each command's parser, by name
     for command in sub.choices.values():  # -v after the command too (warp-tube run -v ...)
         command.add_argument("-v", "--verbose", action="store_true", default=argparse.SUPPRESS,
                              help="as warp-tube -v: info messages, Warp's start-up lines, tracebacks of internal errors")
@@ -338,7 +339,10 @@ def main(argv=None) -> int:
     """Entry point of the ``warp-tube`` console script; returns the exit status."""
     from .runtime.warp_setup import set_verbose
 
-    args = _parser().parse_args(argv)
+    parser = _parser()
+    args, unknown = parser.parse_known_args(argv)
+    if unknown:  # named under the command's own usage, which lists its options
+        parser.commands[args.command].error(f"unrecognized arguments: {' '.join(unknown)}")
     raw = list(sys.argv[1:] if argv is None else argv)
     args.argv = raw[raw.index(args.command) + 1 :]  # the command's own arguments (after any -v before it)
     set_verbose(args.verbose)

@@ -23,6 +23,7 @@ from __future__ import annotations
 
 import logging
 import math
+import multiprocessing
 import os
 import re
 import signal
@@ -209,51 +210,56 @@ def _check_out_dir(out_dir: str, resume: bool) -> None:
 _OUTPUT_NAME = re.compile(r"^(?:variant_\d+(?:\.partial(?:-\d+)?)?\.usdc|\.batch.*)$")
 
 
-def _check_inputs_not_outputs(out_dir: str, scene: str, table: str | None) -> None:
-    """Refuse a scene or table that is (also through a link) a file the batch writes in ``out_dir``."""
+def _check_inputs_not_outputs(out_dir: str, inputs) -> None:
+    """Refuse an input (``(what, path)`` pairs: the scene, a layer or asset it uses, the table, a
+    file the table names) that is, also through a link, a file the batch writes in ``out_dir``."""
     real_dir = os.path.realpath(out_dir)
-    for what, path in (("the scene", scene), ("the variants table", table)):
+    grid = os.path.join(real_dir, "grid")
+    for what, path in inputs:
         if path is None:
             continue
         real = os.path.realpath(os.fspath(path))
         folder, name = os.path.split(real)
-        grid = os.path.join(real_dir, "grid")
         written = folder == real_dir and (name in BATCH_FILES or _OUTPUT_NAME.match(name))
         if written or folder == grid or folder.startswith(grid + os.sep) or folder.startswith(real_dir + os.sep + ".batch"):
             raise SceneError(f"{path}: {what} is in {out_dir} under a name the batch writes there ({name}): "
                              "move or rename it, or write the batch to another folder")  # fmt: skip
 
 
-def _named_files(tab) -> dict[str, str]:
-    """The files the table's cells name (``@`` columns, ``@FILE`` cells), as written, with the
-    SHA-256 of their bytes: a file changed between a batch and its ``--resume`` is seen."""
-    if tab is None:
-        return {}
+def _named_paths(tab) -> dict[str, str]:
+    """The files the table's cells name (``@`` columns, ``@FILE`` cells): name as written -> path."""
     names = set()
-    for j, col in enumerate(tab.columns):
+    for j, col in enumerate(tab.columns if tab is not None else ()):
         for cells in tab.rows:
             cell = cells[j]
             if col.files or cell.startswith("@"):
                 names.add(cell[1:].strip() if cell.startswith("@") else cell)
-    out = {}
-    for name in sorted(names):
-        path = name if os.path.isabs(name) else os.path.join(tab.folder, name)
-        out[name] = file_digest(path) if os.path.isfile(path) else None
-    return out
+    return {name: name if os.path.isabs(name) else os.path.join(tab.folder, name) for name in sorted(names)}
 
 
-def _scene_files(scene: str) -> dict[str, str]:
-    """The files the scene brings in (sublayers, references, payloads, assets; not itself), with
-    the SHA-256 of their bytes: a layer changed between a batch and its ``--resume`` is seen."""
+def _named_files(tab) -> dict[str, str]:
+    """:func:`_named_paths` with the SHA-256 of each file's bytes (None where there is none): a
+    file changed between a batch and its ``--resume`` is seen."""
+    return {name: file_digest(path) if os.path.isfile(path) else None for name, path in _named_paths(tab).items()}
+
+
+def _scene_dependencies(scene: str) -> list[str]:
+    """The files the scene brings in (sublayers, references, payloads, assets; not itself), as
+    real paths; none where the scene cannot be read (its reading says why)."""
     from pxr import UsdUtils
 
     try:
         layers, assets, _ = UsdUtils.ComputeAllDependencies(os.fspath(scene))
-    except Exception:  # (an unreadable scene: its reading says why)
-        return {}
-    root = os.path.realpath(scene)
+    except Exception:  # (an unreadable scene)
+        return []
     paths = {os.path.realpath(p) for p in [layer.realPath for layer in layers] + list(assets) if p}
-    return {p: file_digest(p) for p in sorted(paths - {root}) if os.path.isfile(p)}
+    return sorted(paths - {os.path.realpath(scene)})
+
+
+def _scene_files(scene: str) -> dict[str, str]:
+    """:func:`_scene_dependencies` with the SHA-256 of each file's bytes: a layer changed between a
+    batch and its ``--resume`` is seen."""
+    return {p: file_digest(p) for p in _scene_dependencies(scene) if os.path.isfile(p)}
 
 
 def _outputs_kept(done: dict, layout: str, out_dir: str, work_dir: str) -> dict:
@@ -325,6 +331,9 @@ def run_batch(scene: str, out_dir: str, table: str | None = None, *, variant_set
     """
     from .table import read_table
 
+    if getattr(multiprocessing.current_process(), "_inheriting", False):  # a spawned process importing __main__
+        raise SceneError('run_batch: called again by a process the batch started, as it imports the main module: '
+                         'in a script, call it under if __name__ == "__main__":')  # fmt: skip
     if variant_sets is not None and not isinstance(variant_sets, str):
         variant_sets = ",".join(str(v) for v in variant_sets) or None
     elif variant_sets is not None and not variant_sets.strip():
@@ -344,11 +353,13 @@ def run_batch(scene: str, out_dir: str, table: str | None = None, *, variant_set
     if writers is not None and writers < 0:
         raise SceneError(f"--writers {writers}: expected 0 or more")
     surface = (layout != "arrays") if surface is None else bool(surface)
-    _check_inputs_not_outputs(out_dir, scene, table)
-    _check_out_dir(out_dir, resume)
-    devices = _devices(device, workers, scheduler)
+    _check_inputs_not_outputs(out_dir, [("the scene", scene), ("the variants table", table)])
     with collector_paused():  # (a tuple per row: see runtime.collector)
         tab = read_table(table) if table is not None else None
+    _check_inputs_not_outputs(out_dir, [("a layer or asset the scene uses", p) for p in _scene_dependencies(scene)]
+                              + [("a file the table names", p) for p in _named_paths(tab).values()])  # fmt: skip
+    _check_out_dir(out_dir, resume)
+    devices = _devices(device, workers, scheduler)
     sims = 0 if scheduler else len(devices)
     sim_workers = SimWorkers(devices) if sims > 1 else None  # up while the variants are read
     writer_pool = None
@@ -488,6 +499,12 @@ def _finished(out_dir: str, result: BatchResult, t_start: float) -> BatchResult:
         rows = list(reader)
     if not {"name", "status", "reason"} <= set(reader.fieldnames or ()):
         raise SceneError(f"{out_dir}: no batch there to resume ({path} is not a batch's summary)")
+    outputs = dict.fromkeys(n for r in rows for n in r.get("output", "").split())
+    gone = [n for n in outputs if not os.path.exists(os.path.join(out_dir, n))]
+    if gone:
+        log.warning("--resume: %s, written by the finished batch there, is missing (%d output file(s) missing): "
+                    "a finished batch is not written again; run it into another folder",
+                    os.path.join(out_dir, gone[0]), len(gone))  # fmt: skip
     result.resumed = len(rows)
     result.ok = sum(r["status"] == "ok" for r in rows)
     result.failed = len(rows) - result.ok

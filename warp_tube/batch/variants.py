@@ -275,9 +275,10 @@ def plain_table(scene_path: str, table: Table | None) -> bool:
 
 
 def raise_problems(problems: list) -> None:
-    """Raise one SceneError listing ``problems`` ((row, message) pairs) in row order, if any."""
+    """Raise one SceneError listing ``problems`` ((row, message) pairs) in row order, if any; a
+    problem found again (a cell's, in each variantSet combination) is listed once."""
     if problems:
-        problems = sorted(problems, key=lambda p: p[0])
+        problems = sorted(dict.fromkeys(problems), key=lambda p: p[0])
         head = [msg for _, msg in problems[:MAX_PROBLEMS]]
         more = f"\n  ... and {len(problems) - MAX_PROBLEMS} more" if len(problems) > MAX_PROBLEMS else ""
         raise SceneError(f"{len(problems)} problem(s) in the variants; nothing was run:\n  " + "\n  ".join(head) + more)

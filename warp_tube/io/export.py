@@ -108,6 +108,24 @@ def surface_at(mesh, time) -> tuple[np.ndarray, np.ndarray, np.ndarray | None]:
     return verts, _triangles(np.asarray(counts), np.asarray(indices)), normals
 
 
+def _time_text(t: float) -> str:
+    """A time code as written in a message: ``3``, ``12.5``, ``1000000`` (no exponent)."""
+    return np.format_float_positional(float(t), trim="-")
+
+
+def _frames_text(times) -> str:
+    """The sampled time codes in words: ``frames 100..106 every 2`` (one step throughout), ``frames
+    0..9`` (step 1), ``frame 3``, or the list where the steps differ."""
+    steps = np.unique(np.round(np.diff(times), 6))
+    if len(times) == 1:
+        return f"frame {_time_text(times[0])}"
+    if len(steps) == 1:
+        step = f" every {_time_text(steps[0])}" if steps[0] != 1 else ""
+        return f"frames {_time_text(times[0])}..{_time_text(times[-1])}{step}"
+    shown = ", ".join(_time_text(t) for t in times[:8])
+    return f"frames {shown}" + (f", ... {_time_text(times[-1])}" if len(times) > 8 else "")
+
+
 def _frame_names(times) -> list[str]:
     """File-name frame numbers of a sequence: integer time codes zero-padded to one width (at least
     4, more where a frame needs it: 9999 and 10000 give ``09999`` and ``10000``), so the names sort
@@ -156,7 +174,7 @@ def export(usd_path, fmt: str = "obj", out=None, frame=None, overwrite: bool = F
     times = surface_frames(meshes)
     if frame is not None:
         if times and not any(abs(t - frame) < 1e-6 for t in times):
-            raise SceneError(f"{usd_path}: no Surface sample at frame {frame} (frames {times[0]:g}..{times[-1]:g})")
+            raise SceneError(f"{usd_path}: no Surface sample at frame {_time_text(frame)} ({_frames_text(times)})")
         times = [float(frame)]
     elif not times:
         times = [stage.GetStartTimeCode()]

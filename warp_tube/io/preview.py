@@ -5,7 +5,8 @@ shown frames (so motion between tiles is visible at one scale), looking down a f
 direction with the stage's up axis up, with two-sided Lambert shading lit from the camera
 (:func:`~warp_tube.kernels.shading.shade_orthographic_kernel` against a ``wp.Mesh``). Every tile
 after the first shows the first frame's silhouette in light grey behind the tube, so that motion
-small against the tube's size (a sag, a push of a few radii) shows.
+small against the tube's size (a sag, a push of a few radii) shows. A tube thinner than a pixel,
+which the rays would mostly miss, shows as its ``Centerline`` drawn one pixel wide.
 """
 
 from __future__ import annotations
@@ -27,6 +28,38 @@ GHOST = np.array([222, 221, 216], dtype=np.float64)  # the first frame's silhoue
 LABEL = (70, 70, 70)  # the frame label's colour (RGB)
 LABEL_MIN_TILE = 96  # tiles smaller than this [pixels] get no label
 SHEET_COLUMNS = 8  # tiles per row of the sheet; more frames wrap into further rows
+THIN_SHADE = 0.6  # brightness of a centerline drawn where its tube is thinner than a pixel
+
+
+def _centerlines_at(mesh, time) -> list[np.ndarray]:
+    """World-space points (P, 3) [stage units] of each curve of the ``Centerline`` beside a
+    Surface mesh at a time code (none where there is no such BasisCurves)."""
+    from pxr import UsdGeom
+
+    curves = UsdGeom.BasisCurves(mesh.GetPrim().GetParent().GetChild("Centerline"))
+    points = curves.GetPointsAttr().Get(time) if curves else None
+    if points is None or len(points) == 0:
+        return []
+    counts = curves.GetCurveVertexCountsAttr().Get() or [len(points)]
+    pts = np.asarray(points, dtype=np.float64).reshape(-1, 3)
+    xform = np.asarray(UsdGeom.XformCache(time).GetLocalToWorldTransform(curves.GetPrim()), dtype=np.float64)
+    pts = pts @ xform[:3, :3] + xform[3, :3]
+    if sum(counts) != len(pts):
+        return [pts]
+    return np.split(pts, np.cumsum(counts)[:-1])
+
+
+def _line_mask(polylines: list[np.ndarray], size: int) -> np.ndarray:
+    """Boolean (size, size) image of polylines given in pixel coordinates (x right, y down), one
+    pixel wide."""
+    from PIL import Image, ImageDraw
+
+    mask = Image.new("1", (size, size), 0)
+    draw = ImageDraw.Draw(mask)
+    for line in polylines:
+        if len(line) > 1 and np.all(np.isfinite(line)):
+            draw.line([tuple(p) for p in line], fill=1, width=1)
+    return np.asarray(mask, dtype=bool)
 
 
 def _pick_frames(times: list[float], count: int) -> list[float]:
@@ -80,8 +113,8 @@ def preview(usd_path, png_path, frames: int = 4, size: int = 320, device=None) -
         offsets = np.cumsum([0] + [len(v) for v, _, _ in parts])
         verts = np.concatenate([v for v, _, _ in parts])
         faces = np.concatenate([f + o for (_, f, _), o in zip(parts, offsets)])
-        geometry.append((verts, faces))
-    all_points = np.concatenate([v for v, _ in geometry])
+        geometry.append((verts, faces, [c for m in meshes for c in _centerlines_at(m, time)]))
+    all_points = np.concatenate([v for v, _, _ in geometry])
     if not np.all(np.isfinite(all_points)):
         raise SceneError(f"{usd_path}: Surface points are not finite")
     lo, hi = all_points.min(axis=0), all_points.max(axis=0)
@@ -106,7 +139,7 @@ def preview(usd_path, png_path, frames: int = 4, size: int = 320, device=None) -
     sheet[:] = BACKGROUND.astype(np.uint8)  # (a last row's empty tiles)
     image = wp.zeros((size, size), dtype=float, device=device)
     first = None  # the first frame's silhouette, drawn behind the later tiles
-    for k, (verts, faces) in enumerate(geometry):
+    for k, (verts, faces, lines) in enumerate(geometry):
         mesh = wp.Mesh(
             points=wp.array(verts.astype(np.float32), dtype=wp.vec3, device=device),
             indices=wp.array(faces.reshape(-1).astype(np.int32), dtype=wp.int32, device=device),
@@ -119,6 +152,10 @@ def preview(usd_path, png_path, frames: int = 4, size: int = 320, device=None) -
             device=device,
         )
         shade = image.numpy()[..., None].astype(np.float64)
+        # a tube thinner than a pixel, which the rays mostly miss, is drawn as its centerline
+        projected = [np.c_[(c - centre) @ right / pixel + 0.5 * size, 0.5 * size - (c - centre) @ up / pixel] for c in lines]
+        thin = _line_mask(projected, size)[..., None] & (shade < 0.0)
+        shade = np.where(thin, THIN_SHADE, shade)
         if first is None:
             first = shade >= 0.0
         behind = np.where(first, GHOST, BACKGROUND) if k > 0 else BACKGROUND

@@ -410,16 +410,18 @@ class Simulation(RunBudget):
             raise SceneError(f"frames {end}: this Simulation is already at frame {first}: expected more than {first}")
         if every < 1:
             raise SceneError(f"every {every}: expected at least 1")
-        written = [k for k in range(first, end) if k % every == 0]
+        # the frames written, first..end-1 divisible by every: counted, not listed (--frames may be huge)
+        first_written = -(-first // every) * every
+        written_count = max(0, (end - 1 - first_written) // every + 1)
         writer = None
-        if output and not written:
+        if output and not written_count:
             raise SceneError(f"every {every}: none of frames {first} to {end - 1} is a multiple of it: nothing to write")
-        if output and len(written) == 1 and end - first > 1:
-            self._warn(f"every {every}: of frames {first} to {end - 1} only frame {written[0]} is written")
+        if output and written_count == 1 and end - first > 1:
+            self._warn(f"every {every}: of frames {first} to {end - 1} only frame {first_written} is written")
         if output:
-            self._check_output_fits(len(written), output)
+            self._check_output_fits(written_count, output)
             inputs = [self.scene.source] if self.scene.source and os.path.exists(self.scene.source) else []
-            start_tc = info.start_time_code + (written[0] if written else first)
+            start_tc = info.start_time_code + (first_written if written_count else first)
             t_setup = time.perf_counter()
             with Phase(f"setting up {os.path.basename(str(output))} ({len(self.scene.tubes):,} tube prims)", enabled=bool(progress), after=1.0):
                 writer = open_writer(output, self.scene, self.surfaces, start_time_code=start_tc, inputs=inputs)
@@ -431,12 +433,12 @@ class Simulation(RunBudget):
             integrator=self.integrator, reason=self.reason, wall_time=0.0, max_displacement=0.0,
             stage_defaults=[k for k in ("metersPerUnit", "upAxis", "timeCodesPerSecond", "startTimeCode", "endTimeCode")
                             if k not in info.authored],
-            first_frame=written[0] if written else first, setup_time=setup_time + setup,
+            first_frame=first_written if written_count else first, setup_time=setup_time + setup,
         )  # fmt: skip
         self.last_summary = summary
         self._announce_long_run(end - 1 - first)
         if writer:
-            self._announce_large_output(len(written))
+            self._announce_large_output(written_count)
         pause = os.environ.get(PAUSE_ENV, "")
         bar = beat = None
         startup = Phase("compiling kernels (first run only) and simulating frame 1", enabled=progress, after=0.5)
