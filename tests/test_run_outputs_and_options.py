@@ -65,6 +65,7 @@ def test_a_frame_count_too_large_to_write_is_refused_at_once(tmp_path):
     done = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, timeout=120)
     assert done.returncode == 2, done.stderr
     assert "1,000,000,000,000 frames" in done.stderr and "--every K or --frames N" in done.stderr
+    assert " TB (" in done.stderr and "e+" not in done.stderr  # a size in words, not 44400000000000.0 GB
     assert not list(tmp_path.glob("*out*"))
 
 

@@ -74,5 +74,5 @@ def test_run_whose_output_cannot_fit_in_memory_is_refused_before_it_starts(tmp_c
     monkeypatch.setattr(memory, "available_memory", lambda: 10_000)  # bytes: less than 3 frames of the scene
     assert main(["run", "scene.usda", "-o", "out.usdc"]) == 2
     err = capsys.readouterr().err
-    assert "more than the 0.0 GB of memory available" in err and "x that while usd-core keeps it" in err and "--every K" in err
+    assert "more than the 10.0 kB of memory available" in err and "x that while usd-core keeps it" in err and "--every K" in err
     assert sorted(p.name for p in tmp_cwd.iterdir()) == ["scene.usda"]

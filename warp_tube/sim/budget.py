@@ -97,9 +97,9 @@ class RunBudget:
         size, free = frames * per_frame, memory.available_memory()
         if free is not None and OUTPUT_MEMORY_FACTOR * size > free:
             raise SceneError(
-                f"the output would hold about {size / 1e9:.1f} GB ({frames:,} frames x {per_frame:,} bytes), "
+                f"the output would hold about {_size(size)} ({frames:,} frames x {per_frame:,} bytes), "
                 f"and a run holds ~{OUTPUT_MEMORY_FACTOR:g}x that while usd-core keeps it until the run ends: more than the "
-                f"{free / 1e9:.1f} GB of memory available; --every K or --frames N write fewer frames"
+                f"{_size(free)} of memory available; --every K or --frames N write fewer frames"
             )  # fmt: skip
         if output is None:
             return
@@ -123,5 +123,9 @@ class RunBudget:
 
 
 def _size(n: float) -> str:
-    """``3.2 MB``, ``1.5 GB``."""
-    return f"{n / 1e9:.1f} GB" if n >= 1e9 else f"{n / 1e6:.1f} MB"
+    """A size [bytes] in words: ``10.0 kB``, ``3.2 MB``, ``1.5 GB``, ``44,400 TB``."""
+    if n >= 1e12:
+        return f"{n / 1e12:,.0f} TB" if n >= 1e14 else f"{n / 1e12:.1f} TB"
+    if n >= 1e9:
+        return f"{n / 1e9:.1f} GB"
+    return f"{n / 1e6:.1f} MB" if n >= 1e6 else f"{n / 1e3:.1f} kB"
