@@ -240,7 +240,7 @@ def test_an_output_larger_than_the_free_disk_space_is_refused_before_it_starts(t
     monkeypatch.setattr(memory, "available_disk", lambda folder: 10_000)  # bytes: less than one frame of the scene
     assert main(["run", "scene.usda", "-o", "out.usdc"]) == 2
     err = capsys.readouterr().err
-    assert f"more than the 0.0 MB free in {tmp_cwd}" in err and "write fewer frames" in err and "internal error" not in err
+    assert f"more than the 10.0 kB free in {tmp_cwd}" in err and "write fewer frames" in err and "internal error" not in err
     assert sorted(p.name for p in tmp_cwd.iterdir()) == ["out.usdc", "scene.usda"]
     assert (tmp_cwd / "out.usdc").read_bytes() == KEEP
 
