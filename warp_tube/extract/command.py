@@ -81,6 +81,11 @@ def extract_to_scene(mesh_path, output, *, hubs=None, spokes=16, scale=None, dev
     found = tube_warnings(tube, fid, automatic_hubs=hubs is None)
     if tube.length > 20.0:
         found.append(f"the tube is {tube.length:.3g} m long: is the mesh in mm or voxels? Pass --scale")
+    elif tube.length < 1e-3:  # under 1 mm: e.g. --scale 0.001 given for a mesh already in metres
+        found.append(
+            f"the tube is {tube.length:.3g} m long ({1e3 * tube.length:.3g} mm): is the mesh already in metres "
+            "(then leave --scale out), or is --scale too small?"
+        )
     for w in found:
         log.warning("%s: %s", mesh_path, w)
     warnings += found

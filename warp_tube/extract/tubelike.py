@@ -67,10 +67,8 @@ def check(tube: ExtractedTube, open_rays: np.ndarray, *, hubs_given: bool) -> li
     if fid is not None and not fid.within(*FIDELITY_BOUNDS):
         bounds = " / ".join(f"{100 * b:g}" for b in FIDELITY_BOUNDS)
         text = (
-            f"the rest surface misses the mesh: mesh to surface {100 * fid.to_surface.mean:.1f} / "
-            f"{100 * fid.to_surface.p99:.1f} / {100 * fid.to_surface.max:.1f} %, surface to mesh "
-            f"{100 * fid.to_input.mean:.1f} / {100 * fid.to_input.p99:.1f} / {100 * fid.to_input.max:.1f} % of the mean "
-            f"radius (mean / 99th percentile / largest; bounds {bounds} %)"
+            f"the rest surface misses the mesh: mesh to surface {_figures(fid.to_surface)}, surface to mesh "
+            f"{_figures(fid.to_input)} of the mean radius (mean / 99th percentile / largest; bounds {bounds} %)"
         )
         if hubs_given:
             spacing = tube.length / max(tube.hubs - 1, 1) / radius
@@ -80,6 +78,14 @@ def check(tube: ExtractedTube, open_rays: np.ndarray, *, hubs_given: bool) -> li
             )
         out.append(text)
     return out
+
+
+def _figures(d) -> str:
+    """One direction's mean / 99th percentile / largest distance in % of the mean radius, or
+    "not measured" where no point was measured (its figures are NaN)."""
+    if d.counted == 0:
+        return "not measured (no vertex away from the ends)"
+    return f"{100 * d.mean:.1f} / {100 * d.p99:.1f} / {100 * d.max:.1f} %"
 
 
 def ring_warning(ring) -> str:
