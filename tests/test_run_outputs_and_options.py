@@ -165,3 +165,13 @@ def test_two_curves_in_one_prim_pass_the_checker_and_export_outward(tmp_path):
     assert len(mesh.vertices) == 11 * 3 + caps
     assert mesh.is_winding_consistent and mesh.volume > 0
     assert sum(b.volume > 0 for b in mesh.split(only_watertight=True)) == 2
+
+
+def test_a_folder_given_as_the_output_is_named_as_a_folder(tmp_path, capsys):
+    # (it was reported as an output without an extension)
+    folder = tmp_path / "results"
+    folder.mkdir()
+    assert main(["run", "-o", str(folder), "--quiet", "--device", "cpu"]) == 2
+    err = capsys.readouterr().err
+    assert f"{folder}: is a folder" in err and str(folder / "out.usdc") in err and "extension" not in err
+    assert list(folder.iterdir()) == []

@@ -95,10 +95,11 @@ def output_path(path, extensions: Iterable[str], *, inputs: Iterable = (), what:
     path = os.path.abspath(raw)
     ext = os.path.splitext(path)[1].lower()
     extensions = tuple(extensions)
+    if os.path.isdir(path):  # (before the extension: a folder is named as one)
+        raise SceneError(f"{raw}: is a folder: expected a file name for the {what}, e.g. "
+                         f"{os.path.join(raw, 'out' + extensions[0]) if extensions else raw}")  # fmt: skip
     if ext not in extensions:
         raise SceneError(f"{raw}: {what} extension {ext or '(none)'}: expected {', '.join(extensions)}")
-    if os.path.isdir(path):
-        raise SceneError(f"{raw}: is a folder: expected a file name for the {what}")
     folder = os.path.dirname(path)
     if not os.path.isdir(folder):
         raise SceneError(f"{raw}: cannot write the {what}: folder {folder} does not exist")
