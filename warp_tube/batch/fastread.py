@@ -21,7 +21,7 @@ from __future__ import annotations
 
 import numpy as np
 
-from ..scene.spec import Scene, replace_checked
+from ..scene.spec import Scene
 
 __all__ = ["PlainColumns"]
 

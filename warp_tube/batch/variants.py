@@ -22,7 +22,7 @@ from typing import NamedTuple
 
 import numpy as np
 
-from ..runtime.log_filters import once_each, silenced
+from ..runtime.log_filters import once_each
 from ..scene.spec import Scene, SceneError
 from .fastread import TUBE_SCALARS, PlainColumns
 from .table import Table
