@@ -130,3 +130,14 @@ def test_resuming_a_finished_batch_whose_output_was_deleted_warns_naming_it(tmp_
     warned = [r.getMessage() for r in caplog.records if r.levelname == "WARNING"]
     assert any("variant_00001.usdc" in m and "missing" in m for m in warned), warned
     assert not (out / "variant_00001.usdc").exists()
+
+
+def test_a_column_for_a_prim_the_scene_does_not_have_names_the_scenes_prims(tmp_path):
+    # /World/Tube is the default scene's tube; the intestine's is /World/Bowel (too far apart for
+    # a did-you-mean): the message lists the prims a column can set.
+    table = tmp_path / "t.csv"
+    table.write_text("/World/Tube.warptube:youngsModulus\n20000\n")
+    scene = Path(__file__).resolve().parents[1] / "scenes" / "intestine.usda"
+    with pytest.raises(SceneError, match=r"no prim /World/Tube in .*\(the scene's warp_tube prims: .*/World/Bowel, /World/Push\)"):
+        run_batch(str(scene), str(tmp_path / "out"), str(table), frames=2)
+    assert not (tmp_path / "out").exists()

@@ -224,6 +224,19 @@ def _did_you_mean(name: str, choices: list[str]) -> str:
     return f" (did you mean {close[0]}?)" if close else ""
 
 
+def _scene_prims_hint(stage, most: int = 6) -> str:
+    """`` (the scene's warp_tube prims: /World/Bowel, /World/Push)``: the prims of the stage that
+    hold ``warptube:`` attributes or are curves (at most ``most`` named), or ""."""
+    from pxr import UsdGeom
+
+    found = [str(p.GetPath()) for p in stage.Traverse()
+             if p.IsA(UsdGeom.BasisCurves) or any(n.startswith("warptube:") for n in p.GetPropertyNames())]  # fmt: skip
+    if not found:
+        return ""
+    more = f", ... ({len(found)} in all)" if len(found) > most else ""
+    return f" (the scene's warp_tube prims: {', '.join(found[:most])}{more})"
+
+
 def _resolve_columns(stage, table: Table, context: str):
     """Per column: the attribute to author and its USD type name (or a problem message)."""
     from pxr import Sdf
@@ -233,7 +246,8 @@ def _resolve_columns(stage, table: Table, context: str):
         prim = stage.GetPrimAtPath(col.prim)
         if not prim:
             paths = [str(p.GetPath()) for p in stage.Traverse()]
-            out.append((None, None, f"{table.path}: column {col.header}: no prim {col.prim} in {context}{_did_you_mean(col.prim, paths)}"))
+            hint = _did_you_mean(col.prim, paths) or _scene_prims_hint(stage)
+            out.append((None, None, f"{table.path}: column {col.header}: no prim {col.prim} in {context}{hint}"))
             continue
         if col.attribute == "widths" and prim.GetAttribute("primvars:widths").HasAuthoredValue():
             out.append((None, None, f"{table.path}: column {col.header}: {col.prim} authors primvars:widths, which "
