@@ -71,3 +71,22 @@ def test_the_same_positions_array_checked_again_after_it_moves(n):
     for host, expected in ((near, -0.05), (far, 0.0), (near, -0.05)):
         q.assign(host["node_rest_q"])
         np.testing.assert_allclose(mon.deepest(q), [expected], atol=1e-6)  # float32 round-off, as above
+
+
+@pytest.mark.parametrize("vary", [False, True])
+def test_worlds_of_one_geometry_share_one_worlds_pairs(vary):
+    # A batch's worlds of one geometry (equal blocks with the same radii, arclengths and tubes)
+    # take one world's distant pairs, offset world after world: the same pairs as testing every
+    # world's own (exact integer sets); a world with other radii takes the general path.
+    rng = np.random.default_rng(0)
+    W, N = 16, 20
+    rest = np.repeat(np.cumsum(rng.normal(size=(1, N, 3)) * 0.01, axis=1), W, axis=0)
+    r = np.full((W, N), 0.01)
+    if vary:
+        r[3] *= 2.0
+    start = np.array([0, 12, 20])
+    starts = (start[:-1][None] + N * np.arange(W)[:, None]).reshape(-1)
+    m = ContactMonitor(rest.reshape(-1, 3), r.reshape(-1), np.append(starts, W * N), node_group=np.repeat(np.arange(W), N), small=32)
+    got = m._pairs[0].numpy().astype(np.int64) * (W * N) + m._pairs[1].numpy()
+    i, j = m._keep(*proximity._group_pairs(m.group))
+    assert len(got) > 0 and np.array_equal(np.sort(got), np.sort(i * (W * N) + j))

@@ -23,7 +23,7 @@ import numpy as np
 
 from ..scene.spec import Scene
 
-__all__ = ["PlainColumns"]
+__all__ = ["PlainColumns", "may_be_plain"]
 
 #: tube attributes taken here: TubeParams field, and whether the value must be > 0 (else >= 0)
 TUBE_SCALARS = {
@@ -37,6 +37,15 @@ TUBE_SCALARS = {
 MAX_DENSITY, MAX_YOUNGS, MAX_FORCE = 1e6, 1e13, 1e9
 SCALAR_TYPES = {"double": np.float64, "float": np.float32}
 VECTOR_TYPES = {"double3": np.float64, "float3": np.float32}
+#: the force attribute taken here: the force's vector
+FORCE = "warptube:force"
+
+
+def may_be_plain(attribute: str) -> bool:
+    """Whether a column setting ``attribute`` may be taken here (a tube's scalar parameter or a
+    force's vector): judged by the name alone, before the scene is read (:meth:`PlainColumns.of`
+    decides with the prim and the type)."""
+    return attribute in TUBE_SCALARS or attribute == FORCE
 
 
 class PlainColumns:
@@ -64,7 +73,7 @@ class PlainColumns:
                 return None
             if prim in tubes and attr in TUBE_SCALARS and type_name in SCALAR_TYPES:
                 continue
-            if prim in forces and attr == "warptube:force" and type_name in VECTOR_TYPES:
+            if prim in forces and attr == FORCE and type_name in VECTOR_TYPES:
                 continue
             return None
         return cls(base, targets)
@@ -84,7 +93,7 @@ class PlainColumns:
         force_values: dict = {}  # force index -> (rows, 3) float64
         with np.errstate(over="ignore", invalid="ignore"):
             for (prim, attr, type_name), values in zip(self.targets, columns):
-                if attr == "warptube:force":
+                if attr == FORCE:
                     v = np.asarray(np.asarray(values, dtype=VECTOR_TYPES[type_name]), dtype=np.float64).reshape(rows, 3)
                     good &= np.isfinite(v).all(axis=1) & (np.abs(v).max(axis=1, initial=0.0) <= MAX_FORCE)
                     force_values[self.force_of[prim]] = v

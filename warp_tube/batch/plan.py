@@ -98,18 +98,21 @@ def run_choices(scenes: list[Scene], block: int | None = None, plain: bool = Fal
     out: list = [None] * len(scenes)
     first_of: dict = {}  # content key -> index of the first scene with it
     keys: list = []
-    layouts: dict = {None: list(range(len(scenes)))} if plain and scenes else {}
+    layouts: dict = {}
     memo: dict = {}
-    for i, s in enumerate(scenes if not plain else ()):
-        tubes = tuple(_tube_key(t, memo) for t in s.tubes)
-        # the forces' tubes and lines: how many lines each tube carries, which the bound counts
-        lines = tuple((f.tube, f.assistant_line) for f in s.forces)
-        key = (tubes, lines, s.settings, s.stage.frame_dt)
-        keys.append(key)
-        if first_of.setdefault(key, i) != i:  # (one hash of the key)
-            continue
-        layout = (tuple(g[2] for g, _ in tubes), lines)  # curve point counts, lines on each tube
-        layouts.setdefault(layout, []).append(i)
+    if plain:
+        layouts = {None: list(range(len(scenes)))} if scenes else {}
+    else:
+        for i, s in enumerate(scenes):
+            tubes = tuple(_tube_key(t, memo) for t in s.tubes)
+            # the forces' tubes and lines: how many lines each tube carries, which the bound counts
+            lines = tuple((f.tube, f.assistant_line) for f in s.forces)
+            key = (tubes, lines, s.settings, s.stage.frame_dt)
+            keys.append(key)
+            if first_of.setdefault(key, i) != i:  # (one hash of the key)
+                continue
+            layout = (tuple(g[2] for g, _ in tubes), lines)  # curve point counts, lines on each tube
+            layouts.setdefault(layout, []).append(i)
     for members in layouts.values():
         one = None  # the layout's topology, built once
         nodes = sum(len(t.points) for t in scenes[members[0]].tubes)

@@ -86,7 +86,7 @@ def _prepare_batch(scene, table, variant_sets, bar, pool, pool_size):
     rows = len(table.rows) if table is not None else 1
     width = pool_size if pool is not None else (os.cpu_count() or 1)
     per_process = PREPARE_ROWS_PER_PROCESS
-    if rows >= 2 * per_process and not variant_sets and plain_table(scene, table):
+    if rows >= 2 * per_process and not variant_sets and plain_table(table):
         per_process *= PLAIN_ROWS_FACTOR  # rows made from the base scene: new processes pay less often
     parts = min(PREPARE_PROCESSES, width, rows // per_process)
 

@@ -237,10 +237,10 @@ def _named_paths(tab) -> dict[str, str]:
     return {name: name if os.path.isabs(name) else os.path.join(tab.folder, name) for name in sorted(names)}
 
 
-def _named_files(tab) -> dict[str, str]:
-    """:func:`_named_paths` with the SHA-256 of each file's bytes (None where there is none): a
-    file changed between a batch and its ``--resume`` is seen."""
-    return {name: file_digest(path) if os.path.isfile(path) else None for name, path in _named_paths(tab).items()}
+def _named_files(named: dict[str, str]) -> dict[str, str]:
+    """The files the table names (:func:`_named_paths`) with the SHA-256 of each file's bytes
+    (None where there is none): a file changed between a batch and its ``--resume`` is seen."""
+    return {name: file_digest(path) if os.path.isfile(path) else None for name, path in named.items()}
 
 
 def _scene_dependencies(scene: str) -> list[str]:
@@ -256,10 +256,10 @@ def _scene_dependencies(scene: str) -> list[str]:
     return sorted(paths - {os.path.realpath(scene)})
 
 
-def _scene_files(scene: str) -> dict[str, str]:
-    """:func:`_scene_dependencies` with the SHA-256 of each file's bytes: a layer changed between a
-    batch and its ``--resume`` is seen."""
-    return {p: file_digest(p) for p in _scene_dependencies(scene) if os.path.isfile(p)}
+def _scene_files(dependencies: list[str]) -> dict[str, str]:
+    """The scene's files (:func:`_scene_dependencies`) with the SHA-256 of each file's bytes: a
+    layer changed between a batch and its ``--resume`` is seen."""
+    return {p: file_digest(p) for p in dependencies if os.path.isfile(p)}
 
 
 def _outputs_kept(done: dict, layout: str, out_dir: str, work_dir: str) -> dict:
@@ -356,8 +356,9 @@ def run_batch(scene: str, out_dir: str, table: str | None = None, *, variant_set
     _check_inputs_not_outputs(out_dir, [("the scene", scene), ("the variants table", table)])
     with collector_paused():  # (a tuple per row: see runtime.collector)
         tab = read_table(table) if table is not None else None
-    _check_inputs_not_outputs(out_dir, [("a layer or asset the scene uses", p) for p in _scene_dependencies(scene)]
-                              + [("a file the table names", p) for p in _named_paths(tab).values()])  # fmt: skip
+    layers, named = _scene_dependencies(scene), _named_paths(tab)
+    _check_inputs_not_outputs(out_dir, [("a layer or asset the scene uses", p) for p in layers]
+                              + [("a file the table names", p) for p in named.values()])  # fmt: skip
     _check_out_dir(out_dir, resume)
     devices = _devices(device, workers, scheduler)
     sims = 0 if scheduler else len(devices)
@@ -370,7 +371,7 @@ def run_batch(scene: str, out_dir: str, table: str | None = None, *, variant_set
             return _run_batch(scene, out_dir, table, tab, devices, writer_pool, sim_workers, t_start, lock,
                               variant_sets=variant_sets, layout=layout, every=every, frames=frames, surface=surface,
                               device=device, chunk=chunk, scheduler=scheduler, resume=resume, progress=progress,
-                              on_chunk=on_chunk)  # fmt: skip
+                              on_chunk=on_chunk, layers=layers, named=named)  # fmt: skip
     except BaseException:
         if sim_workers is not None:  # bad input or interrupted: do not wait for them
             sim_workers.terminate()
@@ -384,7 +385,7 @@ def run_batch(scene: str, out_dir: str, table: str | None = None, *, variant_set
 
 
 def _run_batch(scene, out_dir, table, tab, devices, writer_pool, sim_workers, t_start, lock, *, variant_sets, layout, every,
-               frames, surface, device, chunk, scheduler, resume, progress, on_chunk) -> BatchResult:  # fmt: skip
+               frames, surface, device, chunk, scheduler, resume, progress, on_chunk, layers, named) -> BatchResult:  # fmt: skip
 
     bar = Progress(progress)
     readers = writer_pool.pool if writer_pool.processes else None  # idle until the first chunk is simulated
@@ -419,11 +420,11 @@ def _run_batch(scene, out_dir, table, tab, devices, writer_pool, sim_workers, t_
                      table=os.path.abspath(table) if table else None, table_sha256=file_digest(table),
                      variant_sets=variant_sets, layout=layout, every=every, frames=n_frames, surface=surface,
                      chunk=chunk, variants=len(variants))  # fmt: skip
-    named, layers = _named_files(tab), _scene_files(scene)
-    if named:  # (left out where there are none: a batch begun before they were recorded resumes)
-        signature["table_files"] = named
-    if layers:
-        signature["scene_files"] = layers
+    table_files, scene_files = _named_files(named), _scene_files(layers)
+    if table_files:  # (left out where there are none: a batch begun before they were recorded resumes)
+        signature["table_files"] = table_files
+    if scene_files:
+        signature["scene_files"] = scene_files
     if len(F_idx) == 1 and n_frames > 1:
         log.warning("--every %d: of frames 0 to %d only frame 0 is written", every, n_frames - 1)
     result = BatchResult(out_dir=out_dir, variants=len(variants), groups=len({c.group for c in plan}), chunks=len(plan),

@@ -204,22 +204,18 @@ def parse_plain_column(texts: list[str], type_name: str) -> list | None:
             top = _REAL_MAX[type_name]
         else:
             stripped = [t.strip().strip("()[]") for t in texts]
-            if any(c != 2 for c in map(_count_commas, stripped)):
+            if any(t.count(",") != 2 for t in stripped):
                 return None
             values = list(map(float, ",".join(stripped).split(",")))
             top = _REAL_MAX[type_name[:-1]]
     except ValueError:
         return None
-    a = np.abs(np.asarray(values, dtype=np.float64))
-    if not (a <= top).all():  # (NaN too: parse_plain leaves those to parse_value)
+    a = np.asarray(values, dtype=np.float64)
+    if not (np.abs(a) <= top).all():  # (NaN too: parse_plain leaves those to parse_value)
         return None
     if n == 1:
         return values
-    return [tuple(v) for v in np.asarray(values, dtype=np.float64).reshape(-1, 3).tolist()]
-
-
-def _count_commas(text: str) -> int:
-    return text.count(",")
+    return [tuple(v) for v in a.reshape(-1, 3).tolist()]
 
 
 def _why(text: str, kind: str, n: int, array: bool) -> str:

@@ -24,7 +24,7 @@ import numpy as np
 
 from ..runtime.log_filters import once_each
 from ..scene.spec import Scene, SceneError
-from .fastread import TUBE_SCALARS, PlainColumns
+from .fastread import PlainColumns, may_be_plain
 from .table import Table
 from .values import CONTRACT_TYPES, parse_plain, parse_plain_column, parse_value
 
@@ -278,14 +278,11 @@ def prepare_variants(scene_path: str, table: Table | None = None, variant_sets: 
     return variants
 
 
-def plain_table(scene_path: str, table: Table | None) -> bool:
-    """Whether ``table``'s columns may all be read as plain values (:mod:`warp_tube.batch.fastread`),
-    judged by their attributes alone (a tube's scalar parameter or a force's vector, no file
-    column), without reading the scene: what deciding how many processes read the table needs.
-    Whether each row is read that way is decided when it is read (``scene_path``: unused here)."""
-    if table is None:
-        return False
-    return all(not c.files and (c.attribute in TUBE_SCALARS or c.attribute == "warptube:force") for c in table.columns)
+def plain_table(table: Table | None) -> bool:
+    """Whether ``table``'s columns may all be read as plain values (:func:`~warp_tube.batch.fastread.may_be_plain`,
+    no file column), judged without reading the scene: what deciding how many processes read the
+    table needs. Whether each row is read that way is decided when it is read."""
+    return table is not None and all(not c.files and may_be_plain(c.attribute) for c in table.columns)
 
 
 def raise_problems(problems: list) -> None:

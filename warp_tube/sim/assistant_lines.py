@@ -57,13 +57,13 @@ class AssistantLines:
     def set_forces(self, forces: np.ndarray) -> None:
         """Each world's model forces [N], (W, F, 3) or (F, 3) for every world alike (model order);
         uploaded only where they differ from the last ones given."""
-        if self._forces_last is not None and (forces is self._forces_last or np.array_equal(forces, self._forces_last)):
+        f = np.array(forces, dtype=np.float64)  # (a copy: the caller may change its array later)
+        if self._forces_last is not None and np.array_equal(f, self._forces_last):
             return
-        f = np.asarray(forces, dtype=np.float64)
+        self._forces_last = f
         if f.ndim == 2:
             f = np.broadcast_to(f, (self.model.world_count, *f.shape))
         self.force.assign(np.ascontiguousarray(f))
-        self._forces_last = forces
 
     def update(self, state, control) -> None:
         """Build, keep or remove each world's lines for the frame starting from ``state`` (the

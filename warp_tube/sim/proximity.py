@@ -35,20 +35,30 @@ def rest_arclength(rest: np.ndarray, tube_node_start: np.ndarray) -> np.ndarray:
     return arc - arc[..., start[:-1]][..., tube]
 
 
+def _block_size(group: np.ndarray) -> int:
+    """The size of the groups where they are equal blocks in a row (a batch's worlds), else 0."""
+    sizes = np.bincount(group)
+    b = int(sizes[0])
+    return b if (sizes == b).all() and np.array_equal(group, np.repeat(np.arange(len(sizes)), b)) else 0
+
+
+def _tiled(i: np.ndarray, j: np.ndarray, size: int, blocks: int) -> tuple[np.ndarray, np.ndarray]:
+    """Pairs ``i``, ``j`` of one block of ``size`` points, offset block after block (``blocks``)."""
+    offset = (np.arange(blocks) * size)[:, None]
+    return (i[None] + offset).reshape(-1), (j[None] + offset).reshape(-1)
+
+
 def _group_pairs(group: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
     """Every pair ``i < j`` of points of one group, ``group`` (node,) int: built per group (a
     batch's worlds: equal blocks in a row, one block's pairs offset block after block)."""
     n = len(group)
     if n == 0:
         return np.zeros(0, np.int64), np.zeros(0, np.int64)
-    sizes = np.bincount(group)
-    blocks = len(sizes)
-    if (sizes == sizes[0]).all() and np.array_equal(group, np.repeat(np.arange(blocks), sizes[0])):
-        i, j = np.triu_indices(int(sizes[0]), 1)
-        offset = (np.arange(blocks) * sizes[0])[:, None]
-        return (i[None] + offset).reshape(-1), (j[None] + offset).reshape(-1)
+    b = _block_size(group)
+    if b:
+        return _tiled(*np.triu_indices(b, 1), b, n // b)
     out_i, out_j = [], []
-    for g in range(blocks):
+    for g in range(int(group.max()) + 1):
         nodes = np.flatnonzero(group == g)
         i, j = np.triu_indices(len(nodes), 1)
         out_i.append(nodes[i])
@@ -107,16 +117,13 @@ class ContactMonitor:
         docstring). Groups that are equal blocks in a row with the same radii, arclengths and
         tubes (a batch's worlds of one geometry) share one block's pairs, offset block after block."""
         n = self.node_count
-        sizes = np.bincount(self.group)
-        b = int(sizes[0])
-        if len(sizes) > 1 and (sizes == b).all() and np.array_equal(self.group, np.repeat(np.arange(len(sizes)), b)):
+        b = _block_size(self.group) if n else 0
+        if b and n > b:
             radius, arc = self.radius.reshape(-1, b), self.arc.reshape(-1, b)
             tube = self.tube.reshape(-1, b)
             tube = tube - tube[:, :1]  # (each block's own tubes, numbered from its first)
             if (radius == radius[:1]).all() and (arc == arc[:1]).all() and (tube == tube[:1]).all():
-                i, j = self._keep(*np.triu_indices(b, 1))
-                offset = (np.arange(n // b) * b)[:, None]
-                return (i[None] + offset).reshape(-1), (j[None] + offset).reshape(-1)
+                return _tiled(*self._keep(*np.triu_indices(b, 1)), b, n // b)
         return self._keep(*_group_pairs(self.group))
 
     def _keep(self, i: np.ndarray, j: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
