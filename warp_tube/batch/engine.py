@@ -32,6 +32,7 @@ from .contacts import WorldContacts
 from .control import WorldControl
 from .framestore import FrameStore, done_future
 from .plan import RunChoice
+from .rows import Rows
 from .worlds import build_worlds, initial_state
 
 __all__ = ["ChunkRun", "simulate_chunk", "output_frames", "chunk_shapes"]
@@ -61,7 +62,7 @@ class ChunkRun:
 
     Attributes:
         arrays: the output arrays by name (see the module docstring).
-        rows: per variant (chunk order) its summary fields: status ("ok" or "failed"), reason,
+        rows: per variant (chunk order) its summary fields (:class:`~warp_tube.batch.rows.Rows`): status ("ok" or "failed"), reason,
             frames (written), frames_simulated, integrator, substeps, rerun (run alone),
             max_displacement_m, tip (the first tube's last point at the end, stage units, (3,)),
             kinetic_energy_J (at the end), work_J (of the forces and gravity, in all),
@@ -74,7 +75,7 @@ class ChunkRun:
     """
 
     arrays: dict
-    rows: list
+    rows: Rows
     timings: dict = field(default_factory=lambda: dict.fromkeys(TIMERS, 0.0))
     ready: cf.Future = field(default_factory=done_future)
 
@@ -171,16 +172,15 @@ def simulate_chunk(scenes: list[Scene], choice: RunChoice, device: str, frames: 
     first_tip = int(np.cumsum(scenes[0].tubes[0].curve_counts)[0]) - 1
     tips = (q[:, first_tip] / mpu).astype(np.float64).tolist()
     touched = [f if f >= 0 else "" for f in contacts.frame.tolist()]
-    columns = zip(frames_written.tolist(), frames_simulated.tolist(), max_disp.tolist(), tips, np.asarray(ke, dtype=np.float64).tolist(),
-                  np.asarray(checks.work, dtype=np.float64).tolist(), touched)  # fmt: skip
-    rows = [dict(status="ok", reason="", frames=fw, frames_simulated=fs, integrator=choice.integrator, substeps=choice.substeps,
-                 rerun=False, max_displacement_m=d, tip=tip, kinetic_energy_J=e, work_J=wk, contact_frame=cf)
-            for fw, fs, d, tip, e, wk, cf in columns]  # fmt: skip
+    rows = Rows(dict(status=["ok"] * W, reason=[""] * W, frames=frames_written.tolist(), frames_simulated=frames_simulated.tolist(),
+                     integrator=[choice.integrator] * W, substeps=[choice.substeps] * W, rerun=[False] * W,
+                     max_displacement_m=max_disp.tolist(), tip=tips, kinetic_energy_J=np.asarray(ke, dtype=np.float64).tolist(),
+                     work_J=np.asarray(checks.work, dtype=np.float64).tolist(), contact_frame=touched))  # fmt: skip
     t = time.perf_counter()
     if failed:
         ready.result()  # the worlds run alone write over their rows of the copied frames
     for w in sorted(failed):
-        rows[w] = _run_alone(scenes[w], w, device, frames, every, surface, arrays, first_tip)
+        rows.put(w, _run_alone(scenes[w], w, device, frames, every, surface, arrays, first_tip))
     timings["rerun_s"] += time.perf_counter() - t
     return ChunkRun(arrays=arrays, rows=rows, timings=timings, ready=ready)
 

@@ -29,6 +29,7 @@ import numpy as np
 from ..scene.spec import SceneError
 from .engine import TIMERS, chunk_shapes, simulate_chunk
 from .outputs import WriteTask, write
+from .rows import Rows
 
 __all__ = ["Writers", "SimWorkers", "writer_count", "run_here", "run_pooled", "ignore_sigint", "add_timings", "with_rows",
            "write_tasks"]
@@ -297,12 +298,12 @@ class BufferRing:
         return allocate
 
 
-def with_rows(tasks: list[WriteTask], rows: list, arrays: dict) -> list[WriteTask]:
+def with_rows(tasks: list[WriteTask], rows, arrays: dict) -> list[WriteTask]:
     """Fill the write tasks of a chunk with the simulation's rows and arrays."""
     out = []
     for t in tasks:
         out.append(WriteTask(spec=t.spec, chunk=t.chunk, variants=t.variants, positions=t.positions,
-                             rows=tuple(rows[p] for p in t.positions), arrays=arrays))  # fmt: skip
+                             rows=rows.take(t.positions), arrays=arrays))  # fmt: skip
     return out
 
 
@@ -329,7 +330,7 @@ def write_tasks(chunk, context, parts: int) -> list[WriteTask]:
     for a, b in zip(bounds[:-1], bounds[1:]):
         if b > a:
             vs = tuple((i, variants[i].name, variants[i].scene) for i in idx[a:b])
-            out.append(WriteTask(spec=spec, chunk=chunk.id, variants=vs, positions=tuple(range(a, b)), rows=(), arrays={}))
+            out.append(WriteTask(spec=spec, chunk=chunk.id, variants=vs, positions=tuple(range(a, b)), rows=Rows({}), arrays={}))
     return out
 
 

@@ -105,7 +105,7 @@ class Journal:
             done = {}
             for path in sorted(glob.glob(os.path.join(self.chunk_dir, "chunk_*.json"))):
                 with open(path, encoding="utf-8") as f:
-                    rec = _from_columns(json.load(f))
+                    rec = json.load(f)
                 done[int(rec["chunk"])] = rec
             return done
         os.makedirs(self.chunk_dir, exist_ok=True)
@@ -114,7 +114,7 @@ class Journal:
 
     def record(self, chunk: int, record: dict) -> None:
         """Mark chunk ``chunk`` finished (all its outputs complete)."""
-        self._atomic(os.path.join(self.chunk_dir, f"chunk_{chunk:05d}.json"), _to_columns(dict(record, chunk=chunk)))
+        self._atomic(os.path.join(self.chunk_dir, f"chunk_{chunk:05d}.json"), dict(record, chunk=chunk))
 
     def finish(self) -> None:
         """The batch is complete: keep its signature (as :meth:`begin` had it) beside the outputs,
@@ -152,21 +152,3 @@ def _what(key: str, old, new) -> str:
         old, new = ("written" if x else "not written" for x in (old, new))
         return f"Surface ({old} then, {new} now: --no-surface, --surface-arrays)"
     return f"{name} ({old} then, {new} now)"
-
-
-def _to_columns(record: dict) -> dict:
-    """A chunk's record with its rows (``{batch index: {field: value}}``, every row the same
-    fields) as one list per field: fewer, longer lists for the JSON encoder than a dict per row."""
-    rows = record["rows"]
-    fields = list(next(iter(rows.values()))) if rows else []
-    out = {k: v for k, v in record.items() if k != "rows"}
-    out["rows"] = {"index": list(rows), **{f: [r[f] for r in rows.values()] for f in fields}}
-    return out
-
-
-def _from_columns(record: dict) -> dict:
-    """:func:`_to_columns` undone."""
-    cols = record["rows"]
-    index = cols.pop("index")
-    fields = list(cols)
-    return dict(record, rows={i: dict(zip(fields, values)) for i, values in zip(index, zip(*cols.values()))})

@@ -36,6 +36,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from ..scene.spec import Scene
+from .rows import Rows
 
 __all__ = ["OutputSpec", "WriteTask", "write", "surface_topology", "grid_offset", "write_summary", "summary_lines", "SUMMARY_FIELDS",
            "prepare_arrays", "finish_arrays", "write_grid_root", "LAYOUTS"]  # fmt: skip
@@ -86,7 +87,8 @@ class WriteTask:
         chunk: the chunk's id.
         variants: the variants (batch index, name, scene), in chunk order.
         positions: each variant's place in the chunk's arrays (the world).
-        rows: each variant's summary fields from the simulation (status, frames written...).
+        rows: each variant's summary fields from the simulation (status, frames written...),
+            :class:`~warp_tube.batch.rows.Rows`.
         arrays: the chunk's arrays by name, or the paths of ``.npy`` files holding them.
     """
 
@@ -94,7 +96,7 @@ class WriteTask:
     chunk: int
     variants: tuple
     positions: tuple
-    rows: tuple
+    rows: Rows
     arrays: dict
 
 
@@ -263,7 +265,9 @@ def finish_arrays(spec: OutputSpec, order: list[int], names: list[str], point_co
         meta["surface.npy"] = ("float32 (variants, frames, vertices, 3): surface vertices [stage units], hub-major as in "
                                "the USD Surface; NaN past a variant's vertices")  # fmt: skip
         meta["vertices"] = vertex_counts
-    _atomic_text(os.path.join(spec.out_dir, "arrays.json"), json.dumps(meta, indent=1))
+    # one key a line, each value from the C encoder (indent= encodes in Python: slow for long lists)
+    text = "{\n" + ",\n".join(f" {json.dumps(k)}: {json.dumps(v)}" for k, v in meta.items()) + "\n}\n"
+    _atomic_text(os.path.join(spec.out_dir, "arrays.json"), text)
     for name, on in (("centerline", True), ("surface", spec.surface)):
         if on:
             os.replace(os.path.join(spec.work_dir, f"{name}.npy"), os.path.join(spec.out_dir, f"{name}.npy"))
@@ -366,25 +370,26 @@ def _fmt(v) -> str:
     return str(v)
 
 
-def write_summary(path: str, parameter_columns: list[str], variants, rows: dict) -> None:
-    """``summary.csv``: one row per variant in batch order (``rows``: batch index -> fields)."""
+def write_summary(path: str, parameter_columns: list[str], variants, columns: dict) -> None:
+    """``summary.csv``: one row per variant in batch order (``columns``: each field's values in
+    that order, :func:`~warp_tube.batch.rows.batch_columns`)."""
     buf = io.StringIO()
     csv.writer(buf, lineterminator="\n").writerow(["variant", "name", *parameter_columns, *SUMMARY_FIELDS])
-    buf.write(summary_lines(variants, rows))
+    buf.write(summary_lines(variants, columns))
     _atomic_text(path, buf.getvalue())
 
 
-def summary_lines(variants, rows: dict) -> str:
-    """The summary's lines of ``variants`` (in their order; ``rows``: batch index -> fields)."""
+def summary_lines(variants, columns: dict) -> str:
+    """The summary's lines of ``variants`` (``columns``: each field's values in their order)."""
     buf = io.StringIO()
     out = csv.writer(buf, lineterminator="\n")
+    n = len(variants)
     nan3 = [math.nan] * 3
     tip_axis = {"tip_x": 0, "tip_y": 1, "tip_z": 2}
-    found = [rows[v.index] for v in variants]
-    tips = [r.get("tip") or nan3 for r in found]
-    columns = [[t[tip_axis[k]] for t in tips] if k in tip_axis else [r.get(k, "") for r in found] for k in SUMMARY_FIELDS]
+    tips = [t or nan3 for t in columns.get("tip", [None] * n)]
+    fields = [[t[tip_axis[k]] for t in tips] if k in tip_axis else columns.get(k) or [""] * n for k in SUMMARY_FIELDS]
     # csv writes str(value): for floats repr (NaN as "nan"), ints, strings and bools as _fmt does;
     # only a column holding something else (None) goes through _fmt
-    columns = [c if set(map(type, c)) <= _AS_STR else [_fmt(x) for x in c] for c in columns]
-    out.writerows([v.index, v.name, *v.cells, *v.selection, *fields] for v, fields in zip(variants, zip(*columns)))
+    fields = [c if set(map(type, c)) <= _AS_STR else [_fmt(x) for x in c] for c in fields]
+    out.writerows([v.index, v.name, *v.cells, *v.selection, *row] for v, row in zip(variants, zip(*fields)))
     return buf.getvalue()

@@ -40,10 +40,11 @@ from .cluster import check_dask, dask_client, run_dask
 from .execute import SimWorkers, Writers, run_here, run_pooled, writer_count
 from .journal import Journal, file_digest
 from .lock import BatchLock
-from .outputs import LAYOUTS, OutputSpec, finish_arrays, prepare_arrays, surface_topology, write_grid_root, write_summary
+from .outputs import LAYOUTS, SUMMARY_FIELDS, OutputSpec, finish_arrays, prepare_arrays, surface_topology, write_grid_root, write_summary
 from .plan import by_identity, group_key, plain_group_keys, plan_chunks
 from .prepare import prepare_batch
 from .progress import Progress
+from .rows import Rows, batch_columns, record_count
 
 log = logging.getLogger(__name__)
 
@@ -273,7 +274,7 @@ def _outputs_kept(done: dict, layout: str, out_dir: str, work_dir: str) -> dict:
     else:
         missing = {}
         for c, rec in done.items():
-            names = [rec["layer"]] if layout == "grid" else [r["output"] for r in rec["rows"].values()]
+            names = [rec["layer"]] if layout == "grid" else rec["rows"]["output"]
             gone = next((n for n in names if n and not os.path.exists(os.path.join(out_dir, n))), None)
             if gone is not None:
                 missing[c] = os.path.join(out_dir, gone)
@@ -449,14 +450,15 @@ def _run_batch(scene, out_dir, table, tab, devices, writer_pool, sim_workers, t_
         os.makedirs(os.path.join(out_dir, "grid"), exist_ok=True)
     records = dict(done)
     for rec in done.values():
-        result.resumed += len(rec["rows"])
+        result.resumed += record_count(rec)
     todo = [c for c in plan if c.id not in done]
     bar.start(sum(len(c.indices) for c in todo) * max(n_frames - 1, 1), len(variants), result.resumed)
 
-    def finish(chunk_id: int, rows: list, outputs: list):
+    def finish(chunk_id: int, rows: Rows, outputs: list):
         c = plan[chunk_id]
-        rec = {"rows": {str(i): _json_row(r, o) for i, r, o in zip(c.indices, rows, outputs)},
-               "layer": f"grid/chunk_{chunk_id:05d}.usdc" if layout == "grid" and any(r["status"] == "ok" for r in rows) else ""}  # fmt: skip
+        ok = "ok" in rows.columns["status"]
+        rec = {"rows": {"index": list(c.indices), **rows.columns, "output": list(outputs)},
+               "layer": f"grid/chunk_{chunk_id:05d}.usdc" if layout == "grid" and ok else ""}  # fmt: skip
         journal.record(chunk_id, rec)
         records[chunk_id] = rec
         bar.variants_done(len(c.indices))
@@ -477,7 +479,7 @@ def _run_batch(scene, out_dir, table, tab, devices, writer_pool, sim_workers, t_
     except KeyboardInterrupt as e:
         bar.close()
         _tally(result, records, variants)
-        result.pending = len(variants) - sum(len(r["rows"]) for r in records.values())
+        result.pending = len(variants) - sum(record_count(r) for r in records.values())
         result.wall_s = time.perf_counter() - t_start
         raise BatchInterrupted(result, getattr(e, "signum", signal.SIGINT)) from None
     bar.close()
@@ -515,25 +517,13 @@ def _finished(out_dir: str, result: BatchResult, t_start: float) -> BatchResult:
     return result
 
 
-def _json_row(row: dict, output: str) -> dict:
-    """A chunk's summary row (plain Python values, the chunk's own: its writing is done) with its
-    output added, as the journal keeps it."""
-    row["output"] = output
-    return row
-
-
 def _tally(result: BatchResult, records: dict, variants) -> None:
-    result.ok = result.failed = 0
-    result.failures, result.contacts = [], []
-    rows = {int(i): r for rec in records.values() for i, r in rec["rows"].items()}
-    for i in sorted(rows):
-        if rows[i]["status"] == "ok":
-            result.ok += 1
-        else:
-            result.failed += 1
-            result.failures.append((variants.variants[i].name, rows[i]["reason"]))
-        if rows[i].get("contact_frame", "") != "":
-            result.contacts.append((variants.variants[i].name, int(rows[i]["contact_frame"])))
+    index, cols = batch_columns(records.values(), ("status", "reason", "contact_frame"))
+    vs = variants.variants
+    result.ok = cols["status"].count("ok")
+    result.failed = len(index) - result.ok
+    result.failures = [(vs[i].name, r) for i, s, r in zip(index, cols["status"], cols["reason"]) if s != "ok"]
+    result.contacts = [(vs[i].name, int(f)) for i, f in zip(index, cols["contact_frame"]) if f != ""]
 
 
 def _counts(variants, surface: bool) -> list[tuple[int, int]]:
@@ -581,14 +571,14 @@ def _output_spec(variants, counts: list, layout, out_dir, work_dir, surface, tim
 
 
 def _finish_outputs(spec: OutputSpec, variants, counts: list, records: dict, first_scene, out_dir: str) -> None:
-    rows = {int(i): r for rec in records.values() for i, r in rec["rows"].items()}
+    index, cols = batch_columns(records.values(), ("tip", *SUMMARY_FIELDS))
     vs = variants.variants
+    if index != list(range(len(vs))):
+        raise RuntimeError(f"the batch's records hold {len(index)} variants, not each of its {len(vs)} once")
     if spec.layout == "arrays":
-        finish_arrays(spec, list(range(len(vs))), [v.name for v in vs],
-                      *_columns(counts, spec.surface))  # fmt: skip
+        finish_arrays(spec, index, [v.name for v in vs], *_columns(counts, spec.surface))
     if spec.layout == "grid":
         layers = [records[c]["layer"] for c in sorted(records) if records[c]["layer"]]
-        ok = [v.name for v in vs if rows[v.index]["status"] == "ok"]
+        ok = [v.name for v, s in zip(vs, cols["status"]) if s == "ok"]
         write_grid_root(spec, first_scene.stage, layers, ok)
-    write_summary(os.path.join(out_dir, "summary.csv"), variants.parameter_columns(), vs, rows)
-
+    write_summary(os.path.join(out_dir, "summary.csv"), variants.parameter_columns(), vs, cols)
