@@ -31,8 +31,9 @@ class SurfaceArrays:
         spoke_count: spokes per ring, S.
         guard_reach: inner-bend guard fraction in (0, 1); 0 turns the guard off
             (:mod:`warp_tube.kernels.surface_guard`).
-        cell_radius: the tube's radius for the cell guard's window [length unit]: hubs less than
-            ``CELL_WINDOW cell_radius`` apart along the centerline (the prim's mean spoke length).
+        tube_cell_radius: each tube's radius for the cell guard's window [length unit], (tube_count,):
+            hubs less than ``CELL_WINDOW`` of it apart along the centerline (its prim's mean spoke
+            length).
         local_frames: 1 for the paper's local frames, 0 for rotation-minimizing ones.
         tube_node_start: first hub of each tube, (tube_count + 1,).
         node_tube: tube of each hub, (node_count,).
@@ -47,6 +48,11 @@ class SurfaceArrays:
         spoke_length: spoke lengths [length unit], shape (1 or world_count, node_count, S).
         hub_uniform: 1 where a hub and its neighbours have one spoke length all round, shape
             (1 or world_count, node_count) (see :func:`~warp_tube.kernels.surface_spokes.ring_vertices`).
+        span_count, span_hub_start, span_cap_ring, span_hubs_max: the block kernel's spans of a
+            world, each a warp's work: whole tubes, hubs ``span_hub_start[s] .. span_hub_start[s + 1]``
+            (their body rings have the same indices) and cap rings ``span_cap_ring[s] ..
+            span_cap_ring[s + 1]``, (span_count + 1,) each; the most hubs of a span. One span
+            holds a world's tubes where the worlds alone fill the device.
 
     Scratch (per-hub data and guarded lengths, written and read within one rebuild):
         hub_t, hub_r: hub unit tangents and spoke-0 normals [1], shape (world_count, node_count).
@@ -62,6 +68,8 @@ class SurfaceArrays:
             (world_count, node_count).
         surface_length: guarded spoke lengths [length unit], shape (world_count, vertex_count);
             written and read only for spokes longer than their ring's free length.
+        span_bounds: ``[min, max]`` corner of each span's points [length unit], shape
+            (world_count, span_count, 2), reduced into ``extent_out`` where a world has several spans.
 
     Out:
         surface_q_out: boundary points [length unit], shape (world_count, vertex_count).
@@ -73,10 +81,10 @@ class SurfaceArrays:
     node_offset: int
     spoke_count: int
     guard_reach: float
-    cell_radius: float
     local_frames: int
     tube_node_start: wp.array[wp.int32]
     node_tube: wp.array[wp.int32]
+    tube_cell_radius: wp.array[float]
     node_rest_t: wp.array2d[wp.vec3]
     node_rest_r: wp.array2d[wp.vec3]
     hub_reach: wp.array2d[float]
@@ -89,6 +97,10 @@ class SurfaceArrays:
     spoke_sin: wp.array[float]
     spoke_length: wp.array3d[float]
     hub_uniform: wp.array2d[wp.int32]
+    span_count: int
+    span_hub_start: wp.array[wp.int32]
+    span_cap_ring: wp.array[wp.int32]
+    span_hubs_max: int
     # scratch:
     hub_t: wp.array2d[wp.vec3]
     hub_r: wp.array2d[wp.vec3]
@@ -98,6 +110,7 @@ class SurfaceArrays:
     hub_cell: wp.array2d[wp.vec2i]
     hub_free: wp.array2d[wp.vec2]
     surface_length: wp.array2d[float]
+    span_bounds: wp.array3d[wp.vec3]
     # out:
     surface_q_out: wp.array2d[wp.vec3]
     surface_n_out: wp.array2d[wp.vec3]

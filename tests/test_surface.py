@@ -5,6 +5,7 @@ import pytest
 import warp as wp
 
 from warp_tube.model import frames as ref
+from warp_tube.surface import spans
 from warp_tube.surface.builder import SurfaceBuilder
 from warp_tube.surface.topology import RING_BODY, RING_POLE, build_topology
 
@@ -488,7 +489,13 @@ def _rebuilds_of_a_hard_case(frames, caps, measured, device, variants):
     qw[1] += rng.normal(scale=1e-3, size=qw[1].shape)
     out = []
     for kernel, shape in variants:
-        b = SurfaceBuilder([0, n, 2 * n], rest, S, lengths, frames=frames, caps=caps, world_count=W, device=device, kernel=kernel)
+        spans.MIN_SPAN_HUBS, min_hubs = (1 if kernel == "spans" else spans.MIN_SPAN_HUBS), spans.MIN_SPAN_HUBS
+        try:  # "spans": the block kernel with a tube a span (as a world of many tubes run alone)
+            b = SurfaceBuilder([0, n, 2 * n], rest, S, lengths, frames=frames, caps=caps, world_count=W, device=device,
+                               kernel="block" if kernel == "spans" else kernel)  # fmt: skip
+        finally:
+            spans.MIN_SPAN_HUBS = min_hubs
+        assert b.spans.count == (2 if kernel == "spans" else 1)
         b.block_shape = shape or b.block_shape
         p, nrm = b.compute(wp.array(qw.astype(np.float32), dtype=wp.vec3, device=device))
         guarded = b._surface_length.numpy()
@@ -507,8 +514,9 @@ def test_world_and_block_kernels_agree(frames, caps, measured):
     ring's length once unless the guard acts); the world kernel's extent is the exact bounds of
     its points, and the block kernel finds the same. A curve of 60 hubs takes the block kernel's
     frames two chunks of 32, the second tube starting inside the first."""
-    # The block kernel with one, two and four worlds per block (W = 3: idle warps).
-    variants = [("world", None), ("block", (1, 0)), ("block", (2, 4)), ("block", (4, 0))]
+    # The block kernel with one, two and four worlds per block (W = 3: idle warps), and with each
+    # tube a span of its own (six warps, each world's bounds reduced over its two spans).
+    variants = [("world", None), ("block", (1, 0)), ("block", (2, 4)), ("block", (4, 0)), ("spans", (2, 4)), ("spans", (4, 0))]
     out = _rebuilds_of_a_hard_case(frames, caps, measured, DEVICE, variants)
     p0, n0, _ = out[0]
     exact = np.stack([p0.min(axis=1), p0.max(axis=1)], axis=1)
@@ -526,7 +534,7 @@ def test_world_and_block_kernels_agree_on_cuda(frames, measured):
     run on the GPU as its reference, both compiled with the same fast-math options, give the same
     points and normals bit for bit, and the block kernel's extent is the exact bounds of its
     points."""
-    variants = [("world", None), ("block", (1, 0)), ("block", (2, 4)), ("block", (4, 0))]
+    variants = [("world", None), ("block", (1, 0)), ("block", (2, 4)), ("block", (4, 0)), ("spans", (2, 4)), ("spans", (1, 0))]
     out = _rebuilds_of_a_hard_case(frames, True, measured, "cuda:0", variants)
     p0, n0, _ = out[0]
     exact = np.stack([p0.min(axis=1), p0.max(axis=1)], axis=1)

@@ -154,20 +154,12 @@ class Simulation(RunBudget):
                         "its scene (sim.scene) and make a new Simulation from it, or keep centerline_points()")
 
     def _build_surfaces(self):
-        from ..surface.builder import SurfaceBuilder
+        """Per tube prim its surface; consecutive prims of one kind share a builder
+        (:mod:`warp_tube.surface.prims`), kept in ``self._surface_builders``."""
+        from ..surface.prims import prim_surfaces
 
-        out = []
-        for k, t in enumerate(self.scene.tubes):
-            lengths = t.spoke_lengths if t.spoke_lengths is not None else np.repeat(t.radius[:, None], t.params.spokes, axis=1)
-            out.append(
-                SurfaceBuilder(
-                    tube_node_start=self._prim_start[k] + np.concatenate([[0], np.cumsum(t.curve_counts)]),
-                    rest_q=t.points, spokes=t.params.spokes, spoke_lengths=lengths,
-                    reference_normal=t.params.reference_normal, frames=t.params.frames, caps=t.params.caps,
-                    world_count=1, device=self.device,
-                )  # fmt: skip
-            )
-        return out
+        per_prim, self._surface_builders = prim_surfaces(self.scene.tubes, self._prim_start, self.device)
+        return per_prim
 
     # -- interactive control ---------------------------------------------------------------------
     def set_force(self, force, vector) -> None:
@@ -327,6 +319,8 @@ class Simulation(RunBudget):
 
         Raises:
             RuntimeError: made with ``surface=False``. IndexError: no such world."""
+        from ..surface.prims import PrimSurface, prim_extents
+
         if self.surfaces is None:
             raise RuntimeError("this Simulation was made with surface=False")
         world = self._world(world)
@@ -338,10 +332,23 @@ class Simulation(RunBudget):
                 self._world_q = wp.empty((1, n), dtype=wp.vec3, device=self.device)
             wp.copy(self._world_q, q, src_offset=world * n, count=n)
             q = self._world_q
-        out = []
-        for b in self.surfaces:
+        rebuilt = {}  # each builder once: (points, normals, extent) on the host
+        for b in self._surface_builders:
             pts, nrm = b.compute(q)
-            out.append((pts.numpy()[0] / mpu, nrm.numpy()[0], b.extent().numpy()[0] / mpu))
+            rebuilt[id(b)] = (pts.numpy()[0], nrm.numpy()[0], b.extent().numpy()[0])
+        shared = {}  # a shared builder's prims' bounds, exact, from its points
+        for s in self.surfaces:
+            if isinstance(s, PrimSurface) and id(s.builder) not in shared:
+                views = [v for v in self.surfaces if isinstance(v, PrimSurface) and v.builder is s.builder]
+                shared[id(s.builder)] = dict(zip(map(id, views), prim_extents(views, rebuilt[id(s.builder)][0])))
+        out = []
+        for s in self.surfaces:
+            if isinstance(s, PrimSurface):  # a prim's part of a shared builder
+                pts, nrm = (s.take(a) for a in rebuilt[id(s.builder)][:2])
+                ext = shared[id(s.builder)][id(s)]
+            else:
+                pts, nrm, ext = rebuilt[id(s)]
+            out.append((pts / mpu, nrm, ext / mpu))
         return out
 
     def max_displacement(self) -> float:

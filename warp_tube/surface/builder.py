@@ -7,7 +7,8 @@ frame rebuilds the boundary from the deformed centerline with one launch (``kern
 - ``"world"`` (the CPU's default): :func:`~warp_tube.kernels.surface_world.surface_world_kernel`,
   a thread per world;
 - ``"block"`` (the GPU's default): :func:`~warp_tube.kernels.surface_block.make_surface_block_kernel`'s
-  kernel, a warp per world.
+  kernel, a warp per world, or per span of whole tubes of a world where the worlds are too few to
+  fill the device (:mod:`warp_tube.surface.spans`; then a second launch reduces each world's bounds).
 
 Each does the whole rebuild (frames, the inner-bend guard, points, normals, and the bounds of the
 points, the ``extent``) with the same functions in the same order, so both give the same points
@@ -25,9 +26,10 @@ import warp as wp
 
 from ..model import frames as ref_frames
 from ..kernels.surface_arrays import SurfaceArrays
-from ..kernels.surface_block import WORLD_LANES, make_surface_block_kernel
+from ..kernels.surface_block import WORLD_LANES, make_surface_block_kernel, span_extent_kernel
 from ..kernels.surface_world import surface_world_kernel
 from ..runtime.replay import GraphCache, cpu_blocks
+from .spans import block_spans
 from .topology import SurfaceTopology, build_topology
 
 __all__ = ["SurfaceBuilder", "FRAME_MODES", "DEFAULT_GUARD_REACH"]
@@ -84,6 +86,17 @@ def uniform_hubs(lengths: np.ndarray) -> np.ndarray:
     return out.astype(np.int32)
 
 
+class _Launches:
+    """Recorded launches run one after the other, as one."""
+
+    def __init__(self, launches):
+        self.launches = launches
+
+    def launch(self):
+        for launch in self.launches:
+            launch.launch()
+
+
 class SurfaceBuilder:
     """Rebuilds the surface of one tube prim (all its curves, one spoke count) from its centerline.
 
@@ -105,8 +118,13 @@ class SurfaceBuilder:
         guard_reach: inner-bend guard fraction in (0, 1), 0 to turn it off (see
             :mod:`warp_tube.kernels.surface_guard`).
         kernel: how a rebuild runs: ``"world"``, a thread per world (the CPU's default), or
-            ``"block"``, a warp per world (the GPU's default; on the CPU it runs with Warp's
-            CPU blocks, slowly: for tests). Both give the same points and normals.
+            ``"block"``, a warp per world, or per span of a world's tubes where the worlds are
+            too few to fill the device (the GPU's default, :mod:`warp_tube.surface.spans`; on the
+            CPU it runs with Warp's CPU blocks, slowly: for tests). Both give the same points and
+            normals.
+        cell_radius: each tube's radius for the inner-bend guard's window along the tube [L], (T,)
+            (several prims in one builder: each tube its prim's mean spoke length); default: the
+            mean of ``spoke_lengths``, for every tube.
 
     All lengths share one unit L (the core passes metres); points come out in L.
     """
@@ -125,6 +143,7 @@ class SurfaceBuilder:
         device=None,
         guard_reach: float = DEFAULT_GUARD_REACH,
         kernel: str | None = None,
+        cell_radius=None,
     ):
         if frames not in FRAME_MODES:
             raise ValueError(f"frames must be one of {FRAME_MODES}, got {frames!r}")
@@ -167,7 +186,10 @@ class SurfaceBuilder:
         self.hub_count = n_hubs
         self.tube_count = len(starts) - 1
         self.guard_reach = float(guard_reach)
-        self._cell_radius = float(lengths.mean())  # the window of the cell guard: pi of these
+        # the window of the cell guard along each tube: pi of these
+        cell = np.full(len(starts) - 1, float(lengths.mean())) if cell_radius is None else np.asarray(cell_radius, dtype=np.float64)
+        if cell.shape != (len(starts) - 1,) or not np.all(np.isfinite(cell) & (cell > 0.0)):
+            raise ValueError(f"cell_radius must be {len(starts) - 1} finite positive lengths, got shape {cell.shape}")
         self._local_starts = local_starts
         self.device = wp.get_device(device)
         if kernel is None:
@@ -180,9 +202,13 @@ class SurfaceBuilder:
         rest_t, rest_r = rest_frames(rest, local_starts, reference_normal)
         node_tube = np.repeat(np.arange(self.tube_count), np.diff(local_starts))
         topo = self.topology
+        # the block kernel's spans of a world (the world kernel takes a whole world: one span)
+        self.spans = block_spans(local_starts, topo.ring_hub, topo.ring_kind, self.world_count,
+                                 **({} if kernel == "block" else {"target_warps": 1}))  # fmt: skip
         with wp.ScopedDevice(self.device):
             self._tube_node_start = wp.array(local_starts.astype(np.int32), dtype=wp.int32)
             self._node_tube = wp.array(node_tube.astype(np.int32), dtype=wp.int32)
+            self._tube_cell_radius = wp.array(cell.astype(np.float32), dtype=float)
             self._rest_t = wp.array(rest_t[None].astype(np.float32), dtype=wp.vec3)
             self._rest_r = wp.array(rest_r[None].astype(np.float32), dtype=wp.vec3)
             self._spoke_length = wp.array(lengths.astype(np.float32), dtype=float)
@@ -208,16 +234,22 @@ class SurfaceBuilder:
             self.points = wp.zeros((self.world_count, topo.vertex_count), dtype=wp.vec3)
             self.normals = wp.zeros((self.world_count, topo.vertex_count), dtype=wp.vec3)
             self._extent = wp.zeros((self.world_count, 2), dtype=wp.vec3)
+            self._span_hub_start = wp.array(self.spans.hub_start, dtype=wp.int32)
+            self._span_cap_ring = wp.array(self.spans.cap_ring, dtype=wp.int32)
+            several = self.spans.count > 1
+            self._span_bounds = wp.zeros((self.world_count if several else 1, self.spans.count if several else 1, 2), dtype=wp.vec3)
         arrays = SurfaceArrays()  # the kernels' arguments but node_q, fixed for the builder's life
         for name, value in (
             ("node_offset", self.node_offset), ("spoke_count", self.spokes), ("guard_reach", self.guard_reach),
-            ("cell_radius", self._cell_radius), ("local_frames", int(self.frames == "local")),
-            ("tube_node_start", self._tube_node_start), ("node_tube", self._node_tube),
+            ("local_frames", int(self.frames == "local")), ("tube_node_start", self._tube_node_start),
+            ("node_tube", self._node_tube), ("tube_cell_radius", self._tube_cell_radius),
             ("node_rest_t", self._rest_t), ("node_rest_r", self._rest_r), ("hub_reach", self._hub_reach),
             ("ring_hub", self._ring_hub), ("ring_kind", self._ring_kind), ("ring_cos", self._ring_cos),
             ("ring_sin", self._ring_sin), ("ring_vertex", self._ring_vertex), ("spoke_cos", self._spoke_cos),
             ("spoke_sin", self._spoke_sin), ("spoke_length", self._spoke_length),
-            ("hub_uniform", self._hub_uniform), ("hub_t", self.hub_t),
+            ("hub_uniform", self._hub_uniform), ("span_count", self.spans.count),
+            ("span_hub_start", self._span_hub_start), ("span_cap_ring", self._span_cap_ring),
+            ("span_hubs_max", self.spans.hubs_max), ("span_bounds", self._span_bounds), ("hub_t", self.hub_t),
             ("hub_r", self.hub_r), ("hub_kappa", self._hub_kappa), ("hub_chord", self._hub_chord),
             ("hub_plane", self._hub_plane), ("hub_cell", self._hub_cell), ("hub_free", self._hub_free),
             ("surface_length", self._surface_length), ("surface_q_out", self.points),
@@ -271,13 +303,18 @@ class SurfaceBuilder:
             )  # fmt: skip
             return launch
         worlds_per_block, min_blocks = self.block_shape
-        kernel = make_surface_block_kernel(worlds_per_block, min_blocks)
-        blocks = -(-self.world_count // worlds_per_block)
+        kernel = make_surface_block_kernel(worlds_per_block, min_blocks, self.spans.count > 1)
+        blocks = -(-self.world_count * self.spans.count // worlds_per_block)
         with cpu_blocks():  # on the CPU a block's threads are fibers (opt-in)
-            return wp.launch_tiled(
+            launch = wp.launch_tiled(
                 kernel, dim=(blocks,), block_dim=WORLD_LANES * worlds_per_block, inputs=[self._arrays, node_q],
                 device=self.device, record_cmd=True,
             )  # fmt: skip
+        if self.spans.count == 1:
+            return launch
+        bounds = wp.launch(span_extent_kernel, dim=self.world_count, inputs=[self._span_bounds], outputs=[self._extent],
+                           device=self.device, record_cmd=True)  # fmt: skip
+        return _Launches((launch, bounds))
 
     def compute(self, node_q: wp.array) -> tuple[wp.array, wp.array]:
         """Rebuild the surface from hub positions; no allocation after the first call per array.

@@ -35,7 +35,7 @@ import numpy as np
 
 from ..kernels.surface_arrays import RING_BODY, RING_CAP, RING_POLE
 
-__all__ = ["RING_BODY", "RING_CAP", "RING_POLE", "SurfaceTopology", "cap_ring_count", "build_topology"]
+__all__ = ["RING_BODY", "RING_CAP", "RING_POLE", "SurfaceTopology", "cap_ring_count", "build_topology", "split_topology"]
 
 
 def cap_ring_count(spokes: int) -> int:
@@ -284,3 +284,58 @@ def build_topology(
         ring_sin=np.concatenate(ring_sin).astype(np.float32),
         ring_vertex=np.concatenate(ring_vertex).astype(np.int32),
     )
+
+
+def split_topology(topo: SurfaceTopology, tube_node_start, prim_tube_start) -> list[tuple[SurfaceTopology, slice, slice]]:
+    """The topologies of consecutive prims whose tubes ``topo`` (built by :func:`build_topology`)
+    holds together, each as :func:`build_topology` makes it for the prim alone (given the same
+    tubes, rest positions and cap radii; checked in the tests), with where the prim's vertices lie
+    in ``topo``'s: a slice of its body vertices and one of its cap vertices.
+
+    Args:
+        topo: the topology of all the prims' tubes.
+        tube_node_start: first hub of each tube, (T + 1,), as ``topo`` was built with.
+        prim_tube_start: first tube of each prim, (P + 1,), from 0 to T.
+    """
+    S = topo.spokes
+    starts = np.asarray(tube_node_start, dtype=np.int64)
+    tubes = np.asarray(prim_tube_start, dtype=np.int64)
+    n_hubs = int(starts[-1])
+    K = cap_ring_count(S) if topo.caps else 0
+    per_end = (K - 1) * S + 1 if topo.caps else 0
+    per_end_tris = (2 * K - 1) * S if topo.caps else 0
+    hub0 = starts[tubes]  # first hub of each prim, (P + 1,)
+    body_v = hub0 * S
+    cap_v = n_hubs * S + 2 * per_end * tubes
+    body_f = np.concatenate([[0], np.cumsum(np.diff(hub0) - np.diff(tubes))]) * 2 * S  # a strip per segment
+    cap_f = int(body_f[-1]) + 2 * per_end_tris * tubes
+    cap_r = n_hubs + 2 * K * tubes
+    # each vertex's index in its prim's own numbering: body vertices first, then its caps'
+    local = np.arange(topo.vertex_count, dtype=np.int64)
+    prim_of_hub = np.repeat(np.arange(len(tubes) - 1), np.diff(hub0))
+    local[: n_hubs * S] -= body_v[prim_of_hub].repeat(S)
+    if topo.caps:
+        prim_of_cap = np.repeat(np.arange(len(tubes) - 1), np.diff(cap_v))
+        local[n_hubs * S :] += (np.diff(hub0) * S)[prim_of_cap] - cap_v[prim_of_cap]
+    faces = topo.faces
+    st = topo.st.reshape(-1, 3, 2)
+    out = []
+    for p in range(len(tubes) - 1):
+        fb, fc = slice(body_f[p], body_f[p + 1]), slice(cap_f[p], cap_f[p + 1])
+        rb, rc = slice(hub0[p], hub0[p + 1]), slice(cap_r[p], cap_r[p + 1])
+        tri = local[np.concatenate([faces[fb], faces[fc]])].astype(np.int32)
+
+        def rings(a):
+            return np.concatenate([a[rb], a[rc]])
+
+        n = int(hub0[p + 1] - hub0[p])
+        sub = SurfaceTopology(
+            spokes=S, caps=topo.caps, hub_count=n, vertex_count=int(n * S + (cap_v[p + 1] - cap_v[p])),
+            face_vertex_counts=np.broadcast_to(np.int32(3), (len(tri),)), face_vertex_indices=tri.reshape(-1),
+            st=np.concatenate([st[fb], st[fc]]).reshape(-1, 2), st_interpolation=topo.st_interpolation,
+            ring_hub=(rings(topo.ring_hub) - hub0[p]).astype(np.int32), ring_kind=rings(topo.ring_kind),
+            ring_cos=rings(topo.ring_cos), ring_sin=rings(topo.ring_sin),
+            ring_vertex=local[rings(topo.ring_vertex)].astype(np.int32),
+        )  # fmt: skip
+        out.append((sub, slice(int(body_v[p]), int(body_v[p + 1])), slice(int(cap_v[p]), int(cap_v[p + 1]))))
+    return out

@@ -1,0 +1,168 @@
+"""The surfaces of a scene's tube prims: consecutive prims of one kind rebuilt by one builder.
+
+A scene of many tube prims (a hose a prim, as DCC tools make them) would otherwise pay a
+:class:`~warp_tube.surface.builder.SurfaceBuilder` per prim: its set-up, a launch and two copies
+back per frame. Consecutive prims with the same spoke count, frame convention and caps share one
+builder over their nodes (each tube keeps its prim's guard window, reference normal and spoke
+lengths, so every vertex is what a builder of its own prim gives, bit for bit); each prim is then
+a :class:`PrimSurface`, its vertices picked from the shared builder's in its own topology's order
+(body rings hub-major, then its tubes' caps), the topology its own builder would have
+(:func:`~warp_tube.surface.topology.split_topology`).
+"""
+
+from __future__ import annotations
+
+import numpy as np
+import warp as wp
+
+from .builder import SurfaceBuilder
+from .topology import SurfaceTopology, build_topology, split_topology
+
+__all__ = ["PrimSurface", "prim_surfaces", "prim_topology", "prim_extents"]
+
+
+def prim_topology(local_starts, spokes: int, lengths: np.ndarray, caps: bool, rest_q) -> SurfaceTopology:
+    """The topology a builder of one prim makes: tubes ``local_starts`` (from 0), ``lengths`` (N, S)
+    [L], cap radii from the mean spoke length at each end hub."""
+    cap_radius = None
+    if caps:
+        mean = np.asarray(lengths).mean(axis=1)
+        cap_radius = np.stack([mean[local_starts[:-1]], mean[local_starts[1:] - 1]], axis=1)
+    return build_topology(local_starts, spokes, caps=caps, rest_q=rest_q, cap_radius=cap_radius)
+
+
+class PrimSurface:
+    """One tube prim's surface, rebuilt by a builder it shares with neighbouring prims.
+
+    Attributes:
+        builder: the shared :class:`~warp_tube.surface.builder.SurfaceBuilder`.
+        topology: the prim's own topology (as a builder of this prim alone makes it).
+        body, caps_vertices: where the prim's body vertices and its caps' lie among the builder's
+            (its own numbering: the body's, then the caps').
+    """
+
+    def __init__(self, builder: SurfaceBuilder, topology: SurfaceTopology, body: slice, caps_vertices: slice):
+        self.builder = builder
+        self.topology = topology
+        self.body, self.caps_vertices = body, caps_vertices
+        self.spokes, self.frames, self.caps = builder.spokes, builder.frames, builder.caps
+        self.world_count = builder.world_count
+        self._extent = None
+
+    @property
+    def vertex_count(self) -> int:
+        return self.topology.vertex_count
+
+    @property
+    def face_vertex_counts(self) -> np.ndarray:
+        return self.topology.face_vertex_counts
+
+    @property
+    def face_vertex_indices(self) -> np.ndarray:
+        return self.topology.face_vertex_indices
+
+    @property
+    def st(self) -> np.ndarray:
+        return self.topology.st
+
+    @property
+    def st_interpolation(self) -> str:
+        return self.topology.st_interpolation
+
+    def take(self, points: np.ndarray) -> np.ndarray:
+        """The prim's vertices of a host array of the builder's, shaped (..., V_builder, 3)."""
+        if self.caps_vertices.stop == self.caps_vertices.start:
+            return points[..., self.body, :]
+        return np.concatenate([points[..., self.body, :], points[..., self.caps_vertices, :]], axis=-2)
+
+    def compute(self, node_q: wp.array) -> tuple[wp.array, wp.array]:
+        """Rebuild (the shared builder, every prim of it) and return this prim's points [L] and
+        normals, new arrays shaped (world_count, V) on the builder's device (``extent`` after)."""
+        pts, nrm = self.builder.compute(node_q)
+        p, n = self.take(pts.numpy()), self.take(nrm.numpy())
+        self._extent = np.stack([p.min(axis=1), p.max(axis=1)], axis=1)
+        dev = self.builder.device
+        return wp.array(p, dtype=wp.vec3, device=dev), wp.array(n, dtype=wp.vec3, device=dev)
+
+    def extent(self) -> wp.array:
+        """``[min, max]`` corners [L] of the points of the last :meth:`compute`, (world_count, 2)."""
+        if self._extent is None:
+            raise RuntimeError("extent() before compute()")
+        return wp.array(self._extent, dtype=wp.vec3, device=self.builder.device)
+
+
+def prim_extents(views: list[PrimSurface], points: np.ndarray) -> np.ndarray:
+    """``[min, max]`` corners of each prim's points, (P, 2, 3), from ``points`` (V_builder, 3), the
+    host copy of the prims' shared builder's points (``views``: all its prims, in order): one
+    reduction per axis over all prims (a reduction over the rows of a (V, 3) array is several
+    times slower), exact as the builder's own extent. The prims' body vertices follow one another,
+    and so do their caps'."""
+    b0, b1 = views[0].body.start, views[-1].body.stop
+    c0, c1 = views[0].caps_vertices.start, views[-1].caps_vertices.stop
+    body = np.array([v.body.start for v in views]) - b0
+    caps = np.array([v.caps_vertices.start for v in views]) - c0
+    out = np.empty((len(views), 2, 3), dtype=points.dtype)
+    for c in range(3):
+        col = points[:, c]
+        for side, ufunc in enumerate((np.minimum, np.maximum)):
+            value = ufunc.reduceat(col[b0:b1], body)
+            if c1 > c0:  # (one kind: every prim capped, or none)
+                value = ufunc(value, ufunc.reduceat(col[c0:c1], caps))
+            out[:, side, c] = value
+    return out
+
+
+def _kind(t) -> tuple:
+    return (t.params.spokes, t.params.frames, bool(t.params.caps))
+
+
+def _lengths(t) -> np.ndarray:
+    return t.spoke_lengths if t.spoke_lengths is not None else np.repeat(t.radius[:, None], t.params.spokes, axis=1)
+
+
+def prim_surfaces(tubes, prim_start, device) -> tuple[list, list[SurfaceBuilder]]:
+    """Per tube prim its surface (a builder of its own, or a :class:`PrimSurface` of one shared
+    with the consecutive prims of its kind), and the builders, each once, in prim order.
+
+    Args:
+        tubes: the scene's tube prims (:class:`~warp_tube.scene.spec.TubeSpec`), in node order.
+        prim_start: first node of each prim in the model, (prims,) or more.
+        device: Warp device.
+    """
+    per_prim, builders = [], []
+    k = 0
+    while k < len(tubes):
+        end = k + 1
+        while end < len(tubes) and _kind(tubes[end]) == _kind(tubes[k]):
+            end += 1
+        group = tubes[k:end]
+        t0 = group[0]
+        lengths = [_lengths(t) for t in group]
+        starts = int(prim_start[k]) + np.concatenate([[0], np.cumsum(np.concatenate([t.curve_counts for t in group]))])
+        if len(group) == 1:
+            b = SurfaceBuilder(tube_node_start=starts, rest_q=t0.points, spokes=t0.params.spokes, spoke_lengths=lengths[0],
+                               reference_normal=t0.params.reference_normal, frames=t0.params.frames, caps=t0.params.caps,
+                               world_count=1, device=device)  # fmt: skip
+            per_prim.append(b)
+            builders.append(b)
+            k = end
+            continue
+        curves = [len(t.curve_counts) for t in group]
+        normals = np.concatenate([np.tile(np.full(3, np.nan) if t.params.reference_normal is None
+                                          else np.asarray(t.params.reference_normal, dtype=np.float64), (c, 1))
+                                  for t, c in zip(group, curves)])  # fmt: skip
+        cell = np.repeat([float(x.mean()) for x in lengths], curves)  # each prim's guard window, as its own builder's
+        b = SurfaceBuilder(tube_node_start=starts, rest_q=np.concatenate([t.points for t in group]), spokes=t0.params.spokes,
+                           spoke_lengths=np.concatenate(lengths), reference_normal=normals, frames=t0.params.frames,
+                           caps=t0.params.caps, world_count=1, device=device, cell_radius=cell)  # fmt: skip
+        builders.append(b)
+        per_prim += _views(b, group)
+        k = end
+    return per_prim, builders
+
+
+def _views(b: SurfaceBuilder, group) -> list[PrimSurface]:
+    """Each prim of ``group``'s surface within the shared builder ``b``."""
+    tubes = np.concatenate([[0], np.cumsum([len(t.curve_counts) for t in group])])
+    parts = split_topology(b.topology, b._local_starts, tubes)
+    return [PrimSurface(b, topo, body, caps) for topo, body, caps in parts]
