@@ -101,3 +101,21 @@ def test_a_run_of_many_prims_writes_a_valid_stage(tmp_path):
     for t in scene.tubes:  # each prim's own Surface mesh, capped or not as its prim says
         mesh = UsdGeom.Mesh(stage.GetPrimAtPath(f"{t.path}/Surface"))
         assert len(mesh.GetPointsAttr().Get(4.0)) == len(mesh.GetNormalsAttr().Get(4.0))
+
+
+def test_surface_arrays_are_the_callers_on_the_cpu():
+    # what surface() returns is the caller's: not rewritten by the next frame (on the CPU Warp's
+    # numpy() views the builder's own arrays)
+    from tests.conftest import SCENES
+    from warp_tube import load_scene
+
+    sim = Simulation(load_scene(str(SCENES / "default.usda")), device="cpu")
+    sim.step()
+    first = sim.surface()
+    kept = [tuple(np.array(a) for a in part) for part in first]
+    for _ in range(3):
+        sim.step()
+        sim.surface()
+    for part, copy in zip(first, kept):
+        for a, b in zip(part, copy):
+            assert np.array_equal(a, b)

@@ -101,6 +101,10 @@ class Simulation(RunBudget):
         last_summary: the :class:`RunSummary` of the last :meth:`run` (also of one that stopped).
         contact_frame: the first frame at whose end distant parts of the tubes (world 0) were
             closer than the sum of their radii (warned of once; contact is not modelled), or None.
+        surfaces: per tube prim its surface (None with ``surface=False``): a
+            :class:`~warp_tube.surface.builder.SurfaceBuilder`, or, for consecutive prims with
+            the same spokes, frames and caps, a :class:`~warp_tube.surface.prims.PrimSurface` of
+            the builder they share (its topology the prim's own).
 
     One thread at a time: :meth:`step` and :meth:`run` called from two threads run one after the
     other. A Simulation holds device arrays and cannot be pickled or copied: pickle its scene.
@@ -315,7 +319,8 @@ class Simulation(RunBudget):
 
     def surface(self, world: int = 0):
         """Surface ``(points, normals, extent)`` per tube prim: points [stage units] and unit
-        normals, each shape (V, 3), and the points' ``[min, max]`` corners [stage units], (2, 3).
+        normals, each shape (V, 3), and the points' ``[min, max]`` corners [stage units], (2, 3);
+        new arrays, the caller's.
 
         Raises:
             RuntimeError: made with ``surface=False``. IndexError: no such world."""
@@ -333,9 +338,10 @@ class Simulation(RunBudget):
             wp.copy(self._world_q, q, src_offset=world * n, count=n)
             q = self._world_q
         rebuilt = {}  # each builder once: (points, normals, extent) on the host
+        own = wp.get_device(self.device).is_cpu  # (there numpy() views the builder's arrays, rewritten next frame)
         for b in self._surface_builders:
             pts, nrm = b.compute(q)
-            rebuilt[id(b)] = (pts.numpy()[0], nrm.numpy()[0], b.extent().numpy()[0])
+            rebuilt[id(b)] = (pts.numpy()[0], nrm.numpy()[0].copy() if own else nrm.numpy()[0], b.extent().numpy()[0])
         shared = {}  # a shared builder's prims' bounds, exact, from its points
         for s in self.surfaces:
             if isinstance(s, PrimSurface) and id(s.builder) not in shared:
