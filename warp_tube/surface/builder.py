@@ -30,7 +30,7 @@ from ..kernels.surface_block import WORLD_LANES, make_surface_block_kernel, span
 from ..kernels.surface_world import surface_world_kernel
 from ..runtime.replay import GraphCache, cpu_blocks
 from .spans import block_spans
-from .topology import SurfaceTopology, build_topology
+from .topology import SurfaceTopology, TopologyView, build_topology
 
 __all__ = ["SurfaceBuilder", "FRAME_MODES", "DEFAULT_GUARD_REACH"]
 
@@ -97,7 +97,7 @@ class _Launches:
             launch.launch()
 
 
-class SurfaceBuilder:
+class SurfaceBuilder(TopologyView):
     """Rebuilds the surface of one tube prim (all its curves, one spoke count) from its centerline.
 
     Args:
@@ -260,30 +260,7 @@ class SurfaceBuilder:
         self._launches: dict = {}
         self._graphs = GraphCache(self.device, size=4)
 
-    # -- topology ------------------------------------------------------------------------------
-    @property
-    def vertex_count(self) -> int:
-        return self.topology.vertex_count
-
-    @property
-    def face_vertex_counts(self) -> np.ndarray:
-        """int32 (F,), all 3."""
-        return self.topology.face_vertex_counts
-
-    @property
-    def face_vertex_indices(self) -> np.ndarray:
-        """int32 (3 F,), counter-clockwise seen from outside."""
-        return self.topology.face_vertex_indices
-
-    @property
-    def st(self) -> np.ndarray:
-        """float32 (3 F,) x 2 face-varying texture coordinates (u around, v along)."""
-        return self.topology.st
-
-    @property
-    def st_interpolation(self) -> str:
-        return self.topology.st_interpolation
-
+    # -- topology (and the counts, faces and st of TopologyView) -------------------------------
     def tube_vertex_indices(self, tube: int) -> np.ndarray:
         """Vertex indices (ring vertices, then cap vertices) of tube ``tube`` of this prim."""
         topo = self.topology

@@ -16,7 +16,7 @@ import numpy as np
 import warp as wp
 
 from .builder import SurfaceBuilder
-from .topology import SurfaceTopology, build_topology, split_topology
+from .topology import SurfaceTopology, TopologyView, build_topology, split_topology
 
 __all__ = ["PrimSurface", "prim_surfaces", "prim_topology", "prim_extents"]
 
@@ -31,7 +31,7 @@ def prim_topology(local_starts, spokes: int, lengths: np.ndarray, caps: bool, re
     return build_topology(local_starts, spokes, caps=caps, rest_q=rest_q, cap_radius=cap_radius)
 
 
-class PrimSurface:
+class PrimSurface(TopologyView):
     """One tube prim's surface, rebuilt by a builder it shares with neighbouring prims.
 
     Attributes:
@@ -48,26 +48,6 @@ class PrimSurface:
         self.spokes, self.frames, self.caps = builder.spokes, builder.frames, builder.caps
         self.world_count = builder.world_count
         self._extent = None
-
-    @property
-    def vertex_count(self) -> int:
-        return self.topology.vertex_count
-
-    @property
-    def face_vertex_counts(self) -> np.ndarray:
-        return self.topology.face_vertex_counts
-
-    @property
-    def face_vertex_indices(self) -> np.ndarray:
-        return self.topology.face_vertex_indices
-
-    @property
-    def st(self) -> np.ndarray:
-        return self.topology.st
-
-    @property
-    def st_interpolation(self) -> str:
-        return self.topology.st_interpolation
 
     def take(self, points: np.ndarray) -> np.ndarray:
         """The prim's vertices of a host array of the builder's, shaped (..., V_builder, 3)."""

@@ -35,7 +35,7 @@ import numpy as np
 
 from ..kernels.surface_arrays import RING_BODY, RING_CAP, RING_POLE
 
-__all__ = ["RING_BODY", "RING_CAP", "RING_POLE", "SurfaceTopology", "cap_ring_count", "build_topology", "split_topology"]
+__all__ = ["RING_BODY", "RING_CAP", "RING_POLE", "SurfaceTopology", "cap_ring_count", "build_topology", "split_topology", "TopologyView"]
 
 
 def cap_ring_count(spokes: int) -> int:
@@ -84,6 +84,36 @@ class SurfaceTopology:
     def faces(self) -> np.ndarray:
         """Triangles as vertex indices, int32 (F, 3)."""
         return self.face_vertex_indices.reshape(-1, 3)
+
+
+class TopologyView:
+    """A surface's counts, faces and texture coordinates, read from its ``topology``
+    (:class:`SurfaceTopology`): what the output writer reads of a surface."""
+
+    topology: SurfaceTopology
+
+    @property
+    def vertex_count(self) -> int:
+        return self.topology.vertex_count
+
+    @property
+    def face_vertex_counts(self) -> np.ndarray:
+        """int32 (F,), all 3."""
+        return self.topology.face_vertex_counts
+
+    @property
+    def face_vertex_indices(self) -> np.ndarray:
+        """int32 (3 F,), counter-clockwise seen from outside."""
+        return self.topology.face_vertex_indices
+
+    @property
+    def st(self) -> np.ndarray:
+        """float32 (3 F,) x 2 face-varying texture coordinates (u around, v along)."""
+        return self.topology.st
+
+    @property
+    def st_interpolation(self) -> str:
+        return self.topology.st_interpolation
 
 
 def _strip_pattern(spokes: int, forward: bool):
