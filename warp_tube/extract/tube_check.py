@@ -10,7 +10,10 @@ the result and say what is suspicious and what to do:
   vertices are its two end rings), so the automatic hub count could not converge;
 - *over-resolved*: the automatic hub count went past :data:`MAX_HUBS_PER_RADIUS` hubs per mean
   radius (it stops at its limit when the surface cannot be matched);
-- *missed spokes*: more than :data:`MISSED_FRACTION` of the spoke rays hit nothing.
+- *missed spokes*: more than :data:`MISSED_FRACTION` of the spoke rays hit nothing;
+- *a large side branch*: a branch left out is at least :data:`LARGE_BRANCH` of the tube's length
+  (a Y or a tree: the tube follows the longest route between the mesh's ends, which may not be
+  the one wanted).
 """
 
 from __future__ import annotations
@@ -23,6 +26,8 @@ __all__ = ["tube_warnings", "summary_line", "size_warning"]
 
 MAX_HUBS_PER_RADIUS = 10.0
 MISSED_FRACTION = 0.10
+#: a side branch left out at least this fraction of the tube's length is warned of
+LARGE_BRANCH = 0.25
 #: ``--hubs`` above this gets a warning with the size of what will be written.
 LARGE_HUBS = 20_000
 #: characters per spoke length and per hub written to a .usda scene (measured on written scenes).
@@ -60,6 +65,15 @@ def tube_warnings(tube, fidelity=None, automatic_hubs: bool = True, units: str =
         out.append(
             f"{tube.missed_spokes} of {rays} spoke rays ({tube.missed_spokes / rays:.0%}) hit no wall and were "
             "filled in from neighbouring hubs: the mesh has large openings or is not a tube"
+        )
+    large = [(j, b) for j, b in tube.branches if length > 0 and b >= LARGE_BRANCH * length]
+    if large:
+        j, b = max(large, key=lambda jb: jb[1])
+        more = f" ({len(large) - 1} more as large)" if len(large) > 1 else ""
+        out.append(
+            f"a side branch {b:.3g} {units} long ({b / length:.0%} of the tube's {length:.3g} {units}) leaves it at hub {j} "
+            f"and is left out{more}: the tube follows the longest route between the mesh's ends; to simulate another "
+            "route, cut the mesh to it"
         )
     return out
 
