@@ -35,7 +35,7 @@ from scipy.sparse.csgraph import dijkstra
 
 from ..kernels import raycast
 
-__all__ = ["DistanceMap", "build_distance_map", "voxel_size_for", "shortest_tree", "trace_path"]
+__all__ = ["DistanceMap", "build_distance_map", "inside_voxels", "voxel_size_for", "shortest_tree", "trace_path"]
 
 # 13 of the 26 neighbour offsets; with the graph made symmetric they give all 26.
 _OFFSETS = np.array(
@@ -103,20 +103,7 @@ def build_distance_map(
     h = float(voxel_size)
     lo = np.asarray(lo, dtype=np.float64)
     hi = np.asarray(hi, dtype=np.float64)
-    # Odd fractions of a voxel keep the parity columns off mesh edges and vertices of regular grids.
-    jitter = np.array([0.1234567, 0.3456789, 0.0], dtype=np.float64) * h
-    origin = lo - 1.5 * h + jitter
-    shape = tuple(int(n) for n in np.ceil((hi - origin) / h).astype(np.int64) + 2)
-    nx, ny, nz = shape
-    inside = wp.zeros((nx * ny, nz), dtype=wp.uint8, device=device)
-    wp.launch(
-        raycast.fill_inside_columns,
-        dim=nx * ny,
-        inputs=[closed_mesh.id, wp.vec3(*origin.astype(np.float32)), h, ny, nz, 4096],
-        outputs=[inside],
-        device=device,
-    )
-    flat = np.flatnonzero(inside.numpy().reshape(-1))
+    origin, shape, flat = inside_voxels(closed_mesh, lo, hi, h, device)
     ijk = np.stack(np.unravel_index(flat, shape), axis=1).astype(np.int64)
     pts = origin + h * ijk
     dfb = np.zeros(len(flat))
@@ -129,6 +116,33 @@ def build_distance_map(
         dfb = out.numpy().astype(np.float64)
     length_graph, centred_graph = _graphs(ijk, flat, shape, dfb, h)
     return DistanceMap(origin, h, shape, ijk, pts, dfb, length_graph, centred_graph)
+
+
+def inside_voxels(closed_mesh: wp.Mesh, lo: np.ndarray, hi: np.ndarray, voxel_size: float, device=None):
+    """The voxels of a grid over the box ``lo``..``hi`` whose centres lie inside ``closed_mesh``.
+
+    Crossing parity, one ray per (x, y) column (kernel :func:`warp_tube.kernels.raycast.fill_inside_columns`).
+
+    Returns:
+        ``(origin (3,), shape (nx, ny, nz), flat (M,))``: the centre of voxel (0, 0, 0) [mesh units],
+        the grid size and the flat (C-order) indices of the inside voxels; voxel ``(i, j, k)`` has its
+        centre at ``origin + voxel_size * (i, j, k)``.
+    """
+    h = float(voxel_size)
+    # Odd fractions of a voxel keep the parity columns off mesh edges and vertices of regular grids.
+    jitter = np.array([0.1234567, 0.3456789, 0.0], dtype=np.float64) * h
+    origin = np.asarray(lo, dtype=np.float64) - 1.5 * h + jitter
+    shape = tuple(int(n) for n in np.ceil((np.asarray(hi, dtype=np.float64) - origin) / h).astype(np.int64) + 2)
+    nx, ny, nz = shape
+    inside = wp.zeros((nx * ny, nz), dtype=wp.uint8, device=device)
+    wp.launch(
+        raycast.fill_inside_columns,
+        dim=nx * ny,
+        inputs=[closed_mesh.id, wp.vec3(*origin.astype(np.float32)), h, ny, nz, 4096],
+        outputs=[inside],
+        device=device,
+    )
+    return origin, shape, np.flatnonzero(inside.numpy().reshape(-1))
 
 
 def _graphs(ijk, flat, shape, dfb, h):

@@ -37,6 +37,7 @@ log = logging.getLogger(__name__)
 MIN_EDGE = 10.0 * trimesh.tol.merge
 """Least median edge length of a mesh after scaling [units of the result]: trimesh merges vertices
 closer than ``trimesh.tol.merge`` (1e-8), which collapses the faces of a smaller mesh."""
+_SEAL_FACES = 3  # least faces of a seal: a cut across a tube of five sides or more has three at least
 _TREADS = 0.25  # a flat patch with parallel faces of this x its area just off its plane is a terrace
 _FORMATS = {"stl": "STL", "stl_ascii": "STL", "ply": "PLY", "obj": "OBJ", "off": "OFF", "glb": "glTF", "gltf": "glTF"}
 
@@ -418,18 +419,36 @@ def _is_terrace(patch: dict, n: np.ndarray, area: np.ndarray, c: np.ndarray, cos
     return bool((per >= 0.01 * patch["area"]).all())
 
 
+def _unfolded(mesh: trimesh.Trimesh) -> np.ndarray:
+    """Per pair of adjacent faces (``mesh.face_adjacency``): whether they lie on either side of their
+    shared edge. Two faces folded onto each other (a crumple of a rough wall) lie in one plane with
+    opposite normals, on one side of it."""
+    v = np.asarray(mesh.vertices, dtype=np.float64)
+    edge = np.asarray(mesh.face_adjacency_edges)
+    apex = np.asarray(mesh.face_adjacency_unshared)
+    a = v[edge[:, 0]]
+    e = v[edge[:, 1]] - a
+    e /= np.maximum(np.linalg.norm(e, axis=1), 1e-300)[:, None]
+    side = [v[apex[:, k]] - a for k in (0, 1)]
+    side = [x - np.einsum("ij,ij->i", x, e)[:, None] * e for x in side]
+    return np.einsum("ij,ij->i", side[0], side[1]) < 0.0
+
+
 def flat_cuts(mesh: trimesh.Trimesh, min_area: float, angle_deg: float = 1.0) -> list[FlatCut]:
     """Planar patches of ``mesh`` of at least ``min_area``, largest first.
 
     Faces are grouped with their neighbours when their normals differ by less than ``angle_deg``
-    and they lie in one plane; groups in one plane (normals within ``angle_deg``, offsets within
-    1 % of the radius of ``min_area``'s disc) whose centres lie within four such radii are merged
-    (a sealed cut is often split by a row of bent triangles). Left out: groups whose bordering
-    faces turn less than about 53 degrees away from them on average (a facet of a faceted wall,
-    not a seal meeting the wall at a crease), patches much longer than wide (area below 0.3 pi
-    times the square of their largest distance from the centre: flat strips of a straight wall),
-    and the terraces of a staircase (a surface made of voxel faces, whose rounded tip has a flat
-    top): patches with faces parallel to them all round, just out of their plane
+    and they lie in one plane on either side of their shared edge (not folded onto each other);
+    groups in one plane (normals within ``angle_deg``, offsets within 1 % of the radius of
+    ``min_area``'s disc) whose centres lie within four such radii are merged (a sealed cut is often
+    split by a row of bent triangles). Left out: single faces whose neighbours all leave their
+    plane and patches of fewer than three faces (facets of a rough wall, where every face is one: a
+    cut across a tube of five sides or more has three faces at least), groups whose bordering faces
+    turn less than about 53 degrees away from them on average (a facet of a faceted wall, not a seal
+    meeting the wall at a crease), patches much longer than wide (area below 0.3 pi times the
+    square of their largest distance from the centre: flat strips of a straight wall), and the
+    terraces of a staircase (a surface made of voxel faces, whose rounded tip has a flat top):
+    patches with faces parallel to them all round, just out of their plane
     (:func:`_is_terrace`; a seal meets the tube's wall there, across it).
     """
     n = np.asarray(mesh.face_normals)
@@ -442,7 +461,7 @@ def flat_cuts(mesh: trimesh.Trimesh, min_area: float, angle_deg: float = 1.0) ->
     r0 = float(np.sqrt(min_area / np.pi))
     same = (np.abs(np.einsum("ij,ij->i", n[adj[:, 0]], n[adj[:, 1]])) > cos) & (
         np.abs(np.einsum("ij,ij->i", n[adj[:, 0]], c[adj[:, 1]] - c[adj[:, 0]])) < 0.01 * r0
-    )
+    ) & _unfolded(mesh)
     g = sp.coo_matrix((np.ones(int(same.sum())), (adj[same, 0], adj[same, 1])), shape=(len(n), len(n)))
     count, label = connected_components(g, directed=False)
     total = np.bincount(label, weights=area, minlength=count)
@@ -463,7 +482,10 @@ def flat_cuts(mesh: trimesh.Trimesh, min_area: float, angle_deg: float = 1.0) ->
         np.add.at(turn, grp, np.abs(np.einsum("ij,ij->i", n[other], normal_of[grp])))
         np.add.at(seen, grp, 1.0)
     creased = (seen > 0) & (turn <= 0.6 * np.maximum(seen, 1.0))
-    groups = [k for k in np.argsort(-total) if total[k] >= 0.1 * min_area and creased[k]]
+    # A face whose neighbours all leave its plane is a facet of the wall, not a piece of a seal: on a
+    # rough wall (scanned, segmented) every face is such a group of one (and merging them is quadratic).
+    faces = np.bincount(label, minlength=count)
+    groups = [k for k in np.argsort(-total) if total[k] >= 0.1 * min_area and creased[k] and faces[k] > 1]
     v = np.asarray(mesh.vertices)
     f_all = np.asarray(mesh.faces)
     patches = []
@@ -476,15 +498,17 @@ def flat_cuts(mesh: trimesh.Trimesh, min_area: float, angle_deg: float = 1.0) ->
                 p["centre"] = (p["centre"] * p["area"] + centre * w_sum) / (p["area"] + w_sum)
                 p["area"] += w_sum
                 p["corners"] = np.concatenate([p["corners"], corners])
+                p["faces"] += int(faces[k])
                 break
         else:
-            patches.append({"centre": centre, "normal": normal, "area": w_sum, "corners": corners})
+            patches.append({"centre": centre, "normal": normal, "area": w_sum, "corners": corners,
+                            "faces": int(faces[k])})
     out = []
     for p in patches:
         reach = float(np.linalg.norm(p["corners"] - p["centre"], axis=1).max())
         # A cut across a tube is about as wide as it is long (a disc or an ellipse); a flat strip
         # of a faceted wall is long and thin.
-        if p["area"] >= min_area and p["area"] >= 0.3 * np.pi * reach**2 and \
+        if p["faces"] >= _SEAL_FACES and p["area"] >= min_area and p["area"] >= 0.3 * np.pi * reach**2 and \
                 not _is_terrace(p, n, area, c, cos):  # fmt: skip
             out.append(FlatCut(p["centre"], p["normal"], p["area"], float(np.sqrt(p["area"] / np.pi))))
     return sorted(out, key=lambda x: -x.area)

@@ -5,7 +5,9 @@ rings made so that the simulator rebuilds the input at rest:
 
 1. Clean the mesh, find its boundary loops: loops of a tube's size are open ends or openings, small
    ones holes; all are capped for the inside test (:mod:`warp_tube.extract.mesh_io`), and flat faces
-   that seal cut ends are found.
+   that seal cut ends are found. The tube's size is measured first: chords across it from its wall,
+   checked against widths from inside, which a rough wall (a scan's or a segmentation's noise) does
+   not fool (:mod:`warp_tube.extract.scale`).
 2. Distance-from-boundary field on inside voxels and its voxel graph (:mod:`warp_tube.extract.distance_map`).
 3. Ends (:mod:`warp_tube.extract.ends`): at open loops where the mesh ends, then sealed cuts, else
    (closed meshes) the two ends of the longest geodesic; a most-centred voxel path joins them.
@@ -56,6 +58,7 @@ from .fidelity import Distances, Fidelity, fidelity_of, measured_vertices, mesh_
 from .mesh_io import BoundaryLoop, boundary_loops, cap_loops, clean_mesh, flat_cuts
 from .polyline import arclength, resample, resample_spline, smooth
 from .queries import MeshQueries
+from .scale import tube_scale
 from .sections import measure_spokes, open_rays, recentre, recentre_hubs
 
 __all__ = ["ExtractedTube", "TubeEnd", "Branch", "Opening", "extract_centerline", "default_hub_count", "AUTO_FIDELITY"]
@@ -69,13 +72,17 @@ AUTO_FIDELITY = (0.03, 0.12, 0.35)
 """Default hub count: from one hub per mean radius, 1.5 times more until the mesh's vertices (ends
 and side branches left out) lie within these fractions of the mean radius (mean, 99th percentile,
 largest) of the surface of the measured rings and the end rings are as round as the mesh allows
-(:data:`END_RATIO_SLACK`), or more hubs stop helping (by 5 %), or the least hub spacing is reached;
-the count that came closest is kept."""
+(:data:`END_RATIO_SLACK`), or more hubs stop helping, or the least hub spacing is reached; the
+count that came closest is kept. What hub spacing misses falls with its square: a try that lowered
+the score by a fraction ``x`` of it foretells about ``0.44 x`` for the next, so more hubs stop
+helping where the last try lowered it by less than 10 % (on a rough wall, each try follows the
+noise a little closer, by 5 to 8 %, and only that)."""
 END_RATIO_SLACK = 1.25
 """Default hub count: the end rings' spoke ratios (longest over shortest) are to stay within this
 factor of those of the rings one hub in (the mesh's own section there), like the fidelity."""
 MAX_AUTO_HUBS = 1000
 _MIN_SPACING = 0.3  # least automatic hub spacing, in median tube radii
+_HELPS = 0.9  # more hubs help while the last try lowered the hub-count score below this x the one before
 
 
 @dataclass(frozen=True)
@@ -271,8 +278,12 @@ def extract_centerline(
     diam = q.inner_diameters(m, 2.0 * diag)
     if len(diam) < 3:
         raise SceneError(f"{src}: encloses no volume: expected a tube surface (open or closed ends)")
-    r_med = 0.5 * float(np.median(diam))
-    r_narrow = 0.5 * float(np.percentile(diam, 10))
+    size = tube_scale(q, diam, lo, hi, diag)
+    r_med, r_narrow = size.median, size.narrow
+    if size.rough:
+        log.info("%s: rough wall: chords across the tube from its wall cross folds of it; its radius from %s: median "
+                 "%.4g, narrow %.4g", src, f"the {size.kept} of {size.chords} as long as the median width from inside "
+                 f"({size.width:.4g})" if size.kept else "the median width from inside", r_med, r_narrow)  # fmt: skip
     end_size = [lp for lp in loops if lp.radius >= _END_LOOP_FRACTION * r_med and len(lp.vertices) >= 5]
     holes = [lp for lp in loops if not any(lp is e for e in end_size)]
     if holes:
@@ -367,11 +378,11 @@ def extract_centerline(
         score = max(cover.mean / AUTO_FIDELITY[0], cover.p99 / AUTO_FIDELITY[1], cover.max / AUTO_FIDELITY[2],
                     _end_excess(lengths))  # fmt: skip
         tried.append((score, n, points))
-        log.debug("hubs %d: coverage %.4f %.4f %.4f", n, cover.mean, cover.p99, cover.max)
+        log.debug("hubs %d: coverage %.4f %.4f %.4f score %.4f", n, cover.mean, cover.p99, cover.max, score)
         if hubs is not None or score <= 1.0 or n >= max_hubs:
             break
-        if len(tried) > 1 and score > 0.95 * tried[-2][0]:
-            break  # more hubs stopped helping: what is left, more do not change
+        if len(tried) > 1 and score > _HELPS * tried[-2][0]:
+            break  # more hubs stopped helping: what is left, more do not change (a rough wall's noise)
         n = min(int(np.ceil(1.5 * n)), max_hubs)
     _, n, points = min(tried, key=lambda x: x[:2])
     kept = rings.keep_guard_clear(q, rings.rest_rings(q, points, spokes, caps, diag, device), caps, diag,

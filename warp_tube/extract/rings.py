@@ -249,6 +249,8 @@ def keep_guard_clear(q: MeshQueries, rings: Rings, caps: bool, diag: float, vert
         p = np.einsum("kn,knd->nd", weight, np.stack(points))
         p[:FIXED_ENDS] = best.points[:FIXED_ENDS]
         p[n - FIXED_ENDS :] = best.points[n - FIXED_ENDS :]
+        if np.abs(p - best.points).max() <= 1e-9 * radius:
+            break  # the hubs that chose a trial are ones it left in place: every further round would be this one
         current = rest_rings(q, p, spokes, caps, diag, device)
         # The hubs' choices, each made on its own neighbourhood, may do worse blended than apart, and
         # the next round may undo what this one did: the rounds go on from where they are, and the
