@@ -10,7 +10,11 @@ Three checks on the mesh (their warnings start with :data:`NOT_A_TUBE`, and ``wa
 - cross-sections that are single closed loops: at most :data:`MAX_OPEN_SECTIONS` of the interior
   hubs may have a ray in their ring plane that leaves the tube through an opening of the mesh
   (:func:`warp_tube.extract.sections.open_rays`): a cylinder with a face missing along its length,
-  or a sheet, fails this; a vessel with a few openings where branches were cut flush passes.
+  or a sheet, fails this; a vessel with a few openings where branches were cut flush passes;
+- most of the mesh on the tube: at most :data:`MAX_LEFT_OUT` of the mesh's vertices may lie off
+  its rings (beyond its ends, or nearer a side branch than the axis; :func:`~warp_tube.extract.fidelity.measured_vertices`):
+  a closed plate gives a thin "tube" across it and leaves 99% out; a vessel leaves out 3-23% (its
+  ends and branches), a tube five radii long about half (its ends).
 
 One check on the result: the rest surface the simulator builds (:mod:`warp_tube.extract.fidelity`)
 must lie within :data:`~warp_tube.extract.fidelity.FIDELITY_BOUNDS` of the mesh both ways; if not,
@@ -36,6 +40,8 @@ MIN_LENGTH_RADII = 4.0
 """Least length of a tube from tip to tip, in mean radii."""
 MAX_OPEN_SECTIONS = 0.25
 """Largest fraction of interior hubs whose ring is not a closed loop of the tube's wall."""
+MAX_LEFT_OUT = 0.9
+"""Largest fraction of the mesh's vertices off the tube's rings (beyond its ends, in side branches)."""
 
 
 def check(tube: ExtractedTube, open_rays: np.ndarray, *, hubs_given: bool) -> list[str]:
@@ -64,6 +70,14 @@ def check(tube: ExtractedTube, open_rays: np.ndarray, *, hubs_given: bool) -> li
                 "loops of its wall (rays across them leave through an opening of the mesh)"
             )
     fid = tube.fidelity
+    if fid is not None and fid.to_surface.counted:  # (none counted: the fit's own warning says so)
+        off = fid.to_surface.left_out / (fid.to_surface.counted + fid.to_surface.left_out)
+        if off > MAX_LEFT_OUT:
+            out.append(
+                f"{NOT_A_TUBE}: {np.floor(100.0 * off):.0f}% of the mesh's vertices lie off the tube's rings (beyond its "
+                f"ends or in side branches); a tube holds most of its mesh (a sheet or a plate gives a thin tube "
+                "across it)"
+            )
     if fid is not None and not fid.within(*FIDELITY_BOUNDS):
         bounds = " / ".join(f"{100 * b:g}" for b in FIDELITY_BOUNDS)
         text = (
