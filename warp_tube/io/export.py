@@ -129,7 +129,8 @@ def _frames_text(times) -> str:
 def _frame_names(times) -> list[str]:
     """File-name frame numbers of a sequence: integer time codes zero-padded to one width (at least
     4, more where a frame needs it: 9999 and 10000 give ``09999`` and ``10000``), so the names sort
-    in frame order; others as ``00012_500``."""
+    in frame order; others as ``00012_500``. Negative time codes keep their sign (``-0003``): they
+    sort before frame 0, but among themselves in reverse (``-0001`` before ``-0003``)."""
     ints = [int(round(t)) for t in times if float(t).is_integer()]
     width = max([4] + [len(str(abs(i))) for i in ints])
     return [
