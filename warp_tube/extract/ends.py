@@ -30,7 +30,9 @@ End rings (on the centred line, :mod:`warp_tube.extract.sections`):
   :func:`warp_tube.surface.topology.cap_ring_count`), lies closest to the mesh (about one radius in
   on a hemisphere). A flat cut (a segment cut out of a longer tube and sealed) is trimmed: a dome
   cannot follow it (the best misses a flat disc by 0.11 radii, an oblique one by more), so the end
-  hub goes just inside the cut and the scene leaves that end open.
+  hub goes just inside the cut and the scene leaves that end open. On a rough wall (a scan's noise)
+  the radius and the direction of the end are measured past the noise, and a flat cut is where the
+  tube keeps its width up to the surface ahead (:func:`fit_closed_end`).
 
 Lengths are in the mesh's units.
 """
@@ -68,6 +70,10 @@ _FLAT_CONE = 45.0  # ... up to this half-angle [degrees] (35 at least) reaches i
 _CUT_MARGIN = 0.02  # a trimmed end ring stays this x end radius before the cut's plane
 _RING_RATIO = 3.0  # an end ring's longest spoke is at most this x its shortest (no degenerate end ring)
 _SAME_END = 0.5  # two sealed cuts closer than this x the inside's reach from one close one end
+_ROUGH = 0.03  # a wall is rough where its ray noise (:func:`_wall_noise`) exceeds this x its radius
+_ROUGH_FLAT = 0.93  # a rough closed end is a flat cut where the tube's width before it is this x its radius
+_FLAT_BACK = (0.4, 0.5, 0.6)  # ... on rings this x the wall's radius before the surface ahead
+_NOISE_RAYS = 64  # rays per ring for :func:`_wall_noise` and :func:`_rough_cut_plane`
 
 
 @dataclass(frozen=True)
@@ -300,6 +306,37 @@ def _cut_plane(q: MeshQueries, hub: np.ndarray, out: np.ndarray, r_end: float, d
     return centre, normal
 
 
+def _rough_cut_plane(q: MeshQueries, hub: np.ndarray, out: np.ndarray, r_wall: float, diag: float):
+    """:func:`_cut_plane` for a rough wall, whose noise keeps ray hits off any plane by tenths of the
+    radius: the closed surface ahead of ``hub`` (looking along unit ``out``; ``r_wall`` the wall's
+    radius round it) is a flat cut where the tube keeps its width up to it: the mean of the median
+    rays of rings (normal to ``out``, :data:`_NOISE_RAYS` rays) :data:`_FLAT_BACK` x ``r_wall``
+    before the surface ahead (the median of 17 rays within 10 degrees of ``out``) is at least
+    :data:`_ROUGH_FLAT` x ``r_wall``. A hemisphere narrows there to 0.86 of its radius (noisy ones
+    measured 0.83 to 0.87 at noise of 0.1 radii, 0.71 to 0.80 at 0.2), a noisy flat cut's tube
+    0.98 to 1.02 (at 0.2: 0.90 to 1.08). Medians see past the noise.
+
+    Returns:
+        ``(point, unit normal)`` of the cut (the surface ahead, ``out``), or None.
+    """
+    r, s = plane_basis(out[None])
+    ring = spoke_directions(r, s, 8)[0]
+    near = np.vstack([out[None]] + [np.cos(a) * out + np.sin(a) * ring for a in np.radians([5.0, 10.0])])
+    t = q.rays(q.closed, np.repeat(hub[None], len(near), axis=0), near, diag)
+    if (t <= 0.0).any():
+        return None
+    ahead = float(np.median(t))
+    width = []
+    for back in _FLAT_BACK:
+        ring = _ray_ring(q, hub + max(ahead - back * r_wall, 0.0) * out, out, diag)
+        if ring is None:
+            return None
+        width.append(float(np.median(ring)))
+    if np.mean(width) < _ROUGH_FLAT * r_wall:
+        return None
+    return hub + ahead * out, out
+
+
 def _tube_radius(q: MeshQueries, line: np.ndarray, r_end: float, diag: float) -> float:
     """The tube's radius behind the closed end where ``line`` starts: the largest distance from the
     closed surface of the line's points within three ``r_end`` of its start (at least ``r_end``)."""
@@ -365,25 +402,41 @@ def fit_closed_end(q: MeshQueries, line: np.ndarray, diag: float, spokes: int, c
     taken (``"closed"``); where even that cap misses the tip by more than :data:`_CAP_TOLERANCE`
     end radii, the end stays there but is left open (``"cut"``).
 
+    On a rough wall (noise round the line over :data:`_ROUGH` of its radius, :func:`_wall_noise`; a
+    clean mesh's is 0.006 or less, and is left as above) the wall's nearest point is its deepest
+    inward spike (0.6 radii from the axis at noise of 0.1 radii) and the centred line's first points
+    wander by the noise: the end radius is the median ray round the line's start instead, the line's
+    first 1.5 such radii are straightened (:func:`_straight_start`), and a flat cut is told from a
+    rounded tip by the tube's width before it (:func:`_rough_cut_plane`). Else such a tip's cap
+    positions stopped short of a hemisphere's centre and its tolerance shrank by as much: it was
+    left open (5 of 8 ends at noise of 0.1 radii, most at 0.2).
+
     Returns:
         ``(line (k, 3) starting at the end hub, tip (3,), kind, seal)``: ``kind`` "closed" or "cut",
         ``seal`` the cut's ``(point, outward unit normal, radius)`` or None; the line unchanged when no
         ray reaches the closed surface or no position has a complete ring.
     """
     r_end = float(q.distance(line[:1], diag)[0])
+    noise, r_wall = _wall_noise(q, line, diag)
+    rough = noise > _ROUGH * r_wall
+    if rough:  # the nearest point of a rough wall is the tip of its deepest inward spike
+        r_end = max(r_end, r_wall)
+        line = _straight_start(line, 1.5 * r_wall)
     if cut is not None and np.dot(line[0] - cut.centroid, cut.normal) * np.dot(line[-1] - cut.centroid, cut.normal) <= 0:
         cut = None  # the line starts on the far side of the cut's plane: it does not close this end
     ext, tip = _extend(q, line, r_end, diag, cut)
     if tip is None:
         return line, line[0].copy(), "closed", None
     s = arclength(ext)
-    r_end = float(q.distance(line[:1], diag)[0])
     out = (ext[0] - ext[1]) / max(np.linalg.norm(ext[0] - ext[1]), 1e-300)
     if cut is not None:
         normal = cut.normal if np.dot(cut.normal, out) > 0.0 else -cut.normal
         seal = (cut.centroid, normal, max(cut.radius, r_end))
     else:
         plane = _cut_plane(q, line[0], out, r_end, diag, _tube_radius(q, line, r_end, diag))
+        seal = None if plane is None else (*plane, 1.5 * r_end)
+    if seal is None and rough:
+        plane = _rough_cut_plane(q, line[0], out, r_wall, diag)
         seal = None if plane is None else (*plane, 1.5 * r_end)
     if seal is not None:
         best = _inside_cut(q, ext, s, seal[:2], r_end, diag, spokes)
@@ -396,6 +449,56 @@ def fit_closed_end(q: MeshQueries, line: np.ndarray, diag: float, spokes: int, c
         return line, tip, kind, seal
     hub, _ = _point_at(ext, s, best)
     return np.concatenate([hub[None], ext[s > best]]), tip, kind, seal
+
+
+def _straight_start(line: np.ndarray, reach: float) -> np.ndarray:
+    """``line`` with its points within ``reach`` of arclength from its start moved onto their
+    least-squares straight line: on a rough wall the centred line wanders by the noise, and the
+    tangent of its first points, which points the way to the tip, by tens of degrees."""
+    s = arclength(line)
+    near = s <= reach
+    if near.sum() < 3:
+        return line
+    centre = line[near].mean(axis=0)
+    axis = np.linalg.svd(line[near] - centre)[2][0]
+    out = line.copy()
+    out[near] = centre + np.outer((line[near] - centre) @ axis, axis)
+    return out
+
+
+def _ray_ring(q: MeshQueries, point: np.ndarray, tangent: np.ndarray, diag: float) -> np.ndarray | None:
+    """Distances to the closed surface along :data:`_NOISE_RAYS` rays in the plane normal to unit
+    ``tangent`` through ``point``, in order round it; None where a ray meets nothing."""
+    r, s = plane_basis(tangent[None])
+    dirs = spoke_directions(r, s, _NOISE_RAYS)[0]
+    t = q.rays(q.closed, np.repeat(point[None], len(dirs), axis=0), dirs, diag)
+    return None if (t <= 0.0).any() else t
+
+
+def _wall_noise(q: MeshQueries, line: np.ndarray, diag: float) -> tuple[float, float]:
+    """The wall's noise near the closed end where ``line`` starts and its radius there [mesh units].
+
+    The radius is the median ray length round ``line[0]`` (normal to the line); the noise, a robust
+    deviation (1.4826 x the median absolute value) of the second differences of ray lengths round
+    rings 1 to 3 such radii further on, over sqrt(6) (what they make of independent noise), median
+    over the rings. A smooth wall changes little from ray to ray (a 32-gon: 0.006 of its radius);
+    vertices moved by noise of 0.1 (0.2) of the radius give 0.06 to 0.11 (0.12 to 0.19). Returns
+    ``(0, 0)`` where no ring is complete.
+    """
+    s = arclength(line)
+    t0 = _ray_ring(q, line[0], _point_at(line, s, 0.0)[1], diag)
+    if t0 is None:
+        return 0.0, 0.0
+    radius = float(np.median(t0))
+    noise = []
+    for x in np.linspace(1.0, 3.0, 5) * radius:
+        if x > s[-1]:
+            break
+        t = _ray_ring(q, *_point_at(line, s, x), diag)
+        if t is not None:
+            second = np.roll(t, 1) - 2.0 * t + np.roll(t, -1)
+            noise.append(1.4826 * float(np.median(np.abs(second))) / np.sqrt(6.0))
+    return (float(np.median(noise)), radius) if noise else (0.0, radius)
 
 
 def _inside_cut(q: MeshQueries, ext, s, cut, r_end: float, diag: float, spokes: int):
