@@ -33,6 +33,8 @@ __all__ = ["FoundBranch", "find_branches"]
 
 log = logging.getLogger(__name__)
 
+_TOUCH = 1.75  # voxel sizes: neighbouring voxels, corners too (sqrt(3)), are this close
+
 
 @dataclass(frozen=True)
 class FoundBranch:
@@ -96,6 +98,7 @@ def find_branches(
         is_best = excess[out_nodes] >= best[label]
         tips[label[is_best]] = out_nodes[is_best]
         cpred = None
+        tips_found = []  # the tip of each branch found inside
         for k in np.argsort(-best):
             if len(found) >= max_branches or best[k] <= 3.0 * h:
                 break
@@ -103,6 +106,11 @@ def find_branches(
             r_b = float(np.median(dm.dfb[region]))
             if best[k] <= 2.0 * r_b + h:
                 continue  # a bulge: it does not reach a diameter beyond the tube's surface
+            tip = dm.points[int(tips[k])]
+            near = float(wall[line_tree.query(tip)[1]]) + _TOUCH * h  # the tube's radius there
+            if any(np.linalg.norm(tip - p) <= near for p in tips_found):
+                continue  # its tip beside a larger region's: two flanks of one stub, which leave the cover before its middle
+            tips_found.append(tip)
             if cpred is None:
                 _, cpred, _ = dmap.shortest_tree(dm.centred_graph, voxel_path)
             bpath = dmap.trace_path(cpred, int(tips[k]))
