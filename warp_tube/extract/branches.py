@@ -7,7 +7,8 @@ radius of 1.25 x its largest spoke per point for voxels, 1 x for loop centroids)
   centerline exceeds the cover by more than the branch's own diameter (so a bulge or a haustral
   fold is not a branch). The branch's centre path is the most-centred path from its farthest voxel
   back to the main centerline. One connected region of such voxels is one side branch, with any
-  branches of its own.
+  branches of its own; a region whose tip lies within the tube's radius of a larger one's is the
+  same branch (a short stub's two flanks leave the cover before its middle does).
 - cut branches: open boundary loops (of end size) that are not the tube's ends and whose centroid
   lies farther from the centerline than the wall (median spoke length): a branch stub cut off the
   mesh. A loop nearer than that is an opening in the wall where a branch was cut flush; it is
