@@ -10,8 +10,8 @@ from tests.conftest import check_output_problems, needs_shared
 from warp_tube import Simulation
 from warp_tube.scene.spec import Scene, SimulationSettings, StageInfo, TubeParams, TubeSpec
 from warp_tube.surface.builder import SurfaceBuilder
-from warp_tube.surface.prims import PrimSurface, prim_topology
-from warp_tube.surface.topology import build_topology, split_topology
+from warp_tube.surface.prims import PrimSurface
+from warp_tube.surface.topology import build_topology, split_topology, tube_topology
 
 
 def _prim(rng, path, spokes, caps, measured, normal):
@@ -80,7 +80,7 @@ def test_split_topology_is_each_prims_own(caps):
     topo = build_topology(starts, 5, caps=caps, rest_q=np.concatenate([p for _, p, _ in prims]), cap_radius=cap_radius)
     parts = split_topology(topo, starts, np.r_[0, np.cumsum([len(c) for c, _, _ in prims])])
     for (counts, pts, lengths), (sub, body, cap) in zip(prims, parts):
-        own = prim_topology(np.r_[0, np.cumsum(counts)], 5, lengths, caps, pts)
+        own = tube_topology(np.r_[0, np.cumsum(counts)], 5, lengths, caps, pts)
         for f in ("spokes", "caps", "hub_count", "vertex_count", "st_interpolation"):
             assert getattr(own, f) == getattr(sub, f)
         for f in ("face_vertex_counts", "face_vertex_indices", "st", "ring_hub", "ring_kind", "ring_cos", "ring_sin", "ring_vertex"):

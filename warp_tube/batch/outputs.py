@@ -137,7 +137,7 @@ def surface_topology(t):
 
 
 def _surface_topology(t):
-    from ..surface.topology import build_topology
+    from ..surface.topology import tube_topology
 
     S = t.params.spokes
     lengths = t.spoke_lengths if t.spoke_lengths is not None else np.repeat(t.radius[:, None], S, axis=1)
@@ -146,11 +146,7 @@ def _surface_topology(t):
         if len(_topologies) > 4096:
             _topologies.clear()
         starts = np.concatenate([[0], np.cumsum(t.curve_counts)])
-        cap_radius = None
-        if t.params.caps:
-            mean = lengths.mean(axis=1)
-            cap_radius = np.stack([mean[starts[:-1]], mean[starts[1:] - 1]], axis=1)
-        _topologies[key] = build_topology(starts, S, caps=t.params.caps, rest_q=t.points, cap_radius=cap_radius)
+        _topologies[key] = tube_topology(starts, S, lengths, t.params.caps, t.points)
     return _topologies[key]
 
 

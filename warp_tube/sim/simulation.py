@@ -162,7 +162,7 @@ class Simulation(RunBudget):
         (:mod:`warp_tube.surface.prims`), kept in ``self._surface_builders``."""
         from ..surface.prims import prim_surfaces
 
-        per_prim, self._surface_builders = prim_surfaces(self.scene.tubes, self._prim_start, self.device)
+        per_prim, self._surface_builders, self._shared_prims = prim_surfaces(self.scene.tubes, self._prim_start, self.device)
         return per_prim
 
     # -- interactive control ---------------------------------------------------------------------
@@ -324,7 +324,7 @@ class Simulation(RunBudget):
 
         Raises:
             RuntimeError: made with ``surface=False``. IndexError: no such world."""
-        from ..surface.prims import PrimSurface, prim_extents
+        from ..surface.prims import PrimSurface
 
         if self.surfaces is None:
             raise RuntimeError("this Simulation was made with surface=False")
@@ -342,16 +342,14 @@ class Simulation(RunBudget):
         for b in self._surface_builders:
             pts, nrm = b.compute(q)
             rebuilt[id(b)] = (pts.numpy()[0], nrm.numpy()[0].copy() if own else nrm.numpy()[0], b.extent().numpy()[0])
-        shared = {}  # a shared builder's prims' bounds, exact, from its points
-        for s in self.surfaces:
-            if isinstance(s, PrimSurface) and id(s.builder) not in shared:
-                views = [v for v in self.surfaces if isinstance(v, PrimSurface) and v.builder is s.builder]
-                shared[id(s.builder)] = dict(zip(map(id, views), prim_extents(views, rebuilt[id(s.builder)][0])))
+        shared = {}  # the bounds of a shared builder's prims, exact, from its points
+        for group in self._shared_prims:
+            shared.update(zip(map(id, group.views), group.extents(rebuilt[id(group.builder)][0])))
         out = []
         for s in self.surfaces:
             if isinstance(s, PrimSurface):  # a prim's part of a shared builder
                 pts, nrm = (s.take(a) for a in rebuilt[id(s.builder)][:2])
-                ext = shared[id(s.builder)][id(s)]
+                ext = shared[id(s)]
             else:
                 pts, nrm, ext = rebuilt[id(s)]
             out.append((pts / mpu, nrm, ext / mpu))

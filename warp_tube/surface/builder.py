@@ -30,7 +30,7 @@ from ..kernels.surface_block import WORLD_LANES, make_surface_block_kernel, span
 from ..kernels.surface_world import surface_world_kernel
 from ..runtime.replay import GraphCache, cpu_blocks
 from .spans import block_spans
-from .topology import SurfaceTopology, TopologyView, build_topology
+from .topology import SurfaceTopology, TopologyView, tube_topology
 
 __all__ = ["SurfaceBuilder", "FRAME_MODES", "DEFAULT_GUARD_REACH"]
 
@@ -172,13 +172,7 @@ class SurfaceBuilder(TopologyView):
         if not np.all(np.isfinite(lengths)) or np.any(lengths <= 0.0):
             raise ValueError("spoke_lengths must be finite and positive")
 
-        cap_radius = None
-        if caps:
-            mean = lengths[0].mean(axis=1)
-            cap_radius = np.stack([mean[local_starts[:-1]], mean[local_starts[1:] - 1]], axis=1)
-        self.topology: SurfaceTopology = build_topology(
-            local_starts, S, caps=caps, rest_q=rest, cap_radius=cap_radius
-        )
+        self.topology: SurfaceTopology = tube_topology(local_starts, S, lengths[0], caps, rest)
         self.spokes = S
         self.frames = frames
         self.caps = bool(caps)

@@ -16,19 +16,9 @@ import numpy as np
 import warp as wp
 
 from .builder import SurfaceBuilder
-from .topology import SurfaceTopology, TopologyView, build_topology, split_topology
+from .topology import SurfaceTopology, TopologyView, split_topology
 
-__all__ = ["PrimSurface", "prim_surfaces", "prim_topology", "prim_extents"]
-
-
-def prim_topology(local_starts, spokes: int, lengths: np.ndarray, caps: bool, rest_q) -> SurfaceTopology:
-    """The topology a builder of one prim makes: tubes ``local_starts`` (from 0), ``lengths`` (N, S)
-    [L], cap radii from the mean spoke length at each end hub."""
-    cap_radius = None
-    if caps:
-        mean = np.asarray(lengths).mean(axis=1)
-        cap_radius = np.stack([mean[local_starts[:-1]], mean[local_starts[1:] - 1]], axis=1)
-    return build_topology(local_starts, spokes, caps=caps, rest_q=rest_q, cap_radius=cap_radius)
+__all__ = ["PrimSurface", "SharedPrims", "prim_surfaces"]
 
 
 class PrimSurface(TopologyView):
@@ -71,25 +61,31 @@ class PrimSurface(TopologyView):
         return wp.array(self._extent, dtype=wp.vec3, device=self.builder.device)
 
 
-def prim_extents(views: list[PrimSurface], points: np.ndarray) -> np.ndarray:
-    """``[min, max]`` corners of each prim's points, (P, 2, 3), from ``points`` (V_builder, 3), the
-    host copy of the prims' shared builder's points (``views``: all its prims, in order): one
-    reduction per axis over all prims (a reduction over the rows of a (V, 3) array is several
-    times slower), exact as the builder's own extent. The prims' body vertices follow one another,
-    and so do their caps'."""
-    b0, b1 = views[0].body.start, views[-1].body.stop
-    c0, c1 = views[0].caps_vertices.start, views[-1].caps_vertices.stop
-    body = np.array([v.body.start for v in views]) - b0
-    caps = np.array([v.caps_vertices.start for v in views]) - c0
-    out = np.empty((len(views), 2, 3), dtype=points.dtype)
-    for c in range(3):
-        col = points[:, c]
-        for side, ufunc in enumerate((np.minimum, np.maximum)):
-            value = ufunc.reduceat(col[b0:b1], body)
-            if c1 > c0:  # (one kind: every prim capped, or none)
-                value = ufunc(value, ufunc.reduceat(col[c0:c1], caps))
-            out[:, side, c] = value
-    return out
+class SharedPrims:
+    """The prims of one shared builder (``views``, all of them, in order), and where their vertices
+    lie in it, worked out once: the prims' body vertices follow one another, and so do their caps'."""
+
+    def __init__(self, views: list[PrimSurface]):
+        self.builder = views[0].builder
+        self.views = views
+        self._body = slice(views[0].body.start, views[-1].body.stop)
+        self._caps = slice(views[0].caps_vertices.start, views[-1].caps_vertices.stop)
+        self._body_at = np.array([v.body.start for v in views]) - self._body.start
+        self._caps_at = np.array([v.caps_vertices.start for v in views]) - self._caps.start
+
+    def extents(self, points: np.ndarray) -> np.ndarray:
+        """``[min, max]`` corners of each prim's points, (P, 2, 3), from ``points`` (V_builder, 3),
+        the host copy of the builder's points: one reduction per axis over all prims (a reduction
+        over the rows of a (V, 3) array is several times slower), exact as the builder's own extent."""
+        out = np.empty((len(self.views), 2, 3), dtype=points.dtype)
+        for c in range(3):
+            col = points[:, c]
+            for side, ufunc in enumerate((np.minimum, np.maximum)):
+                value = ufunc.reduceat(col[self._body], self._body_at)
+                if self._caps.stop > self._caps.start:  # (one kind: every prim capped, or none)
+                    value = ufunc(value, ufunc.reduceat(col[self._caps], self._caps_at))
+                out[:, side, c] = value
+        return out
 
 
 def _kind(t) -> tuple:
@@ -100,16 +96,17 @@ def _lengths(t) -> np.ndarray:
     return t.spoke_lengths if t.spoke_lengths is not None else np.repeat(t.radius[:, None], t.params.spokes, axis=1)
 
 
-def prim_surfaces(tubes, prim_start, device) -> tuple[list, list[SurfaceBuilder]]:
+def prim_surfaces(tubes, prim_start, device) -> tuple[list, list[SurfaceBuilder], list[SharedPrims]]:
     """Per tube prim its surface (a builder of its own, or a :class:`PrimSurface` of one shared
-    with the consecutive prims of its kind), and the builders, each once, in prim order.
+    with the consecutive prims of its kind), the builders, each once, in prim order, and the
+    prims of each shared builder (:class:`SharedPrims`).
 
     Args:
         tubes: the scene's tube prims (:class:`~warp_tube.scene.spec.TubeSpec`), in node order.
         prim_start: first node of each prim in the model, (prims,) or more.
         device: Warp device.
     """
-    per_prim, builders = [], []
+    per_prim, builders, shared = [], [], []
     k = 0
     while k < len(tubes):
         end = k + 1
@@ -136,9 +133,11 @@ def prim_surfaces(tubes, prim_start, device) -> tuple[list, list[SurfaceBuilder]
                            spoke_lengths=np.concatenate(lengths), reference_normal=normals, frames=t0.params.frames,
                            caps=t0.params.caps, world_count=1, device=device, cell_radius=cell)  # fmt: skip
         builders.append(b)
-        per_prim += _views(b, group)
+        views = _views(b, group)
+        per_prim += views
+        shared.append(SharedPrims(views))
         k = end
-    return per_prim, builders
+    return per_prim, builders, shared
 
 
 def _views(b: SurfaceBuilder, group) -> list[PrimSurface]:

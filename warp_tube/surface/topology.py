@@ -35,7 +35,7 @@ import numpy as np
 
 from ..kernels.surface_arrays import RING_BODY, RING_CAP, RING_POLE
 
-__all__ = ["RING_BODY", "RING_CAP", "RING_POLE", "SurfaceTopology", "cap_ring_count", "build_topology", "split_topology", "TopologyView"]
+__all__ = ["RING_BODY", "RING_CAP", "RING_POLE", "SurfaceTopology", "cap_ring_count", "build_topology", "tube_topology", "split_topology", "TopologyView"]
 
 
 def cap_ring_count(spokes: int) -> int:
@@ -314,6 +314,25 @@ def build_topology(
         ring_sin=np.concatenate(ring_sin).astype(np.float32),
         ring_vertex=np.concatenate(ring_vertex).astype(np.int32),
     )
+
+
+def tube_topology(tube_node_start, spokes: int, spoke_lengths: np.ndarray, caps: bool, rest_q) -> SurfaceTopology:
+    """The topology of one tube prim as its surface builder makes it: :func:`build_topology` with
+    the caps' radii (with ``caps``) the mean spoke length [m] at each tube's end hubs.
+
+    Args:
+        tube_node_start: first hub of each tube, (T + 1,), from 0.
+        spokes: spokes per hub, S.
+        spoke_lengths: spoke lengths [m], (N, S).
+        caps: close both ends of every tube.
+        rest_q: rest hub positions [m], (N, 3).
+    """
+    starts = np.asarray(tube_node_start, dtype=np.int64)
+    cap_radius = None
+    if caps:
+        mean = np.asarray(spoke_lengths).mean(axis=1)
+        cap_radius = np.stack([mean[starts[:-1]], mean[starts[1:] - 1]], axis=1)
+    return build_topology(starts, spokes, caps=caps, rest_q=rest_q, cap_radius=cap_radius)
 
 
 def split_topology(topo: SurfaceTopology, tube_node_start, prim_tube_start) -> list[tuple[SurfaceTopology, slice, slice]]:
