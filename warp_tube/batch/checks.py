@@ -12,6 +12,7 @@ per world a frame, and whole arrays only to name the point of a world that faile
 from __future__ import annotations
 
 import numpy as np
+import warp as wp
 
 from ..sim.checks import FrameChecks
 from .worlds import Worlds
@@ -60,7 +61,21 @@ class WorldChecks:
         """Problems of the frame from state ``before`` to ``after`` (output frame ``frame`` to
         ``frame + 1``), ``{world: message}``, among the ``alive`` worlds; the frame's work is
         counted for every world."""
-        failures, work = self.device_checks.check(before, after, control)
+        self.launch(before, after, control)
+        return self.check_launched(frame, after, alive, synchronize=True)
+
+    def launch(self, before, after, control) -> None:
+        """Queue the frame's sums and their copy back on the device's stream (see
+        :meth:`check_launched`)."""
+        self.device_checks.launch(before, after, control)
+
+    def check_launched(self, frame: int, after, alive: np.ndarray, synchronize: bool = False) -> dict:
+        """:meth:`check` of the frame last :meth:`launch`-ed, once the device's stream has reached
+        it (``synchronize``: wait for it here)."""
+        device = wp.get_device(self.worlds.model.device)
+        if synchronize and device.is_cuda:
+            wp.synchronize_stream(wp.get_stream(device))
+        failures, work = self.device_checks.check_measured(self.device_checks.measured(), after)
         self.device_checks.accept(work)
         out = {}
         for f in failures:

@@ -47,7 +47,19 @@ class WorldContacts:
     def check(self, frame: int, q, alive: np.ndarray) -> None:
         """Record ``frame`` for the ``alive`` worlds whose positions ``q`` (W, N) vec3 [m] (the
         state at the end of that frame) first put distant parts of their tubes in contact."""
-        gap = self.monitor.deepest(q)  # (every world's points: the monitor's groups)
+        self.check_measured(frame, q, self.monitor.deepest(q), alive)  # (every world's points: the monitor's groups)
+
+    def launch(self, q) -> None:
+        """Queue the test of positions ``q`` and its copy back on the device's stream (see
+        :meth:`check_launched`)."""
+        self.monitor.launch(q)
+
+    def check_launched(self, frame: int, q, alive: np.ndarray) -> None:
+        """:meth:`check` of the positions ``q`` last :meth:`launch`-ed, once the device's stream
+        has reached them."""
+        self.check_measured(frame, q, self.monitor.measured(), alive)
+
+    def check_measured(self, frame: int, q, gap: np.ndarray, alive: np.ndarray) -> None:
         new = np.flatnonzero((gap < 0.0) & (self.frame < 0) & alive)
         if len(new):
             host = q.numpy().reshape(-1, 3).astype(np.float64)

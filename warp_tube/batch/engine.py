@@ -28,6 +28,7 @@ import warp as wp
 from ..runtime.interrupts import raise_if_interrupted
 from ..scene.spec import Scene
 from .checks import WorldChecks
+from .clock import DeviceClock
 from .contacts import WorldContacts
 from .control import WorldControl
 from .framestore import FrameStore, done_future
@@ -37,7 +38,7 @@ from .worlds import build_worlds, initial_state
 
 __all__ = ["ChunkRun", "simulate_chunk", "output_frames", "chunk_shapes"]
 
-TIMERS = ("build_s", "kernels_s", "readback_s", "control_s", "checks_s", "copy_s", "rerun_s")
+TIMERS = ("build_s", "kernels_s", "sync_s", "readback_s", "control_s", "checks_s", "copy_s", "rerun_s")
 
 
 def output_frames(frames: int, every: int) -> list[int]:
@@ -116,6 +117,7 @@ def simulate_chunk(scenes: list[Scene], choice: RunChoice, device: str, frames: 
     stream = wp.get_stream(device) if wp.get_device(device).is_cuda else None
     timings["build_s"] += time.perf_counter() - t0
 
+    clock = DeviceClock(device)
     alive = np.ones(W, dtype=bool)
     failed: dict[int, str] = {}
     frames_simulated = np.zeros(W, dtype=np.int64)
@@ -129,10 +131,15 @@ def simulate_chunk(scenes: list[Scene], choice: RunChoice, device: str, frames: 
             t = time.perf_counter()
             wc.update(k - 1, state)
             t1 = time.perf_counter()
+            # The frame, its checks and their copies back queued at once; one wait for them all.
+            mark = clock.start()
             solver.integrate(state, nxt, control, dt, n)
+            checks.launch(state, nxt, control)
+            contacts.launch(nxt.node_q)  # (the state at the end of frame k)
+            clock.stop(mark)
             _synchronize(stream)
             t2 = time.perf_counter()
-            problems = checks.check(k - 1, state, nxt, control, alive)
+            problems = checks.check_launched(k - 1, nxt, alive)
             state, nxt = nxt, state
             if problems:
                 for w, msg in problems.items():
@@ -140,31 +147,36 @@ def simulate_chunk(scenes: list[Scene], choice: RunChoice, device: str, frames: 
                     failed[w] = msg
                 wc.dead[~alive] = True
                 _reset_worlds(state, checks.rest32, worlds.rest_q(), ~alive)
-            contacts.check(k, state.node_q, alive)  # (the state at the end of frame k)
+                contacts.check(k, state.node_q, alive)  # again, with the failed worlds at rest
+            else:
+                contacts.check_launched(k, state.node_q, alive)
             max_disp = np.where(alive, np.maximum(max_disp, checks.distance), max_disp)
             frames_simulated[alive] += 1
             t3 = time.perf_counter()
+            clock.settle()
             timings["control_s"] += t1 - t
-            timings["kernels_s"] += t2 - t1
+            timings["sync_s"] += t2 - t1
             timings["checks_s"] += t3 - t2
             if progress is not None:
                 progress(W)
         if k % every == 0:
             t = time.perf_counter()
+            mark = clock.start()
             store.store(f_out, "centerline", state.node_q, mpu)  # as Simulation.centerline_points
             if surface:
                 _surface_frame(worlds, state, store, f_out, mpu)
-            _synchronize(stream)
-            t1 = time.perf_counter()
+            clock.stop(mark)
             if store.count == store.window and f_out + 1 < store.frames:
                 store.hand_over()  # copied back on the copying thread while the frames go on
             frames_written[alive] += 1
             f_out += 1
-            timings["kernels_s"] += t1 - t
-            timings["copy_s"] += time.perf_counter() - t1
+            timings["copy_s"] += time.perf_counter() - t
     t = time.perf_counter()
     ready = store.finish()
+    _synchronize(stream)
+    clock.settle()
     timings["copy_s"] += time.perf_counter() - t
+    timings["kernels_s"] += clock.seconds
     t = time.perf_counter()
     q, qd = state.node_q.numpy(), state.node_qd.numpy()
     timings["readback_s"] += time.perf_counter() - t

@@ -366,12 +366,12 @@ def _fmt(v) -> str:
     return str(v)
 
 
-def write_summary(path: str, parameter_columns: list[str], variants, columns: dict) -> None:
-    """``summary.csv``: one row per variant in batch order (``columns``: each field's values in
-    that order, :func:`~warp_tube.batch.rows.batch_columns`)."""
+def write_summary(path: str, parameter_columns: list[str], lines: str) -> None:
+    """``summary.csv``: its header, then ``lines`` (:func:`summary_lines` of every variant in
+    batch order)."""
     buf = io.StringIO()
     csv.writer(buf, lineterminator="\n").writerow(["variant", "name", *parameter_columns, *SUMMARY_FIELDS])
-    buf.write(summary_lines(variants, columns))
+    buf.write(lines)
     _atomic_text(path, buf.getvalue())
 
 

@@ -36,11 +36,12 @@ from ..runtime.collector import collector_paused
 from ..runtime.interrupts import kept_interrupts
 from ..scene.spec import SceneError
 from .engine import TIMERS, output_frames
+from .bookkeeping import Bookkeeper
 from .cluster import check_dask, dask_client, run_dask
 from .execute import SimWorkers, Writers, run_here, run_pooled, writer_count
 from .journal import Journal, file_digest
 from .lock import BatchLock
-from .outputs import LAYOUTS, SUMMARY_FIELDS, OutputSpec, finish_arrays, prepare_arrays, surface_topology, write_grid_root, write_summary
+from .outputs import LAYOUTS, OutputSpec, finish_arrays, prepare_arrays, surface_topology, write_grid_root, write_summary
 from .plan import by_identity, group_key, plain_group_keys, plan_chunks
 from .prepare import prepare_batch
 from .progress import Progress
@@ -454,15 +455,18 @@ def _run_batch(scene, out_dir, table, tab, devices, writer_pool, sim_workers, t_
     todo = [c for c in plan if c.id not in done]
     bar.start(sum(len(c.indices) for c in todo) * max(n_frames - 1, 1), len(variants), result.resumed)
 
+    books = Bookkeeper(journal, variants.variants, plan)
+
     def finish(chunk_id: int, rows: Rows, outputs: list):
         c = plan[chunk_id]
         ok = "ok" in rows.columns["status"]
         rec = {"rows": {"index": list(c.indices), **rows.columns, "output": list(outputs)},
                "layer": f"grid/chunk_{chunk_id:05d}.usdc" if layout == "grid" and ok else ""}  # fmt: skip
-        journal.record(chunk_id, rec)
+        books.record(chunk_id, rec)  # (on the records' thread)
         records[chunk_id] = rec
         bar.variants_done(len(c.indices))
         if on_chunk is not None:
+            books.wait()  # (called once the chunk is recorded)
             on_chunk(chunk_id)
 
     context = dict(variants=variants, plan=plan, choices=choices, frames=n_frames, every=every, surface=surface,
@@ -478,12 +482,15 @@ def _run_batch(scene, out_dir, table, tab, devices, writer_pool, sim_workers, t_
             run_pooled(todo, devices, sim_workers, context, result)
     except KeyboardInterrupt as e:
         bar.close()
+        books.close()
         _tally(result, records, variants)
         result.pending = len(variants) - sum(record_count(r) for r in records.values())
         result.wall_s = time.perf_counter() - t_start
         raise BatchInterrupted(result, getattr(e, "signum", signal.SIGINT)) from None
+    finally:
+        books.close()  # (every record on disk, however the chunks ended)
     bar.close()
-    _finish_outputs(spec, variants, counts, records, first, out_dir)
+    _finish_outputs(spec, variants, counts, records, first, out_dir, books)
     journal.finish()
     _tally(result, records, variants)
     result.wall_s = time.perf_counter() - t_start
@@ -570,8 +577,8 @@ def _output_spec(variants, counts: list, layout, out_dir, work_dir, surface, tim
                       up_axis=first.up_axis)  # fmt: skip
 
 
-def _finish_outputs(spec: OutputSpec, variants, counts: list, records: dict, first_scene, out_dir: str) -> None:
-    index, cols = batch_columns(records.values(), ("tip", *SUMMARY_FIELDS))
+def _finish_outputs(spec: OutputSpec, variants, counts: list, records: dict, first_scene, out_dir: str, books: Bookkeeper) -> None:
+    index, cols = batch_columns(records.values(), ("status",))
     vs = variants.variants
     if index != list(range(len(vs))):
         raise RuntimeError(f"the batch's records hold {len(index)} variants, not each of its {len(vs)} once")
@@ -581,4 +588,4 @@ def _finish_outputs(spec: OutputSpec, variants, counts: list, records: dict, fir
         layers = [records[c]["layer"] for c in sorted(records) if records[c]["layer"]]
         ok = [v.name for v, s in zip(vs, cols["status"]) if s == "ok"]
         write_grid_root(spec, first_scene.stage, layers, ok)
-    write_summary(os.path.join(out_dir, "summary.csv"), variants.parameter_columns(), vs, cols)
+    write_summary(os.path.join(out_dir, "summary.csv"), variants.parameter_columns(), books.summary_text(records))

@@ -82,6 +82,10 @@ class FrameChecks:
         self._rest = wp.array(self.rest_q, dtype=wp.vec3, device=d)
         self._sums = wp.zeros((W, G), dtype=wp.vec3, device=d)
         self._far = wp.zeros((W, G), dtype=float, device=d)
+        # their copies on the host, page-locked on a GPU (copied back without waiting: see launch)
+        pinned = wp.get_device(d).is_cuda
+        self._sums_host = wp.zeros((W, G), dtype=wp.vec3, device="cpu", pinned=pinned)
+        self._far_host = wp.zeros((W, G), dtype=float, device="cpu", pinned=pinned)
         self._launches = {}
         #: work of the forces and gravity so far [J], per (world, group), float64
         self.work = np.zeros((W, G))
@@ -90,6 +94,15 @@ class FrameChecks:
 
     def measure(self, before, after, control):
         """Per (world, group): ``(bad, kinetic [J], work of this frame [J])`` as NumPy arrays."""
+        self.launch(before, after, control)
+        if wp.get_device(self.device).is_cuda:
+            wp.synchronize_stream(wp.get_stream(self.device))
+        return self.measured()
+
+    def launch(self, before, after, control) -> None:
+        """Start measuring the frame from ``before`` to ``after``: the sums' kernel and their copy
+        to the host, queued on the device's stream; :meth:`measured` reads them once the stream
+        has reached them (a batch waits for the stream once for its frame's every read)."""
         # One recorded launch per set of arrays (a run swaps two states); the launch holds the
         # arrays, so their addresses identify them for as long as it is kept.
         key = (before.node_q.ptr, after.node_q.ptr, after.node_qd.ptr, control.node_f_ext.ptr)
@@ -106,19 +119,30 @@ class FrameChecks:
         self._sums.zero_()
         self._far.zero_()
         launch.launch()
-        s = self._sums.numpy().astype(np.float64)
+        wp.copy(self._sums_host, self._sums)
+        wp.copy(self._far_host, self._far)
+
+    def measured(self):
+        """:meth:`measure`'s result for the frame last launched (:meth:`launch`), once the
+        device's stream has reached it."""
+        s = self._sums_host.numpy().astype(np.float64)
         return s[..., 0], s[..., 1], s[..., 2]
 
     @property
     def distance(self) -> np.ndarray:
         """Largest distance of a finite node from rest in the last measured frame [m], (W, G)
-        (read from the device when asked; zero before the first frame)."""
-        return self._far.numpy().astype(np.float64)
+        (zero before the first frame)."""
+        return self._far_host.numpy().astype(np.float64)
 
     def check(self, before, after, control) -> tuple[list[Failure], np.ndarray]:
         """Failures of the frame from ``before`` to ``after`` (empty when it is good), and its
         work per (world, group) [J], to be added with :meth:`accept` once the frame is kept."""
-        bad, ke, work = self.measure(before, after, control)
+        return self.check_measured(self.measure(before, after, control), after)
+
+    def check_measured(self, measured, after) -> tuple[list[Failure], np.ndarray]:
+        """:meth:`check` from the frame's :meth:`measured` sums (``after``: its end state, read
+        only to name the point of a failure)."""
+        bad, ke, work = measured
         budget = ENERGY_MARGIN * np.maximum(self.work + work, 0.0) + self.energy_floor + self.pin_allowance
         failures = []
         q = None

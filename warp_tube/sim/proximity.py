@@ -100,6 +100,7 @@ class ContactMonitor:
         self._tube = wp.array(self.tube, dtype=int, device=d)
         self._group = wp.array(self.group, dtype=int, device=d)
         self._gap = wp.zeros(self.group_count, dtype=float, device=d)
+        self._gap_host = wp.zeros(self.group_count, dtype=float, device="cpu", pinned=wp.get_device(d).is_cuda)
         self._pairs = None
         self._grid = None
         self._launches: dict = {}  # positions' address -> (their monitored points, recorded launch or None)
@@ -141,6 +142,19 @@ class ContactMonitor:
                 (in memory order) are the monitor's: one world's (node,), or a state's
                 (world, node) of which the monitor watches world 0, or every world of a batch.
         """
+        self.launch(q)
+        if wp.get_device(self.device).is_cuda:
+            wp.synchronize_stream(wp.get_stream(self.device))
+        return self.measured()
+
+    def measured(self) -> np.ndarray:
+        """:meth:`deepest` of the positions last given to :meth:`launch`, once the device's
+        stream has reached it (a copy)."""
+        return self._gap_host.numpy().copy()
+
+    def launch(self, q: wp.array) -> None:
+        """Start :meth:`deepest` of ``q``: its kernel and the copy of its result to the host,
+        queued on the device's stream (:meth:`measured` reads it)."""
         # One recorded launch per positions array (a run alternates two states), with the view of
         # its monitored points: the launch holds the array, so its address identifies it for as
         # long as the launch is kept.
@@ -164,7 +178,7 @@ class ContactMonitor:
             self._grid.build(flat, 2.0 * self.max_radius, groups=self._group)
         if launch is not None:
             launch.launch()
-        return self._gap.numpy()
+        wp.copy(self._gap_host, self._gap)
 
     def closest(self, q: np.ndarray, group: int = 0):
         """The contact with the deepest overlap in ``group``, or None (host side, to name it).
