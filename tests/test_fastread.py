@@ -107,7 +107,7 @@ def test_a_plain_table_is_read_in_this_process(tmp_path, monkeypatch):
     good = [r for r in ROWS if not r[0].startswith("-") and r[0] != "1e14" and "1e39" not in r[4] and r[3] != "0"]
     table = tmp_path / "plain.csv"
     table.write_text(",".join(HEADER) + "\n" + "\n".join(",".join(f'"{c}"' if "," in c else c for c in r) for r in good) + "\n")
-    variants, choices = prepare.prepare_batch(str(SCENE), read_table(str(table)), None, bar)
+    variants, choices, _ = prepare.prepare_batch(str(SCENE), read_table(str(table)), None, bar)
     assert len(variants.variants) == len(good) == len(choices) and not started
     other = tmp_path / "other.csv"
     other.write_text("/World/Bowel.warptube:spokes\n" + "\n".join(["8", "12", "16", "10"]) + "\n")

@@ -40,12 +40,15 @@ class DeviceClock:
             return time.perf_counter()
         return wp.get_stream(self.device).record_event(self._event())
 
-    def stop(self, mark) -> None:
-        """End the stretch begun at ``mark`` (on a GPU, read by a later :meth:`settle`)."""
+    def stop(self, mark) -> float:
+        """End the stretch begun at ``mark``; returns the host's seconds in it on the CPU (the
+        stretch's own), 0 on a GPU (where a later :meth:`settle` reads the device's)."""
         if not self.device.is_cuda:
-            self.seconds += time.perf_counter() - mark
-            return
+            spent = time.perf_counter() - mark
+            self.seconds += spent
+            return spent
         self._pending.append((mark, wp.get_stream(self.device).record_event(self._event())))
+        return 0.0
 
     def settle(self) -> None:
         """Add the stretches stopped so far; on a GPU, call once the host has waited for the

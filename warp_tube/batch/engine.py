@@ -82,7 +82,7 @@ class ChunkRun:
 
 
 def simulate_chunk(scenes: list[Scene], choice: RunChoice, device: str, frames: int, every: int, surface: bool,
-                   allocate=None, progress=None) -> ChunkRun:  # fmt: skip
+                   allocate=None, progress=None, per_node: dict | None = None) -> ChunkRun:  # fmt: skip
     """Simulate ``scenes`` (one group) as worlds and return their output frames.
 
     Args:
@@ -95,13 +95,15 @@ def simulate_chunk(scenes: list[Scene], choice: RunChoice, device: str, frames: 
         allocate: callable ``{name: shape} -> {name: float32 array}`` for the output arrays
             (default: in memory).
         progress: callable taking a number of variant-frames just simulated, or None.
+        per_node: the variants' per-node parameters as planning made them
+            (:meth:`~warp_tube.batch.nodes.KeptNodes.take`), or None to work them out.
     """
     from ..centerline.explicit import SemiImplicitEulerSolver
     from ..centerline.implicit import ImplicitEulerSolver
 
     timings = dict.fromkeys(TIMERS, 0.0)
     t0 = time.perf_counter()
-    worlds = build_worlds(scenes, device, surface)
+    worlds = build_worlds(scenes, device, surface, per_node)
     m = worlds.model
     W = m.world_count
     solver = ImplicitEulerSolver(m) if choice.integrator == "implicitEuler" else SemiImplicitEulerSolver(m)
@@ -136,7 +138,7 @@ def simulate_chunk(scenes: list[Scene], choice: RunChoice, device: str, frames: 
             solver.integrate(state, nxt, control, dt, n)
             checks.launch(state, nxt, control)
             contacts.launch(nxt.node_q)  # (the state at the end of frame k)
-            clock.stop(mark)
+            on_host = clock.stop(mark)  # (the CPU: the launches' own time, counted as kernels)
             _synchronize(stream)
             t2 = time.perf_counter()
             problems = checks.check_launched(k - 1, nxt, alive)
@@ -155,7 +157,7 @@ def simulate_chunk(scenes: list[Scene], choice: RunChoice, device: str, frames: 
             t3 = time.perf_counter()
             clock.settle()
             timings["control_s"] += t1 - t
-            timings["sync_s"] += t2 - t1
+            timings["sync_s"] += t2 - t1 - on_host
             timings["checks_s"] += t3 - t2
             if progress is not None:
                 progress(W)
@@ -165,12 +167,12 @@ def simulate_chunk(scenes: list[Scene], choice: RunChoice, device: str, frames: 
             store.store(f_out, "centerline", state.node_q, mpu)  # as Simulation.centerline_points
             if surface:
                 _surface_frame(worlds, state, store, f_out, mpu)
-            clock.stop(mark)
+            on_host = clock.stop(mark)
             if store.count == store.window and f_out + 1 < store.frames:
                 store.hand_over()  # copied back on the copying thread while the frames go on
             frames_written[alive] += 1
             f_out += 1
-            timings["copy_s"] += time.perf_counter() - t
+            timings["copy_s"] += time.perf_counter() - t - on_host
     t = time.perf_counter()
     ready = store.finish()
     _synchronize(stream)

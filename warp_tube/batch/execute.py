@@ -396,8 +396,10 @@ def run_here(todo, device, context, result) -> None:
                     settle(block=False)
                 allocate = ring.allocator(chunk.id)
             t0 = time.perf_counter()
+            kept = context.get("kept")
             run = simulate_chunk(scenes, choice, device, context["frames"], context["every"], context["surface"],
-                                 allocate=allocate, progress=bar.frames)  # fmt: skip
+                                 allocate=allocate, progress=bar.frames,
+                                 per_node=kept.take(chunk.indices) if kept is not None else None)  # fmt: skip
             result.simulate_s += time.perf_counter() - t0
             add_timings(result, run.timings)
             tasks = write_tasks(chunk, context, max(writers.count, 1))

@@ -151,6 +151,7 @@ class FrameStore:
             self.window = int(max(1, min(self.frames, window_bytes // max(per_frame, 1))))
             self.buffers = {name: wp.empty((self.window,) + h.shape[1:], dtype=wp.vec3, device=self.device)
                             for name, h in self.host.items()}  # fmt: skip
+        self._launches: dict = {}  # recorded store launches (see store)
         self.start = 0  # first frame in the window
         self.count = 0  # frames stored in the window
         self.pending = done_future()  # the copy back of the last window handed over
@@ -175,12 +176,23 @@ class FrameStore:
             prim: for ``extent``, the prim whose bounds ``src`` (W, 2) holds.
         """
         slot = self._slot(frame)  # (first: it may start a new window, with new buffers)
-        out = self.buffers[name][slot]
-        if prim is not None:
-            out = out[:, prim]
-        if columns is not None:
-            out = out[:, columns]
-        wp.launch(store_scaled_kernel, dim=src.shape, inputs=[src, float(unit), out], device=self.device)
+        buf = self.buffers[name]
+        # One recorded launch per output, source and window (the frame's slot a parameter of it);
+        # the launch holds the arrays, so their addresses identify them while it is kept.
+        key = (name, src.ptr, buf.ptr, columns.start if columns is not None else None, prim, float(unit))
+        launch = self._launches.get(key)
+        if launch is None:
+            W = buf.shape[1]
+            out = buf.reshape((buf.shape[0], W, -1))  # (window, W, columns) (extent: the prims' corners)
+            first = 2 * prim if prim is not None else (columns.start or 0) if columns is not None else 0
+            if src.shape[0] != W or first + src.shape[1] > out.shape[2]:
+                raise ValueError(f"output {name}: {src.shape} does not fit columns {first}.. of {out.shape[1:]}")
+            if len(self._launches) > 64:
+                self._launches.clear()
+            launch = self._launches[key] = wp.launch(store_scaled_kernel, dim=src.shape, device=self.device, record_cmd=True,
+                                                     inputs=[src, float(unit), out, slot, first])  # fmt: skip
+        launch.set_param_at_index(3, slot)
+        launch.launch()
 
     def flush(self) -> None:
         """Copy the window's stored frames to the host arrays and wait until they are there."""
@@ -218,7 +230,8 @@ class FrameStore:
         if self.start < self.frames:  # frames to come
             if fit < 1:  # no room for a second window: the frames wait for this one's copy
                 self.pending.exception()
-            else:  # fresh buffers (the handed-over ones are being read)
+            else:  # fresh buffers (the handed-over ones are being read; the launches held them)
+                self._launches.clear()
                 self.buffers = {name: wp.empty(buf.shape, dtype=wp.vec3, device=self.device) for name, buf in self.buffers.items()}
 
     def _copy_back(self, buffers: dict, start: int, count: int, event) -> None:

@@ -83,7 +83,7 @@ def _group_arrays(t) -> tuple:
 CHOICE_BLOCK_NODES = 1 << 20
 
 
-def run_choices(scenes: list[Scene], block: int | None = None, plain: bool = False) -> list[RunChoice]:
+def run_choices(scenes: list[Scene], block: int | None = None, plain: bool = False, keep=None) -> list[RunChoice]:
     """The integrator and substeps ``Simulation(scene)`` chooses for each scene alone.
 
     The policy is the one ``Simulation`` applies (:func:`warp_tube.centerline.policy.choose_integrator`), given each scene's stability
@@ -93,7 +93,8 @@ def run_choices(scenes: list[Scene], block: int | None = None, plain: bool = Fal
     topology; read per scene), and scenes whose tubes agree in everything the bound depends on
     share one answer. ``block``: scenes at a time (default: up to :data:`CHOICE_BLOCK_NODES`
     nodes). ``plain``: the scenes were made from one base scene by plain values (``Variants.plain``):
-    one layout, and equal scenes are not looked for.
+    one layout, and equal scenes are not looked for. ``keep``: a
+    :class:`~warp_tube.batch.nodes.KeptNodes` that keeps the scenes' per-node parameters, or None.
     """
     out: list = [None] * len(scenes)
     first_of: dict = {}  # content key -> index of the first scene with it
@@ -120,11 +121,13 @@ def run_choices(scenes: list[Scene], block: int | None = None, plain: bool = Fal
         for b in range(0, len(members), size):
             idx = members[b : b + size]
             one = one or _topology(scenes[idx[0]])
-            for i, choice in zip(idx, _choices_of([scenes[i] for i in idx], one)):
+            for i, choice in zip(idx, _choices_of([scenes[i] for i in idx], one, idx, keep)):
                 out[i] = choice
     for i, key in enumerate(keys):  # (the scenes equal to an earlier one)
         if out[i] is None:
             out[i] = out[first_of[key]]
+            if keep is not None:
+                keep.same_as(i, first_of[key])
     return out
 
 
@@ -136,15 +139,17 @@ def _topology(scene: Scene):
     return build_model(scene, world_count=1, device="cpu")
 
 
-def _choices_of(scenes: list[Scene], one) -> list[RunChoice]:
+def _choices_of(scenes: list[Scene], one, indices, keep) -> list[RunChoice]:
     """run_choices for scenes of one layout (``one``: :func:`_topology` of one of them),
-    discretised in one build."""
+    discretised in one build (kept in ``keep`` as those of ``indices``, unless None)."""
     from ..centerline.policy import choose_integrator, implicit_cost_ratio
     from ..centerline.stability import critical_time_steps
     from ..model.tube import node_parameters
     from .worlds import combined_tubes
 
     per_node, _ = node_parameters(combined_tubes(scenes))  # every scene's nodes, scene after scene
+    if keep is not None:
+        keep.add(indices, per_node)
     h = SimpleNamespace(**per_node, tube_al_force=one.host.tube_al_force)
     damping = np.array([max((t.params.spring_damping for t in s.tubes), default=0.0) for s in scenes])
     bounds = critical_time_steps(h, len(scenes), one.features.assistant_line, damping)

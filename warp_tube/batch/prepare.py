@@ -65,7 +65,8 @@ def _prepare_part(scene: str, table, variant_sets):
 
 
 def prepare_batch(scene: str, table, variant_sets, bar, pool: cf.ProcessPoolExecutor | None = None, pool_size: int = 0):
-    """Every variant and its run choice, read by one process or, for a large table, several
+    """Every variant, its run choice and, where read in this process, their per-node parameters
+    (:class:`~warp_tube.batch.nodes.KeptNodes`, else None), read by one process or, for a large table, several
     (each opening the scene and reading a part of the rows); all problems reported together.
     The cyclic garbage collector is held off meanwhile (:mod:`warp_tube.runtime.collector`).
 
@@ -91,10 +92,14 @@ def _prepare_batch(scene, table, variant_sets, bar, pool, pool_size):
     parts = min(PREPARE_PROCESSES, width, rows // per_process)
 
     def read_here():
+        from .nodes import KeptNodes
+        from .worlds import WorldArrays
+
         variants = prepare_variants(scene, table, variant_sets, extract=_extract, progress=bar.reading)
-        choices = checked_run_choices(variants)
+        keep = KeptNodes(len(variants.variants), KeptNodes.of_worlds(WorldArrays))
+        choices = checked_run_choices(variants, keep)
         warn_forced(variants, choices)
-        return variants, choices
+        return variants, choices, keep
 
     if parts < 2:
         return read_here()
@@ -133,7 +138,7 @@ def _prepare_batch(scene, table, variant_sets, bar, pool, pool_size):
     out = Variants(scene_path=scene, table=table, axes=first.axes, variants=tuple(merged),
                    plain=all(r[0].plain for r in results))  # fmt: skip
     warn_forced(out, choices)
-    return out, choices
+    return out, choices, None
 
 
 def warn_forced(variants, choices) -> None:
@@ -147,19 +152,20 @@ def warn_forced(variants, choices) -> None:
                     len(variants.variants))  # fmt: skip
 
 
-def checked_run_choices(variants) -> list:
+def checked_run_choices(variants, keep=None) -> list:
     """Each variant's integrator and substeps alone; a variant whose settings no integrator takes
-    (e.g. implicit Euler with an assistant line) is a bad row, reported with the others."""
+    (e.g. implicit Euler with an assistant line) is a bad row, reported with the others.
+    ``keep``: a :class:`~warp_tube.batch.nodes.KeptNodes` for their per-node parameters, or None."""
     with silenced("warp_tube.centerline.policy"):  # one warning for the batch instead (warn_forced)
-        return _checked_run_choices(variants)
+        return _checked_run_choices(variants, keep)
 
 
-def _checked_run_choices(variants) -> list:
+def _checked_run_choices(variants, keep) -> list:
     from .variants import MAX_PROBLEMS
 
     scenes = [v.scene for v in variants.variants]
     try:
-        return run_choices(scenes, plain=variants.plain)
+        return run_choices(scenes, plain=variants.plain, keep=keep)
     except SceneError:
         pass
     problems = []  # find which variants: one at a time

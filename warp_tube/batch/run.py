@@ -392,7 +392,7 @@ def _run_batch(scene, out_dir, table, tab, devices, writer_pool, sim_workers, t_
     bar = Progress(progress)
     readers = writer_pool.pool if writer_pool.processes else None  # idle until the first chunk is simulated
     try:
-        variants, choices = prepare_batch(scene, tab, variant_sets, bar, readers, writer_pool.count)
+        variants, choices, kept = prepare_batch(scene, tab, variant_sets, bar, readers, writer_pool.count)
     except KeyboardInterrupt:
         writer_pool.terminate()  # (they may be reading parts of the table: not worth waiting for)
         raise
@@ -469,7 +469,7 @@ def _run_batch(scene, out_dir, table, tab, devices, writer_pool, sim_workers, t_
             books.wait()  # (called once the chunk is recorded)
             on_chunk(chunk_id)
 
-    context = dict(variants=variants, plan=plan, choices=choices, frames=n_frames, every=every, surface=surface,
+    context = dict(variants=variants, plan=plan, choices=choices, kept=kept, frames=n_frames, every=every, surface=surface,
                    spec=spec, writers=writer_pool, device=device, scheduler=scheduler, bar=bar, finish=finish)  # fmt: skip
     try:
         if not todo:

@@ -79,16 +79,25 @@ class Worlds:
         return self.host.node_rest_q
 
 
-def build_worlds(scenes: list[Scene], device: str, surface: bool) -> Worlds:
-    """Discretise ``scenes`` (one topology) as the worlds of one model on ``device``."""
+def build_worlds(scenes: list[Scene], device: str, surface: bool, per_node: dict | None = None) -> Worlds:
+    """Discretise ``scenes`` (one topology) as the worlds of one model on ``device``.
+
+    ``per_node``: the scenes' :class:`WorldArrays` fields, (W, N, ...) each, as
+    :func:`~warp_tube.model.tube.node_parameters` of their tubes gives them (planning kept them:
+    :mod:`warp_tube.batch.nodes`), or None to work them out here."""
     W = len(scenes)
-    per_node, curved = node_parameters(combined_tubes(scenes))  # every world's nodes, world after world
     one = build_model(scenes[0], world_count=W, device=device)  # the topology every world shares
     N = one.node_count
-    if len(per_node["node_mass"]) != W * N:
-        raise ValueError(f"variants of one group have {len(per_node['node_mass'])} nodes in all, expected {W} x {N}")
-    host = WorldArrays(**{f.name: per_node[f.name].reshape((W, N) + per_node[f.name].shape[1:])
-                          for f in dataclasses.fields(WorldArrays)})  # fmt: skip
+    if per_node is None:
+        per_node, _ = node_parameters(combined_tubes(scenes))  # every world's nodes, world after world
+        if len(per_node["node_mass"]) != W * N:
+            raise ValueError(f"variants of one group have {len(per_node['node_mass'])} nodes in all, expected {W} x {N}")
+        per_node = {f.name: per_node[f.name].reshape((W, N) + per_node[f.name].shape[1:]) for f in dataclasses.fields(WorldArrays)}
+    elif per_node["node_mass"].shape != (W, N):
+        raise ValueError(f"per-node parameters of {per_node['node_mass'].shape} (worlds, nodes), expected ({W}, {N})")
+    host = WorldArrays(**{f.name: per_node[f.name] for f in dataclasses.fields(WorldArrays)})
+    curved = bool(np.abs(host.node_kappa_rest).max() > 1e-6) if host.node_kappa_rest.size else False  # as node_parameters'
+
     per_world = {}
     for f in dataclasses.fields(one):
         value = getattr(one, f.name)

@@ -332,10 +332,11 @@ def node_parameters(scene: Scene) -> tuple[dict, bool]:
     bend_k[last] = 0.0
     ea = np.where(np.isnan(head(stretch)), head(youngs) * np.pi * r_seg**2, head(stretch))  # TubeParams.axial_stiffness
     k_ax = np.where(inside, ea / np.where(inside, seg, 1.0), 0.0)
-    if shared:
-        kappa = np.tile(_curves_kappa(specs[0].points, specs[0].curve_counts.astype(np.int64)), (len(specs), 1))
+    if shared:  # (curved or not: from the one prim's)
+        kappa_one = _curves_kappa(specs[0].points, specs[0].curve_counts.astype(np.int64))
+        kappa = np.tile(kappa_one, (len(specs), 1))
     else:
-        kappa = _curves_kappa(x, counts)
+        kappa = kappa_one = _curves_kappa(x, counts)
     anchor_k = np.where(anchored, material(p.anchor_stiffness for p in params), 0.0)
     per_node = dict(
         node_rest_q=x, node_mass=mass, node_inv_mass=np.where(pinned, 0.0, 1.0 / mass),
@@ -346,7 +347,7 @@ def node_parameters(scene: Scene) -> tuple[dict, bool]:
         tube_node_start=tube_start, node_tube=np.repeat(np.arange(len(counts), dtype=np.int64), counts),
         prim_node_start=prim_start[:-1],
     )  # fmt: skip
-    return per_node, bool(np.abs(kappa).max() > 1e-6)
+    return per_node, bool(np.abs(kappa_one).max() > 1e-6)
 
 
 def _shared_segments(points: np.ndarray, counts: np.ndarray, copies: int) -> tuple[np.ndarray, np.ndarray]:
