@@ -21,7 +21,9 @@ Reported per layout, from one ``run_batch`` call (seconds):
   and checking the table, planning, building the models, copying states back, control, the
   host-side frame checks (``checks_s``, also reported alone), copying into the writers' arrays;
 - ``write_wait_s``: time the simulation waited for the writers (they run in other processes
-  meanwhile; ``write_s`` is their summed time);
+  or threads meanwhile; ``write_s`` is their summed time), and on a GPU for earlier chunks'
+  frames to be copied back to the host for them (``flush_wait_s``, also reported: the device
+  memory those frames hold);
 - ``floor_s``: usd-core's own time to write the same samples from one process: for ``files``,
   per variant a new layer with the Centerline points and the Surface points, normals and extent
   of every frame (``Vt.Vec3fArray.FromNumpy`` + ``Sdf.Layer.SetTimeSample``, then ``Save``),

@@ -38,7 +38,7 @@ from .worlds import build_worlds, initial_state
 
 __all__ = ["ChunkRun", "simulate_chunk", "output_frames", "chunk_shapes"]
 
-TIMERS = ("build_s", "kernels_s", "sync_s", "readback_s", "control_s", "checks_s", "copy_s", "rerun_s")
+TIMERS = ("build_s", "kernels_s", "sync_s", "readback_s", "control_s", "checks_s", "copy_s", "flush_wait_s", "rerun_s")
 
 
 def output_frames(frames: int, every: int) -> list[int]:
@@ -69,8 +69,11 @@ class ChunkRun:
             kinetic_energy_J (at the end), work_J (of the forces and gravity, in all),
             contact_frame (the first frame at whose end distant parts of its tubes overlapped, or
             "": :mod:`warp_tube.batch.contacts`).
-        timings: seconds spent building, in the kernels, copying back, in control and checks,
-            handing frames over to be copied into the arrays and rerunning failed variants alone.
+        timings: seconds spent building, in the kernels (the device's own time), waiting for
+            them (``sync_s``), copying back, in control and checks, handing frames over to be
+            copied into the arrays (``copy_s``), waiting for earlier windows of frames to be
+            copied back (``flush_wait_s``: the device memory they hold) and rerunning failed
+            variants alone.
         ready: done once every output frame is in ``arrays`` (they are copied back from the
             device on a thread of their own while the caller goes on): wait before reading them.
     """
@@ -177,7 +180,8 @@ def simulate_chunk(scenes: list[Scene], choice: RunChoice, device: str, frames: 
     ready = store.finish()
     _synchronize(stream)
     clock.settle()
-    timings["copy_s"] += time.perf_counter() - t
+    timings["copy_s"] += time.perf_counter() - t - store.waited_s
+    timings["flush_wait_s"] += store.waited_s
     timings["kernels_s"] += clock.seconds
     t = time.perf_counter()
     q, qd = state.node_q.numpy(), state.node_qd.numpy()

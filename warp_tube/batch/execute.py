@@ -402,6 +402,7 @@ def run_here(todo, device, context, result) -> None:
                                  per_node=kept.take(chunk.indices) if kept is not None else None)  # fmt: skip
             result.simulate_s += time.perf_counter() - t0
             add_timings(result, run.timings)
+            result.write_wait_s += run.timings["flush_wait_s"]  # (waiting for the output's copy back)
             tasks = write_tasks(chunk, context, max(writers.count, 1))
             if pool is None:
                 t0 = time.perf_counter()
@@ -546,7 +547,7 @@ def run_pooled(todo, devices, workers: SimWorkers, context, result) -> None:
                 free_slots.append(slot_of.pop(cid))  # its files stay for the next chunk
                 context["finish"](cid, rows, outputs)
             submit_sim()
-        result.simulate_s += result.timings["build_s"] + sum(result.timings[k] for k in TIMERS if k not in ("build_s", "sync_s"))
+        result.simulate_s += result.timings["build_s"] + sum(result.timings[k] for k in TIMERS if k not in ("build_s", "sync_s", "flush_wait_s"))
     except KeyboardInterrupt:
         # Stop simulating at once; the chunks already simulated are written to the end and kept
         # (those the simulating processes write themselves: the ones they report written).

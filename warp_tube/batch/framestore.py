@@ -26,6 +26,7 @@ from __future__ import annotations
 import collections
 import concurrent.futures as cf
 import os
+import time
 
 import numpy as np
 import warp as wp
@@ -152,6 +153,8 @@ class FrameStore:
             self.buffers = {name: wp.empty((self.window,) + h.shape[1:], dtype=wp.vec3, device=self.device)
                             for name, h in self.host.items()}  # fmt: skip
         self._launches: dict = {}  # recorded store launches (see store)
+        #: seconds the frames waited for earlier windows' copies back (device memory held by them)
+        self.waited_s = 0.0
         self.start = 0  # first frame in the window
         self.count = 0  # frames stored in the window
         self.pending = done_future()  # the copy back of the last window handed over
@@ -218,8 +221,10 @@ class FrameStore:
         window_bytes = sum(b.capacity for b in self.buffers.values())
         fit = int(_window_memory(self.device) // max(window_bytes, 1)) - 1
         limit = max(1, min(MAX_WINDOWS_IN_FLIGHT, fit))
+        t = time.perf_counter()
         while len(_in_flight) >= limit:  # device memory held by windows not yet copied back
             _in_flight.popleft().exception()  # waits; a failed copy is reported by its own chunk's future
+        self.waited_s += time.perf_counter() - t
         # on the stream that stored the frames: this device's current one (not the default device's)
         event = wp.get_stream(self.device).record_event() if self.device.is_cuda else None
         job = (self.buffers, self.start, self.count, event)
@@ -229,7 +234,9 @@ class FrameStore:
         self.count = 0
         if self.start < self.frames:  # frames to come
             if fit < 1:  # no room for a second window: the frames wait for this one's copy
+                t = time.perf_counter()
                 self.pending.exception()
+                self.waited_s += time.perf_counter() - t
             else:  # fresh buffers (the handed-over ones are being read; the launches held them)
                 self._launches.clear()
                 self.buffers = {name: wp.empty(buf.shape, dtype=wp.vec3, device=self.device) for name, buf in self.buffers.items()}
