@@ -142,6 +142,12 @@ def simulate_chunk(scenes: list[Scene], choice: RunChoice, device: str, frames: 
             checks.launch(state, nxt, control)
             contacts.launch(nxt.node_q)  # (the state at the end of frame k)
             on_host = clock.stop(mark)  # (the CPU: the launches' own time, counted as kernels)
+            t4 = time.perf_counter()
+            stored = k % every == 0
+            if stored:  # queued behind the frame, before waiting for it (a world that fails in it is run alone: its frames replaced)
+                f_out, on_host_store = _store_frame(worlds, nxt, store, f_out, mpu, surface, clock)
+                timings["copy_s"] += time.perf_counter() - t4 - on_host_store
+            t4 = time.perf_counter() - t4
             _synchronize(stream)
             t2 = time.perf_counter()
             problems = checks.check_launched(k - 1, nxt, alive)
@@ -157,24 +163,18 @@ def simulate_chunk(scenes: list[Scene], choice: RunChoice, device: str, frames: 
                 contacts.check_launched(k, state.node_q, alive)
             max_disp = np.where(alive, np.maximum(max_disp, checks.distance), max_disp)
             frames_simulated[alive] += 1
+            frames_written[alive] += stored
             t3 = time.perf_counter()
             clock.settle()
             timings["control_s"] += t1 - t
-            timings["sync_s"] += t2 - t1 - on_host
+            timings["sync_s"] += t2 - t1 - on_host - t4
             timings["checks_s"] += t3 - t2
             if progress is not None:
                 progress(W)
-        if k % every == 0:
+        elif k % every == 0:  # (frame 0, the rest shape)
             t = time.perf_counter()
-            mark = clock.start()
-            store.store(f_out, "centerline", state.node_q, mpu)  # as Simulation.centerline_points
-            if surface:
-                _surface_frame(worlds, state, store, f_out, mpu)
-            on_host = clock.stop(mark)
-            if store.count == store.window and f_out + 1 < store.frames:
-                store.hand_over()  # copied back on the copying thread while the frames go on
+            f_out, on_host = _store_frame(worlds, state, store, f_out, mpu, surface, clock)
             frames_written[alive] += 1
-            f_out += 1
             timings["copy_s"] += time.perf_counter() - t - on_host
     t = time.perf_counter()
     ready = store.finish()
@@ -212,6 +212,19 @@ def _synchronize(stream) -> None:
 
 def _in_memory(shapes: dict) -> dict:
     return {name: np.empty(shape, dtype=np.float32) for name, shape in shapes.items()}
+
+
+def _store_frame(worlds, state, store: FrameStore, f_out: int, mpu: float, surface: bool, clock: DeviceClock) -> tuple[int, float]:
+    """Store ``state`` as written frame ``f_out``: its centerline and, with ``surface``, its
+    rebuilt surface; returns the next written frame and the launches' own time on the CPU."""
+    mark = clock.start()
+    store.store(f_out, "centerline", state.node_q, mpu)  # as Simulation.centerline_points
+    if surface:
+        _surface_frame(worlds, state, store, f_out, mpu)
+    on_host = clock.stop(mark)
+    if store.count == store.window and f_out + 1 < store.frames:
+        store.hand_over()  # copied back on the copying thread while the frames go on
+    return f_out + 1, on_host
 
 
 def _surface_frame(worlds, state, store: FrameStore, f_out: int, mpu: float) -> None:
