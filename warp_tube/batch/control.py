@@ -57,16 +57,20 @@ class WorldControl:
         h = m.host  # the topology, shared by every world
         self.force_node = np.asarray(h.force_node, dtype=np.int64)
         order = np.asarray(h.force_order, dtype=np.int64)
-        # Per model force: worlds grouped by their sample times, with their values.
+        # Per model force: worlds grouped by their sample times, with their values (the times
+        # read once per array: variants made from one scene share it).
         self._forces = []
         for a, k in enumerate(order):
+            fs = [s.forces[k] for s in worlds.scenes]
+            by_array: dict = {}
+            for w, f in enumerate(fs):
+                by_array.setdefault(id(f.times), []).append(w)
             groups: dict = {}
-            for w, s in enumerate(worlds.scenes):
-                f = s.forces[k]
-                groups.setdefault(f.times.tobytes(), (f.times, [], []))
-                groups[f.times.tobytes()][1].append(w)
-                groups[f.times.tobytes()][2].append(f.values)
-            self._forces.append([(times, np.asarray(ws), np.stack(vals)) for times, ws, vals in groups.values()])
+            for ws in by_array.values():
+                times = fs[ws[0]].times
+                groups.setdefault(times.tobytes(), (times, []))[1].extend(ws)
+            self._forces.append([(times, np.asarray(ws), np.stack([fs[w].values for w in ws]))
+                                 for times, ws in ((t, sorted(ws)) for t, ws in groups.values())])  # fmt: skip
         self.dead = np.zeros(W, dtype=bool)
         self.lines = AssistantLines(m, worlds.host.node_radius) if m.features.assistant_line else None
         # Moving pins: per world its pinned points' track, (W, frames, pinned, 3) [m], per prim.
