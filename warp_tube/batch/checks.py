@@ -14,7 +14,7 @@ from __future__ import annotations
 import numpy as np
 import warp as wp
 
-from ..sim.checks import FrameChecks
+from ..sim.checks import IMMEDIATE, FrameChecks
 from .worlds import Worlds
 
 __all__ = ["WorldChecks"]
@@ -64,18 +64,18 @@ class WorldChecks:
         self.launch(before, after, control)
         return self.check_launched(frame, after, alive, synchronize=True)
 
-    def launch(self, before, after, control) -> None:
-        """Queue the frame's sums and their copy back on the device's stream (see
-        :meth:`check_launched`)."""
-        self.device_checks.launch(before, after, control)
+    def launch(self, before, after, control, slot: int = IMMEDIATE) -> None:
+        """Queue the frame's sums and their copy back into host slot ``slot`` on the device's
+        stream (see :meth:`check_launched`)."""
+        self.device_checks.launch(before, after, control, slot)
 
-    def check_launched(self, frame: int, after, alive: np.ndarray, synchronize: bool = False) -> dict:
-        """:meth:`check` of the frame last :meth:`launch`-ed, once the device's stream has reached
-        it (``synchronize``: wait for it here)."""
+    def check_launched(self, frame: int, after, alive: np.ndarray, synchronize: bool = False, slot: int = IMMEDIATE) -> dict:
+        """:meth:`check` of the frame :meth:`launch`-ed into ``slot``, once the device's stream
+        has reached it (``synchronize``: wait for it here)."""
         device = wp.get_device(self.worlds.model.device)
         if synchronize and device.is_cuda:
             wp.synchronize_stream(wp.get_stream(device))
-        failures, work = self.device_checks.check_measured(self.device_checks.measured(), after)
+        failures, work = self.device_checks.check_measured(self.device_checks.measured(slot), after)
         self.device_checks.accept(work)
         out = {}
         for f in failures:

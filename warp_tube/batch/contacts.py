@@ -13,6 +13,7 @@ from __future__ import annotations
 
 import numpy as np
 
+from ..sim.checks import IMMEDIATE
 from ..sim.proximity import ContactMonitor, rest_arclength
 from .worlds import Worlds
 
@@ -49,15 +50,15 @@ class WorldContacts:
         state at the end of that frame) first put distant parts of their tubes in contact."""
         self.check_measured(frame, q, self.monitor.deepest(q), alive)  # (every world's points: the monitor's groups)
 
-    def launch(self, q) -> None:
-        """Queue the test of positions ``q`` and its copy back on the device's stream (see
-        :meth:`check_launched`)."""
-        self.monitor.launch(q)
+    def launch(self, q, slot: int = IMMEDIATE) -> None:
+        """Queue the test of positions ``q`` and its copy back into host slot ``slot`` on the
+        device's stream (see :meth:`check_launched`)."""
+        self.monitor.launch(q, slot)
 
-    def check_launched(self, frame: int, q, alive: np.ndarray) -> None:
-        """:meth:`check` of the positions ``q`` last :meth:`launch`-ed, once the device's stream
-        has reached them."""
-        self.check_measured(frame, q, self.monitor.measured(), alive)
+    def check_launched(self, frame: int, q, alive: np.ndarray, slot: int = IMMEDIATE) -> None:
+        """:meth:`check` of the positions ``q`` :meth:`launch`-ed into ``slot``, once the
+        device's stream has reached them (``q`` is read only to confirm a new contact)."""
+        self.check_measured(frame, q, self.monitor.measured(slot), alive)
 
     def check_measured(self, frame: int, q, gap: np.ndarray, alive: np.ndarray) -> None:
         new = np.flatnonzero((gap < 0.0) & (self.frame < 0) & alive)

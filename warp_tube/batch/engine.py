@@ -129,53 +129,68 @@ def simulate_chunk(scenes: list[Scene], choice: RunChoice, device: str, frames: 
     frames_written = np.zeros(W, dtype=np.int64)
     max_disp = np.zeros(W)
     n, dt = choice.substeps, frame_dt / choice.substeps
-    f_out = 0
-    for k in range(frames):
+
+    def launch(k: int, state, nxt, f_out: int) -> tuple:
+        """Queue frame ``k`` from ``state`` into ``nxt``: the substeps, the checks' sums and the
+        contact test with their copies back into host slot ``k % 2``, then the frame's stores
+        (a world that fails in it is run alone: its frames replaced). Returns ``(event, stored,
+        f_out)``: the event the host waits for before reading the checks (None on the CPU)."""
+        t = time.perf_counter()
+        wc.update(k - 1, state)
+        t1 = time.perf_counter()
+        mark = clock.start()
+        solver.integrate(state, nxt, control, dt, n)
+        checks.launch(state, nxt, control, slot=k % 2)
+        contacts.launch(nxt.node_q, slot=k % 2)  # (the state at the end of frame k)
+        clock.stop(mark)
+        event = stream.record_event() if stream is not None else None
+        t2 = time.perf_counter()
+        stored = k % every == 0
+        on_host = 0.0
+        if stored:
+            f_out, on_host = _store_frame(worlds, nxt, store, f_out, mpu, surface, clock)
+        timings["control_s"] += t1 - t
+        timings["copy_s"] += time.perf_counter() - t2 - on_host
+        return event, stored, f_out
+
+    # Frame 0 (the rest shape), then each frame queued before the one before it is read: the
+    # host reads frame k's checks while the device runs frame k + 1.
+    t = time.perf_counter()
+    f_out, on_host = _store_frame(worlds, state, store, 0, mpu, surface, clock)
+    frames_written[:] = 1
+    timings["copy_s"] += time.perf_counter() - t - on_host
+    flight = None
+    if frames > 1:
+        flight = (*launch(1, state, nxt, f_out), nxt)
+        state, nxt = nxt, state
+    for k in range(1, frames):
         raise_if_interrupted()  # a Ctrl-C dropped in a finalizer stops the chunk here
-        if k > 0:
-            t = time.perf_counter()
-            wc.update(k - 1, state)
-            t1 = time.perf_counter()
-            # The frame, its checks and their copies back queued at once; one wait for them all.
-            mark = clock.start()
-            solver.integrate(state, nxt, control, dt, n)
-            checks.launch(state, nxt, control)
-            contacts.launch(nxt.node_q)  # (the state at the end of frame k)
-            on_host = clock.stop(mark)  # (the CPU: the launches' own time, counted as kernels)
-            t4 = time.perf_counter()
-            stored = k % every == 0
-            if stored:  # queued behind the frame, before waiting for it (a world that fails in it is run alone: its frames replaced)
-                f_out, on_host_store = _store_frame(worlds, nxt, store, f_out, mpu, surface, clock)
-                timings["copy_s"] += time.perf_counter() - t4 - on_host_store
-            t4 = time.perf_counter() - t4
-            _synchronize(stream)
-            t2 = time.perf_counter()
-            problems = checks.check_launched(k - 1, nxt, alive)
+        event, stored, f_out, after = flight  # frame k, queued
+        if k + 1 < frames:  # from frame k's end (`state`), which it reads and leaves as it is
+            flight = (*launch(k + 1, state, nxt, f_out), nxt)
             state, nxt = nxt, state
-            if problems:
-                for w, msg in problems.items():
-                    alive[w] = False
-                    failed[w] = msg
-                wc.dead[~alive] = True
-                _reset_worlds(state, checks.rest32, worlds.rest_q(), ~alive)
-                contacts.check(k, state.node_q, alive)  # again, with the failed worlds at rest
-            else:
-                contacts.check_launched(k, state.node_q, alive)
-            max_disp = np.where(alive, np.maximum(max_disp, checks.distance), max_disp)
-            frames_simulated[alive] += 1
-            frames_written[alive] += stored
-            t3 = time.perf_counter()
-            clock.settle()
-            timings["control_s"] += t1 - t
-            timings["sync_s"] += t2 - t1 - on_host - t4
-            timings["checks_s"] += t3 - t2
-            if progress is not None:
-                progress(W)
-        elif k % every == 0:  # (frame 0, the rest shape)
-            t = time.perf_counter()
-            f_out, on_host = _store_frame(worlds, state, store, f_out, mpu, surface, clock)
-            frames_written[alive] += 1
-            timings["copy_s"] += time.perf_counter() - t - on_host
+        t = time.perf_counter()
+        if event is not None:
+            wp.synchronize_event(event)
+        t1 = time.perf_counter()
+        problems = checks.check_launched(k - 1, after, alive, slot=k % 2)
+        if problems:
+            for w, msg in problems.items():
+                alive[w] = False
+                failed[w] = msg
+            wc.dead[~alive] = True
+            # Frame k + 1 has run them on from there: put them at rest at its end (`state`), so
+            # they stay finite (their frames come from running them alone).
+            _synchronize(stream)
+            _reset_worlds(state, checks.rest32, worlds.rest_q(), ~alive)
+        contacts.check_launched(k, after.node_q, alive, slot=k % 2)
+        max_disp = np.where(alive, np.maximum(max_disp, checks.distance), max_disp)
+        frames_simulated[alive] += 1
+        frames_written[alive] += stored
+        timings["sync_s"] += t1 - t
+        timings["checks_s"] += time.perf_counter() - t1
+        if progress is not None:
+            progress(W)
     t = time.perf_counter()
     ready = store.finish()
     _synchronize(stream)

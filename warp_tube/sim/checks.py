@@ -16,7 +16,12 @@ import warp as wp
 
 from ..kernels.checks import frame_sums_kernel
 
-__all__ = ["FrameChecks", "Failure", "RUNAWAY_LENGTHS", "ENERGY_MARGIN"]
+__all__ = ["FrameChecks", "Failure", "RUNAWAY_LENGTHS", "ENERGY_MARGIN", "HOST_SLOTS", "IMMEDIATE"]
+
+#: host copies of a frame's sums: two for frames in flight one after another, one for a frame
+#: measured and read at once (:data:`IMMEDIATE`)
+HOST_SLOTS = 3
+IMMEDIATE = 2
 
 #: a free point farther than this many tube lengths from its rest position is a blow-up.
 RUNAWAY_LENGTHS = 1.0e3
@@ -82,10 +87,12 @@ class FrameChecks:
         self._rest = wp.array(self.rest_q, dtype=wp.vec3, device=d)
         self._sums = wp.zeros((W, G), dtype=wp.vec3, device=d)
         self._far = wp.zeros((W, G), dtype=float, device=d)
-        # their copies on the host, page-locked on a GPU (copied back without waiting: see launch)
+        # their copies on the host, page-locked on a GPU (copied back without waiting: see launch),
+        # in HOST_SLOTS slots: frames in flight one after another each have their own
         pinned = wp.get_device(d).is_cuda
-        self._sums_host = wp.zeros((W, G), dtype=wp.vec3, device="cpu", pinned=pinned)
-        self._far_host = wp.zeros((W, G), dtype=float, device="cpu", pinned=pinned)
+        self._sums_host = [wp.zeros((W, G), dtype=wp.vec3, device="cpu", pinned=pinned) for _ in range(HOST_SLOTS)]
+        self._far_host = [wp.zeros((W, G), dtype=float, device="cpu", pinned=pinned) for _ in range(HOST_SLOTS)]
+        self._last_slot = IMMEDIATE
         self._launches = {}
         #: work of the forces and gravity so far [J], per (world, group), float64
         self.work = np.zeros((W, G))
@@ -99,10 +106,11 @@ class FrameChecks:
             wp.synchronize_stream(wp.get_stream(self.device))
         return self.measured()
 
-    def launch(self, before, after, control) -> None:
+    def launch(self, before, after, control, slot: int = IMMEDIATE) -> None:
         """Start measuring the frame from ``before`` to ``after``: the sums' kernel and their copy
-        to the host, queued on the device's stream; :meth:`measured` reads them once the stream
-        has reached them (a batch waits for the stream once for its frame's every read)."""
+        to host slot ``slot`` (0 to :data:`HOST_SLOTS` - 1), queued on the device's stream;
+        :meth:`measured` reads them once the stream has reached them (a batch waits for the
+        stream once for its frame's every read, and reads a frame while the next one runs)."""
         # One recorded launch per set of arrays (a run swaps two states); the launch holds the
         # arrays, so their addresses identify them for as long as it is kept.
         key = (before.node_q.ptr, after.node_q.ptr, after.node_qd.ptr, control.node_f_ext.ptr)
@@ -119,20 +127,21 @@ class FrameChecks:
         self._sums.zero_()
         self._far.zero_()
         launch.launch()
-        wp.copy(self._sums_host, self._sums)
-        wp.copy(self._far_host, self._far)
+        wp.copy(self._sums_host[slot], self._sums)
+        wp.copy(self._far_host[slot], self._far)
 
-    def measured(self):
-        """:meth:`measure`'s result for the frame last launched (:meth:`launch`), once the
-        device's stream has reached it."""
-        s = self._sums_host.numpy().astype(np.float64)
+    def measured(self, slot: int = IMMEDIATE):
+        """:meth:`measure`'s result for the frame launched into host slot ``slot``
+        (:meth:`launch`), once the device's stream has reached it."""
+        self._last_slot = slot
+        s = self._sums_host[slot].numpy().astype(np.float64)
         return s[..., 0], s[..., 1], s[..., 2]
 
     @property
     def distance(self) -> np.ndarray:
         """Largest distance of a finite node from rest in the last measured frame [m], (W, G)
         (zero before the first frame)."""
-        return self._far_host.numpy().astype(np.float64)
+        return self._far_host[self._last_slot].numpy().astype(np.float64)
 
     def check(self, before, after, control) -> tuple[list[Failure], np.ndarray]:
         """Failures of the frame from ``before`` to ``after`` (empty when it is good), and its

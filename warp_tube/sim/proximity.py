@@ -16,6 +16,7 @@ import warp as wp
 from scipy.spatial import cKDTree
 
 from ..kernels.contact import contact_grid_kernel, contact_pairs_kernel
+from .checks import HOST_SLOTS, IMMEDIATE
 
 __all__ = ["ContactMonitor", "rest_arclength"]
 
@@ -100,7 +101,9 @@ class ContactMonitor:
         self._tube = wp.array(self.tube, dtype=int, device=d)
         self._group = wp.array(self.group, dtype=int, device=d)
         self._gap = wp.zeros(self.group_count, dtype=float, device=d)
-        self._gap_host = wp.zeros(self.group_count, dtype=float, device="cpu", pinned=wp.get_device(d).is_cuda)
+        # its host copies, one per slot (checks.HOST_SLOTS: frames in flight, and IMMEDIATE)
+        self._gap_host = [wp.zeros(self.group_count, dtype=float, device="cpu", pinned=wp.get_device(d).is_cuda)
+                          for _ in range(HOST_SLOTS)]  # fmt: skip
         self._pairs = None
         self._grid = None
         self._launches: dict = {}  # positions' address -> (their monitored points, recorded launch or None)
@@ -147,14 +150,14 @@ class ContactMonitor:
             wp.synchronize_stream(wp.get_stream(self.device))
         return self.measured()
 
-    def measured(self) -> np.ndarray:
-        """:meth:`deepest` of the positions last given to :meth:`launch`, once the device's
-        stream has reached it (a copy)."""
-        return self._gap_host.numpy().copy()
+    def measured(self, slot: int = IMMEDIATE) -> np.ndarray:
+        """:meth:`deepest` of the positions launched into host slot ``slot`` (:meth:`launch`),
+        once the device's stream has reached it (a copy)."""
+        return self._gap_host[slot].numpy().copy()
 
-    def launch(self, q: wp.array) -> None:
-        """Start :meth:`deepest` of ``q``: its kernel and the copy of its result to the host,
-        queued on the device's stream (:meth:`measured` reads it)."""
+    def launch(self, q: wp.array, slot: int = IMMEDIATE) -> None:
+        """Start :meth:`deepest` of ``q``: its kernel and the copy of its result to host slot
+        ``slot``, queued on the device's stream (:meth:`measured` reads it)."""
         # One recorded launch per positions array (a run alternates two states), with the view of
         # its monitored points: the launch holds the array, so its address identifies it for as
         # long as the launch is kept.
@@ -178,7 +181,7 @@ class ContactMonitor:
             self._grid.build(flat, 2.0 * self.max_radius, groups=self._group)
         if launch is not None:
             launch.launch()
-        wp.copy(self._gap_host, self._gap)
+        wp.copy(self._gap_host[slot], self._gap)
 
     def closest(self, q: np.ndarray, group: int = 0):
         """The contact with the deepest overlap in ``group``, or None (host side, to name it).
