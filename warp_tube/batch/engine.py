@@ -3,11 +3,14 @@
 :func:`simulate_chunk` advances every world with the solver and substeps each variant alone would
 get (the chunk's :class:`~warp_tube.batch.plan.RunChoice`), applies each world's control, checks
 each world after every frame, and copies the output frames (``k % every == 0``) into arrays the
-writers read. A world that fails a check is dropped from the batch at once (no forces, its state
-reset so it stays finite) and, once the others are done, run alone through ``Simulation`` exactly
-as ``warp-tube run`` would run it, with its retries: its frames come from that run, and if that
-fails too the variant is failed with ``Simulation``'s own message, its frames after the failure
-NaN.
+writers read. Each frame is queued on the device before the host reads the one before it (the
+checks' results in a host slot per frame), so the host's work on frame k overlaps the device's
+on frame k + 1. A world that fails a check is dropped from the batch (no forces from the frame
+after next; put at rest at the end of the frame already queued, so it stays finite; worlds do
+not interact, so the others compute what they would alone) and, once the others are done, run
+alone through ``Simulation`` exactly as ``warp-tube run`` would run it, with its retries: its
+frames come from that run, and if that fails too the variant is failed with ``Simulation``'s own
+message, its frames after the failure NaN.
 
 Output arrays (stage units, float32), for ``F`` written frames and ``W`` worlds:
 
