@@ -33,3 +33,33 @@ def test_batch_columns_in_batch_order():
     assert cols["frames"] == [10, 20, 11, 21, 12]
     assert cols["output"] == ["a0", "b1", "a2", "b3", "a4"]
     assert cols["missing"] == [""] * 5  # a field no record has reads as empty, as in the summary
+
+
+def test_summary_joined_from_chunks_is_the_summary_made_at_once(tmp_path):
+    """summary.csv's lines made chunk by chunk as they finish, joined in batch order (chunks of
+    consecutive variants; chunks of two groups interleaved; a chunk recorded by an earlier run,
+    without lines), equal the lines of every variant made at once."""
+    from warp_tube.batch.bookkeeping import Bookkeeper
+    from warp_tube.batch.journal import Journal
+    from warp_tube.batch.outputs import SUMMARY_FIELDS, summary_lines
+    from warp_tube.batch.variants import Variant
+
+    variants = [Variant(k, f"variant_{k:05d}", k, (str(1e4 * (k + 1)), "0.5"), (), None) for k in range(7)]
+
+    def record(indices):
+        rows = Rows.of([dict(status="ok" if i % 3 else "failed", reason="" if i % 3 else "numerical failure, at frame 2",
+                             frames=3, frames_simulated=2, integrator="semiImplicitEuler", substeps=30, rerun=False,
+                             max_displacement_m=0.1 * i + 1e-17, tip=[i, -0.5 * i, 1.0 / (i + 1)], kinetic_energy_J=float("nan") if i == 4 else 2.0 ** -i,
+                             work_J=1e-9 * i, contact_frame="" if i % 2 else i) for i in indices])  # fmt: skip
+        return {"rows": {"index": list(indices), **rows.columns, "output": [f"variant_{i:05d}.usdc" for i in indices]}}
+
+    for chunks in ([(0, 1, 2), (3, 4, 5), (6,)], [(0, 2, 4, 6), (1, 3, 5)]):
+        journal = Journal(str(tmp_path / "j"))
+        journal.begin({"version": 1}, resume=False)
+        books = Bookkeeper(journal, variants)
+        records = {c: record(ix) for c, ix in enumerate(chunks)}
+        for c in reversed(range(len(chunks) - 1)):  # finished out of order; the last chunk recorded before (no lines)
+            books.record(c, records[c])
+        index, columns = batch_columns(records.values(), ("tip", *SUMMARY_FIELDS))
+        assert index == list(range(7))
+        assert books.summary_text(records) == summary_lines(variants, columns)

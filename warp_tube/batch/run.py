@@ -455,18 +455,17 @@ def _run_batch(scene, out_dir, table, tab, devices, writer_pool, sim_workers, t_
     todo = [c for c in plan if c.id not in done]
     bar.start(sum(len(c.indices) for c in todo) * max(n_frames - 1, 1), len(variants), result.resumed)
 
-    books = Bookkeeper(journal, variants.variants, plan)
+    books = Bookkeeper(journal, variants.variants)
 
     def finish(chunk_id: int, rows: Rows, outputs: list):
         c = plan[chunk_id]
         ok = "ok" in rows.columns["status"]
         rec = {"rows": {"index": list(c.indices), **rows.columns, "output": list(outputs)},
                "layer": f"grid/chunk_{chunk_id:05d}.usdc" if layout == "grid" and ok else ""}  # fmt: skip
-        books.record(chunk_id, rec)  # (on the records' thread)
+        books.record(chunk_id, rec)
         records[chunk_id] = rec
         bar.variants_done(len(c.indices))
         if on_chunk is not None:
-            books.wait()  # (called once the chunk is recorded)
             on_chunk(chunk_id)
 
     context = dict(variants=variants, plan=plan, choices=choices, kept=kept, frames=n_frames, every=every, surface=surface,
@@ -482,13 +481,10 @@ def _run_batch(scene, out_dir, table, tab, devices, writer_pool, sim_workers, t_
             run_pooled(todo, devices, sim_workers, context, result)
     except KeyboardInterrupt as e:
         bar.close()
-        books.close()
         _tally(result, records, variants)
         result.pending = len(variants) - sum(record_count(r) for r in records.values())
         result.wall_s = time.perf_counter() - t_start
         raise BatchInterrupted(result, getattr(e, "signum", signal.SIGINT)) from None
-    finally:
-        books.close()  # (every record on disk, however the chunks ended)
     bar.close()
     _finish_outputs(spec, variants, counts, records, first, out_dir, books)
     journal.finish()
