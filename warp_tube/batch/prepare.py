@@ -64,7 +64,8 @@ def _prepare_part(scene: str, table, variant_sets):
             return variants, [(table.first_row, str(e))], None
 
 
-def prepare_batch(scene: str, table, variant_sets, bar, pool: cf.ProcessPoolExecutor | None = None, pool_size: int = 0):
+def prepare_batch(scene: str, table, variant_sets, bar, pool: cf.ProcessPoolExecutor | None = None, pool_size: int = 0,
+                  keep_nodes: bool = True):  # fmt: skip
     """Every variant, its run choice and, where read in this process, their per-node parameters
     (:class:`~warp_tube.batch.nodes.KeptNodes`, else None), read by one process or, for a large table, several
     (each opening the scene and reading a part of the rows); all problems reported together.
@@ -76,12 +77,13 @@ def prepare_batch(scene: str, table, variant_sets, bar, pool: cf.ProcessPoolExec
         bar: the batch's :class:`~warp_tube.batch.progress.Progress`.
         pool, pool_size: running worker processes to read with (the writers) and how many they
             are, or None to start some.
+        keep_nodes: keep the per-node parameters (for chunks built in this process).
     """
     with collector_paused():
-        return _prepare_batch(scene, table, variant_sets, bar, pool, pool_size)
+        return _prepare_batch(scene, table, variant_sets, bar, pool, pool_size, keep_nodes)
 
 
-def _prepare_batch(scene, table, variant_sets, bar, pool, pool_size):
+def _prepare_batch(scene, table, variant_sets, bar, pool, pool_size, keep_nodes):
     from .variants import Variants, name_width, plain_table, prepare_variants, raise_problems
 
     rows = len(table.rows) if table is not None else 1
@@ -96,7 +98,7 @@ def _prepare_batch(scene, table, variant_sets, bar, pool, pool_size):
         from .worlds import WorldArrays
 
         variants = prepare_variants(scene, table, variant_sets, extract=_extract, progress=bar.reading)
-        keep = KeptNodes(len(variants.variants), KeptNodes.of_worlds(WorldArrays))
+        keep = KeptNodes(len(variants.variants), KeptNodes.of_worlds(WorldArrays)) if keep_nodes else None
         choices = checked_run_choices(variants, keep)
         warn_forced(variants, choices)
         return variants, choices, keep

@@ -392,7 +392,8 @@ def _run_batch(scene, out_dir, table, tab, devices, writer_pool, sim_workers, t_
     bar = Progress(progress)
     readers = writer_pool.pool if writer_pool.processes else None  # idle until the first chunk is simulated
     try:
-        variants, choices, kept = prepare_batch(scene, tab, variant_sets, bar, readers, writer_pool.count)
+        variants, choices, kept = prepare_batch(scene, tab, variant_sets, bar, readers, writer_pool.count,
+                                                keep_nodes=len(devices) == 1 and not scheduler)  # (built in this process)
     except KeyboardInterrupt:
         writer_pool.terminate()  # (they may be reading parts of the table: not worth waiting for)
         raise
