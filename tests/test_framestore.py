@@ -95,3 +95,18 @@ def test_windows_copied_back_in_place_where_two_do_not_fit(monkeypatch):
     monkeypatch.setattr(framestore, "_window_memory", lambda device: 250_000.0)
     store = run_store(monkeypatch, staged=True, window_bytes=200_000, staging_bytes=120_000, wait="future")
     assert store.window == 5 and store.pending.done()
+
+
+def test_a_source_that_does_not_fit_its_columns_is_refused():
+    """A prim's points stored into columns of another width would write beside them: refused."""
+    host = {"points": np.zeros((2, 3, 10, 3), dtype=np.float32)}
+    store = FrameStore(host, "cpu", staged=True, window_bytes=1 << 20)
+    src = wp.zeros((3, 4), dtype=wp.vec3, device="cpu")
+    store.store(0, "points", src, 1.0, columns=slice(6, 10))  # fits
+    for cols in (slice(0, 5), slice(8, 12)):
+        try:
+            store.store(0, "points", src, 1.0, columns=cols)
+        except ValueError as e:
+            assert "does not fit" in str(e)
+        else:
+            raise AssertionError(f"columns {cols} taken for a source of 4")

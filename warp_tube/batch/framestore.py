@@ -188,7 +188,8 @@ class FrameStore:
             W = buf.shape[1]
             out = buf.reshape((buf.shape[0], W, -1))  # (window, W, columns) (extent: the prims' corners)
             first = 2 * prim if prim is not None else (columns.start or 0) if columns is not None else 0
-            if src.shape[0] != W or first + src.shape[1] > out.shape[2]:
+            width = (columns.stop - first) if columns is not None and columns.stop is not None else src.shape[1]
+            if src.shape[0] != W or src.shape[1] != width or first + width > out.shape[2]:
                 raise ValueError(f"output {name}: {src.shape} does not fit columns {first}.. of {out.shape[1:]}")
             if len(self._launches) > 64:
                 self._launches.clear()
