@@ -8,7 +8,7 @@ import numpy as np
 import pytest
 import warp as wp
 
-from tests.test_batch import DEFAULT, E, FORCE, near_axis_batches, stage_samples, variant_scene, write_table
+from tests.test_batch import DEFAULT, E, FORCE, failing_world_among_others, near_axis_batches, stage_samples, variant_scene, write_table
 from warp_tube.batch import run_batch
 from warp_tube.cli import main as cli
 
@@ -112,3 +112,14 @@ def test_batch_on_two_gpus_equals_one(tmp_path):
         assert result.devices == ["cuda:0", "cuda:1"] and result.ok == 6
         for n in names:
             assert filecmp.cmp(one / n, two / n, shallow=False), (layout, n)
+
+
+
+@pytest.mark.parametrize("scene, tube", [(DEFAULT, "/World/Tube"), (DEFAULT.parent / "intestine.usda", "/World/Bowel")])
+def test_batch_on_cuda_a_failing_world_among_others(tmp_path, scene, tube):
+    """One forced substep for all, beyond the stiff variant's stability bound: its world blows up
+    while the frames of the others are queued and read one behind the other; the others give
+    what they give alone. The default tube (21 points) tests its contact pairs, the intestine
+    (41 points) the contact grid, which then holds the failed world's blown-up points."""
+    failing_world_among_others(tmp_path, scene, tube, "cuda:0")
+
