@@ -25,7 +25,8 @@ Discretisation (SI units):
 from __future__ import annotations
 
 from dataclasses import dataclass
-from operator import attrgetter
+from itertools import repeat
+from operator import attrgetter, is_
 
 import numpy as np
 import warp as wp
@@ -264,104 +265,104 @@ def node_parameters(scene: Scene) -> tuple[dict, bool]:
     ``tube_node_start`` (C + 1,), ``node_tube`` (N,), ``prim_node_start`` (T,).
     """
     specs = scene.tubes
-    # Prims that share their geometry arrays (a batch's variants made from one scene): each
-    # per-node array of the geometry is the first prim's repeated, and so is its rest curvature.
-    shared = len(specs) > 1 and all(len(set(map(id, map(attrgetter(a), specs)))) == 1 for a in _GEOMETRY)
+    # Prims that share their geometry arrays (a batch's variants made from one scene): the
+    # arithmetic runs on rows, one per prim, over the first prim's geometry (the geometry's own
+    # terms once, the materials' per row); otherwise on one row of every prim's nodes. Either way
+    # each element goes through the same float64 operations in the same order as one curve alone.
+    shared = len(specs) > 1 and all(all(map(is_, map(attrgetter(a), specs), repeat(getattr(specs[0], a)))) for a in _GEOMETRY)
     sizes = np.array([len(s.points) for s in specs], dtype=np.int64)
     prim_start = np.concatenate([[0], np.cumsum(sizes)]).astype(np.int64)
+    P = len(specs)
     if shared:
-        s0, P = specs[0], len(specs)
-        counts = np.tile(s0.curve_counts.astype(np.int64), P)
-        x, r = np.tile(s0.points, (P, 1)), np.tile(s0.radius, P)
+        s0 = specs[0]
+        rows, row_counts = P, s0.curve_counts.astype(np.int64)
+        x_row, r_row = s0.points, s0.radius
+        counts = np.tile(row_counts, P)
+        pinned_at, anchored_at = s0.pinned, s0.anchors
     else:
-        counts = np.concatenate([s.curve_counts for s in specs]).astype(np.int64)
-        x = np.concatenate([s.points for s in specs])
-        r = np.concatenate([s.radius for s in specs])
+        rows = 1
+        counts = row_counts = np.concatenate([s.curve_counts for s in specs]).astype(np.int64)
+        x_row, r_row = np.concatenate([s.points for s in specs]), np.concatenate([s.radius for s in specs])
+        pinned_at = np.concatenate([s.pinned + o for s, o in zip(specs, prim_start)])
+        anchored_at = np.concatenate([s.anchors + o for s, o in zip(specs, prim_start)])
     tube_start = np.concatenate([[0], np.cumsum(counts)]).astype(np.int64)
-    first, last = tube_start[:-1], tube_start[1:] - 1
-    n = len(x)
-    pinned = np.zeros(n, dtype=bool)
-    anchored = np.zeros(n, dtype=bool)
-    if shared:
-        pinned.reshape(P, -1)[:, specs[0].pinned] = True
-        anchored.reshape(P, -1)[:, specs[0].anchors] = True
-    else:
-        pinned[np.concatenate([s.pinned + o for s, o in zip(specs, prim_start)])] = True
-        anchored[np.concatenate([s.anchors + o for s, o in zip(specs, prim_start)])] = True
+    row_start = np.concatenate([[0], np.cumsum(row_counts)]).astype(np.int64)
+    first, last = row_start[:-1], row_start[1:] - 1  # each curve's first and last node in a row
+    m = len(x_row)  # nodes in a row
+    pinned = np.zeros(m, dtype=bool)
+    pinned[pinned_at] = True
+    anchored = np.zeros(m, dtype=bool)
+    anchored[anchored_at] = True
 
-    def material(values):
-        """One value per prim [its unit] over the prim's nodes (NaN for None): an array (N,), or a
-        scalar where every prim has the same value."""
-        v = np.array([np.nan if v is None else v for v in values], dtype=np.float64)
+    def material(name: str):
+        """Parameter ``name`` of each prim [its unit] (NaN for None): a scalar where every prim has
+        the same value, else per row (rows, 1) where the rows are prims, or (1, nodes) over one row."""
+        v = np.array(list(map(attrgetter(name), params)), dtype=np.float64)  # (None as NaN)
         if np.all((v == v[0]) | (np.isnan(v) & np.isnan(v[0]))):
             return v[0]
-        return np.repeat(v, sizes)
+        return v[:, None] if shared else np.repeat(v, sizes)[None]
 
     def head(a):
-        """``a`` at the first node of each segment (a scalar as it is)."""
-        return a[:-1] if np.ndim(a) else a
+        """``a`` at the first node of each segment (a scalar, or one value per row, as it is)."""
+        return a[..., :-1] if np.ndim(a) and np.shape(a)[-1] == m else a
+
+    def nodes(a) -> np.ndarray:
+        """A row-wise array made here (broadcasting to (rows, m)) as every node's, (rows x m,)."""
+        if np.shape(a) == (rows, m):
+            return a.reshape(-1)
+        return np.broadcast_to(a, (rows, m)).reshape(-1).copy()
+
+    def tiled(a: np.ndarray) -> np.ndarray:
+        """A row's array (m, ...) made here, repeated for every row."""
+        return a if rows == 1 else np.tile(a, (rows,) + (1,) * (a.ndim - 1))
+
+    def segments(a) -> np.ndarray:
+        """A row-wise segment array (to (rows, m - 1)) as every node's, 0 at each row's last node."""
+        out = np.zeros((rows, m))
+        out[:, :-1] = a
+        return out.reshape(-1)
 
     params = [s.params for s in specs]
-    density = material(p.density for p in params)
-    youngs = material(p.youngs_modulus for p in params)
-    stretch = material(p.stretch_stiffness for p in params)
-    bend = material(p.bend_stiffness for p in params)
-    spring_damping = material(p.spring_damping for p in params)
+    density = material("density")
+    youngs = material("youngs_modulus")
+    stretch = material("stretch_stiffness")
+    bend = material("bend_stiffness")
+    spring_damping = material("spring_damping")
 
-    # Segment i joins nodes i and i + 1; `inside` is False where they belong to different curves.
-    if shared:  # the first prim's segments, prim after prim (the segment between two: not inside)
-        inside, seg = _shared_segments(s0.points, s0.curve_counts, P)
-    else:
-        inside = np.ones(n - 1, dtype=bool)
-        inside[last[:-1]] = False
-        seg = np.linalg.norm(x[1:] - x[:-1], axis=1)
-    r_seg = 0.5 * (r[1:] + r[:-1])
+    # Segment i joins nodes i and i + 1 of a row; `inside` is False where they belong to different curves.
+    inside = np.ones(m - 1, dtype=bool)
+    inside[last[:-1]] = False
+    seg = np.linalg.norm(x_row[1:] - x_row[:-1], axis=1)
+    r_seg = 0.5 * (r_row[1:] + r_row[:-1])
     m_seg = np.where(inside, head(density) * np.pi * r_seg**2 * seg, 0.0)
-    mass = np.zeros(n)
-    mass[:-1] += 0.5 * m_seg
-    mass[1:] += 0.5 * m_seg
+    mass = np.zeros(np.broadcast_shapes((rows, m), np.shape(density)))
+    mass[:, :-1] += 0.5 * m_seg
+    mass[:, 1:] += 0.5 * m_seg
     elastic = inside & ~(pinned[1:] & pinned[:-1])
     l_el = np.where(elastic, seg, 0.0)
-    l_v = np.zeros(n)
+    l_v = np.zeros(m)
     l_v[1:-1] = 0.5 * (l_el[:-1] + l_el[1:])
     l_v[first] = 0.0
     l_v[last] = 0.0
-    ei = np.where(np.isnan(bend), youngs * np.pi * r**4 / 4.0, bend)  # TubeParams.bending_stiffness
+    ei = np.where(np.isnan(bend), youngs * np.pi * r_row**4 / 4.0, bend)  # TubeParams.bending_stiffness
     bend_k = np.where(l_v > 0.0, ei / np.where(l_v > 0, l_v, 1.0), 0.0)
-    bend_k[first] = 0.0
-    bend_k[last] = 0.0
+    bend_k[..., first] = 0.0
+    bend_k[..., last] = 0.0
     ea = np.where(np.isnan(head(stretch)), head(youngs) * np.pi * r_seg**2, head(stretch))  # TubeParams.axial_stiffness
     k_ax = np.where(inside, ea / np.where(inside, seg, 1.0), 0.0)
-    if shared:  # (curved or not: from the one prim's)
-        kappa_one = _curves_kappa(specs[0].points, specs[0].curve_counts.astype(np.int64))
-        kappa = np.tile(kappa_one, (len(specs), 1))
-    else:
-        kappa = kappa_one = _curves_kappa(x, counts)
-    anchor_k = np.where(anchored, material(p.anchor_stiffness for p in params), 0.0)
+    kappa_one = _curves_kappa(x_row, row_counts)  # (curved or not: from one row's)
+    anchor_k = np.where(anchored, material("anchor_stiffness"), 0.0)
+    mass = nodes(mass)
     per_node = dict(
-        node_rest_q=x, node_mass=mass, node_inv_mass=np.where(pinned, 0.0, 1.0 / mass),
-        node_damping=np.broadcast_to(material(p.damping for p in params), (n,)).copy(),
-        seg_rest_length=np.append(np.where(inside, seg, 0.0), 0.0), seg_ke=np.append(k_ax, 0.0),
-        seg_kd=np.append(k_ax * head(spring_damping), 0.0), node_bend_k=bend_k, node_kappa_rest=kappa,
-        node_anchor_k=anchor_k, node_anchor_kd=anchor_k * spring_damping, node_radius=r,
+        node_rest_q=tiled(x_row), node_mass=mass, node_inv_mass=np.where(nodes(pinned), 0.0, 1.0 / mass),
+        node_damping=nodes(material("damping")),
+        seg_rest_length=segments(np.where(inside, seg, 0.0)), seg_ke=segments(k_ax),
+        seg_kd=segments(k_ax * head(spring_damping)), node_bend_k=nodes(bend_k), node_kappa_rest=tiled(kappa_one),
+        node_anchor_k=nodes(anchor_k), node_anchor_kd=nodes(anchor_k * spring_damping), node_radius=tiled(r_row),
         tube_node_start=tube_start, node_tube=np.repeat(np.arange(len(counts), dtype=np.int64), counts),
         prim_node_start=prim_start[:-1],
     )  # fmt: skip
     return per_node, bool(np.abs(kappa_one).max() > 1e-6)
-
-
-def _shared_segments(points: np.ndarray, counts: np.ndarray, copies: int) -> tuple[np.ndarray, np.ndarray]:
-    """``inside`` and the lengths [m] of the segments of ``copies`` prims in a row, each of the
-    ``points`` (n, 3) [m] in curves of ``counts`` points: as for their nodes concatenated, the
-    segment from one prim's last node to the next prim's first not inside a curve."""
-    n = len(points)
-    inside = np.ones((copies, n), dtype=bool)
-    inside[:, np.cumsum(counts)[:-1] - 1] = False  # between the prim's curves
-    inside[:, -1] = False  # to the next prim
-    seg = np.zeros((copies, n))
-    seg[:, :-1] = np.linalg.norm(points[1:] - points[:-1], axis=1)
-    seg[:, -1] = np.linalg.norm(points[0] - points[-1])  # (to the next prim's first point)
-    return inside.reshape(-1)[:-1], seg.reshape(-1)[:-1]
 
 
 def _curves_kappa(x: np.ndarray, counts: np.ndarray) -> np.ndarray:
