@@ -27,12 +27,12 @@ def _variants():
 
 
 def _fields():
-    return KeptNodes.of_worlds(WorldArrays)
+    return tuple(f.name for f in dataclasses.fields(WorldArrays))
 
 
 def test_kept_rows_equal_the_build_of_each_chunk():
     scenes = _variants()
-    keep = KeptNodes(len(scenes), _fields())
+    keep = KeptNodes(len(scenes))
     run_choices(scenes, keep=keep)
     for pick in ((0, 1, 2), (1, 3, 4), (4, 0), (2,)):
         kept = keep.take(pick)
@@ -46,7 +46,7 @@ def test_kept_rows_equal_the_build_of_each_chunk():
 
 def test_beyond_the_limit_nothing_is_kept():
     scenes = _variants()
-    keep = KeptNodes(len(scenes), _fields(), limit=10)  # fewer nodes than one block
+    keep = KeptNodes(len(scenes), limit=10)  # fewer nodes than one block
     run_choices(scenes, keep=keep)
     assert keep.take((0, 1)) is None
     assert keep.nodes == 0
@@ -54,7 +54,7 @@ def test_beyond_the_limit_nothing_is_kept():
 
 def test_a_bad_shape_is_refused():
     scenes = _variants()
-    keep = KeptNodes(len(scenes), _fields())
+    keep = KeptNodes(len(scenes))
     run_choices(scenes, keep=keep)
     try:
         build_worlds(scenes[:2], "cpu", surface=False, per_node=keep.take((0, 1, 2)))

@@ -12,9 +12,8 @@ per world a frame, and whole arrays only to name the point of a world that faile
 from __future__ import annotations
 
 import numpy as np
-import warp as wp
 
-from ..sim.checks import IMMEDIATE, FrameChecks
+from ..sim.checks import FrameChecks
 from .worlds import Worlds
 
 __all__ = ["WorldChecks"]
@@ -52,29 +51,21 @@ class WorldChecks:
         """Work of the forces and gravity so far [J], per world (W,)."""
         return self.device_checks.work[:, 0]
 
-    @property
-    def distance(self) -> np.ndarray:
-        """Largest distance of a point from its rest position in the last checked frame [m], (W,)."""
-        return self.device_checks.distance[:, 0]
+    def distance(self, slot: int) -> np.ndarray:
+        """Largest distance of a point from its rest position in the frame in host slot ``slot``
+        [m], (W,)."""
+        return self.device_checks.distance(slot)[:, 0]
 
-    def check(self, frame: int, before, after, control, alive: np.ndarray) -> dict:
-        """Problems of the frame from state ``before`` to ``after`` (output frame ``frame`` to
-        ``frame + 1``), ``{world: message}``, among the ``alive`` worlds; the frame's work is
-        counted for every world."""
-        self.launch(before, after, control)
-        return self.check_launched(frame, after, alive, synchronize=True)
-
-    def launch(self, before, after, control, slot: int = IMMEDIATE) -> None:
-        """Queue the frame's sums and their copy back into host slot ``slot`` on the device's
-        stream (see :meth:`check_launched`)."""
+    def launch(self, before, after, control, slot: int) -> None:
+        """Queue the sums of the frame from state ``before`` to ``after`` and their copy back into
+        host slot ``slot`` on the device's stream (see :meth:`check`)."""
         self.device_checks.launch(before, after, control, slot)
 
-    def check_launched(self, frame: int, after, alive: np.ndarray, synchronize: bool = False, slot: int = IMMEDIATE) -> dict:
-        """:meth:`check` of the frame :meth:`launch`-ed into ``slot``, once the device's stream
-        has reached it (``synchronize``: wait for it here)."""
-        device = wp.get_device(self.worlds.model.device)
-        if synchronize and device.is_cuda:
-            wp.synchronize_stream(wp.get_stream(device))
+    def check(self, frame: int, after, alive: np.ndarray, slot: int) -> dict:
+        """Problems of the frame :meth:`launch`-ed into ``slot`` (output frame ``frame`` to
+        ``frame + 1``, ending at state ``after``), ``{world: message}``, among the ``alive``
+        worlds, once the device's stream has reached it; the frame's work is counted for every
+        world."""
         failures, work = self.device_checks.check_measured(self.device_checks.measured(slot), after)
         self.device_checks.accept(work)
         out = {}

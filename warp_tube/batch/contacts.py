@@ -13,7 +13,6 @@ from __future__ import annotations
 
 import numpy as np
 
-from ..sim.checks import IMMEDIATE
 from ..sim.proximity import ContactMonitor, rest_arclength
 from .worlds import Worlds
 
@@ -45,22 +44,18 @@ class WorldContacts:
                                       node_arc=rest_arclength(h.node_rest_q, start).reshape(-1), small=PAIRS_MAX)  # fmt: skip
         self.frame = np.full(W, -1, dtype=np.int64)
 
-    def check(self, frame: int, q, alive: np.ndarray) -> None:
-        """Record ``frame`` for the ``alive`` worlds whose positions ``q`` (W, N) vec3 [m] (the
-        state at the end of that frame) first put distant parts of their tubes in contact."""
-        self.check_measured(frame, q, self.monitor.deepest(q), alive)  # (every world's points: the monitor's groups)
-
-    def launch(self, q, slot: int = IMMEDIATE) -> None:
-        """Queue the test of positions ``q`` and its copy back into host slot ``slot`` on the
-        device's stream (see :meth:`check_launched`)."""
+    def launch(self, q, slot: int) -> None:
+        """Queue the test of positions ``q`` (W, N) vec3 [m] (the state at the end of a frame:
+        every world's points, the monitor's groups) and its copy back into host slot ``slot`` on
+        the device's stream (see :meth:`check`)."""
         self.monitor.launch(q, slot)
 
-    def check_launched(self, frame: int, q, alive: np.ndarray, slot: int = IMMEDIATE) -> None:
-        """:meth:`check` of the positions ``q`` :meth:`launch`-ed into ``slot``, once the
-        device's stream has reached them (``q`` is read only to confirm a new contact)."""
-        self.check_measured(frame, q, self.monitor.measured(slot), alive)
-
-    def check_measured(self, frame: int, q, gap: np.ndarray, alive: np.ndarray) -> None:
+    def check(self, frame: int, q, alive: np.ndarray, slot: int) -> None:
+        """Record ``frame`` for the ``alive`` worlds whose positions ``q``, :meth:`launch`-ed into
+        ``slot`` (the state at the end of that frame), first put distant parts of their tubes in
+        contact, once the device's stream has reached them (``q`` is read again only to confirm
+        a new contact)."""
+        gap = self.monitor.measured(slot)
         new = np.flatnonzero((gap < 0.0) & (self.frame < 0) & alive)
         if len(new):
             host = q.numpy().reshape(-1, 3).astype(np.float64)

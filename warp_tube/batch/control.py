@@ -65,12 +65,15 @@ class WorldControl:
             by_array: dict = {}
             for w, f in enumerate(fs):
                 by_array.setdefault(id(f.times), []).append(w)
-            groups: dict = {}
+            groups: dict = {}  # sample times' bytes -> (times, worlds)
             for ws in by_array.values():
                 times = fs[ws[0]].times
                 groups.setdefault(times.tobytes(), (times, []))[1].extend(ws)
-            self._forces.append([(times, np.asarray(ws), np.stack([fs[w].values for w in ws]))
-                                 for times, ws in ((t, sorted(ws)) for t, ws in groups.values())])  # fmt: skip
+            per_force = []
+            for times, ws in groups.values():
+                ws = sorted(ws)
+                per_force.append((times, np.asarray(ws), np.stack([fs[w].values for w in ws])))
+            self._forces.append(per_force)
         self.dead = np.zeros(W, dtype=bool)
         self.lines = AssistantLines(m, worlds.host.node_radius) if m.features.assistant_line else None
         # Moving pins: per world its pinned points' track, (W, frames, pinned, 3) [m], per prim.

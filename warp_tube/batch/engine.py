@@ -30,6 +30,7 @@ import warp as wp
 
 from ..runtime.interrupts import raise_if_interrupted
 from ..scene.spec import Scene
+from ..sim.checks import wait_for_stream
 from .checks import WorldChecks
 from .clock import DeviceClock
 from .contacts import WorldContacts
@@ -176,7 +177,7 @@ def simulate_chunk(scenes: list[Scene], choice: RunChoice, device: str, frames: 
         if event is not None:
             wp.synchronize_event(event)
         t1 = time.perf_counter()
-        problems = checks.check_launched(k - 1, after, alive, slot=k % 2)
+        problems = checks.check(k - 1, after, alive, slot=k % 2)
         if problems:
             for w, msg in problems.items():
                 alive[w] = False
@@ -184,10 +185,10 @@ def simulate_chunk(scenes: list[Scene], choice: RunChoice, device: str, frames: 
             wc.dead[~alive] = True
             # Frame k + 1 has run them on from there: put them at rest at its end (`state`), so
             # they stay finite (their frames come from running them alone).
-            _synchronize(stream)
+            wait_for_stream(device)
             _reset_worlds(state, checks.rest32, worlds.rest_q(), ~alive)
-        contacts.check_launched(k, after.node_q, alive, slot=k % 2)
-        max_disp = np.where(alive, np.maximum(max_disp, checks.distance), max_disp)
+        contacts.check(k, after.node_q, alive, slot=k % 2)
+        max_disp = np.where(alive, np.maximum(max_disp, checks.distance(k % 2)), max_disp)
         frames_simulated[alive] += 1
         frames_written[alive] += stored
         timings["sync_s"] += t1 - t
@@ -196,7 +197,7 @@ def simulate_chunk(scenes: list[Scene], choice: RunChoice, device: str, frames: 
             progress(W)
     t = time.perf_counter()
     ready = store.finish()
-    _synchronize(stream)
+    wait_for_stream(device)
     clock.settle()
     timings["copy_s"] += time.perf_counter() - t - store.waited_s
     timings["flush_wait_s"] += store.waited_s
@@ -219,13 +220,6 @@ def simulate_chunk(scenes: list[Scene], choice: RunChoice, device: str, frames: 
         rows.put(w, _run_alone(scenes[w], w, device, frames, every, surface, arrays, first_tip))
     timings["rerun_s"] += time.perf_counter() - t
     return ChunkRun(arrays=arrays, rows=rows, timings=timings, ready=ready)
-
-
-def _synchronize(stream) -> None:
-    """Wait for the simulation's own stream (not the copies back running beside it); nothing on
-    the CPU, where launches return when done."""
-    if stream is not None:
-        wp.synchronize_stream(stream)
 
 
 def _in_memory(shapes: dict) -> dict:

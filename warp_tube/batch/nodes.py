@@ -15,6 +15,8 @@ import dataclasses
 
 import numpy as np
 
+from .worlds import WorldArrays
+
 __all__ = ["KeptNodes", "KEEP_NODES"]
 
 #: nodes of a batch whose per-node parameters are kept (~130 bytes a node: ~0.5 GB)
@@ -26,12 +28,14 @@ class KeptNodes:
 
     Args:
         count: the batch's variants.
-        fields: the per-node fields kept (``WorldArrays``' fields).
         limit: nodes kept at most (default :data:`KEEP_NODES`).
+
+    Attributes:
+        fields: the fields kept: :class:`~warp_tube.batch.worlds.WorldArrays`' (what a build takes).
     """
 
-    def __init__(self, count: int, fields: tuple[str, ...], limit: int | None = None):
-        self.fields = fields
+    def __init__(self, count: int, limit: int | None = None):
+        self.fields = tuple(f.name for f in dataclasses.fields(WorldArrays))
         self.limit = KEEP_NODES if limit is None else limit
         self.nodes = 0
         self.block = np.full(count, -1, dtype=np.int64)  # per variant its block, -1 if not kept
@@ -68,8 +72,3 @@ class KeptNodes:
             a, b = int(rows[0]), int(rows[-1]) + 1
             return {f: v[a:b] for f, v in arrays.items()}
         return {f: v[rows] for f, v in arrays.items()}
-
-    @staticmethod
-    def of_worlds(world_arrays_type) -> tuple[str, ...]:
-        """The fields of a dataclass of per-world arrays (``WorldArrays``)."""
-        return tuple(f.name for f in dataclasses.fields(world_arrays_type))

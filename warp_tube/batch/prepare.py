@@ -95,10 +95,9 @@ def _prepare_batch(scene, table, variant_sets, bar, pool, pool_size, keep_nodes)
 
     def read_here():
         from .nodes import KeptNodes
-        from .worlds import WorldArrays
 
         variants = prepare_variants(scene, table, variant_sets, extract=_extract, progress=bar.reading)
-        keep = KeptNodes(len(variants.variants), KeptNodes.of_worlds(WorldArrays)) if keep_nodes else None
+        keep = KeptNodes(len(variants.variants)) if keep_nodes else None
         choices = checked_run_choices(variants, keep)
         warn_forced(variants, choices)
         return variants, choices, keep

@@ -17,7 +17,7 @@ from dataclasses import dataclass
 import numpy as np
 import warp as wp
 
-from ..model.tube import TubeModel, build_model, model_features, node_parameters
+from ..model.tube import TubeModel, build_model, model_features, node_parameters, rest_is_curved
 from ..scene.spec import Scene, replace_checked
 
 __all__ = ["Worlds", "WorldArrays", "build_worlds", "combined_tubes"]
@@ -96,7 +96,7 @@ def build_worlds(scenes: list[Scene], device: str, surface: bool, per_node: dict
     elif per_node["node_mass"].shape != (W, N):
         raise ValueError(f"per-node parameters of {per_node['node_mass'].shape} (worlds, nodes), expected ({W}, {N})")
     host = WorldArrays(**{f.name: per_node[f.name] for f in dataclasses.fields(WorldArrays)})
-    curved = bool(np.abs(host.node_kappa_rest).max() > 1e-6) if host.node_kappa_rest.size else False  # as node_parameters'
+    curved = rest_is_curved(host.node_kappa_rest)
 
     per_world = {}
     for f in dataclasses.fields(one):

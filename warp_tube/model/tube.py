@@ -362,7 +362,13 @@ def node_parameters(scene: Scene) -> tuple[dict, bool]:
         tube_node_start=tube_start, node_tube=np.repeat(np.arange(len(counts), dtype=np.int64), counts),
         prim_node_start=prim_start[:-1],
     )  # fmt: skip
-    return per_node, bool(np.abs(kappa_one).max() > 1e-6)
+    return per_node, rest_is_curved(kappa_one)
+
+
+def rest_is_curved(kappa: np.ndarray) -> bool:
+    """Whether rest curvature coordinates ``kappa`` (..., 3) [1] make a curved rest shape (the
+    model's ``curved`` feature)."""
+    return bool(np.abs(kappa).max() > 1e-6)
 
 
 def _curves_kappa(x: np.ndarray, counts: np.ndarray) -> np.ndarray:

@@ -16,7 +16,7 @@ import warp as wp
 
 from ..kernels.checks import frame_sums_kernel
 
-__all__ = ["FrameChecks", "Failure", "RUNAWAY_LENGTHS", "ENERGY_MARGIN", "HOST_SLOTS", "IMMEDIATE"]
+__all__ = ["FrameChecks", "Failure", "RUNAWAY_LENGTHS", "ENERGY_MARGIN", "HOST_SLOTS", "IMMEDIATE", "wait_for_stream"]
 
 #: host copies of a frame's sums: two for frames in flight one after another, one for a frame
 #: measured and read at once (:data:`IMMEDIATE`)
@@ -29,6 +29,14 @@ RUNAWAY_LENGTHS = 1.0e3
 #: (the springs' energy is >= 0 and damping only takes energy; the margin covers the error of
 #: measuring the work at frame ends).
 ENERGY_MARGIN = 10.0
+
+
+def wait_for_stream(device) -> None:
+    """Wait until ``device``'s current stream has done what was queued on it (not other streams:
+    a batch's copies back run beside it); nothing on the CPU, where launches return when done."""
+    device = wp.get_device(device)
+    if device.is_cuda:
+        wp.synchronize_stream(wp.get_stream(device))
 
 
 @dataclass(frozen=True)
@@ -92,7 +100,6 @@ class FrameChecks:
         pinned = wp.get_device(d).is_cuda
         self._sums_host = [wp.zeros((W, G), dtype=wp.vec3, device="cpu", pinned=pinned) for _ in range(HOST_SLOTS)]
         self._far_host = [wp.zeros((W, G), dtype=float, device="cpu", pinned=pinned) for _ in range(HOST_SLOTS)]
-        self._last_slot = IMMEDIATE
         self._launches = {}
         #: work of the forces and gravity so far [J], per (world, group), float64
         self.work = np.zeros((W, G))
@@ -102,8 +109,7 @@ class FrameChecks:
     def measure(self, before, after, control):
         """Per (world, group): ``(bad, kinetic [J], work of this frame [J])`` as NumPy arrays."""
         self.launch(before, after, control)
-        if wp.get_device(self.device).is_cuda:
-            wp.synchronize_stream(wp.get_stream(self.device))
+        wait_for_stream(self.device)
         return self.measured()
 
     def launch(self, before, after, control, slot: int = IMMEDIATE) -> None:
@@ -133,15 +139,13 @@ class FrameChecks:
     def measured(self, slot: int = IMMEDIATE):
         """:meth:`measure`'s result for the frame launched into host slot ``slot``
         (:meth:`launch`), once the device's stream has reached it."""
-        self._last_slot = slot
         s = self._sums_host[slot].numpy().astype(np.float64)
         return s[..., 0], s[..., 1], s[..., 2]
 
-    @property
-    def distance(self) -> np.ndarray:
-        """Largest distance of a finite node from rest in the last measured frame [m], (W, G)
-        (zero before the first frame)."""
-        return self._far_host[self._last_slot].numpy().astype(np.float64)
+    def distance(self, slot: int = IMMEDIATE) -> np.ndarray:
+        """Largest distance of a finite node from rest in the frame measured into host slot
+        ``slot`` [m], (W, G) (zero before the first frame), once the device's stream has reached it."""
+        return self._far_host[slot].numpy().astype(np.float64)
 
     def check(self, before, after, control) -> tuple[list[Failure], np.ndarray]:
         """Failures of the frame from ``before`` to ``after`` (empty when it is good), and its

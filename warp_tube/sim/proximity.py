@@ -16,7 +16,7 @@ import warp as wp
 from scipy.spatial import cKDTree
 
 from ..kernels.contact import contact_grid_kernel, contact_pairs_kernel
-from .checks import HOST_SLOTS, IMMEDIATE
+from .checks import HOST_SLOTS, IMMEDIATE, wait_for_stream
 
 __all__ = ["ContactMonitor", "rest_arclength"]
 
@@ -146,8 +146,7 @@ class ContactMonitor:
                 (world, node) of which the monitor watches world 0, or every world of a batch.
         """
         self.launch(q)
-        if wp.get_device(self.device).is_cuda:
-            wp.synchronize_stream(wp.get_stream(self.device))
+        wait_for_stream(self.device)
         return self.measured()
 
     def measured(self, slot: int = IMMEDIATE) -> np.ndarray:
