@@ -19,7 +19,8 @@ Reported per layout, from one ``run_batch`` call (seconds):
   CPU the launches' own time (``sync_s``, also reported, is the host's time waiting for them);
 - ``other_s``: everything else but writing: ``wall_s - kernels_s - write_wait_s``, i.e. reading
   and checking the table, planning, building the models, copying states back, control, the
-  host-side frame checks (``checks_s``, also reported alone), copying into the writers' arrays;
+  host-side frame checks (``checks_s``, also reported alone), copying into the writers' arrays,
+  recording finished chunks (``books_s``: journal records and summary lines);
 - ``write_wait_s``: time the simulation waited for the writers (they run in other processes
   or threads meanwhile; ``write_s`` is their summed time), and on a GPU for earlier chunks'
   frames to be copied back to the host for them (``flush_wait_s``, also reported: the device
@@ -204,7 +205,8 @@ def main():
                 "layout": layout, "devices": r.devices, "groups": r.groups, "chunks": r.chunks, "ok": r.ok, "failed": r.failed,
                 "wall_s": r.wall_s, "kernels_s": t["kernels_s"], "other_s": other, "write_wait_s": r.write_wait_s,
                 "write_s": r.write_s, "floor_s": floor, "floor_measured_variants": measured,
-                "split_s": {"reading_and_planning": r.prepare_s, **{k: v for k, v in t.items() if k != "kernels_s"}},
+                "split_s": {"reading_and_planning": r.prepare_s, **{k: v for k, v in t.items() if k != "kernels_s"},
+                            "books_s": r.books_s},
                 "other_fraction": other / r.wall_s, "wall_over_bound": r.wall_s / max(t["kernels_s"], floor),
             })  # fmt: skip
     finally:

@@ -37,8 +37,9 @@ def test_batch_columns_in_batch_order():
 
 def test_summary_joined_from_chunks_is_the_summary_made_at_once(tmp_path):
     """summary.csv's lines made chunk by chunk as they finish, joined in batch order (chunks of
-    consecutive variants; chunks of two groups interleaved; a chunk recorded by an earlier run,
-    without lines), equal the lines of every variant made at once."""
+    consecutive variants; chunks of two groups interleaved; a chunk recorded by an earlier version,
+    every field and no lines), equal the lines of every variant made at once; a journal record keeps
+    the lines and the fields the batch reads back."""
     from warp_tube.batch.bookkeeping import Bookkeeper
     from warp_tube.batch.journal import Journal
     from warp_tube.batch.outputs import SUMMARY_FIELDS, summary_lines
@@ -47,7 +48,7 @@ def test_summary_joined_from_chunks_is_the_summary_made_at_once(tmp_path):
     variants = [Variant(k, f"variant_{k:05d}", k, (str(1e4 * (k + 1)), "0.5"), (), None) for k in range(7)]
 
     def record(indices):
-        rows = Rows.of([dict(status="ok" if i % 3 else "failed", reason="" if i % 3 else "numerical failure, at frame 2",
+        rows = Rows.of([dict(status="ok" if i % 3 else "failed", reason="" if i % 3 else 'numerical failure, at frame 2:\n "x" not finite',
                              frames=3, frames_simulated=2, integrator="semiImplicitEuler", substeps=30, rerun=False,
                              max_displacement_m=0.1 * i + 1e-17, tip=[i, -0.5 * i, 1.0 / (i + 1)], kinetic_energy_J=float("nan") if i == 4 else 2.0 ** -i,
                              work_J=1e-9 * i, contact_frame="" if i % 2 else i) for i in indices])  # fmt: skip
@@ -58,8 +59,25 @@ def test_summary_joined_from_chunks_is_the_summary_made_at_once(tmp_path):
         journal.begin({"version": 1}, resume=False)
         books = Bookkeeper(journal, variants)
         records = {c: record(ix) for c, ix in enumerate(chunks)}
-        for c in reversed(range(len(chunks) - 1)):  # finished out of order; the last chunk recorded before (no lines)
-            books.record(c, records[c])
-        index, columns = batch_columns(records.values(), ("tip", *SUMMARY_FIELDS))
+        index, columns = batch_columns(records.values(), ("tip", *SUMMARY_FIELDS))  # every field, for lines made at once
         assert index == list(range(7))
+        for c in reversed(range(len(chunks) - 1)):  # finished out of order; the last chunk recorded before (no lines)
+            kept = books.record(c, records[c])
+            assert json.loads((tmp_path / "j" / ".batch" / "chunks" / f"chunk_{c:05d}.json").read_text()) == dict(kept, chunk=c)
+            assert set(kept["rows"]) == {"index", "status", "reason", "contact_frame", "output"}
+            records[c] = json.loads(json.dumps(kept))  # as --resume reads it back
         assert books.summary_text(records) == summary_lines(variants, columns)
+
+
+def test_csv_records_split_rows_not_lines_inside_quotes():
+    import csv
+    import io
+
+    from warp_tube.batch.bookkeeping import csv_records
+
+    rows = [["a", 1.5], ['two\nlines, "quoted"', 2], ["", "x\r\ny"], ["plain", 'end"']]
+    buf = io.StringIO()
+    csv.writer(buf, lineterminator="\n").writerows(rows)
+    out = csv_records(buf.getvalue())
+    assert len(out) == len(rows) and "".join(out) == buf.getvalue()
+    assert [next(csv.reader(io.StringIO(r))) for r in out] == [[str(x) for x in r] for r in rows]

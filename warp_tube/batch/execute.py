@@ -367,7 +367,10 @@ def run_here(todo, device, context, result) -> None:
     handoff = None  # threads handing chunks to writer processes once their frames are copied back
     bar = context["bar"]
 
-    def settle(block: bool):
+    def settle(block: bool) -> float:
+        """Record the chunks whose writers are done (all, waiting for them, with ``block``);
+        returns the seconds spent recording them (``BatchResult.books_s``, not waiting)."""
+        spent_here = 0.0
         for cid in list(pending):
             futures, rows = pending[cid]
             if not block and not all(f.done() for f in futures):
@@ -378,7 +381,10 @@ def run_here(todo, device, context, result) -> None:
                 outputs += out
                 result.write_s += spent
             del pending[cid]
+            t = time.perf_counter()
             context["finish"](cid, rows, outputs)
+            spent_here += time.perf_counter() - t
+        return spent_here
 
     try:
         for chunk in todo:
@@ -391,9 +397,11 @@ def run_here(todo, device, context, result) -> None:
                     buffers = _buffer_folder(sum(4 * math.prod(s) for s in shapes.values()), context["spec"].work_dir)
                 ring = BufferRing(2, buffers)
             if ring is not None:
+                t0, books = time.perf_counter(), 0.0
                 while ring.owner() in pending:  # its slot's last chunk is still being written
                     cf.wait(pending[ring.owner()][0])
-                    settle(block=False)
+                    books += settle(block=False)
+                result.write_wait_s += time.perf_counter() - t0 - books
                 allocate = ring.allocator(chunk.id)
             t0 = time.perf_counter()
             kept = context.get("kept")
@@ -424,15 +432,15 @@ def run_here(todo, device, context, result) -> None:
             del run.arrays
             pending[chunk.id] = (futures, run.rows)
             settle(block=False)
-            t0 = time.perf_counter()
+            t0, books = time.perf_counter(), 0.0
             while len(pending) >= 2:  # at most two chunks wait for writers
                 # (on the futures not done yet: a chunk partly written would otherwise return at once, a spin)
                 cf.wait([f for fs, _ in pending.values() for f in fs if not f.done()], return_when=cf.FIRST_COMPLETED)
-                settle(block=False)
-            result.write_wait_s += time.perf_counter() - t0
+                books += settle(block=False)
+            result.write_wait_s += time.perf_counter() - t0 - books
         t0 = time.perf_counter()
-        settle(block=True)
-        result.write_wait_s += time.perf_counter() - t0
+        books = settle(block=True)
+        result.write_wait_s += time.perf_counter() - t0 - books
     except KeyboardInterrupt:
         # Keep what is complete: the chunks already simulated are written to the end.
         try:
@@ -470,7 +478,7 @@ def run_pooled(todo, devices, workers: SimWorkers, context, result) -> None:
     free_slots = list(range(2 * len(devices)))  # buffer slots; a chunk's is free again once it is written
     slot_of: dict = {}  # chunk id -> its buffer slot
     bar = context["bar"]
-    t0 = time.perf_counter()
+    t0, books0 = time.perf_counter(), result.books_s
 
     early: dict = {}  # chunk id -> (outputs, seconds): reported written before its simulation's result was seen
 
@@ -571,7 +579,8 @@ def run_pooled(todo, devices, workers: SimWorkers, context, result) -> None:
             own.shutdown()
         if buffers is not None:
             shutil.rmtree(buffers, ignore_errors=True)
-        result.write_wait_s += 0.0 if not result.simulate_s else max(0.0, time.perf_counter() - t0 - result.simulate_s / len(devices))
+        loop_s = time.perf_counter() - t0 - (result.books_s - books0)  # (recording the chunks: not waiting)
+        result.write_wait_s += 0.0 if not result.simulate_s else max(0.0, loop_s - result.simulate_s / len(devices))
 
 
 def add_timings(result, timings: dict) -> None:

@@ -2,7 +2,9 @@
 
 ``state.json`` holds the batch's signature (scene and table contents, options that change the
 outputs, the chunk size); ``chunks/chunk_00003.json`` is written (atomically) when every output of
-chunk 3 is complete, with its variants' summary fields (one list per field, in the chunk's order).
+chunk 3 is complete, with its variants' lines of ``summary.csv`` and the summary fields the batch
+reads back (index, status, reason, contact frame, outputs: one list per field, in the chunk's
+order; :mod:`warp_tube.batch.bookkeeping`).
 Resuming checks the signature and skips the recorded chunks; chunks are planned the same way
 again, so the resumed batch ends with the same files as an uninterrupted one. The folder is removed when the batch completes, and its
 signature kept in ``DIR/.batch-finished.json``, so that ``--resume`` of a finished batch with other

@@ -387,5 +387,7 @@ def summary_lines(variants, columns: dict) -> str:
     # csv writes str(value): for floats repr (NaN as "nan"), ints, strings and bools as _fmt does;
     # only a column holding something else (None) goes through _fmt
     fields = [c if set(map(type, c)) <= _AS_STR else [_fmt(x) for x in c] for c in fields]
-    out.writerows([v.index, v.name, *v.cells, *v.selection, *row] for v, row in zip(variants, zip(*fields)))
+    cells = list(zip(*(v.cells for v in variants))) if variants and variants[0].cells else []
+    chosen = list(zip(*(v.selection for v in variants))) if variants and variants[0].selection else []
+    out.writerows(zip([v.index for v in variants], [v.name for v in variants], *cells, *chosen, *fields))  # (a column at a time)
     return buf.getvalue()

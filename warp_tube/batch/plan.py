@@ -32,15 +32,31 @@ __all__ = ["Chunk", "RunChoice", "run_choice", "run_choices", "group_key", "plai
 
 
 class RunChoice(NamedTuple):
-    """What ``Simulation`` would pick for a scene alone: integrator, why, substeps per frame and
-    the substep [s]; ``min_segment`` [m] is its shortest rest segment. (A named tuple: one per
-    variant, made faster than a frozen dataclass.)"""
+    """What ``Simulation`` would pick for a scene alone: integrator, substeps per frame and the
+    substep [s]; ``min_segment`` [m] is its shortest rest segment; ``why``: what the choice was
+    made from (settings, stability bound [s], frame duration [s], implicit cost ratio), which
+    :attr:`reason` puts in words when asked. (A named tuple: one per variant, made faster than a
+    frozen dataclass.)"""
 
     integrator: str
-    reason: str
     substeps: int
     dt: float
     min_segment: float
+    why: tuple
+
+    @property
+    def reason(self) -> str:
+        """Why, in words (``Simulation.reason``)."""
+        from ..centerline.policy import explain_integrator
+
+        return explain_integrator(*self.why)
+
+    @property
+    def forced(self) -> bool:
+        """Whether the scene forces a substep beyond its stability bound (expect a blow-up)."""
+        from ..centerline.policy import is_forced
+
+        return is_forced(*self.why[:3])
 
 
 @dataclass(frozen=True)
@@ -142,7 +158,7 @@ def _topology(scene: Scene):
 def _choices_of(scenes: list[Scene], one, indices, keep) -> list[RunChoice]:
     """run_choices for scenes of one layout (``one``: :func:`_topology` of one of them),
     discretised in one build (kept in ``keep`` as those of ``indices``, unless None)."""
-    from ..centerline.policy import choose_integrator, implicit_cost_ratio
+    from ..centerline.policy import decide_integrator, implicit_cost_ratio
     from ..centerline.stability import critical_time_steps
     from ..model.tube import node_parameters
     from .worlds import combined_tubes
@@ -156,12 +172,14 @@ def _choices_of(scenes: list[Scene], one, indices, keep) -> list[RunChoice]:
     seg = np.asarray(h.seg_rest_length).reshape(len(scenes), -1)
     seg_min = np.where(seg > 0, seg, np.inf).min(axis=1)
     cost = implicit_cost_ratio(one)
+    seg_min = np.where(np.isfinite(seg_min), seg_min, 0.0).tolist()
     out = []
-    for k, scene in enumerate(scenes):
-        choice = choose_integrator(scene.settings, float(bounds[k]), scene.stage.frame_dt, cost)
-        substeps = max(1, math.ceil(scene.stage.frame_dt / choice.dt - 1e-9))
-        out.append(RunChoice(choice.integrator, choice.reason, substeps, scene.stage.frame_dt / substeps,
-                             float(seg_min[k]) if np.isfinite(seg_min[k]) else 0.0))  # fmt: skip
+    ceil = math.ceil
+    for scene, hc, seg in zip(scenes, bounds.tolist(), seg_min):
+        settings, frame_dt = scene.settings, scene.stage.frame_dt
+        integrator, dt = decide_integrator(settings, hc, frame_dt, cost)
+        substeps = max(1, ceil(frame_dt / dt - 1e-9))
+        out.append(RunChoice(integrator, substeps, frame_dt / substeps, seg, (settings, hc, frame_dt, cost)))
     return out
 
 

@@ -145,7 +145,7 @@ def _prepare_batch(scene, table, variant_sets, bar, pool, pool_size, keep_nodes)
 def warn_forced(variants, choices) -> None:
     """One warning for the variants whose forced timeStep exceeds their stability bound (the
     policy would give one per variant), naming how many and the first of them."""
-    forced = [(v, c) for v, c in zip(variants.variants, choices) if c.reason.startswith("forced; timeStep")]
+    forced = [(v, c) for v, c in zip(variants.variants, choices) if c.forced]
     if forced:
         v, c = forced[0]
         more = f" and {len(forced) - 1} other variant(s)" if len(forced) > 1 else ""

@@ -84,7 +84,8 @@ class BatchResult:
         wall_s: the whole command [s]; prepare_s: reading and checking the variants and planning;
         simulate_s: simulating (wall, in this process; the sum over workers otherwise);
         write_s: the writer tasks' time, summed over writers; write_wait_s: waiting for writers
-            after the last chunk was simulated.
+            (and for frames to be copied back from the device for them);
+        books_s: recording the finished chunks (journal records, summary lines);
         timings: the simulation's own split (build, kernels, readback, control, checks, copy, rerun), summed.
         failures: (variant name, reason) of the failed variants.
         contacts: (variant name, frame) of the variants where distant parts of their tubes came
@@ -105,6 +106,7 @@ class BatchResult:
     simulate_s: float = 0.0
     write_s: float = 0.0
     write_wait_s: float = 0.0
+    books_s: float = 0.0
     frames: int = 0
     timings: dict = field(default_factory=lambda: dict.fromkeys(TIMERS, 0.0))
     failures: list = field(default_factory=list)
@@ -459,13 +461,14 @@ def _run_batch(scene, out_dir, table, tab, devices, writer_pool, sim_workers, t_
     books = Bookkeeper(journal, variants.variants)
 
     def finish(chunk_id: int, rows: Rows, outputs: list):
+        t = time.perf_counter()
         c = plan[chunk_id]
         ok = "ok" in rows.columns["status"]
         rec = {"rows": {"index": list(c.indices), **rows.columns, "output": list(outputs)},
                "layer": f"grid/chunk_{chunk_id:05d}.usdc" if layout == "grid" and ok else ""}  # fmt: skip
-        books.record(chunk_id, rec)
-        records[chunk_id] = rec
+        records[chunk_id] = books.record(chunk_id, rec)
         bar.variants_done(len(c.indices))
+        result.books_s += time.perf_counter() - t
         if on_chunk is not None:
             on_chunk(chunk_id)
 

@@ -15,7 +15,7 @@ from typing import NamedTuple
 
 from ..scene.spec import SimulationSettings
 
-__all__ = ["IntegratorChoice", "choose_integrator", "implicit_cost_ratio", "implicit_substeps", "SAFETY", "IMPLICIT_DT",
+__all__ = ["IntegratorChoice", "choose_integrator", "decide_integrator", "explain_integrator", "is_forced", "implicit_cost_ratio", "implicit_substeps", "SAFETY", "IMPLICIT_DT",
            "IMPLICIT_COST_RATIO", "IMPLICIT_AL_COST", "RUN_WARNING"]
 
 log = logging.getLogger(__name__)
@@ -56,9 +56,68 @@ def implicit_substeps(frame_dt: float, time_step: float | None = None) -> int:
     return max(1, math.ceil(frame_dt / min(time_step or IMPLICIT_DT, frame_dt) - 1e-9))
 
 
+def decide_integrator(settings: SimulationSettings, critical_dt: float, frame_dt: float,
+                      implicit_cost: float = IMPLICIT_COST_RATIO) -> tuple[str, float]:  # fmt: skip
+    """:func:`choose_integrator`'s integrator and substep [s] alone (no reason, no warning): the
+    policy itself, for callers that choose for many scenes at once."""
+    s, hc = settings, critical_dt
+    if s.integrator == "implicitEuler":
+        return "implicitEuler", min(s.time_step or IMPLICIT_DT, frame_dt)
+    if s.integrator == "semiImplicitEuler":
+        if s.time_step is not None:
+            return "semiImplicitEuler", min(s.time_step, frame_dt)
+        return "semiImplicitEuler", (SAFETY * hc if math.isfinite(hc) else frame_dt)
+    # auto: the cheaper of the two, by the cost per substep and node measured for each.
+    if not math.isfinite(hc):
+        return "semiImplicitEuler", frame_dt
+    if s.time_step is not None and s.time_step <= hc:
+        return "semiImplicitEuler", s.time_step
+    impl_dt = min(s.time_step or IMPLICIT_DT, frame_dt)
+    if math.ceil(frame_dt / impl_dt - 1e-9) * implicit_cost < math.ceil(frame_dt / (SAFETY * hc) - 1e-9):
+        return "implicitEuler", impl_dt
+    return "semiImplicitEuler", SAFETY * hc
+
+
+def is_forced(settings: SimulationSettings, critical_dt: float, frame_dt: float) -> bool:
+    """Whether the scene forces semi-implicit Euler at a substep beyond its stability bound
+    ``critical_dt`` [s] (:func:`choose_integrator` warns: expect a blow-up)."""
+    s = settings
+    return s.integrator == "semiImplicitEuler" and s.time_step is not None and min(s.time_step, frame_dt) > critical_dt
+
+
+def explain_integrator(settings: SimulationSettings, critical_dt: float, frame_dt: float,
+                       implicit_cost: float = IMPLICIT_COST_RATIO) -> str:  # fmt: skip
+    """Why :func:`decide_integrator` chose what it chose, in words (the run summary's line)."""
+    s, hc = settings, critical_dt
+    integrator, dt = decide_integrator(settings, critical_dt, frame_dt, implicit_cost)
+    if s.integrator == "implicitEuler":
+        return f"from the scene, substep {dt:.3g} s"
+    if s.integrator == "semiImplicitEuler":
+        if s.time_step is not None:
+            if dt > hc:
+                return f"forced; timeStep {dt:.3g} s exceeds the stability bound {hc:.3g} s"
+            return f"from the scene, timeStep {dt:.3g} s (bound {hc:.3g} s)"
+        if not math.isfinite(hc):
+            return "from the scene; nothing stiff: one substep per frame"
+        return f"from the scene, substep {SAFETY:g} x the stability bound {hc:.3g} s"
+    if not math.isfinite(hc):
+        return "auto: nothing stiff to bound the step, one substep per frame"
+    if s.time_step is not None and s.time_step <= hc:
+        return f"auto: timeStep {s.time_step:.3g} s is within the stability bound {hc:.3g} s"
+    impl_dt = min(s.time_step or IMPLICIT_DT, frame_dt)
+    semi_steps = math.ceil(frame_dt / (SAFETY * hc) - 1e-9)
+    impl_steps = math.ceil(frame_dt / impl_dt - 1e-9)
+    if integrator == "implicitEuler":
+        return (f"auto: stiff ({semi_steps} stable semi-implicit substeps a frame against {impl_steps} implicit "
+                f"ones at ~{implicit_cost:g}x the cost each)")  # fmt: skip
+    why = f"cheaper than implicit ({impl_steps} substeps at ~{implicit_cost:g}x the cost)"
+    return f"auto: {semi_steps} substeps a frame at {SAFETY:g} x the stability bound {hc:.3g} s; {why}"
+
+
 def choose_integrator(settings: SimulationSettings, critical_dt: float, frame_dt: float,
                       implicit_cost: float = IMPLICIT_COST_RATIO) -> IntegratorChoice:  # fmt: skip
-    """The integrator and substep for a scene.
+    """The integrator and substep for a scene, and why (a warning where a forced substep exceeds
+    the stability bound).
 
     Args:
         settings: the scene's simulation settings (integrator, forced substep).
@@ -67,34 +126,8 @@ def choose_integrator(settings: SimulationSettings, critical_dt: float, frame_dt
         implicit_cost: an implicit substep's cost over a semi-implicit one
             (:func:`implicit_cost_ratio` of the model).
     """
-    s, hc = settings, critical_dt
-    semi_dt = SAFETY * hc
-    if s.integrator == "implicitEuler":
-        dt = min(s.time_step or IMPLICIT_DT, frame_dt)
-        return IntegratorChoice("implicitEuler", f"from the scene, substep {dt:.3g} s", dt)
-    if s.integrator == "semiImplicitEuler":
-        if s.time_step is not None:
-            dt = min(s.time_step, frame_dt)
-            if dt > hc:
-                log.warning("timeStep %.3g s exceeds the semi-implicit Euler stability bound %.3g s: expect a blow-up", dt, hc,
-                            extra=RUN_WARNING)  # fmt: skip
-                return IntegratorChoice("semiImplicitEuler", f"forced; timeStep {dt:.3g} s exceeds the stability bound {hc:.3g} s", dt)
-            return IntegratorChoice("semiImplicitEuler", f"from the scene, timeStep {dt:.3g} s (bound {hc:.3g} s)", dt)
-        if not math.isfinite(hc):
-            return IntegratorChoice("semiImplicitEuler", "from the scene; nothing stiff: one substep per frame", frame_dt)
-        return IntegratorChoice("semiImplicitEuler", f"from the scene, substep {SAFETY:g} x the stability bound {hc:.3g} s", semi_dt)
-    # auto: the cheaper of the two, by the cost per substep and node measured for each.
-    if not math.isfinite(hc):
-        return IntegratorChoice("semiImplicitEuler", "auto: nothing stiff to bound the step, one substep per frame", frame_dt)
-    impl_dt = min(s.time_step or IMPLICIT_DT, frame_dt)
-    semi_steps = math.ceil(frame_dt / semi_dt - 1e-9)
-    impl_steps = math.ceil(frame_dt / impl_dt - 1e-9)
-    if s.time_step is not None and s.time_step <= hc:
-        return IntegratorChoice("semiImplicitEuler", f"auto: timeStep {s.time_step:.3g} s is within the stability bound {hc:.3g} s", s.time_step)
-    if impl_steps * implicit_cost < semi_steps:
-        return IntegratorChoice("implicitEuler", (
-            f"auto: stiff ({semi_steps} stable semi-implicit substeps a frame against {impl_steps} implicit "
-            f"ones at ~{implicit_cost:g}x the cost each)"
-        ), impl_dt)  # fmt: skip
-    why = f"cheaper than implicit ({impl_steps} substeps at ~{implicit_cost:g}x the cost)"
-    return IntegratorChoice("semiImplicitEuler", f"auto: {semi_steps} substeps a frame at {SAFETY:g} x the stability bound {hc:.3g} s; {why}", semi_dt)
+    integrator, dt = decide_integrator(settings, critical_dt, frame_dt, implicit_cost)
+    if is_forced(settings, critical_dt, frame_dt):
+        log.warning("timeStep %.3g s exceeds the semi-implicit Euler stability bound %.3g s: expect a blow-up", dt, critical_dt,
+                    extra=RUN_WARNING)  # fmt: skip
+    return IntegratorChoice(integrator, explain_integrator(settings, critical_dt, frame_dt, implicit_cost), dt)
