@@ -1,6 +1,7 @@
 """Where a batch's chunks run on one host, and the writers that write them.
 
-- :func:`run_here`: one device, in this process; a pool of writers (:class:`Writers`) writes each
+- :func:`run_here`: one device, in this process; a pool of writers
+  (:class:`~warp_tube.batch.writer_pool.Writers`) writes each
   chunk while the next one is simulated;
 - :func:`run_pooled`: one worker process per device (the GPUs of a host, or N CPU processes), each
   simulating chunks into memory-mapped arrays that the writers read (``arrays``: each writing its
@@ -19,7 +20,6 @@ import math
 import multiprocessing
 import os
 import shutil
-import signal
 import tempfile
 import threading
 import time
@@ -29,25 +29,10 @@ import numpy as np
 from ..scene.spec import SceneError
 from .engine import TIMERS, chunk_shapes, simulate_chunk
 from .outputs import WriteTask, write
+from .writer_pool import Writers, ignore_sigint, timed_write, timed_write_when_ready
 from .rows import Rows
 
-__all__ = ["Writers", "SimWorkers", "writer_count", "run_here", "run_pooled", "ignore_sigint", "add_timings", "with_rows",
-           "write_tasks"]
-
-
-def terminate_pool(pool: cf.ProcessPoolExecutor) -> None:
-    """Stop a process pool's processes at once and let it go without waiting for their work."""
-    processes = list((getattr(pool, "_processes", None) or {}).values())
-    pool.shutdown(wait=False, cancel_futures=True)
-    for proc in processes:
-        proc.terminate()
-    for proc in processes:
-        proc.join(timeout=5)
-
-
-def ignore_sigint():
-    """Worker processes leave Ctrl-C to the batch, which stops them in order."""
-    signal.signal(signal.SIGINT, signal.SIG_IGN)
+__all__ = ["SimWorkers", "run_here", "run_pooled", "add_timings", "with_rows", "write_tasks"]
 
 
 _worker_device = None
@@ -146,7 +131,7 @@ def _sim_write_task(payload):
         cf.wait(pending)
     run = simulate_chunk(scenes, choice, _worker_device, frames, every, surface, allocate=_worker_ring.allocator(chunk_id))
     t0 = time.perf_counter()
-    futures = [_worker_writers.submit(_timed_write_when_ready, run.ready, t) for t in with_rows(tasks, run.rows, run.arrays)]
+    futures = [_worker_writers.submit(timed_write_when_ready, run.ready, t) for t in with_rows(tasks, run.rows, run.arrays)]
     _worker_writing[chunk_id] = futures
     left = [len(futures)]
     lock = threading.Lock()
@@ -169,66 +154,15 @@ def _sim_write_task(payload):
     return run.rows, None, run.timings
 
 
-class Writers:
-    """The writer pool: processes for USD layouts (usd-core holds the GIL while it writes),
-    threads for arrays (``os.pwrite`` and NumPy copies release it); started before the variants
-    are read, so the processes are up by the time the first chunk is simulated."""
-
-    def __init__(self, layout: str, count: int):
-        self.count = count
-        self.processes = layout != "arrays"
-        self.pool = None
-        if count == 0:
-            return
-        if self.processes:
-            ctx = multiprocessing.get_context("spawn")
-            self.pool = cf.ProcessPoolExecutor(count, mp_context=ctx, initializer=ignore_sigint)
-            for _ in range(count):  # start them now (one new process per waiting task)
-                self.pool.submit(_warm_writer)
-        else:
-            self.pool = cf.ThreadPoolExecutor(count, thread_name_prefix="batch-writer")
-
-    def shutdown(self):
-        if self.pool is not None:
-            self.pool.shutdown(wait=True, cancel_futures=True)
-
-    def terminate(self):
-        """Stop the processes at once (interrupted while they read the table: nothing of theirs
-        is kept); threads are left to finish."""
-        if self.processes and self.pool is not None:
-            terminate_pool(self.pool)
-            self.pool = None
-
-
-def _warm_writer():
-    """Import what writing needs, so that the first chunk does not wait for it."""
-    import importlib
-
-    for name in ("pxr.Sdf", "pxr.Usd", "pxr.UsdGeom", "pxr.Vt", "warp_tube.io.writer"):
-        importlib.import_module(name)
-
-
-def _timed_write(task: WriteTask):
-    t0 = time.perf_counter()
-    out = write(task)
-    return out, time.perf_counter() - t0
-
-
-def _timed_write_when_ready(ready: cf.Future, task: WriteTask):
-    """:func:`_timed_write` once the chunk's frames are in its arrays (``ready``)."""
-    ready.result()
-    return _timed_write(task)
-
-
 def _hand_to_processes(ready: cf.Future, arrays: dict, tasks: list, pool):
     """Once the chunk's frames are in its memory-mapped ``arrays``, flush them and have the
     writer processes ``pool`` write ``tasks`` (filled in with the arrays' file names); returns
-    every task's outputs and the writers' summed time, as one :func:`_timed_write`."""
+    every task's outputs and the writers' summed time, as one :func:`timed_write`."""
     ready.result()
     for a in arrays.values():
         a.flush()
     names = {name: a.filename for name, a in arrays.items()}
-    futures = [pool.submit(_timed_write, dataclasses.replace(t, arrays=names)) for t in tasks]
+    futures = [pool.submit(timed_write, dataclasses.replace(t, arrays=names)) for t in tasks]
     outputs, spent = [], 0.0
     for f in futures:
         out, s = f.result()
@@ -334,23 +268,6 @@ def write_tasks(chunk, context, parts: int) -> list[WriteTask]:
     return out
 
 
-#: writer threads for the arrays layout by default: its writes wait on the disk, not the cores, and
-#: more threads only contend with the simulating thread for the GIL between their copies
-ARRAY_WRITER_THREADS = 8
-
-
-def writer_count(writers, sims: int, layout: str = "files") -> int:
-    """Writers by default: the cores the simulating processes leave (at most 32), less one core in
-    eight for their copying threads (16 cores, one GPU: 13 writer processes, which on an H100
-    host took less wall time than 15, the simulating process no longer slowed by them), or for
-    arrays at most :data:`ARRAY_WRITER_THREADS` threads; ``writers`` when given."""
-    if writers is not None:
-        return writers
-    total = os.cpu_count() or 2
-    cores = max(1, min(32, total - sims - total // 8))
-    return min(cores, ARRAY_WRITER_THREADS) if layout == "arrays" else cores
-
-
 def run_here(todo, device, context, result) -> None:
     """Simulate the chunks in this process while a pool of writer processes writes them."""
     import warp as wp
@@ -428,7 +345,7 @@ def run_here(todo, device, context, result) -> None:
                     handoff = cf.ThreadPoolExecutor(2, thread_name_prefix="batch-handoff")
                 futures = [handoff.submit(_hand_to_processes, run.ready, run.arrays, filled, pool)]
             else:
-                futures = [pool.submit(_timed_write_when_ready, run.ready, t) for t in filled]
+                futures = [pool.submit(timed_write_when_ready, run.ready, t) for t in filled]
             del run.arrays
             pending[chunk.id] = (futures, run.rows)
             settle(block=False)
@@ -544,7 +461,7 @@ def run_pooled(todo, devices, workers: SimWorkers, context, result) -> None:
                         finish_written(c.id, *early.pop(c.id))
                     continue
                 tasks = with_rows(write_tasks(c, context, max(1, writers.count // len(devices))), rows, paths)
-                writing[c.id] = ([pool.submit(_timed_write, t) for t in tasks], rows)
+                writing[c.id] = ([pool.submit(timed_write, t) for t in tasks], rows)
             for cid in [cid for cid, (fs, _) in writing.items() if fs and all(f.done() for f in fs)]:
                 fs, rows = writing.pop(cid)
                 outputs = []

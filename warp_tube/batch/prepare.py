@@ -20,7 +20,7 @@ import numpy as np
 from ..runtime.collector import collector_paused
 from ..runtime.log_filters import silenced
 from ..scene.spec import SceneError
-from .execute import ignore_sigint, terminate_pool
+from .writer_pool import ignore_sigint, terminate_pool
 from .plan import run_choice, run_choices
 
 log = logging.getLogger(__name__)

@@ -38,7 +38,8 @@ from ..scene.spec import SceneError
 from .engine import TIMERS, output_frames
 from .bookkeeping import Bookkeeper
 from .cluster import check_dask, dask_client, run_dask
-from .execute import SimWorkers, Writers, run_here, run_pooled, writer_count
+from .execute import SimWorkers, run_here, run_pooled
+from .writer_pool import Writers, writer_count
 from .journal import Journal, file_digest
 from .lock import BatchLock
 from .outputs import LAYOUTS, OutputSpec, finish_arrays, prepare_arrays, surface_topology, write_grid_root, write_summary

@@ -1,0 +1,103 @@
+"""The batch's writer pool, in a module of its own: the writer processes import this one, not the
+simulation (Warp, SciPy), so that each starts in about half the time and leaves the batch's own
+process more of the host while it reads the variants.
+
+Processes write the USD layouts (usd-core holds Python's lock while it writes); threads write
+arrays (``os.pwrite`` and NumPy copies release it).
+"""
+
+from __future__ import annotations
+
+import concurrent.futures as cf
+import multiprocessing
+import os
+import signal
+import time
+
+from .outputs import WriteTask, write
+
+__all__ = ["Writers", "writer_count", "ARRAY_WRITER_THREADS", "ignore_sigint", "terminate_pool", "timed_write",
+           "timed_write_when_ready"]
+
+
+def terminate_pool(pool: cf.ProcessPoolExecutor) -> None:
+    """Stop a process pool's processes at once and let it go without waiting for their work."""
+    processes = list((getattr(pool, "_processes", None) or {}).values())
+    pool.shutdown(wait=False, cancel_futures=True)
+    for proc in processes:
+        proc.terminate()
+    for proc in processes:
+        proc.join(timeout=5)
+
+
+def ignore_sigint():
+    """Worker processes leave Ctrl-C to the batch, which stops them in order."""
+    signal.signal(signal.SIGINT, signal.SIG_IGN)
+
+
+class Writers:
+    """The writer pool: processes for USD layouts (usd-core holds the GIL while it writes),
+    threads for arrays (``os.pwrite`` and NumPy copies release it); started before the variants
+    are read, so the processes are up by the time the first chunk is simulated."""
+
+    def __init__(self, layout: str, count: int):
+        self.count = count
+        self.processes = layout != "arrays"
+        self.pool = None
+        if count == 0:
+            return
+        if self.processes:
+            ctx = multiprocessing.get_context("spawn")
+            self.pool = cf.ProcessPoolExecutor(count, mp_context=ctx, initializer=ignore_sigint)
+            for _ in range(count):  # start them now (one new process per waiting task)
+                self.pool.submit(warm_writer)
+        else:
+            self.pool = cf.ThreadPoolExecutor(count, thread_name_prefix="batch-writer")
+
+    def shutdown(self):
+        if self.pool is not None:
+            self.pool.shutdown(wait=True, cancel_futures=True)
+
+    def terminate(self):
+        """Stop the processes at once (interrupted while they read the table: nothing of theirs
+        is kept); threads are left to finish."""
+        if self.processes and self.pool is not None:
+            terminate_pool(self.pool)
+            self.pool = None
+
+
+def warm_writer():
+    """Import what writing needs, so that the first chunk does not wait for it."""
+    import importlib
+
+    for name in ("pxr.Sdf", "pxr.Usd", "pxr.UsdGeom", "pxr.Vt", "warp_tube.io.writer"):
+        importlib.import_module(name)
+
+
+def timed_write(task: WriteTask):
+    t0 = time.perf_counter()
+    out = write(task)
+    return out, time.perf_counter() - t0
+
+
+def timed_write_when_ready(ready: cf.Future, task: WriteTask):
+    """:func:`timed_write` once the chunk's frames are in its arrays (``ready``)."""
+    ready.result()
+    return timed_write(task)
+
+
+#: writer threads for the arrays layout by default: its writes wait on the disk, not the cores, and
+#: more threads only contend with the simulating thread for the GIL between their copies
+ARRAY_WRITER_THREADS = 8
+
+
+def writer_count(writers, sims: int, layout: str = "files") -> int:
+    """Writers by default: the cores the simulating processes leave (at most 32), less one core in
+    eight for their copying threads (16 cores, one GPU: 13 writer processes, which on an H100
+    host took less wall time than 15, the simulating process no longer slowed by them), or for
+    arrays at most :data:`ARRAY_WRITER_THREADS` threads; ``writers`` when given."""
+    if writers is not None:
+        return writers
+    total = os.cpu_count() or 2
+    cores = max(1, min(32, total - sims - total // 8))
+    return min(cores, ARRAY_WRITER_THREADS) if layout == "arrays" else cores
