@@ -202,11 +202,23 @@ def test_failed_variant_is_marked_and_the_others_go_on(tmp_path):
     assert filecmp.cmp(alone, out / "variant_00002.usdc", shallow=False)
 
 
-def test_interrupt_and_resume_end_with_the_same_files(tmp_path):
+@pytest.mark.parametrize("records", ["here", "process"])
+def test_interrupt_and_resume_end_with_the_same_files(tmp_path, monkeypatch, records):
+    """Also with the chunks' records (journal, summary lines) made by a process of their own, as
+    for a large batch: the same summary as made here, every chunk recorded as finished in the
+    journal when the batch is interrupted."""
+    import warp_tube.batch.run as batch_run
+
     table = write_table(tmp_path / "t.csv", [E, FORCE],
                         [(str(80000 + 10000 * k), f"(0, {0.01 + 0.002 * k}, 0)") for k in range(6)])  # fmt: skip
+    if records == "process":
+        here = tmp_path / "here"
+        run_batch(str(DEFAULT), str(here), str(table), frames=5, chunk=2, writers=1)
+        monkeypatch.setattr(batch_run, "PROCESS_VARIANTS", 1)
     whole = tmp_path / "whole"
     run_batch(str(DEFAULT), str(whole), str(table), frames=5, chunk=2, writers=1)
+    if records == "process":
+        assert (whole / "summary.csv").read_bytes() == (here / "summary.csv").read_bytes()
 
     part = tmp_path / "part"
     seen = []

@@ -8,19 +8,29 @@ number is formatted once, for the summary, not a second time for the journal. Th
 chunks' lines joined in batch order (:meth:`Bookkeeper.summary_text`), the same bytes as lines
 made at the end of the batch; the batch's last step only joins them.
 
-Both are made in the simulating process as each chunk finishes. Made on a thread of their own they
-competed with the next chunk's build for Python's lock: on an H100 host (16,384 variants, four
-chunks) the build took 0.31-0.33 s against 0.19-0.20 s, everything but the kernels and writing
-1.07-1.18 s against 0.80-0.82 s.
+A large batch (at least :data:`PROCESS_VARIANTS` variants) has them made by a process of its own
+(:class:`~warp_tube.batch.recorder.Recorder`): the batch's process hands it a chunk's fields and
+goes on simulating; :meth:`Bookkeeper.drain` waits for the records still being made (at the end of
+the batch, or when it is interrupted, so that every chunk recorded as finished is in the journal).
+A smaller batch makes them in its own process as each chunk finishes.
 """
 
 from __future__ import annotations
 
+import logging
+from typing import NamedTuple
+
 from .journal import Journal
 from .outputs import SUMMARY_FIELDS, summary_lines
+from .recorder import Recorder
 from .rows import batch_columns
 
-__all__ = ["Bookkeeper", "KEPT_FIELDS", "csv_records"]
+__all__ = ["Bookkeeper", "KEPT_FIELDS", "PROCESS_VARIANTS", "csv_records"]
+
+log = logging.getLogger(__name__)
+
+#: batches of at least this many variants make their records in a process of their own
+PROCESS_VARIANTS = 4096
 
 #: the summary fields a journal record keeps as lists (what the batch reads back: its tally, the
 #: outputs kept when resuming); the others are in its summary lines (``summary``)
@@ -43,36 +53,87 @@ def csv_records(text: str) -> list[str]:
     return out
 
 
+class Named(NamedTuple):
+    """What a summary line says of a variant besides its fields (``Variant``'s, without its scene)."""
+
+    index: int
+    name: str
+    cells: tuple
+    selection: tuple
+
+
+def _lines(variants, record: dict) -> str:
+    """The summary lines of ``record``'s variants (``variants``: each variant's :class:`Named`,
+    or ``Variant``, by batch index)."""
+    rows = record["rows"]
+    index = [int(i) for i in rows["index"]]  # (older journals: indices as strings)
+    if all(a < b for a, b in zip(index, index[1:])):  # a chunk's variants, in batch order: its columns as they are
+        n = len(index)
+        columns = {f: rows.get(f, [""] * n) for f in ("tip", *SUMMARY_FIELDS)}
+    else:
+        index, columns = batch_columns([record], ("tip", *SUMMARY_FIELDS))
+    return summary_lines([variants[i] for i in index], columns)
+
+
+def _kept(record: dict) -> dict:
+    return dict(record, rows={k: record["rows"][k] for k in KEPT_FIELDS if k in record["rows"]})
+
+
+def _record(journal: Journal, chunk_id: int, record: dict, named: list) -> str:
+    """Make chunk ``chunk_id``'s summary lines and journal record (in the bookkeeping process;
+    ``named``: its variants' :class:`Named` fields as tuples, chunk order); returns the lines."""
+    by_index = {v[0]: Named(*v) for v in named}
+    lines = _lines(by_index, record)
+    journal.record(chunk_id, dict(_kept(record), summary=lines))
+    return lines
+
+
 class Bookkeeper:
     """Journal records and summary lines of a batch's finished chunks.
 
     Args:
         journal: the batch's journal.
         variants: the batch's variants (``Variants.variants``), in batch order.
+        recorder: the process to make them in (:class:`~warp_tube.batch.recorder.Recorder`), or
+            None to make them here.
     """
 
-    def __init__(self, journal: Journal, variants: list):
+    def __init__(self, journal: Journal, variants: list, recorder: Recorder | None = None):
         self.journal = journal
         self.variants = variants
+        self.recorder = recorder
+        self.pending: dict = {}  # chunk id -> (its kept record, its record as given)
 
     def record(self, chunk_id: int, record: dict) -> dict:
         """Record chunk ``chunk_id`` (``record``: ``rows``, the summary fields of its variants in
-        chunk order, and ``layer``): the journal record, on disk when this returns, and returned,
-        its ``rows`` reduced to :data:`KEPT_FIELDS` and its summary lines in ``summary``."""
-        kept = dict(record, rows={k: record["rows"][k] for k in KEPT_FIELDS if k in record["rows"]},
-                    summary=self._lines(record))  # fmt: skip
-        self.journal.record(chunk_id, kept)
+        chunk order, and ``layer``). Returns the record as the journal keeps it, ``rows`` reduced
+        to :data:`KEPT_FIELDS`, with its summary lines in ``summary``: made here and on disk when
+        this returns, or, with a recorder, added to it and on disk once :meth:`drain` returns."""
+        kept = _kept(record)
+        if self.recorder is None or self.recorder.broken is not None:
+            kept["summary"] = _lines(self.variants, record)
+            self.journal.record(chunk_id, kept)
+            return kept
+        vs = self.variants
+        named = [(v.index, v.name, v.cells, v.selection) for v in (vs[int(i)] for i in record["rows"]["index"])]
+        self.recorder.submit(chunk_id, _record, self.journal, chunk_id, record, named)
+        self.pending[chunk_id] = (kept, record)
         return kept
 
+    def drain(self) -> None:
+        """Wait for the records being made by the recorder: each on disk, its lines in the record
+        :meth:`record` returned. One it could not make (it stopped, or failed) is made here."""
+        pending, self.pending = self.pending, {}
+        for chunk_id, (kept, record) in sorted(pending.items()):
+            try:
+                kept["summary"] = self.recorder.result(chunk_id)
+            except RuntimeError as e:
+                log.warning("chunk %d: its record was made in the batch's process instead (%s)", chunk_id, e)
+                kept["summary"] = _lines(self.variants, record)
+                self.journal.record(chunk_id, kept)
+
     def _lines(self, record: dict) -> str:
-        rows = record["rows"]
-        index = [int(i) for i in rows["index"]]  # (older journals: indices as strings)
-        if all(a < b for a, b in zip(index, index[1:])):  # a chunk's variants, in batch order: its columns as they are
-            n = len(index)
-            columns = {f: rows.get(f, [""] * n) for f in ("tip", *SUMMARY_FIELDS)}
-        else:
-            index, columns = batch_columns([record], ("tip", *SUMMARY_FIELDS))
-        return summary_lines([self.variants[i] for i in index], columns)
+        return _lines(self.variants, record)
 
     def summary_text(self, records: dict) -> str:
         """``summary.csv``'s lines of every variant in batch order, from the chunks' journal

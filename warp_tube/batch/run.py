@@ -36,7 +36,8 @@ from ..runtime.collector import collector_paused
 from ..runtime.interrupts import kept_interrupts
 from ..scene.spec import SceneError
 from .engine import TIMERS, output_frames
-from .bookkeeping import Bookkeeper
+from .bookkeeping import PROCESS_VARIANTS, Bookkeeper
+from .recorder import Recorder
 from .cluster import check_dask, dask_client, run_dask
 from .execute import SimWorkers, run_here, run_pooled
 from .writer_pool import Writers, writer_count
@@ -368,15 +369,17 @@ def run_batch(scene: str, out_dir: str, table: str | None = None, *, variant_set
     devices = _devices(device, workers, scheduler)
     sims = 0 if scheduler else len(devices)
     sim_workers = SimWorkers(devices) if sims > 1 else None  # up while the variants are read
-    writer_pool = None
+    writer_pool = recorder = None
     lock = BatchLock(out_dir)
     try:
         writer_pool = Writers(layout, 0 if scheduler else writer_count(writers, sims, layout))
+        if tab is not None and len(tab.rows) >= PROCESS_VARIANTS:
+            recorder = Recorder()  # (starting while the variants are read)
         with kept_interrupts():  # a Ctrl-C dropped in a finalizer stops the batch at the next frame
             return _run_batch(scene, out_dir, table, tab, devices, writer_pool, sim_workers, t_start, lock,
                               variant_sets=variant_sets, layout=layout, every=every, frames=frames, surface=surface,
                               device=device, chunk=chunk, scheduler=scheduler, resume=resume, progress=progress,
-                              on_chunk=on_chunk, layers=layers, named=named)  # fmt: skip
+                              on_chunk=on_chunk, layers=layers, named=named, recorder=recorder)  # fmt: skip
     except BaseException:
         if sim_workers is not None:  # bad input or interrupted: do not wait for them
             sim_workers.terminate()
@@ -386,11 +389,13 @@ def run_batch(scene: str, out_dir: str, table: str | None = None, *, variant_set
             writer_pool.shutdown()
         if sim_workers is not None:
             sim_workers.shutdown()
+        if recorder is not None:
+            recorder.close()  # (after the records it was given are written)
         lock.release()  # (after the writers: their files are complete or gone)
 
 
 def _run_batch(scene, out_dir, table, tab, devices, writer_pool, sim_workers, t_start, lock, *, variant_sets, layout, every,
-               frames, surface, device, chunk, scheduler, resume, progress, on_chunk, layers, named) -> BatchResult:  # fmt: skip
+               frames, surface, device, chunk, scheduler, resume, progress, on_chunk, layers, named, recorder) -> BatchResult:  # fmt: skip
 
     bar = Progress(progress)
     readers = writer_pool.pool if writer_pool.processes else None  # idle until the first chunk is simulated
@@ -459,7 +464,7 @@ def _run_batch(scene, out_dir, table, tab, devices, writer_pool, sim_workers, t_
     todo = [c for c in plan if c.id not in done]
     bar.start(sum(len(c.indices) for c in todo) * max(n_frames - 1, 1), len(variants), result.resumed)
 
-    books = Bookkeeper(journal, variants.variants)
+    books = Bookkeeper(journal, variants.variants, recorder)
 
     def finish(chunk_id: int, rows: Rows, outputs: list):
         t = time.perf_counter()
@@ -486,11 +491,15 @@ def _run_batch(scene, out_dir, table, tab, devices, writer_pool, sim_workers, t_
             run_pooled(todo, devices, sim_workers, context, result)
     except KeyboardInterrupt as e:
         bar.close()
+        books.drain()  # every chunk recorded as finished is in the journal
         _tally(result, records, variants)
         result.pending = len(variants) - sum(record_count(r) for r in records.values())
         result.wall_s = time.perf_counter() - t_start
         raise BatchInterrupted(result, getattr(e, "signum", signal.SIGINT)) from None
     bar.close()
+    t = time.perf_counter()
+    books.drain()
+    result.books_s += time.perf_counter() - t
     _finish_outputs(spec, variants, counts, records, first, out_dir, books)
     journal.finish()
     _tally(result, records, variants)
