@@ -25,7 +25,7 @@ from .plan import run_choice, run_choices
 
 log = logging.getLogger(__name__)
 
-__all__ = ["prepare_batch", "checked_run_choices", "PREPARE_ROWS_PER_PROCESS", "PREPARE_PROCESSES"]
+__all__ = ["prepare_batch", "reading_parts", "checked_run_choices", "PREPARE_ROWS_PER_PROCESS", "PREPARE_PROCESSES"]
 
 
 #: tables of at least this many rows per process are read by several processes
@@ -83,15 +83,23 @@ def prepare_batch(scene: str, table, variant_sets, bar, pool: cf.ProcessPoolExec
         return _prepare_batch(scene, table, variant_sets, bar, pool, pool_size, keep_nodes)
 
 
-def _prepare_batch(scene, table, variant_sets, bar, pool, pool_size, keep_nodes):
-    from .variants import Variants, name_width, plain_table, prepare_variants, raise_problems
+def reading_parts(table, variant_sets, width: int) -> int:
+    """In how many parts :func:`prepare_batch` reads ``table`` with ``width`` processes at hand
+    (fewer than 2: in this process)."""
+    from .variants import plain_table
 
     rows = len(table.rows) if table is not None else 1
-    width = pool_size if pool is not None else (os.cpu_count() or 1)
     per_process = PREPARE_ROWS_PER_PROCESS
     if rows >= 2 * per_process and not variant_sets and plain_table(table):
         per_process *= PLAIN_ROWS_FACTOR  # rows made from the base scene: new processes pay less often
-    parts = min(PREPARE_PROCESSES, width, rows // per_process)
+    return min(PREPARE_PROCESSES, width, rows // per_process)
+
+
+def _prepare_batch(scene, table, variant_sets, bar, pool, pool_size, keep_nodes):
+    from .variants import Variants, name_width, prepare_variants, raise_problems
+
+    rows = len(table.rows) if table is not None else 1
+    parts = reading_parts(table, variant_sets, pool_size if pool is not None else (os.cpu_count() or 1))
 
     def read_here():
         from .nodes import KeptNodes

@@ -25,7 +25,6 @@ import logging
 import math
 import multiprocessing
 import os
-import re
 import signal
 import time
 from dataclasses import dataclass, field
@@ -40,12 +39,14 @@ from .bookkeeping import PROCESS_VARIANTS, Bookkeeper
 from .recorder import Recorder
 from .cluster import check_dask, dask_client, run_dask
 from .execute import SimWorkers, run_here, run_pooled
+from .folder import (check_inputs_not_outputs, check_out_dir, named_files, named_paths, outputs_kept, remove_stray_partials,
+                     scene_dependencies, scene_files)
 from .writer_pool import Writers, writer_count
 from .journal import Journal, file_digest
 from .lock import BatchLock
 from .outputs import LAYOUTS, OutputSpec, finish_arrays, prepare_arrays, surface_topology, write_grid_root, write_summary
 from .plan import by_identity, group_key, plain_group_keys, plan_chunks
-from .prepare import prepare_batch
+from .prepare import prepare_batch, reading_parts
 from .progress import Progress
 from .rows import Rows, batch_columns, record_count
 
@@ -57,8 +58,6 @@ __all__ = ["run_batch", "BatchResult", "BatchInterrupted", "DEFAULT_CHUNK_CPU", 
 #: or in /dev/shm, until written: 4,096 variants x 61 frames of a 20 x 16 tube are ~2 GB)
 DEFAULT_CHUNK_CPU = 1024
 DEFAULT_CHUNK_CUDA = 4096
-#: files a batch writes into its folder (an existing one means a batch is there already)
-BATCH_FILES = ("summary.csv", "centerline.npy", "surface.npy", "arrays.json", "grid.usda", ".batch-finished.json")
 
 
 class BatchInterrupted(KeyboardInterrupt):
@@ -186,119 +185,6 @@ def _device_list(devices: list[str]) -> str:
     return ", ".join(devices) or "-"
 
 
-def _check_out_dir(out_dir: str, resume: bool) -> None:
-    parent = os.path.dirname(out_dir) or "."
-    if os.path.exists(out_dir) and not os.path.isdir(out_dir):
-        raise SceneError(f"{out_dir}: exists and is not a folder")
-    if not os.path.isdir(out_dir):
-        if resume:
-            raise SceneError(f"{out_dir}: no such folder: nothing to resume")
-        if not os.path.isdir(parent):
-            raise SceneError(f"{out_dir}: folder {parent} does not exist")
-        if not os.access(parent, os.W_OK):
-            raise SceneError(f"{out_dir}: folder {parent} is not writable")
-        return
-    if not os.access(out_dir, os.W_OK):
-        raise SceneError(f"{out_dir}: folder is not writable")
-    BatchLock(out_dir).check()  # another batch writing there now: said before anything else
-    journal = Journal(out_dir)
-    found = [n for n in BATCH_FILES if os.path.exists(os.path.join(out_dir, n))]
-    found += sorted(n for n in os.listdir(out_dir) if n.startswith("variant_") and _OUTPUT_NAME.match(n))[:1]
-    if resume:
-        if not journal.exists() and not found:
-            raise SceneError(f"{out_dir}: no batch there to resume")
-    elif journal.exists() or found:
-        what = ", ".join((["an unfinished batch (.batch)"] if journal.exists() else []) + found)
-        raise SceneError(f"{out_dir}: holds batch outputs already ({what}): --resume continues that batch; "
-                         "or write to another folder")  # fmt: skip
-
-
-_OUTPUT_NAME = re.compile(r"^(?:variant_\d+(?:\.partial(?:-\d+)?)?\.usdc|\.batch.*)$")
-
-
-def _check_inputs_not_outputs(out_dir: str, inputs) -> None:
-    """Refuse an input (``(what, path)`` pairs: the scene, a layer or asset it uses, the table, a
-    file the table names) that is, also through a link, a file the batch writes in ``out_dir``."""
-    real_dir = os.path.realpath(out_dir)
-    grid = os.path.join(real_dir, "grid")
-    for what, path in inputs:
-        if path is None:
-            continue
-        real = os.path.realpath(os.fspath(path))
-        folder, name = os.path.split(real)
-        written = folder == real_dir and (name in BATCH_FILES or _OUTPUT_NAME.match(name))
-        if written or folder == grid or folder.startswith(grid + os.sep) or folder.startswith(real_dir + os.sep + ".batch"):
-            raise SceneError(f"{path}: {what} is in {out_dir} under a name the batch writes there ({name}): "
-                             "move or rename it, or write the batch to another folder")  # fmt: skip
-
-
-def _named_paths(tab) -> dict[str, str]:
-    """The files the table's cells name (``@`` columns, ``@FILE`` cells): name as written -> path."""
-    names = set()
-    for j, col in enumerate(tab.columns if tab is not None else ()):
-        for cells in tab.rows:
-            cell = cells[j]
-            if col.files or cell.startswith("@"):
-                names.add(cell[1:].strip() if cell.startswith("@") else cell)
-    return {name: name if os.path.isabs(name) else os.path.join(tab.folder, name) for name in sorted(names)}
-
-
-def _named_files(named: dict[str, str]) -> dict[str, str]:
-    """The files the table names (:func:`_named_paths`) with the SHA-256 of each file's bytes
-    (None where there is none): a file changed between a batch and its ``--resume`` is seen."""
-    return {name: file_digest(path) if os.path.isfile(path) else None for name, path in named.items()}
-
-
-def _scene_dependencies(scene: str) -> list[str]:
-    """The files the scene brings in (sublayers, references, payloads, assets; not itself), as
-    real paths; none where the scene cannot be read (its reading says why)."""
-    from pxr import UsdUtils
-
-    try:
-        layers, assets, _ = UsdUtils.ComputeAllDependencies(os.fspath(scene))
-    except Exception:  # (an unreadable scene)
-        return []
-    paths = {os.path.realpath(p) for p in [layer.realPath for layer in layers] + list(assets) if p}
-    return sorted(paths - {os.path.realpath(scene)})
-
-
-def _scene_files(dependencies: list[str]) -> dict[str, str]:
-    """The scene's files (:func:`_scene_dependencies`) with the SHA-256 of each file's bytes: a
-    layer changed between a batch and its ``--resume`` is seen."""
-    return {p: file_digest(p) for p in dependencies if os.path.isfile(p)}
-
-
-def _outputs_kept(done: dict, layout: str, out_dir: str, work_dir: str) -> dict:
-    """The finished chunks of a batch being resumed whose outputs are all still there; the others
-    (a file deleted or moved since) are simulated again, with a warning naming the first."""
-    if not done:
-        return done
-    if layout == "arrays":  # every chunk's frames are in the partial arrays
-        path = os.path.join(work_dir, "centerline.npy")
-        missing = {c: path for c in done} if not os.path.exists(path) else {}
-    else:
-        missing = {}
-        for c, rec in done.items():
-            names = [rec["layer"]] if layout == "grid" else rec["rows"]["output"]
-            gone = next((n for n in names if n and not os.path.exists(os.path.join(out_dir, n))), None)
-            if gone is not None:
-                missing[c] = os.path.join(out_dir, gone)
-    if missing:
-        first = missing[min(missing)]
-        log.warning("--resume: %s, written before, is missing: %d finished chunk(s) are simulated again",
-                    first, len(missing))  # fmt: skip
-    return {c: rec for c, rec in done.items() if c not in missing}
-
-
-def _remove_stray_partials(out_dir: str) -> None:
-    """Remove partial files that an interrupted writer left (never a complete output)."""
-    for folder in (out_dir, os.path.join(out_dir, "grid")):
-        if os.path.isdir(folder):
-            for n in os.listdir(folder):
-                if n.startswith(".") and ".partial-" in n:
-                    os.remove(os.path.join(folder, n))
-
-
 def run_batch(scene: str, out_dir: str, table: str | None = None, *, variant_sets: str | list[str] | None = None,
               layout: str = "files", every: int = 1, frames: int | None = None, surface: bool | None = None,
               device: str | None = None, workers: int | None = None, writers: int | None = None,
@@ -359,13 +245,13 @@ def run_batch(scene: str, out_dir: str, table: str | None = None, *, variant_set
     if writers is not None and writers < 0:
         raise SceneError(f"--writers {writers}: expected 0 or more")
     surface = (layout != "arrays") if surface is None else bool(surface)
-    _check_inputs_not_outputs(out_dir, [("the scene", scene), ("the variants table", table)])
+    check_inputs_not_outputs(out_dir, [("the scene", scene), ("the variants table", table)])
     with collector_paused():  # (a tuple per row: see runtime.collector)
         tab = read_table(table) if table is not None else None
-    layers, named = _scene_dependencies(scene), _named_paths(tab)
-    _check_inputs_not_outputs(out_dir, [("a layer or asset the scene uses", p) for p in layers]
+    layers, named = scene_dependencies(scene), named_paths(tab)
+    check_inputs_not_outputs(out_dir, [("a layer or asset the scene uses", p) for p in layers]
                               + [("a file the table names", p) for p in named.values()])  # fmt: skip
-    _check_out_dir(out_dir, resume)
+    check_out_dir(out_dir, resume)
     devices = _devices(device, workers, scheduler)
     sims = 0 if scheduler else len(devices)
     sim_workers = SimWorkers(devices) if sims > 1 else None  # up while the variants are read
@@ -373,6 +259,8 @@ def run_batch(scene: str, out_dir: str, table: str | None = None, *, variant_set
     lock = BatchLock(out_dir)
     try:
         writer_pool = Writers(layout, 0 if scheduler else writer_count(writers, sims, layout))
+        if writer_pool.processes and reading_parts(tab, variant_sets, writer_pool.count) >= 2:
+            writer_pool.start()  # they read the table (else started once it is read)
         if tab is not None and len(tab.rows) >= PROCESS_VARIANTS:
             recorder = Recorder()  # (starting while the variants are read)
         with kept_interrupts():  # a Ctrl-C dropped in a finalizer stops the batch at the next frame
@@ -406,6 +294,7 @@ def _run_batch(scene, out_dir, table, tab, devices, writer_pool, sim_workers, t_
         writer_pool.terminate()  # (they may be reading parts of the table: not worth waiting for)
         raise
     bar.close_reading()
+    writer_pool.start()
     first = variants.variants[0].scene
     n_frames = first.stage.frame_count if frames is None else int(frames)
     memo: dict = {}
@@ -431,11 +320,11 @@ def _run_batch(scene, out_dir, table, tab, devices, writer_pool, sim_workers, t_
                      table=os.path.abspath(table) if table else None, table_sha256=file_digest(table),
                      variant_sets=variant_sets, layout=layout, every=every, frames=n_frames, surface=surface,
                      chunk=chunk, variants=len(variants))  # fmt: skip
-    table_files, scene_files = _named_files(named), _scene_files(layers)
-    if table_files:  # (left out where there are none: a batch begun before they were recorded resumes)
-        signature["table_files"] = table_files
-    if scene_files:
-        signature["scene_files"] = scene_files
+    table_digests, scene_digests = named_files(named), scene_files(layers)
+    if table_digests:  # (left out where there are none: a batch begun before they were recorded resumes)
+        signature["table_files"] = table_digests
+    if scene_digests:
+        signature["scene_files"] = scene_digests
     if len(F_idx) == 1 and n_frames > 1:
         log.warning("--every %d: of frames 0 to %d only frame 0 is written", every, n_frames - 1)
     result = BatchResult(out_dir=out_dir, variants=len(variants), groups=len({c.group for c in plan}), chunks=len(plan),
@@ -452,8 +341,8 @@ def _run_batch(scene, out_dir, table, tab, devices, writer_pool, sim_workers, t_
         dask_client(scheduler).close()  # the scheduler answers: checked before anything is written
     os.makedirs(out_dir, exist_ok=True)
     lock.acquire()  # before anything is written there (released by run_batch, however it ends)
-    done = _outputs_kept(journal.begin(signature, resume), layout, out_dir, journal.dir)
-    _remove_stray_partials(out_dir)
+    done = outputs_kept(journal.begin(signature, resume), layout, out_dir, journal.dir)
+    remove_stray_partials(out_dir)
     if layout == "arrays":
         prepare_arrays(spec, resume=bool(done))
     if layout == "grid":
