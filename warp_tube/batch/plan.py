@@ -26,6 +26,7 @@ from typing import NamedTuple
 
 import numpy as np
 
+from ..centerline.policy import explain_integrator, is_forced
 from ..scene.spec import Scene
 
 __all__ = ["Chunk", "RunChoice", "run_choice", "run_choices", "group_key", "plain_group_keys", "plan_chunks", "by_identity"]
@@ -47,15 +48,11 @@ class RunChoice(NamedTuple):
     @property
     def reason(self) -> str:
         """Why, in words (``Simulation.reason``)."""
-        from ..centerline.policy import explain_integrator
-
         return explain_integrator(*self.why)
 
     @property
     def forced(self) -> bool:
         """Whether the scene forces a substep beyond its stability bound (expect a blow-up)."""
-        from ..centerline.policy import is_forced
-
         return is_forced(*self.why[:3])
 
 
@@ -167,7 +164,7 @@ def _choices_of(scenes: list[Scene], one, indices, keep) -> list[RunChoice]:
     if keep is not None:
         keep.add(indices, per_node)
     h = SimpleNamespace(**per_node, tube_al_force=one.host.tube_al_force)
-    damping = np.array([max((t.params.spring_damping for t in s.tubes), default=0.0) for s in scenes])
+    damping = np.array([max([t.params.spring_damping for t in s.tubes], default=0.0) for s in scenes])
     bounds = critical_time_steps(h, len(scenes), one.features.assistant_line, damping)
     seg = np.asarray(h.seg_rest_length).reshape(len(scenes), -1)
     seg_min = np.where(seg > 0, seg, np.inf).min(axis=1)

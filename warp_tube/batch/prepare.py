@@ -65,7 +65,7 @@ def _prepare_part(scene: str, table, variant_sets):
 
 
 def prepare_batch(scene: str, table, variant_sets, bar, pool: cf.ProcessPoolExecutor | None = None, pool_size: int = 0,
-                  keep_nodes: bool = True):  # fmt: skip
+                  keep_nodes: bool = True, freeze: bool = False):  # fmt: skip
     """Every variant, its run choice and, where read in this process, their per-node parameters
     (:class:`~warp_tube.batch.nodes.KeptNodes`, else None), read by one process or, for a large table, several
     (each opening the scene and reading a part of the rows); all problems reported together.
@@ -78,8 +78,10 @@ def prepare_batch(scene: str, table, variant_sets, bar, pool: cf.ProcessPoolExec
         pool, pool_size: running worker processes to read with (the writers) and how many they
             are, or None to start some.
         keep_nodes: keep the per-node parameters (for chunks built in this process).
+        freeze: keep what was made out of the collector's later passes (``collector_paused``'s
+            ``freeze``; the caller thaws them).
     """
-    with collector_paused():
+    with collector_paused(freeze=freeze):
         return _prepare_batch(scene, table, variant_sets, bar, pool, pool_size, keep_nodes)
 
 
@@ -153,7 +155,7 @@ def _prepare_batch(scene, table, variant_sets, bar, pool, pool_size, keep_nodes)
 def warn_forced(variants, choices) -> None:
     """One warning for the variants whose forced timeStep exceeds their stability bound (the
     policy would give one per variant), naming how many and the first of them."""
-    forced = [(v, c) for v, c in zip(variants.variants, choices) if c.forced]
+    forced = [(v, c) for v, c in zip(variants.variants, choices) if c.why[0].integrator == "semiImplicitEuler" and c.forced]
     if forced:
         v, c = forced[0]
         more = f" and {len(forced) - 1} other variant(s)" if len(forced) > 1 else ""

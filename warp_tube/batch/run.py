@@ -21,6 +21,7 @@ interrupted batch keeps them and ``--resume`` goes on from there.
 
 from __future__ import annotations
 
+import gc
 import logging
 import math
 import multiprocessing
@@ -31,7 +32,7 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
-from ..runtime.collector import collector_paused
+from ..runtime.collector import collector_paused, thaw
 from ..runtime.interrupts import kept_interrupts
 from ..scene.spec import SceneError
 from .engine import TIMERS, output_frames
@@ -257,6 +258,7 @@ def run_batch(scene: str, out_dir: str, table: str | None = None, *, variant_set
     sim_workers = SimWorkers(devices) if sims > 1 else None  # up while the variants are read
     writer_pool = recorder = None
     lock = BatchLock(out_dir)
+    frozen_before = gc.get_freeze_count()
     try:
         writer_pool = Writers(layout, 0 if scheduler else writer_count(writers, sims, layout))
         if writer_pool.processes and reading_parts(tab, variant_sets, writer_pool.count) >= 2:
@@ -280,6 +282,7 @@ def run_batch(scene: str, out_dir: str, table: str | None = None, *, variant_set
         if recorder is not None:
             recorder.close()  # (after the records it was given are written)
         lock.release()  # (after the writers: their files are complete or gone)
+        thaw(frozen_before)  # (the batch's objects, kept out of the collector's passes)
 
 
 def _run_batch(scene, out_dir, table, tab, devices, writer_pool, sim_workers, t_start, lock, *, variant_sets, layout, every,
@@ -289,7 +292,7 @@ def _run_batch(scene, out_dir, table, tab, devices, writer_pool, sim_workers, t_
     readers = writer_pool.pool if writer_pool.processes else None  # idle until the first chunk is simulated
     try:
         variants, choices, kept = prepare_batch(scene, tab, variant_sets, bar, readers, writer_pool.count,
-                                                keep_nodes=len(devices) == 1 and not scheduler)  # (built in this process)
+                                                keep_nodes=len(devices) == 1 and not scheduler, freeze=True)  # (built in this process)
     except KeyboardInterrupt:
         writer_pool.terminate()  # (they may be reading parts of the table: not worth waiting for)
         raise
@@ -298,7 +301,7 @@ def _run_batch(scene, out_dir, table, tab, devices, writer_pool, sim_workers, t_
     first = variants.variants[0].scene
     n_frames = first.stage.frame_count if frames is None else int(frames)
     memo: dict = {}
-    with collector_paused():  # (one small key per variant: see runtime.collector)
+    with collector_paused(freeze=True):  # (one small key per variant: see runtime.collector)
         if variants.plain:
             keys = plain_group_keys(variants.variants[0].scene, choices, surface, memo)
         else:
@@ -329,7 +332,7 @@ def _run_batch(scene, out_dir, table, tab, devices, writer_pool, sim_workers, t_
         log.warning("--every %d: of frames 0 to %d only frame 0 is written", every, n_frames - 1)
     result = BatchResult(out_dir=out_dir, variants=len(variants), groups=len({c.group for c in plan}), chunks=len(plan),
                          devices=devices if devices != ["dask"] else [f"dask {scheduler}"], frames=len(F_idx))  # fmt: skip
-    with collector_paused():  # per variant its points and vertices
+    with collector_paused(freeze=True):  # per variant its points and vertices
         counts = _counts(variants.variants[:1], surface) * len(variants) if variants.plain else _counts(variants.variants, surface)
     spec = _output_spec(variants, counts, layout, out_dir, journal.dir, surface, time_codes)
     result.prepare_s = time.perf_counter() - t_start
