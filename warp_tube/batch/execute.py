@@ -382,7 +382,6 @@ def run_pooled(todo, devices, workers: SimWorkers, context, result) -> None:
     own = None
     if writers.pool is None and not by_workers:  # the simulating processes hand their arrays over: someone writes them
         own = writers = Writers(context["spec"].layout, 1)
-        writers.start()
     pool = writers.pool
     sims = workers.pool
     buffers = None

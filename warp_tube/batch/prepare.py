@@ -25,7 +25,7 @@ from .plan import run_choice, run_choices
 
 log = logging.getLogger(__name__)
 
-__all__ = ["prepare_batch", "reading_parts", "checked_run_choices", "PREPARE_ROWS_PER_PROCESS", "PREPARE_PROCESSES"]
+__all__ = ["prepare_batch", "checked_run_choices", "PREPARE_ROWS_PER_PROCESS", "PREPARE_PROCESSES"]
 
 
 #: tables of at least this many rows per process are read by several processes

@@ -47,7 +47,7 @@ from .journal import Journal, file_digest
 from .lock import BatchLock
 from .outputs import LAYOUTS, OutputSpec, finish_arrays, prepare_arrays, surface_topology, write_grid_root, write_summary
 from .plan import by_identity, group_key, plain_group_keys, plan_chunks
-from .prepare import prepare_batch, reading_parts
+from .prepare import prepare_batch
 from .progress import Progress
 from .rows import Rows, batch_columns, record_count
 
@@ -261,8 +261,6 @@ def run_batch(scene: str, out_dir: str, table: str | None = None, *, variant_set
     frozen_before = gc.get_freeze_count()
     try:
         writer_pool = Writers(layout, 0 if scheduler else writer_count(writers, sims, layout))
-        if writer_pool.processes and reading_parts(tab, variant_sets, writer_pool.count) >= 2:
-            writer_pool.start()  # they read the table (else started once it is read)
         if tab is not None and len(tab.rows) >= PROCESS_VARIANTS:
             recorder = Recorder()  # (starting while the variants are read)
         with kept_interrupts():  # a Ctrl-C dropped in a finalizer stops the batch at the next frame
@@ -297,7 +295,6 @@ def _run_batch(scene, out_dir, table, tab, devices, writer_pool, sim_workers, t_
         writer_pool.terminate()  # (they may be reading parts of the table: not worth waiting for)
         raise
     bar.close_reading()
-    writer_pool.start()
     first = variants.variants[0].scene
     n_frames = first.stage.frame_count if frames is None else int(frames)
     memo: dict = {}
