@@ -20,7 +20,8 @@ Reported per layout, from one ``run_batch`` call (seconds):
 - ``other_s``: everything else but writing: ``wall_s - kernels_s - write_wait_s``, i.e. reading
   and checking the table, planning, building the models, copying states back, control, the
   host-side frame checks (``checks_s``, also reported alone), copying into the writers' arrays,
-  recording finished chunks (``books_s``: journal records and summary lines);
+  recording finished chunks (``books_s``: journal records and summary lines); ``rest`` in the
+  split is the part of it no timer holds (handing chunks to the writers, the batch's ends);
 - ``write_wait_s``: time the simulation waited for the writers (they run in other processes
   or threads meanwhile; ``write_s`` is their summed time), and on a GPU for earlier chunks'
   frames to be copied back to the host for them (``flush_wait_s``, also reported: the device
@@ -201,12 +202,14 @@ def main():
             else:
                 floor, measured = usd_floor(a.variants, r.frames, points, vertices, a.floor_variants, tmp)
             other = r.wall_s - t["kernels_s"] - r.write_wait_s
+            split = {"reading_and_planning": r.prepare_s, **{k: v for k, v in t.items() if k != "kernels_s"}, "books_s": r.books_s}
+            # the part of other no timer holds: handing chunks to the writers, the ends of the batch
+            split["rest"] = other - sum(v for k, v in split.items() if k != "flush_wait_s")
             out["runs"].append({
                 "layout": layout, "devices": r.devices, "groups": r.groups, "chunks": r.chunks, "ok": r.ok, "failed": r.failed,
                 "wall_s": r.wall_s, "kernels_s": t["kernels_s"], "other_s": other, "write_wait_s": r.write_wait_s,
                 "write_s": r.write_s, "floor_s": floor, "floor_measured_variants": measured,
-                "split_s": {"reading_and_planning": r.prepare_s, **{k: v for k, v in t.items() if k != "kernels_s"},
-                            "books_s": r.books_s},
+                "split_s": split,
                 "other_fraction": other / r.wall_s, "wall_over_bound": r.wall_s / max(t["kernels_s"], floor),
             })  # fmt: skip
     finally:

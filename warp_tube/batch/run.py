@@ -264,7 +264,7 @@ def run_batch(scene: str, out_dir: str, table: str | None = None, *, variant_set
         if tab is not None and len(tab.rows) >= PROCESS_VARIANTS:
             recorder = Recorder()  # (starting while the variants are read)
         with kept_interrupts():  # a Ctrl-C dropped in a finalizer stops the batch at the next frame
-            return _run_batch(scene, out_dir, table, tab, devices, writer_pool, sim_workers, t_start, lock,
+            result = _run_batch(scene, out_dir, table, tab, devices, writer_pool, sim_workers, t_start, lock,
                               variant_sets=variant_sets, layout=layout, every=every, frames=frames, surface=surface,
                               device=device, chunk=chunk, scheduler=scheduler, resume=resume, progress=progress,
                               on_chunk=on_chunk, layers=layers, named=named, recorder=recorder)  # fmt: skip
@@ -281,6 +281,8 @@ def run_batch(scene: str, out_dir: str, table: str | None = None, *, variant_set
             recorder.close()  # (after the records it was given are written)
         lock.release()  # (after the writers: their files are complete or gone)
         thaw(frozen_before)  # (the batch's objects, kept out of the collector's passes)
+    result.wall_s = time.perf_counter() - t_start  # (the writers' and workers' ends included)
+    return result
 
 
 def _run_batch(scene, out_dir, table, tab, devices, writer_pool, sim_workers, t_start, lock, *, variant_sets, layout, every,
