@@ -9,7 +9,8 @@ Choice (in the voxel graph of :mod:`warp_tube.extract.distance_map`):
   pieces there.
 - A flat face that seals the tube where it was cut out of a longer one
   (:func:`warp_tube.extract.mesh_io.flat_cuts`) is an end of the mesh like a terminal open loop when
-  it passes the same test.
+  it passes the same test and has the inside on one side only (a flat fold of a rough wall has it
+  on both).
 - Two or more terminal open loops: the tube's ends are the two of them farthest apart along the
   inside. One: it is one end, the other is the sealed cut farthest from it, or without one the
   inside point farthest from it. None, but sealed cuts: the same among the cuts (where the two
@@ -49,9 +50,10 @@ from scipy.spatial import cKDTree
 from . import distance_map as dmap
 from ..surface.topology import cap_ring_count
 from .mesh_io import BoundaryLoop, FlatCut
-from .polyline import arclength, resample_spline
+from .polyline import arclength, point_at, resample_spline
 from .queries import MeshQueries
 from ..model.frames import spoke_directions
+from .rough_wall import ROUGH, rough_cut_plane, straight_start, wall_noise
 from .sections import RAYS, plane_basis, ring_hits
 
 __all__ = [
@@ -70,10 +72,6 @@ _FLAT_CONE = 45.0  # ... up to this half-angle [degrees] (35 at least) reaches i
 _CUT_MARGIN = 0.02  # a trimmed end ring stays this x end radius before the cut's plane
 _RING_RATIO = 3.0  # an end ring's longest spoke is at most this x its shortest (no degenerate end ring)
 _SAME_END = 0.5  # two sealed cuts closer than this x the inside's reach from one close one end
-_ROUGH = 0.03  # a wall is rough where its ray noise (:func:`_wall_noise`) exceeds this x its radius
-_ROUGH_FLAT = 0.93  # a rough closed end is a flat cut where the tube's width before it is this x its radius
-_FLAT_BACK = (0.4, 0.5, 0.6)  # ... on rings this x the wall's radius before the surface ahead
-_NOISE_RAYS = 64  # rays per ring for :func:`_wall_noise` and :func:`_rough_cut_plane`
 
 
 @dataclass(frozen=True)
@@ -105,9 +103,18 @@ def is_terminal(dm: dmap.DistanceMap, voxel: int, loop: BoundaryLoop | FlatCut) 
     both ways past the loop). The local radius is the larger of the loop's radius and the widest
     distance from the wall within two loop radii of the voxel. An opening in the wall less than
     three local radii from a closed tip leaves one piece too, and counts as an end.
+
+    A flat cut is an end only where it closes the tube: no inside voxel within two of its radii
+    (along the inside) of its voxel lies more than a voxel beyond its plane. A seal has the inside
+    on one side only; a flat patch of the wall has it on both, e.g. a fold of a rough wall that
+    lies in one plane (noise along normals that share a plane keeps a fold's vertices in it).
     """
     h = dm.voxel_size
     near = dijkstra(dm.length_graph, directed=False, indices=voxel, limit=2.0 * loop.radius + 2.0 * h)
+    if isinstance(loop, FlatCut):
+        side = (dm.points[np.isfinite(near)] - loop.centroid) @ loop.normal
+        if (side > h).any() and (side < -h).any():
+            return False  # the inside on both sides: a flat patch of the wall, not a seal
     r_loc = max(loop.radius, float(dm.dfb[np.isfinite(near)].max()))
     dist = dijkstra(dm.length_graph, directed=False, indices=voxel, limit=_SHELL[1] * r_loc + h)
     shell = np.flatnonzero((dist >= _SHELL[0] * r_loc) & (dist <= _SHELL[1] * r_loc))
@@ -178,35 +185,34 @@ def choose_ends(dm: dmap.DistanceMap, loops: list[BoundaryLoop], cuts: list[Flat
     )
 
 
-def cut_closed_tail(path: np.ndarray, d: np.ndarray, h: float) -> tuple[np.ndarray, np.ndarray]:
+def cut_closed_tail(path: np.ndarray, d: np.ndarray, h: float, rough: bool = False) -> tuple[np.ndarray, np.ndarray]:
     """Cut the start of a voxel path that ends at a closed tip while it runs off-centre.
 
     A most-centred path to the farthest voxel of a closed end leaves the axis near the end to reach
     the wall; its points before the distance from the wall first reaches 80 % of the largest
     within three such distances further on are cut (at most a third of the path).
 
+    On a rough wall (``rough``) the distance from the wall is that of the deepest inward spike near
+    the point, which near the wall says nothing of the tube's width, and the farthest voxel of a
+    tip lies at the end of a fold of it: a channel about as wide as the noise and many times
+    longer, which the test at its own width takes for a thin tube. There the points look at least
+    three times the path's median distance from the wall further on (the width its axis keeps).
+
     Args:
         path: voxel centres, shape (k, 3); d: their distances from the wall, shape (k,); h: voxel edge.
+        rough: whether the tube's wall is rough (:class:`warp_tube.extract.scale.TubeScale`).
 
     Returns:
         ``(path, d)`` without the cut points.
     """
     s = arclength(path)
+    floor = float(np.median(d)) if rough else 0.0
     i = 0
     for i in range(len(path) // 3):
-        win = (s >= s[i]) & (s <= s[i] + 3.0 * d[i] + 2.0 * h)
+        win = (s >= s[i]) & (s <= s[i] + 3.0 * max(d[i], floor) + 2.0 * h)
         if d[i] >= 0.8 * d[win].max():
             break
     return path[i:], d[i:]
-
-
-def _point_at(line: np.ndarray, s: np.ndarray, sigma: float) -> tuple[np.ndarray, np.ndarray]:
-    """Point and unit tangent of a polyline at arclength ``sigma`` from its start (clamped)."""
-    sigma = float(np.clip(sigma, 0.0, s[-1]))
-    k = int(np.clip(np.searchsorted(s, sigma, side="right") - 1, 0, len(line) - 2))
-    w = (sigma - s[k]) / max(s[k + 1] - s[k], 1e-300)
-    t = line[k + 1] - line[k]
-    return line[k] + w * t, t / max(np.linalg.norm(t), 1e-300)
 
 
 def _complete(q: MeshQueries, point: np.ndarray, tangent: np.ndarray, diag: float) -> bool:
@@ -226,18 +232,18 @@ def trim_open_end(q: MeshQueries, line: np.ndarray, diag: float, reach: float) -
     """
     s = arclength(line)
     probe = np.linspace(0.0, min(reach, s[-1]), 9)
-    ok = [_complete(q, *_point_at(line, s, x), diag) for x in probe]
+    ok = [_complete(q, *point_at(line, s, x), diag) for x in probe]
     if ok[0] or not any(ok):
         return line, 0.0
     k = int(np.argmax(ok))
     lo, hi = probe[k - 1], probe[k]
     while hi - lo > 0.01 * reach:
         mid = 0.5 * (lo + hi)
-        if _complete(q, *_point_at(line, s, mid), diag):
+        if _complete(q, *point_at(line, s, mid), diag):
             hi = mid
         else:
             lo = mid
-    start, _ = _point_at(line, s, hi)
+    start, _ = point_at(line, s, hi)
     rest = line[s > hi]
     return np.concatenate([start[None], rest]), hi
 
@@ -264,7 +270,7 @@ def _best_cap(q: MeshQueries, ext: np.ndarray, r_end: float, diag: float, spokes
     s = arclength(ext)
     best, best_score = None, np.inf
     for c in _CAP_FIT * max(r_end, 1e-12):
-        hub, tan = _point_at(ext, s, c)
+        hub, tan = point_at(ext, s, c)
         r, s_ = plane_basis((-tan)[None])
         hits, valid, _ = ring_hits(q, hub[None], spoke_directions(r, s_, spokes), diag)
         if not valid.all():
@@ -304,37 +310,6 @@ def _cut_plane(q: MeshQueries, hub: np.ndarray, out: np.ndarray, r_end: float, d
     if np.abs((pts - centre) @ normal).max() > _FLAT * r_end:
         return None
     return centre, normal
-
-
-def _rough_cut_plane(q: MeshQueries, hub: np.ndarray, out: np.ndarray, r_wall: float, diag: float):
-    """:func:`_cut_plane` for a rough wall, whose noise keeps ray hits off any plane by tenths of the
-    radius: the closed surface ahead of ``hub`` (looking along unit ``out``; ``r_wall`` the wall's
-    radius round it) is a flat cut where the tube keeps its width up to it: the mean of the median
-    rays of rings (normal to ``out``, :data:`_NOISE_RAYS` rays) :data:`_FLAT_BACK` x ``r_wall``
-    before the surface ahead (the median of 17 rays within 10 degrees of ``out``) is at least
-    :data:`_ROUGH_FLAT` x ``r_wall``. A hemisphere narrows there to 0.86 of its radius (noisy ones
-    measured 0.83 to 0.87 at noise of 0.1 radii, 0.71 to 0.80 at 0.2), a noisy flat cut's tube
-    0.98 to 1.02 (at 0.2: 0.90 to 1.08). Medians see past the noise.
-
-    Returns:
-        ``(point, unit normal)`` of the cut (the surface ahead, ``out``), or None.
-    """
-    r, s = plane_basis(out[None])
-    ring = spoke_directions(r, s, 8)[0]
-    near = np.vstack([out[None]] + [np.cos(a) * out + np.sin(a) * ring for a in np.radians([5.0, 10.0])])
-    t = q.rays(q.closed, np.repeat(hub[None], len(near), axis=0), near, diag)
-    if (t <= 0.0).any():
-        return None
-    ahead = float(np.median(t))
-    width = []
-    for back in _FLAT_BACK:
-        ring = _ray_ring(q, hub + max(ahead - back * r_wall, 0.0) * out, out, diag)
-        if ring is None:
-            return None
-        width.append(float(np.median(ring)))
-    if np.mean(width) < _ROUGH_FLAT * r_wall:
-        return None
-    return hub + ahead * out, out
 
 
 def _tube_radius(q: MeshQueries, line: np.ndarray, r_end: float, diag: float) -> float:
@@ -402,12 +377,14 @@ def fit_closed_end(q: MeshQueries, line: np.ndarray, diag: float, spokes: int, c
     taken (``"closed"``); where even that cap misses the tip by more than :data:`_CAP_TOLERANCE`
     end radii, the end stays there but is left open (``"cut"``).
 
-    On a rough wall (noise round the line over :data:`_ROUGH` of its radius, :func:`_wall_noise`; a
-    clean mesh's is 0.006 or less, and is left as above) the wall's nearest point is its deepest
-    inward spike (0.6 radii from the axis at noise of 0.1 radii) and the centred line's first points
-    wander by the noise: the end radius is the median ray round the line's start instead, the line's
-    first 1.5 such radii are straightened (:func:`_straight_start`), and a flat cut is told from a
-    rounded tip by the tube's width before it (:func:`_rough_cut_plane`). Else such a tip's cap
+    On a rough wall (noise round the line over :data:`~warp_tube.extract.rough_wall.ROUGH` of its
+    radius, :func:`~warp_tube.extract.rough_wall.wall_noise`; a clean mesh's is 0.006 or less, and is
+    left as above) the wall's nearest point is its deepest inward spike (0.6 radii from the axis at
+    noise of 0.1 radii) and the centred line's first points wander by the noise: the end radius is
+    the median ray of rings round the line's first radii instead, the line's first 1.5 such radii
+    are straightened (:func:`~warp_tube.extract.rough_wall.straight_start`), and a flat cut is told
+    from a rounded tip by the tube's width before it
+    (:func:`~warp_tube.extract.rough_wall.rough_cut_plane`). Else such a tip's cap
     positions stopped short of a hemisphere's centre and its tolerance shrank by as much: it was
     left open (5 of 8 ends at noise of 0.1 radii, most at 0.2).
 
@@ -417,11 +394,11 @@ def fit_closed_end(q: MeshQueries, line: np.ndarray, diag: float, spokes: int, c
         ray reaches the closed surface or no position has a complete ring.
     """
     r_end = float(q.distance(line[:1], diag)[0])
-    noise, r_wall = _wall_noise(q, line, diag)
-    rough = noise > _ROUGH * r_wall
+    noise, r_wall = wall_noise(q, line, diag)
+    rough = noise > ROUGH * r_wall
     if rough:  # the nearest point of a rough wall is the tip of its deepest inward spike
         r_end = max(r_end, r_wall)
-        line = _straight_start(line, 1.5 * r_wall)
+        line = straight_start(line, 1.5 * r_wall)
     if cut is not None and np.dot(line[0] - cut.centroid, cut.normal) * np.dot(line[-1] - cut.centroid, cut.normal) <= 0:
         cut = None  # the line starts on the far side of the cut's plane: it does not close this end
     ext, tip = _extend(q, line, r_end, diag, cut)
@@ -436,7 +413,7 @@ def fit_closed_end(q: MeshQueries, line: np.ndarray, diag: float, spokes: int, c
         plane = _cut_plane(q, line[0], out, r_end, diag, _tube_radius(q, line, r_end, diag))
         seal = None if plane is None else (*plane, 1.5 * r_end)
     if seal is None and rough:
-        plane = _rough_cut_plane(q, line[0], out, r_wall, diag)
+        plane = rough_cut_plane(q, line[0], out, r_wall, diag)
         seal = None if plane is None else (*plane, 1.5 * r_end)
     if seal is not None:
         best = _inside_cut(q, ext, s, seal[:2], r_end, diag, spokes)
@@ -447,58 +424,8 @@ def fit_closed_end(q: MeshQueries, line: np.ndarray, diag: float, spokes: int, c
         kind = "closed" if score <= _CAP_TOLERANCE * r_end else "cut"
     if best is None:
         return line, tip, kind, seal
-    hub, _ = _point_at(ext, s, best)
+    hub, _ = point_at(ext, s, best)
     return np.concatenate([hub[None], ext[s > best]]), tip, kind, seal
-
-
-def _straight_start(line: np.ndarray, reach: float) -> np.ndarray:
-    """``line`` with its points within ``reach`` of arclength from its start moved onto their
-    least-squares straight line: on a rough wall the centred line wanders by the noise, and the
-    tangent of its first points, which points the way to the tip, by tens of degrees."""
-    s = arclength(line)
-    near = s <= reach
-    if near.sum() < 3:
-        return line
-    centre = line[near].mean(axis=0)
-    axis = np.linalg.svd(line[near] - centre)[2][0]
-    out = line.copy()
-    out[near] = centre + np.outer((line[near] - centre) @ axis, axis)
-    return out
-
-
-def _ray_ring(q: MeshQueries, point: np.ndarray, tangent: np.ndarray, diag: float) -> np.ndarray | None:
-    """Distances to the closed surface along :data:`_NOISE_RAYS` rays in the plane normal to unit
-    ``tangent`` through ``point``, in order round it; None where a ray meets nothing."""
-    r, s = plane_basis(tangent[None])
-    dirs = spoke_directions(r, s, _NOISE_RAYS)[0]
-    t = q.rays(q.closed, np.repeat(point[None], len(dirs), axis=0), dirs, diag)
-    return None if (t <= 0.0).any() else t
-
-
-def _wall_noise(q: MeshQueries, line: np.ndarray, diag: float) -> tuple[float, float]:
-    """The wall's noise near the closed end where ``line`` starts and its radius there [mesh units].
-
-    The radius is the median ray length round ``line[0]`` (normal to the line); the noise, a robust
-    deviation (1.4826 x the median absolute value) of the second differences of ray lengths round
-    rings 1 to 3 such radii further on, over sqrt(6) (what they make of independent noise), median
-    over the rings. A smooth wall changes little from ray to ray (a 32-gon: 0.006 of its radius);
-    vertices moved by noise of 0.1 (0.2) of the radius give 0.06 to 0.11 (0.12 to 0.19). Returns
-    ``(0, 0)`` where no ring is complete.
-    """
-    s = arclength(line)
-    t0 = _ray_ring(q, line[0], _point_at(line, s, 0.0)[1], diag)
-    if t0 is None:
-        return 0.0, 0.0
-    radius = float(np.median(t0))
-    noise = []
-    for x in np.linspace(1.0, 3.0, 5) * radius:
-        if x > s[-1]:
-            break
-        t = _ray_ring(q, *_point_at(line, s, x), diag)
-        if t is not None:
-            second = np.roll(t, 1) - 2.0 * t + np.roll(t, -1)
-            noise.append(1.4826 * float(np.median(np.abs(second))) / np.sqrt(6.0))
-    return (float(np.median(noise)), radius) if noise else (0.0, radius)
 
 
 def _inside_cut(q: MeshQueries, ext, s, cut, r_end: float, diag: float, spokes: int):
@@ -509,7 +436,7 @@ def _inside_cut(q: MeshQueries, ext, s, cut, r_end: float, diag: float, spokes: 
     point, normal = cut
 
     def inside(x: float) -> bool:
-        hub, tan = _point_at(ext, s, x)
+        hub, tan = point_at(ext, s, x)
         r, s_ = plane_basis(tan[None])
         dirs = spoke_directions(r, s_, max(spokes, RAYS))[0]
         origins = np.repeat(hub[None], len(dirs), axis=0)
@@ -537,7 +464,7 @@ def _inside_cut(q: MeshQueries, ext, s, cut, r_end: float, diag: float, spokes: 
 
 def _cut_line(line: np.ndarray, s: np.ndarray, x: float) -> np.ndarray:
     """``line`` without its first ``x`` of arclength (``s``: its arclengths)."""
-    start, _ = _point_at(line, s, x)
+    start, _ = point_at(line, s, x)
     return np.concatenate([start[None], line[s > x]])
 
 

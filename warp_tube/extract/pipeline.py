@@ -314,8 +314,8 @@ def extract_centerline(
     if len(voxel_path) < 3:
         raise SceneError(f"{src}: the tube is {wording.counted(len(voxel_path), 'voxel')} long: expected a longer tube")
     path, d = dm.points[voxel_path], dm.dfb[voxel_path]
-    path, d = _open_or_cut(path, d, choice.end_a, h)
-    path, d = _open_or_cut(path[::-1], d[::-1], choice.end_b, h)
+    path, d = _open_or_cut(path, d, choice.end_a, h, size.rough)
+    path, d = _open_or_cut(path[::-1], d[::-1], choice.end_b, h, size.rough)
     path, d = path[::-1], d[::-1]
     timings["path"] = time.perf_counter() - t0
 
@@ -449,11 +449,11 @@ def _end_excess(lengths: np.ndarray) -> float:
     return float(max(ratio[0] / (END_RATIO_SLACK * ratio[1]), ratio[-1] / (END_RATIO_SLACK * ratio[-2])))
 
 
-def _open_or_cut(path: np.ndarray, d: np.ndarray, loop, h: float):
+def _open_or_cut(path: np.ndarray, d: np.ndarray, loop, h: float, rough: bool):
     """Start a voxel path at its open loop's centre, or cut its off-centre tail at a closed end."""
     if isinstance(loop, BoundaryLoop):
         return np.concatenate([loop.centroid[None], path]), np.concatenate([[loop.radius], d])
-    return cut_closed_tail(path, d, h)
+    return cut_closed_tail(path, d, h, rough)
 
 
 def _openings(loops, spoke_len, hub_tree, src) -> list[Opening]:

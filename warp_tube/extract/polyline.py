@@ -9,13 +9,25 @@ from __future__ import annotations
 import numpy as np
 from scipy.ndimage import gaussian_filter1d
 
-__all__ = ["arclength", "resample", "resample_spline", "smooth", "tangents", "project_points", "nearest_on_polyline"]
+__all__ = [
+    "arclength", "point_at", "resample", "resample_spline", "smooth", "tangents", "project_points", "nearest_on_polyline",
+]
 
 
 def arclength(points: np.ndarray) -> np.ndarray:
     """Cumulative length at each point, shape (n,), starting at 0."""
     p = np.asarray(points, dtype=np.float64)
     return np.concatenate([[0.0], np.cumsum(np.linalg.norm(np.diff(p, axis=0), axis=1))])
+
+
+def point_at(line: np.ndarray, s: np.ndarray, sigma: float) -> tuple[np.ndarray, np.ndarray]:
+    """Point and unit tangent of a polyline at arclength ``sigma`` from its start (clamped); ``s``:
+    its arclengths (:func:`arclength`)."""
+    sigma = float(np.clip(sigma, 0.0, s[-1]))
+    k = int(np.clip(np.searchsorted(s, sigma, side="right") - 1, 0, len(line) - 2))
+    w = (sigma - s[k]) / max(s[k + 1] - s[k], 1e-300)
+    t = line[k + 1] - line[k]
+    return line[k] + w * t, t / max(np.linalg.norm(t), 1e-300)
 
 
 def resample(points: np.ndarray, count: int) -> np.ndarray:
