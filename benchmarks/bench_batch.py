@@ -16,7 +16,8 @@ Reported per layout, from one ``run_batch`` call (seconds):
 - ``wall_s``: the whole batch, reading the variants to the summary;
 - ``kernels_s``: the device's time in the simulation's launches (centerline substeps, the frame
   checks' sums, surface rebuilds and frame stores): on a GPU by CUDA events around them, on the
-  CPU the launches' own time (``sync_s``, also reported, is the host's time waiting for them);
+  CPU the launches' own time (``sync_s``, also reported, is the host's time waiting for them; on
+  a GPU ``launch_s`` is the host's time queueing them, part of ``other_s``);
 - ``other_s``: everything else but writing: ``wall_s - kernels_s - write_wait_s``, i.e. reading
   and checking the table, planning, building the models, copying states back, control, the
   host-side frame checks (``checks_s``, also reported alone), copying into the writers' arrays,

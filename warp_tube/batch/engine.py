@@ -42,7 +42,8 @@ from .worlds import build_worlds, initial_state
 
 __all__ = ["ChunkRun", "simulate_chunk", "output_frames", "chunk_shapes"]
 
-TIMERS = ("build_s", "kernels_s", "sync_s", "readback_s", "control_s", "checks_s", "copy_s", "flush_wait_s", "rerun_s")
+TIMERS = ("build_s", "kernels_s", "launch_s", "sync_s", "readback_s", "control_s", "checks_s", "copy_s", "flush_wait_s",
+          "rerun_s")  # fmt: skip
 
 
 def output_frames(frames: int, every: int) -> list[int]:
@@ -73,8 +74,10 @@ class ChunkRun:
             kinetic_energy_J (at the end), work_J (of the forces and gravity, in all),
             contact_frame (the first frame at whose end distant parts of its tubes overlapped, or
             "": :mod:`warp_tube.batch.contacts`).
-        timings: seconds spent building, in the kernels (the device's own time), waiting for
-            them (``sync_s``), copying back, in control and checks, handing frames over to be
+        timings: seconds spent building, in the kernels (the device's own time), queueing
+            them (``launch_s``: the host's time on a GPU; on the CPU the launches are the
+            kernels' time), waiting for them (``sync_s``), copying the end state back and making
+            the rows (``readback_s``), in control and checks, handing frames over to be
             copied into the arrays (``copy_s``), waiting for earlier windows of frames to be
             copied back (``flush_wait_s``: the device memory they hold) and rerunning failed
             variants alone.
@@ -149,6 +152,8 @@ def simulate_chunk(scenes: list[Scene], choice: RunChoice, device: str, frames: 
         clock.stop(mark)
         event = stream.record_event() if stream is not None else None
         t2 = time.perf_counter()
+        if stream is not None:  # (on the CPU the launches run the kernels: kernels_s)
+            timings["launch_s"] += t2 - t1
         stored = k % every == 0
         on_host = 0.0
         if stored:
@@ -204,7 +209,6 @@ def simulate_chunk(scenes: list[Scene], choice: RunChoice, device: str, frames: 
     timings["kernels_s"] += clock.seconds
     t = time.perf_counter()
     q, qd = state.node_q.numpy(), state.node_qd.numpy()
-    timings["readback_s"] += time.perf_counter() - t
     ke = checks.kinetic_energy(qd)
     first_tip = int(np.cumsum(scenes[0].tubes[0].curve_counts)[0]) - 1
     tips = (q[:, first_tip] / mpu).astype(np.float64).tolist()
@@ -213,6 +217,7 @@ def simulate_chunk(scenes: list[Scene], choice: RunChoice, device: str, frames: 
                      integrator=[choice.integrator] * W, substeps=[choice.substeps] * W, rerun=[False] * W,
                      max_displacement_m=max_disp.tolist(), tip=tips, kinetic_energy_J=np.asarray(ke, dtype=np.float64).tolist(),
                      work_J=np.asarray(checks.work, dtype=np.float64).tolist(), contact_frame=touched))  # fmt: skip
+    timings["readback_s"] += time.perf_counter() - t
     t = time.perf_counter()
     if failed:
         ready.result()  # the worlds run alone write over their rows of the copied frames

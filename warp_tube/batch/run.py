@@ -88,7 +88,7 @@ class BatchResult:
         write_s: the writer tasks' time, summed over writers; write_wait_s: waiting for writers
             (and for frames to be copied back from the device for them);
         books_s: recording the finished chunks (journal records, summary lines);
-        timings: the simulation's own split (build, kernels, readback, control, checks, copy, rerun), summed.
+        timings: the simulation's own split (build, kernels, launch, readback, control, checks, copy, rerun), summed.
         failures: (variant name, reason) of the failed variants.
         contacts: (variant name, frame) of the variants where distant parts of their tubes came
             closer than the sum of their radii, at the first such frame (contact is not modelled).
