@@ -375,14 +375,18 @@ def run_here(todo, device, context, result) -> None:
         # thread of their own (freeing gigabytes of pages takes ~0.1 s a chunk), while the others
         # are still being written.
         t0, books = time.perf_counter(), 0.0
-        while pending:
+        done: set = {c for c in (ring.owners if ring is not None else ()) if c is not None} - set(pending)
+        while True:
+            if buffers is not None and done:
+                cleanup = cleanup or cf.ThreadPoolExecutor(1, thread_name_prefix="batch-buffers")
+                for cid in done:
+                    cleanup.submit(ring.remove, cid)
+            if not pending:
+                break
             cf.wait([f for fs, _ in pending.values() for f in fs if not f.done()], return_when=cf.FIRST_COMPLETED)
             waiting = set(pending)
             books += settle(block=False)
-            if ring is not None and buffers is not None:
-                for cid in waiting - set(pending):
-                    cleanup = cleanup or cf.ThreadPoolExecutor(1, thread_name_prefix="batch-buffers")
-                    cleanup.submit(ring.remove, cid)
+            done = waiting - set(pending)
         result.write_wait_s += time.perf_counter() - t0 - books
     except KeyboardInterrupt:
         # Keep what is complete: the chunks already simulated are written to the end.
