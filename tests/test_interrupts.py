@@ -24,12 +24,19 @@ from .conftest import ROOT, check_output_problems, needs_shared
 TIMEOUT = 300  # s: a whole compile on a loaded CPU fits well within this
 
 
+def _default_sighup():
+    signal.signal(signal.SIGHUP, signal.SIG_DFL)
+
+
 def interrupt_when(folder, marker: str, *, env=None, args=(), stream="stderr", sig=signal.SIGINT):
     """Start `warp-tube run scene.usda -o keep.usdc`, send ``sig`` once ``marker`` appears on
     ``stream``; returns (exit status, stdout, stderr)."""
     cmd = [sys.executable, "-m", "warp_tube", *args, "run", "scene.usda", "-o", "keep.usdc"]
     full_env = dict(os.environ, PYTHONPATH=os.pathsep.join(filter(None, [str(ROOT), os.environ.get("PYTHONPATH")])), **(env or {}))
-    p = subprocess.Popen(cmd, cwd=folder, env=full_env, stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True)
+    # (the child starts with SIGHUP's default, as from a terminal, also where the tests themselves
+    # run under nohup, which ignores it: a command that inherits an ignored SIGHUP keeps ignoring it)
+    p = subprocess.Popen(cmd, cwd=folder, env=full_env, stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True,
+                         preexec_fn=_default_sighup if hasattr(signal, "SIGHUP") else None)  # fmt: skip
     watched = p.stderr if stream == "stderr" else p.stdout
     seen = []
     try:
