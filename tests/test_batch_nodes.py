@@ -62,3 +62,27 @@ def test_a_bad_shape_is_refused():
         assert "expected (2," in str(e)
     else:
         raise AssertionError("three worlds' parameters taken for two")
+
+
+def test_what_follows_from_a_shared_rest_shape_is_each_world_own():
+    """Worlds that share their rest positions (plain variants) have the frame checks' extents and
+    the contact test's rest arclengths worked out for one world and repeated: the numbers each
+    world's own rest positions give, bit for bit; worlds with rest shapes of their own work them
+    out each."""
+    from warp_tube.batch.checks import WorldChecks
+    from warp_tube.batch.contacts import WorldContacts
+    from warp_tube.sim.proximity import rest_arclength
+
+    scenes = _variants()
+    t = scenes[0].tubes[0]
+    bent = dataclasses.replace(scenes[0], tubes=(dataclasses.replace(t, points=t.points * np.array([1.2, 1.0, 1.0])),) + scenes[0].tubes[1:])
+    for group, shared in ((scenes, True), ([scenes[0], bent, scenes[1]], False)):
+        w = build_worlds(group, "cpu", surface=False)
+        assert w.rest_shared is shared
+        rest, starts = w.host.node_rest_q, w.prim_start
+        # each world's extent and arclengths from its own rows, as without the shortcut
+        extent = np.max([np.ptp(rest[:, a:b], axis=1).max(axis=1) for a, b in zip(starts[:-1], starts[1:])], axis=0)
+        arc = rest_arclength(rest, np.asarray(w.model.host.tube_node_start, dtype=np.int64))
+        checks, contacts = WorldChecks(w, group[0].settings.gravity, False), WorldContacts(w)
+        assert np.array_equal(checks.device_checks.extent[:, 0], extent)
+        assert np.array_equal(contacts.monitor.arc, arc.reshape(-1))

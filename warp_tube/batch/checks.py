@@ -37,7 +37,9 @@ class WorldChecks:
         # Each world's largest extent of a tube prim's rest points [m] (its tubes' points are its
         # rest positions, prim after prim)
         starts = worlds.prim_start
-        extent = np.max([np.ptp(self.rest[:, a:b], axis=1).max(axis=1) for a, b in zip(starts[:-1], starts[1:])], axis=0)
+        rest = self.rest[:1] if worlds.rest_shared else self.rest  # (one world's, repeated: the same numbers)
+        extent = np.max([np.ptp(rest[:, a:b], axis=1).max(axis=1) for a, b in zip(starts[:-1], starts[1:])], axis=0)
+        extent = np.broadcast_to(extent, (W,))
         # Simulation's round-off floor of the energy check, per world.
         scale = np.maximum(np.maximum(extent, np.abs(self.rest).reshape(W, -1).max(axis=1)), 1e-9)
         energy_floor = np.sum(h.seg_ke, axis=1) * (1e-6 * scale) ** 2 + 1e-30

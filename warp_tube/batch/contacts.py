@@ -39,9 +39,11 @@ class WorldContacts:
         W, N = h.node_rest_q.shape[:2]
         start = np.asarray(m.host.tube_node_start, dtype=np.int64)  # one world's layout
         starts = (start[:-1][None, :] + N * np.arange(W)[:, None]).reshape(-1)
+        rest = h.node_rest_q[:1] if worlds.rest_shared else h.node_rest_q  # (one world's, repeated: the same numbers)
+        arc = np.broadcast_to(rest_arclength(rest, start), (W, N))
         self.monitor = ContactMonitor(h.node_rest_q.reshape(-1, 3), h.node_radius.reshape(-1), np.append(starts, W * N),
                                       device=m.device, node_group=np.repeat(np.arange(W), N),
-                                      node_arc=rest_arclength(h.node_rest_q, start).reshape(-1), small=PAIRS_MAX)  # fmt: skip
+                                      node_arc=arc.reshape(-1), small=PAIRS_MAX)  # fmt: skip
         self.frame = np.full(W, -1, dtype=np.int64)
 
     def launch(self, q, slot: int) -> None:

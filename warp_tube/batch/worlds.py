@@ -78,6 +78,16 @@ class Worlds:
         """Rest positions [m], (W, N, 3) float64."""
         return self.host.node_rest_q
 
+    @property
+    def rest_shared(self) -> bool:
+        """Whether every world has world 0's rest positions (a chunk of plain variants): what
+        follows from them alone may be worked out for one world and repeated, the same numbers."""
+        shared = self.__dict__.get("_rest_shared")
+        if shared is None:
+            q = self.host.node_rest_q
+            shared = self.__dict__["_rest_shared"] = bool((q == q[:1]).all())
+        return shared
+
 
 def build_worlds(scenes: list[Scene], device: str, surface: bool, per_node: dict | None = None) -> Worlds:
     """Discretise ``scenes`` (one topology) as the worlds of one model on ``device``.
