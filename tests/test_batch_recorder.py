@@ -63,3 +63,24 @@ def test_records_made_by_the_process_or_here_when_it_stopped(tmp_path):
             cols = {f: [v for c in recs for v in recs[c]["rows"].get(f, [""] * 3)] for f in recs[0]["rows"]}
             assert text == summary_lines(variants, cols)
         assert text == expected, how
+
+
+def test_a_recorder_that_cannot_start_leaves_the_records_to_the_batch(tmp_path, monkeypatch):
+    """No Python to start (an embedded interpreter): the recorder is broken from the start and the
+    records are made in the batch's process, the same as without it."""
+    import sys
+
+    variants, recs = _records()
+    monkeypatch.setattr(sys, "executable", "")
+    recorder = Recorder()
+    assert recorder.broken is not None and recorder.proc is None
+    journal = Journal(str(tmp_path / "j"))
+    journal.begin({"version": 1}, resume=False)
+    books = Bookkeeper(journal, variants, recorder)
+    records = {c: books.record(c, rec) for c, rec in recs.items()}
+    books.drain()
+    recorder.close()
+    journal_here = Journal(str(tmp_path / "here"))
+    journal_here.begin({"version": 1}, resume=False)
+    here = Bookkeeper(journal_here, variants)
+    assert books.summary_text(records) == here.summary_text({c: here.record(c, rec) for c, rec in recs.items()})

@@ -86,8 +86,10 @@ class Recorder:
         self.broken: str | None = None
         self._out: queue.SimpleQueue = queue.SimpleQueue()
         try:
+            if not sys.executable:
+                raise OSError("no Python executable to start (an embedded interpreter)")
             self.proc = subprocess.Popen([sys.executable, "-c", code], stdin=subprocess.PIPE, stdout=subprocess.PIPE)
-        except OSError as e:
+        except (OSError, ValueError) as e:
             self.proc = None
             self.broken = f"it did not start ({e})"
             return
