@@ -8,7 +8,7 @@ number is formatted once, for the summary, not a second time for the journal. Th
 chunks' lines joined in batch order (:meth:`Bookkeeper.summary_text`), the same bytes as lines
 made at the end of the batch; the batch's last step only joins them.
 
-A large batch (at least :data:`PROCESS_VARIANTS` variants) has them made by a process of its own
+A large batch (a table of at least :data:`PROCESS_VARIANTS` rows) has them made by a process of its own
 (:class:`~warp_tube.batch.recorder.Recorder`): the batch's process hands it a chunk's fields and
 goes on simulating; :meth:`Bookkeeper.drain` waits for the records still being made (at the end of
 the batch, or when it is interrupted, so that every chunk recorded as finished is in the journal).
@@ -29,7 +29,7 @@ __all__ = ["Bookkeeper", "KEPT_FIELDS", "PROCESS_VARIANTS", "csv_records"]
 
 log = logging.getLogger(__name__)
 
-#: batches of at least this many variants make their records in a process of their own
+#: batches whose table has at least this many rows make their records in a process of their own
 PROCESS_VARIANTS = 4096
 
 #: the summary fields a journal record keeps as lists (what the batch reads back: its tally, the
