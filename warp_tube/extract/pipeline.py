@@ -58,7 +58,7 @@ from .fidelity import Distances, Fidelity, fidelity_of, measured_vertices, mesh_
 from .mesh_io import BoundaryLoop, boundary_loops, cap_loops, clean_mesh, flat_cuts
 from .polyline import arclength, resample, resample_spline, smooth
 from .queries import MeshQueries
-from .scale import tube_scale
+from .scale import rough_scale, tube_scale
 from .sections import measure_spokes, open_rays, recentre, recentre_hubs
 
 __all__ = ["ExtractedTube", "TubeEnd", "Branch", "Opening", "extract_centerline", "default_hub_count", "AUTO_FIDELITY"]
@@ -279,11 +279,12 @@ def extract_centerline(
     if len(diam) < 3:
         raise SceneError(f"{src}: encloses no volume: expected a tube surface (open or closed ends)")
     size = tube_scale(q, diam, lo, hi, diag)
+    if size.rough:
+        size = rough_scale(size, closed_v, closed_f, lo, hi, diag, device)
     r_med, r_narrow = size.median, size.narrow
     if size.rough:
-        log.info("%s: rough wall: chords across the tube from its wall cross folds of it; its radius from %s: median "
-                 "%.4g, narrow %.4g", src, f"the {size.kept} of {size.chords} as long as the median width from inside "
-                 f"({size.width:.4g})" if size.kept else "the median width from inside", r_med, r_narrow)  # fmt: skip
+        log.info("%s: rough wall: chords across the tube from its wall cross folds of it; its radius, measured on the wall "
+                 "smoothed: median %.4g, narrow %.4g", src, r_med, r_narrow)  # fmt: skip
     end_size = [lp for lp in loops if lp.radius >= _END_LOOP_FRACTION * r_med and len(lp.vertices) >= 5]
     holes = [lp for lp in loops if not any(lp is e for e in end_size)]
     if holes:
