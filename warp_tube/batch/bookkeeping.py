@@ -79,13 +79,18 @@ def _kept(record: dict) -> dict:
     return dict(record, rows={k: record["rows"][k] for k in KEPT_FIELDS if k in record["rows"]})
 
 
-def _record(journal: Journal, chunk_id: int, record: dict, named: list) -> str:
-    """Make chunk ``chunk_id``'s summary lines and journal record (in the bookkeeping process;
-    ``named``: its variants' :class:`Named` fields as tuples, chunk order); returns the lines."""
-    by_index = {v[0]: Named(*v) for v in named}
-    lines = _lines(by_index, record)
+def _record(journal: Journal, chunk_id: int, record: dict, variants) -> str:
+    """Make chunk ``chunk_id``'s summary lines (``variants`` as for :func:`_lines`) and write its
+    journal record with them; returns the lines."""
+    lines = _lines(variants, record)
     journal.record(chunk_id, dict(_kept(record), summary=lines))
     return lines
+
+
+def _record_named(journal: Journal, chunk_id: int, record: dict, named: list) -> str:
+    """:func:`_record` in the recorder's process (``named``: the chunk's variants' :class:`Named`
+    fields as tuples, chunk order)."""
+    return _record(journal, chunk_id, record, {v[0]: Named(*v) for v in named})
 
 
 class Bookkeeper:
@@ -111,12 +116,11 @@ class Bookkeeper:
         this returns, or, with a recorder, added to it and on disk once :meth:`drain` returns."""
         kept = _kept(record)
         if self.recorder is None or self.recorder.broken is not None:
-            kept["summary"] = _lines(self.variants, record)
-            self.journal.record(chunk_id, kept)
+            kept["summary"] = _record(self.journal, chunk_id, record, self.variants)
             return kept
         vs = self.variants
         named = [(v.index, v.name, v.cells, v.selection) for v in (vs[int(i)] for i in record["rows"]["index"])]
-        self.recorder.submit(chunk_id, _record, self.journal, chunk_id, record, named)
+        self.recorder.submit(chunk_id, _record_named, self.journal, chunk_id, record, named)
         self.pending[chunk_id] = (kept, record)
         return kept
 
@@ -129,17 +133,13 @@ class Bookkeeper:
                 kept["summary"] = self.recorder.result(chunk_id)
             except RuntimeError as e:
                 log.warning("chunk %d: its record was made in the batch's process instead (%s)", chunk_id, e)
-                kept["summary"] = _lines(self.variants, record)
-                self.journal.record(chunk_id, kept)
-
-    def _lines(self, record: dict) -> str:
-        return _lines(self.variants, record)
+                kept["summary"] = _record(self.journal, chunk_id, record, self.variants)
 
     def summary_text(self, records: dict) -> str:
         """``summary.csv``'s lines of every variant in batch order, from the chunks' journal
         ``records`` (chunk id -> record; lines made here for a record without them, written by
         an earlier version)."""
-        texts = {c: rec["summary"] if "summary" in rec else self._lines(rec) for c, rec in records.items()}
+        texts = {c: rec["summary"] if "summary" in rec else _lines(self.variants, rec) for c, rec in records.items()}
         order = sorted(records, key=lambda c: int(records[c]["rows"]["index"][0]) if records[c]["rows"]["index"] else -1)
         index = [int(i) for c in order for i in records[c]["rows"]["index"]]
         if index == list(range(len(index))):

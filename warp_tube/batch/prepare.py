@@ -18,7 +18,6 @@ from concurrent.futures.process import BrokenProcessPool
 import numpy as np
 
 from ..runtime.collector import collector_paused
-from ..runtime.log_filters import silenced
 from ..scene.spec import SceneError
 from .writer_pool import ignore_sigint, terminate_pool
 from .plan import run_choice, run_choices
@@ -155,7 +154,7 @@ def _prepare_batch(scene, table, variant_sets, bar, pool, pool_size, keep_nodes)
 def warn_forced(variants, choices) -> None:
     """One warning for the variants whose forced timeStep exceeds their stability bound (the
     policy would give one per variant), naming how many and the first of them."""
-    forced = [(v, c) for v, c in zip(variants.variants, choices) if c.why[0].integrator == "semiImplicitEuler" and c.forced]
+    forced = [(v, c) for v, c in zip(variants.variants, choices) if c.forced]
     if forced:
         v, c = forced[0]
         more = f" and {len(forced) - 1} other variant(s)" if len(forced) > 1 else ""
@@ -167,11 +166,6 @@ def checked_run_choices(variants, keep=None) -> list:
     """Each variant's integrator and substeps alone; a variant whose settings no integrator takes
     (e.g. implicit Euler with an assistant line) is a bad row, reported with the others.
     ``keep``: a :class:`~warp_tube.batch.nodes.KeptNodes` for their per-node parameters, or None."""
-    with silenced("warp_tube.centerline.policy"):  # one warning for the batch instead (warn_forced)
-        return _checked_run_choices(variants, keep)
-
-
-def _checked_run_choices(variants, keep) -> list:
     from .variants import MAX_PROBLEMS
 
     scenes = [v.scene for v in variants.variants]

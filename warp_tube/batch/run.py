@@ -268,7 +268,7 @@ def run_batch(scene: str, out_dir: str, table: str | None = None, *, variant_set
                               variant_sets=variant_sets, layout=layout, every=every, frames=frames, surface=surface,
                               device=device, chunk=chunk, scheduler=scheduler, resume=resume, progress=progress,
                               on_chunk=on_chunk, layers=layers, named=named, recorder=recorder)  # fmt: skip
-        writer_pool.finish()
+        writer_pool.terminate()  # (every write returned: its files are complete)
     except BaseException:
         if sim_workers is not None:  # bad input or interrupted: do not wait for them
             sim_workers.terminate()

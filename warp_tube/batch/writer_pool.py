@@ -61,14 +61,10 @@ class Writers:
         if self.pool is not None:
             self.pool.shutdown(wait=True, cancel_futures=True)
 
-    def finish(self) -> None:
-        """The batch's writing is done (every task returned, its files complete): stop the
-        processes at once rather than wait for each to exit in turn (13 on an H100 host: ~0.3 s)."""
-        self.terminate()
-
     def terminate(self):
-        """Stop the processes at once (interrupted while they read the table: nothing of theirs
-        is kept); threads are left to finish."""
+        """Stop the processes at once: interrupted while they read the table (nothing of theirs is
+        kept), or once every write has returned (its files complete), rather than wait for each to
+        exit in turn (13 on an H100 host: ~0.3 s); threads are left to finish."""
         if self.processes and self.pool is not None:
             terminate_pool(self.pool)
             self.pool = None

@@ -283,8 +283,8 @@ def extract_centerline(
         size = rough_scale(size, closed_v, closed_f, lo, hi, diag, device)
     r_med, r_narrow = size.median, size.narrow
     if size.rough:
-        log.info("%s: rough wall: chords across the tube from its wall cross folds of it; its radius, measured on the wall "
-                 "smoothed: median %.4g, narrow %.4g", src, r_med, r_narrow)  # fmt: skip
+        log.info("%s: rough wall: chords across the tube from its wall cross folds of it; its radius, from the wall and a "
+                 "smoothed copy of it: median %.4g, narrow %.4g", src, r_med, r_narrow)  # fmt: skip
     end_size = [lp for lp in loops if lp.radius >= _END_LOOP_FRACTION * r_med and len(lp.vertices) >= 5]
     holes = [lp for lp in loops if not any(lp is e for e in end_size)]
     if holes:
