@@ -256,7 +256,7 @@ def run_batch(scene: str, out_dir: str, table: str | None = None, *, variant_set
     devices = _devices(device, workers, scheduler)
     sims = 0 if scheduler else len(devices)
     sim_workers = SimWorkers(devices) if sims > 1 else None  # up while the variants are read
-    writer_pool = recorder = None
+    writer_pool = recorder = result = None
     lock = BatchLock(out_dir)
     frozen_before = gc.get_freeze_count()
     try:
@@ -279,7 +279,8 @@ def run_batch(scene: str, out_dir: str, table: str | None = None, *, variant_set
         if sim_workers is not None:
             sim_workers.shutdown()
         if recorder is not None:
-            recorder.close()  # (after the records it was given are written)
+            # (after the records it was given are made; when the batch ended, they are back: drained)
+            recorder.close(wait=result is None)
         lock.release()  # (after the writers: their files are complete or gone)
         thaw(frozen_before)  # (the batch's objects, kept out of the collector's passes)
     result.wall_s = time.perf_counter() - t_start  # (the writers' and workers' ends included)

@@ -2,6 +2,12 @@
 simulation (Warp, SciPy), so that each starts in about half the time and leaves the batch's own
 process more of the host while it reads the variants.
 
+Where the platform has it, the processes are forked from a server process (multiprocessing's
+``forkserver``) that imported usd-core and NumPy once: a pool of N processes then pays for that
+import once instead of N times (each process still imports warp_tube's writing, ~0.03 s), which on
+a host of 16 cores had slowed the batch's own reading and building beside them; and later batches
+of the same process find the server running.
+
 Processes write the USD layouts (usd-core holds Python's lock while it writes); threads write
 arrays (``os.pwrite`` and NumPy copies release it).
 """
@@ -12,6 +18,7 @@ import concurrent.futures as cf
 import multiprocessing
 import os
 import signal
+import threading
 import time
 
 from .outputs import WriteTask, write
@@ -47,17 +54,26 @@ class Writers:
         self.count = count
         self.processes = layout != "arrays"
         self.pool = None
+        self._starter = None
         if count == 0:
             return
         if self.processes:
-            ctx = multiprocessing.get_context("spawn")
-            self.pool = cf.ProcessPoolExecutor(count, mp_context=ctx, initializer=ignore_sigint)
-            for _ in range(count):  # start them now (one new process per waiting task)
-                self.pool.submit(warm_writer)
+            self.pool = cf.ProcessPoolExecutor(count, mp_context=writer_context(), initializer=ignore_sigint)
+            # Started now (one new process per waiting task), from a thread: the first start waits
+            # for the fork server's imports (~0.3 s), which the batch's reading need not wait for.
+            self._starter = threading.Thread(target=_start, args=(self.pool, count), name="batch-writer-start", daemon=True)
+            self._starter.start()
         else:
             self.pool = cf.ThreadPoolExecutor(count, thread_name_prefix="batch-writer")
 
+    def _started(self):
+        """Wait until every process was asked to start (before the pool is stopped)."""
+        if self._starter is not None:
+            self._starter.join()
+            self._starter = None
+
     def shutdown(self):
+        self._started()
         if self.pool is not None:
             self.pool.shutdown(wait=True, cancel_futures=True)
 
@@ -65,16 +81,44 @@ class Writers:
         """Stop the processes at once: interrupted while they read the table (nothing of theirs is
         kept), or once every write has returned (its files complete), rather than wait for each to
         exit in turn (13 on an H100 host: ~0.3 s); threads are left to finish."""
+        self._started()
         if self.processes and self.pool is not None:
             terminate_pool(self.pool)
             self.pool = None
+
+
+#: what a writer process imports before its first chunk
+WRITER_MODULES = ("pxr.Sdf", "pxr.Usd", "pxr.UsdGeom", "pxr.Vt", "warp_tube.io.writer")
+#: what the fork server imports for them: the libraries alone (most of the import time), never
+#: warp_tube, which the server would find by its own ``sys.path`` (the current folder first, not
+#: the batch's: Python before 3.13 does not hand it over), perhaps another copy than the batch's
+SERVER_MODULES = ("numpy", "pxr.Sdf", "pxr.Usd", "pxr.UsdGeom", "pxr.Vt")
+
+
+def writer_context():
+    """The multiprocessing context the writer processes start in: ``forkserver``, its server
+    importing :data:`SERVER_MODULES`, where the platform has it; else ``spawn``."""
+    if "forkserver" not in multiprocessing.get_all_start_methods():
+        return multiprocessing.get_context("spawn")
+    ctx = multiprocessing.get_context("forkserver")
+    ctx.set_forkserver_preload(list(SERVER_MODULES))  # (read when the server starts: once a process)
+    return ctx
+
+
+def _start(pool: cf.ProcessPoolExecutor, count: int) -> None:
+    """Start ``count`` processes of ``pool`` (each importing what writing needs)."""
+    try:
+        for _ in range(count):
+            pool.submit(warm_writer)
+    except RuntimeError:  # the pool was shut down meanwhile (bad input, interrupted)
+        pass
 
 
 def warm_writer():
     """Import what writing needs, so that the first chunk does not wait for it."""
     import importlib
 
-    for name in ("pxr.Sdf", "pxr.Usd", "pxr.UsdGeom", "pxr.Vt", "warp_tube.io.writer"):
+    for name in WRITER_MODULES:
         importlib.import_module(name)
 
 
