@@ -1,0 +1,59 @@
+"""The batch's writer processes use the batch's own warp_tube, wherever the batch is started from.
+
+They are forked from a server process (:mod:`warp_tube.batch.writer_pool`), which Python starts with
+the current folder first on its path and, before 3.13, without the batch's path: a server that
+imported warp_tube could take another copy of it than the batch's (as a checkout's source folder,
+run from there with the package installed or on ``PYTHONPATH``), and the processes forked from it
+would find nothing of the batch's in it. Here the current folder holds an empty ``warp_tube``
+package: the batch must write every file all the same. The batch's warp_tube is a copy on
+``PYTHONPATH`` and the interpreter runs without ``site`` (``-S``, the libraries' folders on
+``PYTHONPATH`` too), so that an editable install's import hook, which finds warp_tube's modules by
+name whatever package object holds the name, cannot mend a wrong one."""
+
+import csv
+import os
+import shutil
+import site
+import subprocess
+import sys
+from pathlib import Path
+
+import warp_tube
+import warp_tube.kernels
+
+DEFAULT = Path(__file__).resolve().parents[1] / "scenes" / "default.usda"
+
+SCRIPT = """
+import sys
+from warp_tube.batch import run_batch
+
+if __name__ == "__main__":
+    r = run_batch(sys.argv[1], sys.argv[2], sys.argv[3], layout="files", frames=3, device="cpu", writers=2)
+    print(r.ok, r.failed)
+"""
+
+
+def test_writer_processes_import_the_batchs_warp_tube_not_the_current_folders(tmp_path):
+    here = tmp_path / "elsewhere"
+    (here / "warp_tube").mkdir(parents=True)
+    (here / "warp_tube" / "__init__.py").write_text('"""Another warp_tube: a package with nothing in it."""\n')
+    scripts = tmp_path / "scripts"
+    scripts.mkdir()
+    (scripts / "run_it.py").write_text(SCRIPT)
+    own = tmp_path / "site"
+    shutil.copytree(Path(warp_tube.__file__).parent, own / "warp_tube", ignore=shutil.ignore_patterns("__pycache__"))
+    if not (own / "warp_tube" / "kernels").exists():  # (an editable install keeps them beside the package)
+        shutil.copytree(Path(warp_tube.kernels.__file__).parent, own / "warp_tube" / "kernels",
+                        ignore=shutil.ignore_patterns("__pycache__"))  # fmt: skip
+    libraries = [p for p in site.getsitepackages() + [site.getusersitepackages()] if os.path.isdir(p)]
+    env = dict(os.environ, PYTHONPATH=os.pathsep.join([str(own), *libraries]))
+    table = tmp_path / "t.csv"
+    table.write_text("/World/Tube.warptube:youngsModulus\n80000\n120000\n")
+    out = tmp_path / "out"
+    r = subprocess.run([sys.executable, "-S", str(scripts / "run_it.py"), str(DEFAULT), str(out), str(table)], cwd=here,
+                       env=env, capture_output=True, text=True, timeout=600)  # fmt: skip
+    assert r.returncode == 0, r.stderr
+    assert r.stdout.split() == ["2", "0"], r.stdout
+    rows = list(csv.DictReader(open(out / "summary.csv", encoding="utf-8")))
+    assert [row["status"] for row in rows] == ["ok", "ok"]
+    assert all((out / f"variant_{k:05d}.usdc").stat().st_size > 0 for k in range(2))
