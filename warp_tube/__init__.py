@@ -28,10 +28,16 @@ def load_scene(path):
     Raises:
         SceneError: the first problem found, naming file, prim, attribute, found and expected.
     """
-    from .extract.usd import tube_from_mesh_prim
     from .scene.usd import load_scene as _load
 
-    return _load(path, extract=tube_from_mesh_prim)
+    return _load(path, extract=_extract_mesh)
+
+
+def _extract_mesh(file, prim, info):
+    """The extraction of a Mesh prim, imported (trimesh, SciPy) only when a scene has one."""
+    from .extract.usd import tube_from_mesh_prim
+
+    return tube_from_mesh_prim(file, prim, info)
 
 
 def __dir__():

@@ -13,7 +13,6 @@ from __future__ import annotations
 
 import numpy as np
 import warp as wp
-from scipy.spatial import cKDTree
 
 from ..kernels.contact import contact_grid_kernel, contact_pairs_kernel
 from .checks import HOST_SLOTS, IMMEDIATE, wait_for_stream
@@ -195,6 +194,8 @@ class ContactMonitor:
         if len(nodes) <= SMALL:
             i, j = np.triu_indices(len(nodes), 1)
         else:
+            from scipy.spatial import cKDTree  # (only here: a run that finds no contact does not import SciPy)
+
             pairs = cKDTree(q[nodes]).query_pairs(2.0 * self.max_radius, output_type="ndarray")
             i, j = pairs[:, 0], pairs[:, 1]
         i, j = nodes[i], nodes[j]
