@@ -57,3 +57,31 @@ def test_writer_processes_import_the_batchs_warp_tube_not_the_current_folders(tm
     rows = list(csv.DictReader(open(out / "summary.csv", encoding="utf-8")))
     assert [row["status"] for row in rows] == ["ok", "ok"]
     assert all((out / f"variant_{k:05d}.usdc").stat().st_size > 0 for k in range(2))
+
+
+def test_a_small_batch_writes_in_its_own_process_and_a_larger_one_starts_writers(tmp_path, monkeypatch):
+    """Writer processes cost their start (~0.3 s): a batch of USD files whose writing would take
+    less (``inline_write_seconds``, from its size) is written by the simulating process. With the
+    threshold at 0 the same batch starts its writers once its size is known, and writes the same
+    files."""
+    import filecmp
+
+    from warp_tube.batch import run as run_module
+    from warp_tube.batch import run_batch
+    from warp_tube.batch.writer_pool import Writers, inline_write_seconds
+
+    started = []
+    start = Writers.start
+    monkeypatch.setattr(Writers, "start", lambda self, count: (started.append(count), start(self, count))[1])
+    table = tmp_path / "t.csv"
+    table.write_text("/World/Tube.warptube:youngsModulus\n80000\n120000\n")
+    # the default scene: 20 points, 16 spokes (about 360 vertices), 3 frames: milliseconds of writing
+    assert inline_write_seconds(2, 3, 20, 400) < run_module.INLINE_WRITE_S
+    here = run_batch(str(DEFAULT), str(tmp_path / "here"), str(table), frames=3, device="cpu")
+    assert here.ok == 2 and not any(started), started
+    monkeypatch.setattr(run_module, "INLINE_WRITE_S", 0.0)
+    by_writers = run_batch(str(DEFAULT), str(tmp_path / "by_writers"), str(table), frames=3, device="cpu")
+    assert by_writers.ok == 2 and any(started), started
+    for k in range(2):
+        name = f"variant_{k:05d}.usdc"
+        assert filecmp.cmp(tmp_path / "here" / name, tmp_path / "by_writers" / name, shallow=False), name

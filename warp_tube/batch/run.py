@@ -42,7 +42,7 @@ from .cluster import check_dask, dask_client, run_dask
 from .execute import SimWorkers, run_here, run_pooled
 from .folder import (check_inputs_not_outputs, check_out_dir, named_files, named_paths, outputs_kept, remove_stray_partials,
                      scene_dependencies, scene_files)
-from .writer_pool import Writers, writer_count
+from .writer_pool import INLINE_WRITE_S, Writers, inline_write_seconds, writer_count
 from .journal import Journal, file_digest
 from .lock import BatchLock
 from .outputs import LAYOUTS, OutputSpec, finish_arrays, prepare_arrays, surface_topology, write_grid_root, write_summary
@@ -59,6 +59,9 @@ __all__ = ["run_batch", "BatchResult", "BatchInterrupted", "DEFAULT_CHUNK_CPU", 
 #: or in /dev/shm, until written: 4,096 variants x 61 frames of a 20 x 16 tube are ~2 GB)
 DEFAULT_CHUNK_CPU = 1024
 DEFAULT_CHUNK_CUDA = 4096
+#: tables of fewer rows (or none) start their writer processes, if any, once the batch's size is
+#: known (:data:`~warp_tube.batch.writer_pool.INLINE_WRITE_S`); larger ones while they are read
+DEFER_ROWS = 256
 
 
 class BatchInterrupted(KeyboardInterrupt):
@@ -207,7 +210,9 @@ def run_batch(scene: str, out_dir: str, table: str | None = None, *, variant_set
         device: "cpu" or "cuda:N" (default: every GPU, else the CPU).
         workers: processes on the CPU, or how many GPUs (default: 1 on the CPU, all GPUs).
         writers: writer processes, threads for ``arrays`` (default: the host's cores left over,
-            at least 1, at most 8 threads for ``arrays``; 0: write in the simulating process).
+            at least 1, at most 8 threads for ``arrays``; none where a batch's USD outputs would
+            be written in less than :data:`~warp_tube.batch.writer_pool.INLINE_WRITE_S` by one
+            process, estimated from its size; 0: write in the simulating process).
         chunk: variants per chunk (default :data:`DEFAULT_CHUNK_CPU` / :data:`DEFAULT_CHUNK_CUDA`,
             fewer so that every worker gets two chunks).
         scheduler: a Dask scheduler address, to run the chunks on a Dask cluster.
@@ -260,14 +265,18 @@ def run_batch(scene: str, out_dir: str, table: str | None = None, *, variant_set
     lock = BatchLock(out_dir)
     frozen_before = gc.get_freeze_count()
     try:
-        writer_pool = Writers(layout, 0 if scheduler else writer_count(writers, sims, layout))
+        count = 0 if scheduler else writer_count(writers, sims, layout)
+        # A small batch of USD outputs: whether its writing is worth starting processes for is
+        # decided once its size is known (a large table's writers start now, while it is read).
+        deferred = count if count and writers is None and layout != "arrays" and (tab is None or len(tab.rows) < DEFER_ROWS) else 0
+        writer_pool = Writers(layout, 0 if deferred else count)
         if tab is not None and len(tab.rows) >= PROCESS_VARIANTS:
             recorder = Recorder()  # (starting while the variants are read)
         with kept_interrupts():  # a Ctrl-C dropped in a finalizer stops the batch at the next frame
             result = _run_batch(scene, out_dir, table, tab, devices, writer_pool, sim_workers, t_start, lock,
                               variant_sets=variant_sets, layout=layout, every=every, frames=frames, surface=surface,
                               device=device, chunk=chunk, scheduler=scheduler, resume=resume, progress=progress,
-                              on_chunk=on_chunk, layers=layers, named=named, recorder=recorder)  # fmt: skip
+                              on_chunk=on_chunk, layers=layers, named=named, recorder=recorder, deferred=deferred)  # fmt: skip
         writer_pool.terminate()  # (every write returned: its files are complete)
     except BaseException:
         if sim_workers is not None:  # bad input or interrupted: do not wait for them
@@ -288,7 +297,8 @@ def run_batch(scene: str, out_dir: str, table: str | None = None, *, variant_set
 
 
 def _run_batch(scene, out_dir, table, tab, devices, writer_pool, sim_workers, t_start, lock, *, variant_sets, layout, every,
-               frames, surface, device, chunk, scheduler, resume, progress, on_chunk, layers, named, recorder) -> BatchResult:  # fmt: skip
+               frames, surface, device, chunk, scheduler, resume, progress, on_chunk, layers, named, recorder,
+               deferred=0) -> BatchResult:  # fmt: skip
 
     bar = Progress(progress)
     readers = writer_pool.pool if writer_pool.processes else None  # idle until the first chunk is simulated
@@ -336,6 +346,8 @@ def _run_batch(scene, out_dir, table, tab, devices, writer_pool, sim_workers, t_
     with collector_paused(freeze=True):  # per variant its points and vertices
         counts = _counts(variants.variants[:1], surface) * len(variants) if variants.plain else _counts(variants.variants, surface)
     spec = _output_spec(variants, counts, layout, out_dir, journal.dir, surface, time_codes)
+    if deferred and inline_write_seconds(len(variants), len(F_idx), spec.points, spec.vertices) >= INLINE_WRITE_S:
+        writer_pool.start(deferred)  # (else it is written here: less than the processes' start)
     result.prepare_s = time.perf_counter() - t_start
 
     if resume and not journal.exists():  # the batch there finished: nothing to do

@@ -23,7 +23,7 @@ import time
 
 from .outputs import WriteTask, write
 
-__all__ = ["Writers", "writer_count", "ARRAY_WRITER_THREADS", "ignore_sigint", "terminate_pool", "timed_write",
+__all__ = ["Writers", "writer_count", "inline_write_seconds", "INLINE_WRITE_S", "ARRAY_WRITER_THREADS", "ignore_sigint", "terminate_pool", "timed_write",
            "timed_write_when_ready"]
 
 
@@ -51,12 +51,17 @@ class Writers:
     2.29 / 2.32 s against 2.19 / 2.40 s)."""
 
     def __init__(self, layout: str, count: int):
-        self.count = count
+        self.count = 0
         self.processes = layout != "arrays"
         self.pool = None
         self._starter = None
-        if count == 0:
+        self.start(count)
+
+    def start(self, count: int) -> None:
+        """Start ``count`` writers (none: the batch writes in its simulating process), once."""
+        if count == 0 or self.pool is not None:
             return
+        self.count = count
         if self.processes:
             self.pool = cf.ProcessPoolExecutor(count, mp_context=writer_context(), initializer=ignore_sigint)
             # Started now (one new process per waiting task), from a thread: the first start waits
@@ -132,6 +137,22 @@ def timed_write_when_ready(ready: cf.Future, task: WriteTask):
     """:func:`timed_write` once the chunk's frames are in its arrays (``ready``)."""
     ready.result()
     return timed_write(task)
+
+
+#: a batch of USD outputs is written in its simulating process, not by writer processes, where that
+#: would take less than this [s]: about what starting the processes costs (the fork server's imports
+#: ~0.3 s on a 2-core CPU), which a batch of a few small variants would spend for nothing
+INLINE_WRITE_S = 0.3
+#: usd-core writing from one process, per output file and per point of a written frame (its
+#: Centerline points, Surface points and normals) [s]: the 2-core CPU's floor in
+#: ``benchmarks/bench_batch.py`` (1,024 variants x 61 frames of 1,432 points: 1.8-2.1 s)
+FILE_S, POINT_S = 2e-3, 2.2e-8
+
+
+def inline_write_seconds(variants: int, frames: int, points: int, vertices: int) -> float:
+    """About how long one process takes to write ``variants`` USD outputs of ``frames`` written
+    frames, ``points`` centerline points and ``vertices`` surface vertices each [s]."""
+    return variants * (FILE_S + frames * (points + 2 * vertices) * POINT_S)
 
 
 #: writer threads for the arrays layout by default: its writes wait on the disk, not the cores, and
