@@ -115,7 +115,9 @@ def _start(pool: cf.ProcessPoolExecutor, count: int) -> None:
     try:
         for _ in range(count):
             pool.submit(warm_writer)
-    except RuntimeError:  # the pool was shut down meanwhile (bad input, interrupted)
+    except RuntimeError:  # the pool was shut down meanwhile (bad input, interrupted), or broke
+        pass
+    except OSError:  # no process could start (the writes, started on demand, report it)
         pass
 
 
