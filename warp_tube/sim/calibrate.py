@@ -99,9 +99,8 @@ def size_push(path: str, force_path: str = "/World/Push", radii: float = 2.0, fr
     """
     import dataclasses
 
-    from ..scene.edit import scale_force_samples
+    from ..runtime.log_filters import once_each
     from ..scene.usd import load_scene
-    from .simulation import NumericalError
 
     scene = load_scene(path)
     k = next((i for i, f in enumerate(scene.forces) if f.path == force_path), None)
@@ -113,6 +112,16 @@ def size_push(path: str, force_path: str = "/World/Push", radii: float = 2.0, fr
     def moved(factor: float) -> float:
         scaled = dataclasses.replace(force, values=force.values * factor)
         return largest_displacement(dataclasses.replace(scene, forces=(*scene.forces[:k], scaled, *scene.forces[k + 1:])), frames)
+
+    # Each distinct warning of the runs once (a contact at rest, say, is met by every run).
+    with once_each("warp_tube.sim.simulation"), once_each("warp_tube.centerline.policy"):
+        return _sized(path, force_path, force, target, moved)
+
+
+def _sized(path: str, force_path: str, force, target: float, moved) -> PushSize | None:
+    """:func:`size_push`'s runs: ``moved(factor)`` [m] for the force scaled by ``factor``."""
+    from ..scene.edit import scale_force_samples
+    from .simulation import NumericalError
 
     before = moved(1.0)
     if not before > 0.0:

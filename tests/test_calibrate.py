@@ -1,0 +1,55 @@
+"""Sizing an extracted scene's push (``warp-tube extract``): its trial runs warn as one run does."""
+
+import logging
+
+import numpy as np
+
+from warp_tube.sim.calibrate import PUSH_RUNS, size_push
+
+
+def _hairpin_scene(path):
+    """A hairpin tube whose legs lie 15 mm apart with a radius of 10 mm: distant parts of it overlap
+    at rest, which every run warns of at its first frame. Clamped at one end, pushed at its bend."""
+    legs = np.linspace(0.0, 0.1, 9)
+    bend = [(0.1 + 0.0075 * np.sin(a), 0.0075 - 0.0075 * np.cos(a), 0.0) for a in np.linspace(0.0, np.pi, 5)[1:-1]]
+    pts = [(x, 0.0, 0.0) for x in legs] + bend + [(x, 0.015, 0.0) for x in legs[::-1]]
+    text = f"""#usda 1.0
+(
+    metersPerUnit = 1
+    upAxis = "Y"
+    timeCodesPerSecond = 24
+    startTimeCode = 0
+    endTimeCode = 48
+)
+def Xform "World"
+{{
+    def BasisCurves "Tube"
+    {{
+        uniform token type = "linear"
+        int[] curveVertexCounts = [{len(pts)}]
+        point3f[] points = [{", ".join(f"({x:.6f}, {y:.6f}, {z:.6f})" for x, y, z in pts)}]
+        float[] widths = [0.02] (interpolation = "constant")
+        double warptube:youngsModulus = 100000
+        double warptube:density = 1050
+        int[] warptube:pinnedPoints = [0, 1]
+    }}
+    def Scope "Push"
+    {{
+        rel warptube:target = </World/Tube>
+        int warptube:point = 10
+        float3 warptube:force = (0, 0, 0.001)
+    }}
+}}
+"""
+    path.write_text(text)
+    return path
+
+
+def test_the_trial_runs_warn_of_a_contact_at_rest_once(tmp_path, caplog):
+    path = _hairpin_scene(tmp_path / "hairpin.usda")
+    with caplog.at_level(logging.WARNING, logger="warp_tube.sim.simulation"):
+        size = size_push(str(path))
+    assert size is not None and 2 <= size.runs <= PUSH_RUNS, size  # (more than one run warned)
+    contacts = [r for r in caplog.records if "closer than the sum of their radii" in r.getMessage()]
+    assert len(contacts) == 1, [r.getMessage() for r in contacts]
+    assert contacts[0].getMessage().startswith("frame 1:")
