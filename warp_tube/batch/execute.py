@@ -225,9 +225,9 @@ class BufferRing:
     kernel must fault in and zero on first touch (which held those copies to about 1 GB/s):
     arrays kept in this process's memory (writer threads), or the slot files of
     :func:`_slot_allocator` (writer processes open them by name), kept mapped here from chunk to
-    chunk (mapped again, each 2 GB chunk paid ~0.5 s of page faults in the copying threads). ``slots`` chunks' arrays exist at
-    once: before a slot comes round again, the caller waits until the writers of the chunk that
-    used it (:meth:`owner`) are done.
+    chunk (mapped again, each 2 GB chunk paid ~0.5 s of page faults in the copying threads).
+    ``slots`` chunks' arrays exist at once: before a slot comes round again, the caller waits until
+    the writers of the chunk that used it (:meth:`owner`) are done.
 
     Args:
         slots: chunks' arrays kept.
@@ -267,7 +267,10 @@ class BufferRing:
             held = self.held[k]
             if held is None or {name: a.shape for name, a in held.items()} != {n: tuple(s) for n, s in shapes.items()}:
                 self.held[k] = None  # (the slot's old mappings go first)
-                held = files(shapes) if files is not None else {name: np.empty(shape, dtype=np.float32) for name, shape in shapes.items()}
+                if files is not None:
+                    held = files(shapes)
+                else:
+                    held = {name: np.empty(shape, dtype=np.float32) for name, shape in shapes.items()}
                 self.held[k] = held
             return held
 

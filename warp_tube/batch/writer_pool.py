@@ -23,8 +23,8 @@ import time
 
 from .outputs import WriteTask, write
 
-__all__ = ["Writers", "writer_count", "inline_write_seconds", "INLINE_WRITE_S", "ARRAY_WRITER_THREADS", "ignore_sigint", "terminate_pool", "timed_write",
-           "timed_write_when_ready"]
+__all__ = ["Writers", "writer_count", "inline_write_seconds", "INLINE_WRITE_S", "ARRAY_WRITER_THREADS", "ignore_sigint",
+           "terminate_pool", "timed_write", "timed_write_when_ready"]
 
 
 def terminate_pool(pool: cf.ProcessPoolExecutor) -> None:
