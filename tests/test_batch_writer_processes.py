@@ -18,6 +18,8 @@ import subprocess
 import sys
 from pathlib import Path
 
+import pytest
+
 import warp_tube
 import warp_tube.kernels
 
@@ -85,3 +87,52 @@ def test_a_small_batch_writes_in_its_own_process_and_a_larger_one_starts_writers
     for k in range(2):
         name = f"variant_{k:05d}.usdc"
         assert filecmp.cmp(tmp_path / "here" / name, tmp_path / "by_writers" / name, shallow=False), name
+
+
+def _children(pid: int) -> list[int]:
+    """The processes whose parent is ``pid`` (from /proc)."""
+    out = []
+    for entry in os.listdir("/proc"):
+        if entry.isdigit():
+            try:
+                with open(f"/proc/{entry}/stat") as f:
+                    fields = f.read().rsplit(")", 1)[1].split()
+            except OSError:
+                continue
+            if int(fields[1]) == pid:
+                out.append(int(entry))
+    return out
+
+
+@pytest.mark.skipif(not os.path.isdir("/proc/self"), reason="finds the writer processes through /proc")
+def test_a_writer_killed_from_outside_is_reported_as_such_and_the_batch_resumes(tmp_path):
+    """A writer process killed by the system (short of memory, say) is not a bug: the batch says
+    what happened, exits with status 2, and ``--resume`` finishes it."""
+    import signal
+    import time
+
+    table = tmp_path / "t.csv"
+    table.write_text("/World/Tube.warptube:youngsModulus\n" + "".join(f"{80000 + 100 * k}\n" for k in range(200)))
+    out = tmp_path / "out"
+    args = [sys.executable, "-m", "warp_tube", "batch", str(DEFAULT), "--variants", str(table), "-o", str(out),
+            "--writers", "1", "--chunk", "20", "--quiet"]  # fmt: skip
+    batch = subprocess.Popen(args, stderr=subprocess.PIPE, text=True)
+    deadline = time.time() + 120
+    writers = []
+    while batch.poll() is None and time.time() < deadline:
+        if (out / "variant_00001.usdc").exists():  # a chunk written: the writer process is up
+            writers = [w for s in _children(batch.pid) for w in _children(s)]  # (forked by the batch's server)
+            if writers:
+                break
+        time.sleep(0.02)
+    assert writers, "no writer process found while the batch ran"
+    os.kill(writers[0], signal.SIGKILL)
+    err = batch.communicate(timeout=300)[1]
+    assert batch.returncode == 2, err
+    assert "a writer or worker process stopped unexpectedly" in err and "--resume goes on" in err, err
+    assert "internal error" not in err
+    again = subprocess.run(args + ["--resume"], capture_output=True, text=True, timeout=300)
+    assert again.returncode == 0, again.stderr
+    rows = list(csv.DictReader(open(out / "summary.csv", encoding="utf-8")))
+    assert len(rows) == 200 and all(r["status"] == "ok" for r in rows)
+    assert all((out / f"variant_{k:05d}.usdc").exists() for k in range(200))

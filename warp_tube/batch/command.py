@@ -35,6 +35,8 @@ def add_parser(sub) -> None:
 
 def run(a) -> int:
     """Run the parsed ``batch`` command; returns the exit status."""
+    from concurrent.futures.process import BrokenProcessPool
+
     from ..scene.spec import SceneError
     from ..runtime.interrupts import exit_status, stopped_by
     from .run import BatchInterrupted, run_batch
@@ -55,6 +57,13 @@ def run(a) -> int:
         print(e.result.text(), file=sys.stderr)
         print(f"warp-tube: {stopped_by(e)}; the finished variants are kept: --resume goes on", file=sys.stderr)
         return exit_status(e)
+    except BrokenProcessPool:
+        # a writer or worker process killed from outside (the system, short of memory): not a bug
+        resumable = os.path.isdir(os.path.join(a.output, ".batch"))
+        more = "; the variants finished before it are kept: --resume goes on" if resumable else ""
+        print(f"warp-tube: batch: a writer or worker process stopped unexpectedly (killed from outside, or out of "
+              f"memory?){more}", file=sys.stderr)  # fmt: skip
+        return 2
     except OSError as e:
         where = f"cannot write {e.filename}: " if e.filename else f"cannot write into {a.output}: "
         resumable = os.path.isdir(os.path.join(a.output, ".batch"))

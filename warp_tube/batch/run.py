@@ -28,6 +28,7 @@ import multiprocessing
 import os
 import signal
 import time
+from concurrent.futures.process import BrokenProcessPool
 from dataclasses import dataclass, field
 
 import numpy as np
@@ -394,6 +395,10 @@ def _run_batch(scene, out_dir, table, tab, devices, writer_pool, sim_workers, t_
             run_here(todo, devices[0], context, result)
         else:
             run_pooled(todo, devices, sim_workers, context, result)
+    except BrokenProcessPool:  # a writer or worker process killed from outside: what finished stays resumable
+        bar.close()
+        books.drain()
+        raise
     except KeyboardInterrupt as e:
         bar.close()
         books.drain()  # every chunk recorded as finished is in the journal
