@@ -136,3 +136,44 @@ def test_a_writer_killed_from_outside_is_reported_as_such_and_the_batch_resumes(
     rows = list(csv.DictReader(open(out / "summary.csv", encoding="utf-8")))
     assert len(rows) == 200 and all(r["status"] == "ok" for r in rows)
     assert all((out / f"variant_{k:05d}.usdc").exists() for k in range(200))
+
+
+def test_an_interrupted_stage_writer_leaves_no_temporary_file(tmp_path, monkeypatch):
+    """A Ctrl-C while a USD output's prims are being defined (the temporary file already made):
+    the writer removes it, as it does when interrupted later."""
+    from warp_tube.io.writer import StageWriter
+
+    scene = warp_tube.load_scene(str(DEFAULT))
+
+    def interrupted(self, *args):
+        raise KeyboardInterrupt
+
+    monkeypatch.setattr(StageWriter, "_define", interrupted)
+    with pytest.raises(KeyboardInterrupt):
+        StageWriter(str(tmp_path / "out.usdc"), scene)
+    assert os.listdir(tmp_path) == []
+
+
+def test_resume_removes_the_temporary_files_an_interrupted_batch_left(tmp_path):
+    """An interrupted batch writing in its own process can leave a hidden ``.NAME.tmp-PID.usdc``
+    (killed mid-write, say): ``--resume`` removes it, and ends with the same files as a whole run."""
+    import filecmp
+
+    from warp_tube.batch import BatchInterrupted, run_batch
+
+    table = tmp_path / "t.csv"
+    table.write_text("/World/Tube.warptube:youngsModulus\n" + "".join(f"{80000 + 10000 * k}\n" for k in range(4)))
+    whole, part = tmp_path / "whole", tmp_path / "part"
+    run_batch(str(DEFAULT), str(whole), str(table), frames=4, chunk=2, writers=0)
+
+    def stop(chunk_id):
+        raise KeyboardInterrupt
+
+    with pytest.raises(BatchInterrupted):
+        run_batch(str(DEFAULT), str(part), str(table), frames=4, chunk=2, writers=0, on_chunk=stop)
+    (part / ".variant_00003.tmp-99999.usdc").write_bytes(b"half a file")
+    assert run_batch(str(DEFAULT), str(part), str(table), frames=4, writers=0, resume=True).ok == 4
+    names = sorted(p.name for p in whole.iterdir())
+    assert sorted(p.name for p in part.iterdir()) == names
+    for n in names:
+        assert filecmp.cmp(whole / n, part / n, shallow=False), n

@@ -135,9 +135,11 @@ def outputs_kept(done: dict, layout: str, out_dir: str, work_dir: str) -> dict:
 
 
 def remove_stray_partials(out_dir: str) -> None:
-    """Remove partial files that an interrupted writer left (never a complete output)."""
+    """Remove partial and temporary files that an interrupted writer left (never a complete
+    output): hidden ``.NAME.partial-*`` and ``.NAME.tmp-PID.EXT`` files
+    (:func:`~warp_tube.scene.files.temp_path`) in the batch folder, which is the batch's own."""
     for folder in (out_dir, os.path.join(out_dir, "grid")):
         if os.path.isdir(folder):
             for n in os.listdir(folder):
-                if n.startswith(".") and ".partial-" in n:
+                if n.startswith(".") and (".partial-" in n or ".tmp-" in n) and os.path.isfile(os.path.join(folder, n)):
                     os.remove(os.path.join(folder, n))

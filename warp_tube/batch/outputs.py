@@ -178,8 +178,8 @@ def _write_files(task: WriteTask, arrays: dict) -> list[str]:
         rel = f"{name}.usdc" if row["status"] == "ok" else f"{name}.partial.usdc"
         topo = [surface_topology(t) for t in scene.tubes] if spec.surface else None
         w = StageWriter(os.path.join(spec.out_dir, rel), scene, topo)
-        ranges = _ranges(scene, spec.surface)
         try:
+            ranges = _ranges(scene, spec.surface)
             for f in range(row["frames"]):
                 cl, parts = _frame_parts(ranges, arrays, f, p, spec.surface)
                 w.write_frame(spec.time_codes[f], cl, parts)

@@ -115,7 +115,7 @@ class StageWriter:
     """
 
     def __init__(self, path: str, scene: Scene, surfaces=None, *, start_time_code=None, inputs=()):
-        from pxr import Sdf, UsdGeom, Vt
+        from pxr import Sdf
 
         self.path = check_output_path(path, inputs)
         self.tmp = temp_path(self.path)
@@ -128,7 +128,19 @@ class StageWriter:
         # as specs (through a stage, each prim defined paid for the change processing of all the
         # prims before it: 20,000 tube prims took 28 s), and usd-core skips the notices that
         # cost about 1 us per sample.
-        self.layer = layer = Sdf.Layer.CreateNew(self.tmp)
+        self.closed = False
+        self.layer = Sdf.Layer.CreateNew(self.tmp)  # (the temporary file exists from here)
+        try:
+            self._define(scene, surfaces, start)
+        except BaseException:  # (an interrupt included: no temporary file is left behind)
+            self.abort()
+            raise
+
+    def _define(self, scene: Scene, surfaces, start: float) -> None:
+        """The layer's metadata and prims, and the writer's bookkeeping (see the constructor)."""
+        from pxr import Sdf, UsdGeom, Vt
+
+        layer, info = self.layer, self.info
         layer.startTimeCode = layer.endTimeCode = start
         layer.timeCodesPerSecond = info.time_codes_per_second
         layer.framesPerSecond = info.frames_per_second
@@ -177,7 +189,6 @@ class StageWriter:
         self.frames_written = 0
         self.first_time = None
         self.last_time = start
-        self.closed = False
 
     def write_frame(self, time_code: float, centerlines, surfaces=None):
         """Add one frame.
