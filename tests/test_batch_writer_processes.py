@@ -177,3 +177,22 @@ def test_resume_removes_the_temporary_files_an_interrupted_batch_left(tmp_path):
     assert sorted(p.name for p in part.iterdir()) == names
     for n in names:
         assert filecmp.cmp(whole / n, part / n, shallow=False), n
+
+
+def test_where_the_platform_has_no_fork_server_the_writers_are_spawned(tmp_path, monkeypatch):
+    """Windows has no ``forkserver``: the writer processes start by ``spawn`` and write the same
+    files."""
+    import filecmp
+
+    from warp_tube.batch import run_batch, writer_pool
+
+    monkeypatch.setattr(writer_pool.multiprocessing, "get_all_start_methods", lambda: ["spawn"])
+    assert writer_pool.writer_context().get_start_method() == "spawn"
+    table = tmp_path / "t.csv"
+    table.write_text("/World/Tube.warptube:youngsModulus\n80000\n120000\n")
+    spawned = run_batch(str(DEFAULT), str(tmp_path / "spawned"), str(table), frames=3, device="cpu", writers=2)
+    here = run_batch(str(DEFAULT), str(tmp_path / "here"), str(table), frames=3, device="cpu", writers=0)
+    assert spawned.ok == here.ok == 2
+    for k in range(2):
+        name = f"variant_{k:05d}.usdc"
+        assert filecmp.cmp(tmp_path / "spawned" / name, tmp_path / "here" / name, shallow=False), name
