@@ -146,9 +146,10 @@ def timed_write_when_ready(ready: cf.Future, task: WriteTask):
 #: ~0.3 s on a 2-core CPU), which a batch of a few small variants would spend for nothing
 INLINE_WRITE_S = 0.3
 #: usd-core writing from one process, per output file and per point of a written frame (its
-#: Centerline points, Surface points and normals) [s]: the 2-core CPU's floor in
-#: ``benchmarks/bench_batch.py`` (1,024 variants x 61 frames of 1,432 points: 1.8-2.1 s)
-FILE_S, POINT_S = 2e-3, 2.2e-8
+#: Centerline points, Surface points and normals) [s]: ``benchmarks/bench_batch.py``'s floor on the
+#: 2-core CPU, 200 variants of 1,432 points a frame: 0.46-0.57 ms a variant of 1 frame, 2.42-2.50 ms
+#: of 61
+FILE_S, POINT_S = 5e-4, 2.3e-8
 
 
 def inline_write_seconds(variants: int, frames: int, points: int, vertices: int) -> float:
