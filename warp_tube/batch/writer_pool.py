@@ -44,11 +44,12 @@ def ignore_sigint():
 
 class Writers:
     """The writer pool: processes for USD layouts (usd-core holds the GIL while it writes),
-    threads for arrays (``os.pwrite`` and NumPy copies release it); started before the variants
-    are read, so the processes are up by the time the first chunk is simulated (started once
-    the variants were read instead, on an H100 host, they took as long from the first chunks'
-    build as they had from the reading: 16,384 variants, everything but the kernels and writing
-    2.29 / 2.32 s against 2.19 / 2.40 s)."""
+    threads for arrays (``os.pwrite`` and NumPy copies release it); for a large table started
+    before the variants are read, so the processes are up by the time the first chunk is
+    simulated (started once the variants were read instead, on an H100 host, they took as long
+    from the first chunks' build as they had from the reading: 16,384 variants, everything but the
+    kernels and writing 2.29 / 2.32 s against 2.19 / 2.40 s); for a small one once its size is
+    known (:meth:`start`), if its writing is worth their start (:data:`INLINE_WRITE_S`)."""
 
     def __init__(self, layout: str, count: int):
         self.count = 0
