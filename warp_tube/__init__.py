@@ -28,16 +28,10 @@ def load_scene(path):
     Raises:
         SceneError: the first problem found, naming file, prim, attribute, found and expected.
     """
+    from .extract.hook import mesh_prim_tube
     from .scene.usd import load_scene as _load
 
-    return _load(path, extract=_extract_mesh)
-
-
-def _extract_mesh(file, prim, info):
-    """The extraction of a Mesh prim, imported (trimesh, SciPy) only when a scene has one."""
-    from .extract.usd import tube_from_mesh_prim
-
-    return tube_from_mesh_prim(file, prim, info)
+    return _load(path, extract=mesh_prim_tube)
 
 
 def __dir__():

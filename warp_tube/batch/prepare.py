@@ -17,6 +17,7 @@ from concurrent.futures.process import BrokenProcessPool
 
 import numpy as np
 
+from ..extract.hook import mesh_prim_tube
 from ..runtime.collector import collector_paused
 from ..scene.spec import SceneError
 from .writer_pool import ignore_sigint, terminate_pool
@@ -40,13 +41,6 @@ PREPARE_PROCESSES = 16
 PLAIN_ROWS_FACTOR = 32
 
 
-def _extract(file, prim, info):
-    """The extraction hook for Mesh tubes, imported only when a scene has one."""
-    from ..extract.usd import tube_from_mesh_prim
-
-    return tube_from_mesh_prim(file, prim, info)
-
-
 def _prepare_part(scene: str, table, variant_sets):
     """Read part of a table's variants and their run choices (in a worker process)."""
     from ..runtime.warp_setup import init_warp
@@ -54,7 +48,7 @@ def _prepare_part(scene: str, table, variant_sets):
 
     init_warp()  # quietly: no missing-driver line from each process on a machine without a GPU
     with collector_paused():
-        variants, problems = collect_variants(scene, table, variant_sets, extract=_extract)
+        variants, problems = collect_variants(scene, table, variant_sets, extract=mesh_prim_tube)
         if problems:
             return variants, problems, None
         try:
@@ -105,7 +99,7 @@ def _prepare_batch(scene, table, variant_sets, bar, pool, pool_size, keep_nodes)
     def read_here():
         from .nodes import KeptNodes
 
-        variants = prepare_variants(scene, table, variant_sets, extract=_extract, progress=bar.reading)
+        variants = prepare_variants(scene, table, variant_sets, extract=mesh_prim_tube, progress=bar.reading)
         keep = KeptNodes(len(variants.variants)) if keep_nodes else None
         choices = checked_run_choices(variants, keep)
         warn_forced(variants, choices)
