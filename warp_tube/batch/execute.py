@@ -29,7 +29,7 @@ import numpy as np
 from ..scene.spec import SceneError
 from .engine import TIMERS, chunk_shapes, simulate_chunk
 from .outputs import WriteTask, write
-from .writer_pool import Writers, ignore_sigint, timed_write, timed_write_when_ready
+from .writer_pool import Writers, ignore_sigint, terminate_pool, timed_write, timed_write_when_ready
 from .rows import Rows
 
 __all__ = ["SimWorkers", "run_here", "run_pooled", "add_timings", "with_rows", "write_tasks"]
@@ -85,8 +85,9 @@ class SimWorkers:
 
     def terminate(self):
         """Stop simulating at once (an interrupted batch)."""
-        for proc in list(getattr(self.pool, "_processes", {}).values()):
-            proc.terminate()
+        if self.pool is not None:
+            terminate_pool(self.pool)
+            self.pool = None
 
     def shutdown(self):
         if self.pool is not None:
