@@ -15,8 +15,8 @@ from typing import NamedTuple
 
 from ..scene.spec import SimulationSettings
 
-__all__ = ["IntegratorChoice", "choose_integrator", "decide_integrator", "explain_integrator", "is_forced", "implicit_cost_ratio", "implicit_substeps", "SAFETY", "IMPLICIT_DT",
-           "IMPLICIT_COST_RATIO", "IMPLICIT_AL_COST", "RUN_WARNING"]
+__all__ = ["IntegratorChoice", "choose_integrator", "decide_integrator", "explain_integrator", "is_forced", "implicit_cost_ratio",
+           "implicit_substeps", "SAFETY", "IMPLICIT_DT", "IMPLICIT_COST_RATIO", "IMPLICIT_AL_COST", "RUN_WARNING"]
 
 log = logging.getLogger(__name__)
 
@@ -94,7 +94,7 @@ def explain_integrator(settings: SimulationSettings, critical_dt: float, frame_d
         return f"from the scene, substep {dt:.3g} s"
     if s.integrator == "semiImplicitEuler":
         if s.time_step is not None:
-            if dt > hc:
+            if is_forced(settings, critical_dt, frame_dt):
                 return f"forced; timeStep {dt:.3g} s exceeds the stability bound {hc:.3g} s"
             return f"from the scene, timeStep {dt:.3g} s (bound {hc:.3g} s)"
         if not math.isfinite(hc):
