@@ -25,6 +25,10 @@ def tube(path="/T", pinned=(0, 1), **kw):
     (lambda: tube(pinned=(0.5, 1.7)), ["pinnedPoints [0.5, 1.7]", "integers"]),
     (lambda: Scene((tube(), tube())), ["two tubes have the path /T"]),
     (lambda: ForceSpec("/F", 0, 2.0, [0.0], [[0, 1, 0]]), ["point 2.0", "integer"]),
+    # a path the output could not make a prim at (USD would say so only when the output is written)
+    (lambda: tube(path="World T"), ["tube path 'World T'", "absolute USD prim path"]),
+    (lambda: ForceSpec("F", 0, 2, [0.0], [[0, 1, 0]]), ["force path 'F'"]),
+    (lambda: TubeParams(density="1000", youngs_modulus=1e5), ["density '1000'", "expected a number"]),
 ])  # fmt: skip
 def test_scene_dataclasses_refuse_what_the_reader_refuses(make, words):
     with pytest.raises(SceneError) as err:
@@ -132,3 +136,17 @@ def test_a_force_on_a_pinned_point_is_warned_of_in_code_too(caplog):
     text = " ".join(r.getMessage() for r in caplog.records)
     assert "force /World/Push: point 1 of /World/Tube is pinned: this force does nothing" in text
     assert "set_force(0): point 1 of /World/Tube is pinned" in text
+
+
+def test_the_stages_are_reachable_from_the_package_without_importing_them():
+    """``import warp_tube`` then ``warp_tube.batch.run_batch`` and ``warp_tube.scene.usd.save_scene``
+    (the README's spelling), in a fresh interpreter; a name that is no module stays an AttributeError."""
+    import subprocess
+    import sys
+
+    code = ("import warp_tube\n"
+            "print(warp_tube.batch.run_batch.__name__, warp_tube.scene.usd.save_scene.__name__)\n"
+            "try:\n    warp_tube.nothing\nexcept AttributeError as e:\n    print('AttributeError', e)\n")  # fmt: skip
+    r = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, timeout=120)
+    assert r.returncode == 0, r.stderr
+    assert r.stdout.split("\n")[:2] == ["run_batch save_scene", "AttributeError module 'warp_tube' has no attribute 'nothing'"]

@@ -111,6 +111,10 @@ def test_a_mistyped_column_names_the_closest_prim_or_attribute(tmp_path):
         r = cli("batch", scene, "--variants", table, "-o", tmp_path / "out", "--frames", 2)
         assert r.returncode == 2 and hint in r.stderr, r.stderr
         assert not (tmp_path / "out").exists()
+    # a tube's column is matched against a tube's attributes only (warptube:foo is not warptube:force)
+    table = write(tmp_path / "t.csv", "/World/Tube.warptube:foo\n1\n")
+    r = cli("batch", scene, "--variants", table, "-o", tmp_path / "out", "--frames", 2)
+    assert r.returncode == 2 and "no attribute warptube:foo" in r.stderr and "did you mean" not in r.stderr, r.stderr
     table = write(tmp_path / "t.csv", "/World/Elsewhere.warptube:youngsModulus\n100000\n")
     r = cli("batch", scene, "--variants", table, "-o", tmp_path / "out", "--frames", 2)
     assert r.returncode == 2 and "no prim /World/Elsewhere" in r.stderr and "did you mean" not in r.stderr

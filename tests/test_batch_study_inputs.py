@@ -9,6 +9,7 @@ from pathlib import Path
 import pytest
 
 from warp_tube.batch import run_batch
+from warp_tube import load_scene
 from warp_tube.scene.spec import SceneError
 
 DEFAULT = Path(__file__).resolve().parents[1] / "scenes" / "default.usda"
@@ -89,21 +90,33 @@ def test_a_call_made_while_a_spawned_process_imports_the_main_module_is_refused(
     assert not out.exists()
 
 
-def test_a_bad_cell_crossed_with_variant_sets_is_reported_once(tmp_path):
-    """A cell that cannot be read is the same problem in every variantSet combination: one line."""
+def default_with_variant_set(folder, attribute: str, type_name: str, name: str, choices: dict, selected: bool = True) -> Path:
+    """The default scene, its tube's ``attribute`` authored in a variantSet ``name`` instead
+    (``choices``: variant -> value; the last one selected, or none), written into ``folder``.
+    Edited in a copy: the layer usd-core keeps of the scene itself stays as it is for the other tests."""
+    import shutil
+
     from pxr import Sdf, Usd
 
-    stage = Usd.Stage.Open(str(DEFAULT))
+    stage = Usd.Stage.Open(str(shutil.copy(DEFAULT, Path(folder) / "default_copy.usda")))
     tube = stage.GetPrimAtPath("/World/Tube")
-    tube.RemoveProperty("warptube:damping")
-    vset = tube.GetVariantSets().AddVariantSet("damping")
-    for name, value in (("low", 1.0), ("high", 4.0)):
-        vset.AddVariant(name)
-        vset.SetVariantSelection(name)
+    tube.RemoveProperty(attribute)
+    vset = tube.GetVariantSets().AddVariantSet(name)
+    for choice, value in choices.items():
+        vset.AddVariant(choice)
+        vset.SetVariantSelection(choice)
         with vset.GetVariantEditContext():
-            tube.CreateAttribute("warptube:damping", Sdf.ValueTypeNames.Double).Set(value)
-    scene = tmp_path / "vs.usda"
+            tube.CreateAttribute(attribute, getattr(Sdf.ValueTypeNames, type_name)).Set(value)
+    if not selected:
+        vset.ClearVariantSelection()
+    scene = Path(folder) / "vs.usda"
     stage.GetRootLayer().Export(str(scene))
+    return scene
+
+
+def test_a_bad_cell_crossed_with_variant_sets_is_reported_once(tmp_path):
+    """A cell that cannot be read is the same problem in every variantSet combination: one line."""
+    scene = default_with_variant_set(tmp_path, "warptube:damping", "Double", "damping", {"low": 1.0, "high": 4.0})
     table = tmp_path / "t.csv"
     table.write_text("/World/Tube.warptube:youngsModulus\n100000\n1e5 Pa\n")
     out = tmp_path / "out"
@@ -113,6 +126,19 @@ def test_a_bad_cell_crossed_with_variant_sets_is_reported_once(tmp_path):
     assert text.startswith("1 problem(s)")
     assert text.count("row 1 (line 3), column /World/Tube.warptube:youngsModulus") == 1
     assert not out.exists()
+
+
+def test_variant_sets_without_a_default_selection_expand(tmp_path):
+    """A variantSet that authors the tube's widths and has no default selection: the scene as it
+    is lacks widths, but every combination ``--variant-sets`` makes is whole, so the batch runs
+    them all (a scene read without the option is still refused)."""
+    scene = default_with_variant_set(tmp_path, "widths", "FloatArray", "shape", {"thin": [1.0], "thick": [3.0]}, selected=False)
+    with pytest.raises(SceneError, match="widths: missing"):
+        load_scene(str(scene))
+    result = run_batch(str(scene), str(tmp_path / "out"), variant_sets="all", frames=2, surface=False)
+    assert result.ok == 2
+    summary = (tmp_path / "out" / "summary.csv").read_text()
+    assert ",thin," in summary and ",thick," in summary
 
 
 def test_resuming_a_finished_batch_whose_output_was_deleted_warns_naming_it(tmp_path, caplog):

@@ -52,4 +52,4 @@ def test_the_trial_runs_warn_of_a_contact_at_rest_once(tmp_path, caplog):
     assert size is not None and 2 <= size.runs <= PUSH_RUNS, size  # (more than one run warned)
     contacts = [r for r in caplog.records if "closer than the sum of their radii" in r.getMessage()]
     assert len(contacts) == 1, [r.getMessage() for r in contacts]
-    assert contacts[0].getMessage().startswith("frame 1:")
+    assert contacts[0].getMessage().startswith("while sizing the push, a run of the scene: frame 1:")  # (said as the sizing's)

@@ -67,3 +67,43 @@ def test_the_push_of_an_extracted_winding_tube_moves_it_by_two_radii(tmp_cwd, ca
     reported = float(line.split("moves by ", 1)[1].split()[0]) * 1e-3  # mm -> m, printed to 3 digits
     assert abs(moved - reported) <= 5e-3 * reported, (moved, reported)
     assert 0.85 * target <= moved <= 1.15 * target, (moved, target)
+
+
+@pytest.mark.parametrize("stop", [KeyboardInterrupt, "scene error"])
+def test_an_extract_stopped_while_sizing_its_push_leaves_the_old_scene_as_it_was(stop, tmp_cwd, capsys, monkeypatch):
+    """The scene is written under a hidden name and its push sized there; stopped on the way (Ctrl-C,
+    SIGTERM) or failing (an absurd force after a wrong --scale), the scene already at the output
+    name is left as it was and nothing else is left behind."""
+    import warp_tube.sim.calibrate as calibrate
+    from warp_tube.scene.spec import SceneError
+
+    from .test_extract import helix, tube_mesh
+
+    mesh, _, _ = tube_mesh(curve=helix, stations=60, ring=16)
+    mesh.export(tmp_cwd / "helix.ply")
+    (tmp_cwd / "helix.usda").write_text("#usda 1.0\n# the user's own scene\n")
+
+    def stopped(path, *args, **kwargs):
+        assert path != str(tmp_cwd / "helix.usda") and (tmp_cwd / "helix.usda").read_text().endswith("own scene\n")
+        raise KeyboardInterrupt if stop is KeyboardInterrupt else SceneError(f"{path}: /World/Push.warptube:force: too large")
+
+    monkeypatch.setattr(calibrate, "size_push", stopped)
+    status = main(["extract", "helix.ply", "-o", "helix.usda", "--scale", "0.01"])
+    assert status == (130 if stop is KeyboardInterrupt else 2)
+    assert (tmp_cwd / "helix.usda").read_text() == "#usda 1.0\n# the user's own scene\n"
+    assert sorted(p.name for p in tmp_cwd.iterdir()) == ["helix.ply", "helix.usda"]  # no hidden temporary file
+    err = capsys.readouterr().err
+    if stop is not KeyboardInterrupt:  # named as the file the user asked for, not the hidden one
+        assert "helix.usda: /World/Push.warptube:force: too large (helix.usda left as it was)" in err, err
+
+
+def test_a_scale_that_makes_the_mesh_absurdly_large_is_refused_before_anything_is_written(tmp_cwd, capsys):
+    from .test_extract import helix, tube_mesh
+
+    mesh, _, _ = tube_mesh(curve=helix, stations=60, ring=16)
+    mesh.export(tmp_cwd / "helix.ply")
+    for scale in ("1e6", "1e300"):
+        assert main(["extract", "helix.ply", "-o", "helix.usda", "--scale", scale]) == 2
+        err = capsys.readouterr().err
+        assert "m across after scaling by" in err and "check --scale" in err and "RuntimeWarning" not in err, err
+    assert sorted(p.name for p in tmp_cwd.iterdir()) == ["helix.ply"]

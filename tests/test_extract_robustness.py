@@ -157,7 +157,7 @@ def test_garbage_named_stl_and_a_text_file_name_the_file_and_what_is_wrong(tmp_p
     assert main(["extract", "notes.txt", "-o", "s.usda"]) == 2
     first, second = capsys.readouterr().err.strip().splitlines()
     assert first == "warp-tube: garbage.stl: not a readable STL mesh: the file is damaged, truncated or not STL"
-    assert second == "warp-tube: notes.txt: a .txt file: expected a mesh file (.stl, .ply or .obj)"
+    assert second == "warp-tube: notes.txt: a .txt file: expected a mesh file (.stl, .ply, .obj, .off or .glb)"
     assert not (tmp_path / "s.usda").exists()
 
 

@@ -294,3 +294,20 @@ def test_short_wide_tube_pushed_hard_holds_no_more_energy_than_the_push_put_in()
     rest = line(n, 0.0198)
     q = sim.state.node_q.numpy()[0]
     assert np.linalg.norm(q - rest, axis=1).max() < 0.1 * r  # released at 2.5 s: back near rest at 4 s
+
+
+def test_a_time_step_not_taken_as_given_is_said_in_the_reason():
+    """``auto`` takes a timeStep beyond the stability bound only through implicit Euler; a
+    timeStep longer than a frame runs as one substep a frame: the reason names the value asked for."""
+    from warp_tube.centerline.policy import choose_integrator
+
+    frame = 1.0 / 24.0
+    soft = choose_integrator(SimulationSettings(time_step=0.01), critical_dt=3e-3, frame_dt=frame)  # 28 semi-implicit substeps: cheaper
+    assert soft.integrator == "semiImplicitEuler" and soft.dt == 1.5e-3
+    assert "timeStep 0.01 s exceeds the stability bound" in soft.reason, soft.reason
+    stiff = choose_integrator(SimulationSettings(time_step=0.01), critical_dt=1e-7, frame_dt=frame)
+    assert stiff.integrator == "implicitEuler" and stiff.dt == 0.01 and "timeStep 0.01 s exceeds" in stiff.reason
+    long = choose_integrator(SimulationSettings(integrator="implicitEuler", time_step=0.5), critical_dt=1e-3, frame_dt=frame)
+    assert long.dt == frame and "timeStep 0.5 s is longer than a frame: one substep a frame" in long.reason, long.reason
+    within = choose_integrator(SimulationSettings(time_step=1e-4), critical_dt=1e-3, frame_dt=frame)
+    assert within.dt == 1e-4 and "within the stability bound" in within.reason

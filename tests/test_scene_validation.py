@@ -43,6 +43,9 @@ BAD = {
     "huge force": (mutate("24: (0, 0.02, 0)", "24: (0, 1e12, 0)"), ["warptube:force", "1e+12"]),
     "misspelled attribute": (mutate("warptube:density = 1050", "warptube:densty = 1050"), ["/World/Tube.warptube:densty", "unknown attribute", "did you mean warptube:density"]),
     "force attribute on a tube": (mutate("warptube:density = 1050", "warptube:density = 1050\n        bool warptube:assistantLine = true"), ["/World/Tube.warptube:assistantLine", "not an attribute of a tube prim"]),
+    # a force whose target is left out or misspelled would be left out of the run without a word
+    "force without target": (mutate("        rel warptube:target = </World/Tube>\n", ""), ["/World/Push", "warptube:force", "without a warptube:target relationship"]),
+    "misspelled target": (mutate("rel warptube:target", "rel warptube:targt"), ["/World/Push.warptube:targt", "unknown relationship", "did you mean warptube:target"]),
     # the line of the broken `def Xform`, counted in the scene as it is
     "syntax error": (BASE.replace("def Xform", "def Xform {{"),
                      [f"USD syntax error at line {BASE[: BASE.index('def Xform')].count(chr(10)) + 1}", "unexpected end of file"]),
@@ -73,6 +76,13 @@ def test_missing_file_and_unwritable_output_exit_2(tmp_cwd):
     assert main(["run", str(SCENES / "default.usda"), "--frames", "0"]) == 2
     assert main(["run", str(SCENES / "default.usda"), "--device", "cuda:7"]) == 2
     assert not list(tmp_cwd.iterdir())
+
+
+def test_an_output_below_a_file_names_the_file(tmp_cwd, capsys):
+    (tmp_cwd / "notes.txt").write_text("mine")
+    assert main(["run", str(SCENES / "default.usda"), "-o", str(tmp_cwd / "notes.txt" / "x.usdc")]) == 2
+    assert "notes.txt is a file, not a folder" in capsys.readouterr().err
+    assert (tmp_cwd / "notes.txt").read_text() == "mine"
 
 
 def test_bad_input_from_the_console_script_has_no_traceback(tmp_cwd):
@@ -115,6 +125,15 @@ def test_unauthored_metadata_takes_usd_fallbacks(tmp_cwd):
     # a scale that differs along the axes: widths take its geometric mean
     (('def Xform "World"\n{', 'def Xform "World"\n{\n    double3 xformOp:scale = (2, 1, 1)\n    uniform token[] xformOpOrder = ["xformOp:scale"]'),
      ["scales unevenly", "geometric mean 1.26"]),
+    # a tube's attribute on a prim that is no tube: ignored, said with a hint
+    (('def Scope "Push"', 'def Scope "Stray"\n    {\n        double warptube:density = 5\n    }\n\n    def Scope "Push"'),
+     ["/World/Stray (a Scope prim) carries warptube:density but is not a tube", "ignored"]),
+    # returning springs without points to act on, a modulus the stiffnesses replace
+    (("double warptube:density = 1050", "double warptube:density = 1050\n        double warptube:anchorStiffness = 5"),
+     ["warptube:anchorStiffness: no anchorPoints"]),
+    (("double warptube:density = 1050", "double warptube:density = 1050\n        double warptube:stretchStiffness = 30\n"
+                                         "        double warptube:bendStiffness = 1e-4"),
+     ["warptube:youngsModulus: not used: stretchStiffness and bendStiffness are both given"]),
     # an animated parent transform with untimed points: not followed
     (('def Xform "World"\n{', 'def Xform "World"\n{\n    double3 xformOp:translate.timeSamples = {0: (0, 0, 0), 10: (5, 0, 0)}\n'
                                '    uniform token[] xformOpOrder = ["xformOp:translate"]'),
@@ -139,3 +158,41 @@ def test_time_sampled_points_without_pins_are_warned_of(tmp_cwd, caplog):
     with caplog.at_level("WARNING"):
         load_scene(str(tmp_cwd / "s.usda"))
     assert any("time-sampled, but the tube has no pinnedPoints" in r.getMessage() for r in caplog.records)
+
+
+def test_moving_pins_follow_their_samples_past_the_end_time_code(tmp_cwd):
+    """Points sampled at 0 and 3 with endTimeCode 2, run for 5 frames: the pinned point reaches the
+    sample at frame 3 and holds it after (as USD holds a value after its last sample, and as a
+    force's samples are followed), instead of stopping at the stage's last frame."""
+    from pxr import Usd
+
+    text = """#usda 1.0
+(
+    metersPerUnit = 0.01
+    timeCodesPerSecond = 24
+    startTimeCode = 0
+    endTimeCode = 2
+)
+def BasisCurves "Tube"
+{
+    uniform token type = "linear"
+    int[] curveVertexCounts = [5]
+    point3f[] points.timeSamples = {
+        0: [(0, 0, 0), (1, 0, 0), (2, 0, 0), (3, 0, 0), (4, 0, 0)],
+        3: [(0, 2, 0), (1, 0, 0), (2, 0, 0), (3, 0, 0), (4, 0, 0)],
+    }
+    float[] widths = [1] (interpolation = "constant")
+    int[] warptube:pinnedPoints = [0]
+    double warptube:youngsModulus = 100000
+    double warptube:density = 1000
+}
+"""
+    (tmp_cwd / "pins.usda").write_text(text)
+    tube = load_scene(str(tmp_cwd / "pins.usda")).tubes[0]
+    assert len(tube.pin_track) == 4  # frames 0..3: the stage's 3 and on to the last sample
+    assert main(["run", "pins.usda", "-o", "pins.usdc", "--frames", "5", "--quiet"]) == 0
+    stage = Usd.Stage.Open(str(tmp_cwd / "pins.usdc"))
+    attr = stage.GetPrimAtPath("/Tube/Centerline").GetAttribute("points")
+    y = [float(attr.Get(t)[0][1]) for t in attr.GetTimeSamples()]
+    # linear between the samples (pins move linearly between frames), then held; float32 centimetres
+    np.testing.assert_allclose(y, [0.0, 2 / 3, 4 / 3, 2.0, 2.0], atol=1e-6)

@@ -5,6 +5,7 @@ ISBMS 2006), with USD scenes in and time-sampled USD meshes out.
 """
 
 from .scene import ForceSpec, Scene, SceneError, SimulationSettings, StageInfo, TubeParams, TubeSpec
+from .runtime.submodules import lazy_submodules
 from .version import __version__
 
 __all__ = [
@@ -38,7 +39,7 @@ def __dir__():
     return sorted(set(globals()) | set(__all__))
 
 
-def __getattr__(name):
+def _lazy(name):
     if name == "Simulation":
         from . import io  # noqa: F401 (registers the USD writer with the frame loop)
         from .sim.simulation import Simulation
@@ -49,3 +50,6 @@ def __getattr__(name):
 
         return NumericalError
     raise AttributeError(name)
+
+
+__getattr__ = lazy_submodules(__name__, _lazy)  # and the stages: warp_tube.batch, warp_tube.scene.usd, ...

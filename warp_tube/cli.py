@@ -219,17 +219,39 @@ def _cmd_extract(a) -> int:
     from .extract.command import extract_to_scene
     from .runtime.progress import stderr_is_terminal
 
+    from .runtime.log_filters import renamed
+    from .scene.files import USD_EXTENSIONS, output_path, temp_path
+
     if a.scale is not None and len(a.scale) not in (1, 3):
         raise SceneError(f"--scale takes 1 or 3 values, got {len(a.scale)}")
-    done = extract_to_scene(a.mesh, a.output, hubs=a.hubs, spokes=a.spokes, scale=a.scale,
-                            progress=stderr_is_terminal(), strict=a.strict)  # fmt: skip
-    print(done.summary())
-    _size_push(done.output, stderr_is_terminal())
+    # Written under a hidden name, its push sized there, and renamed only then: a run that fails
+    # or is stopped on the way leaves nothing new, and an existing scene as it was.
+    final = output_path(a.output, USD_EXTENSIONS, inputs=[a.mesh], what="scene")
+    staged = temp_path(final)
+    done = None
+    try:
+        with renamed(staged, final):  # (what is said of the scene names the file it becomes)
+            done = extract_to_scene(a.mesh, a.output, hubs=a.hubs, spokes=a.spokes, scale=a.scale,
+                                    progress=stderr_is_terminal(), strict=a.strict, staging=staged)  # fmt: skip
+            print(done.summary())
+            _size_push(staged, os.path.basename(final), stderr_is_terminal())
+        os.replace(staged, final)
+    except SceneError as e:
+        if done is None:  # (the extraction's own: nothing was made)
+            raise
+        left = "left as it was" if os.path.lexists(final) else "not written"
+        raise SceneError(str(e).replace(staged, final) + f" ({a.output} {left})") from None
+    except OSError as e:
+        raise SceneError(f"{a.output}: cannot write ({e.strerror or e})") from None
+    finally:
+        if os.path.lexists(staged):
+            os.remove(staged)
     return EXIT_OK
 
 
-def _size_push(scene: str, progress: bool) -> None:
-    """Size the extracted scene's push by simulating it (see :mod:`warp_tube.sim.calibrate`)."""
+def _size_push(scene: str, name: str, progress: bool) -> None:
+    """Size the push of the extracted scene at ``scene`` (its final file name ``name``) by
+    simulating it (see :mod:`warp_tube.sim.calibrate`)."""
     from .runtime.progress import Phase
     from .sim.calibrate import PUSH_FRAMES, size_push
     from .sim.simulation import NumericalError
@@ -238,17 +260,17 @@ def _size_push(scene: str, progress: bool) -> None:
         with Phase("sizing the push (simulating the ramp and hold)", enabled=progress):
             size = size_push(scene)
     except NumericalError as e:
-        logging.getLogger("warp_tube.extract").warning("%s: the push was not sized (the scene failed: %s)", scene, e)
+        logging.getLogger("warp_tube.extract").warning("%s: the push was not sized (the scene failed: %s)", name, e)
         return
     if size is not None:
-        print(f"{os.path.basename(scene)}: push {size.force_n:.3g} N on the middle hub: the tube moves by "
+        print(f"{name}: push {size.force_n:.3g} N on the middle hub: the tube moves by "
               f"{size.moved_m * 1e3:.3g} mm by frame {PUSH_FRAMES - 1} (target {size.target_m * 1e3:.3g} mm; "
               f"x{size.factor:.3g} of the straight-beam estimate; {size.runs} runs)")  # fmt: skip
         if not size.within_tolerance:
             logging.getLogger("warp_tube.extract").warning(
                 "%s: the push moves the tube by %.3g mm, not the %.3g mm it was sized for: the tube does not answer "
                 "in proportion to the force (it snaps through or stiffens); edit /World/Push's warptube:force to taste",
-                scene, size.moved_m * 1e3, size.target_m * 1e3)  # fmt: skip
+                name, size.moved_m * 1e3, size.target_m * 1e3)  # fmt: skip
 
 
 def _cmd_preview(a) -> int:

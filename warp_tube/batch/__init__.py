@@ -5,12 +5,17 @@ command, as the worlds of one model, written as files, a grid stage or NumPy arr
 (imported on first use, so the command line stays quick to start).
 """
 
+from ..runtime.submodules import lazy_submodules
+
 __all__ = ["run_batch", "BatchResult", "BatchInterrupted"]
 
 
-def __getattr__(name):
+def _lazy(name):
     if name in __all__:
         from . import run
 
         return getattr(run, name)
     raise AttributeError(name)
+
+
+__getattr__ = lazy_submodules(__name__, _lazy)

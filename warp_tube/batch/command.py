@@ -54,7 +54,8 @@ def run(a) -> int:
             scheduler=a.scheduler, resume=a.resume, progress=tty,
         )  # fmt: skip
     except BatchInterrupted as e:
-        print(e.result.text(), file=sys.stderr)
+        if not a.quiet:
+            print(e.result.text(), file=sys.stderr)
         print(f"warp-tube: {stopped_by(e)}; the finished variants are kept: --resume goes on", file=sys.stderr)
         return exit_status(e)
     except BrokenProcessPool:

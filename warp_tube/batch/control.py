@@ -80,7 +80,9 @@ class WorldControl:
         self._pins = []
         for k, t in enumerate(worlds.scenes[0].tubes):
             if t.pin_track is not None:
-                track = np.stack([s.tubes[k].pin_track for s in worlds.scenes])
+                tracks = [s.tubes[k].pin_track for s in worlds.scenes]
+                F = max(len(tr) for tr in tracks)  # (a shorter track holds its last frame, as it would alone)
+                track = np.stack([np.concatenate([tr, np.repeat(tr[-1:], F - len(tr), axis=0)]) for tr in tracks])
                 self._pins.append((worlds.prim_start[k] + t.pinned, track))
         self._f_last = None  # the forces last written to the control, (W, F, 3) [N]
         self._constant = all(len(times) == 1 for groups in self._forces for times, _, _ in groups)

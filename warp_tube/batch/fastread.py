@@ -109,8 +109,16 @@ class PlainColumns:
                 E = fields.get("youngs_modulus", t.params.youngs_modulus)
                 if E is not None:
                     good &= ~(np.asarray(E) > MAX_YOUNGS)
+                # Warnings the reader gives a row and not the base scene (whose own were given once
+                # when it was read): the rows go through the reader.
+                p = t.params
+                if "youngs_modulus" in fields and p.youngs_modulus is None and p.stretch_stiffness is not None and p.bend_stiffness is not None:
+                    good[:] = False  # the modulus is not used
+                anchor_k = np.asarray(fields.get("anchor_stiffness", p.anchor_stiffness))
                 if len(t.anchors):
-                    good &= np.asarray(fields.get("anchor_stiffness", t.params.anchor_stiffness)) != 0.0  # the reader warns
+                    good &= anchor_k != 0.0  # anchors with no stiffness
+                elif "anchor_stiffness" in fields:
+                    good &= (anchor_k == 0.0) | (p.anchor_stiffness > 0.0)  # a stiffness with no anchors
         out: list = [None] * rows
         base_tubes, base_forces = list(self.base.tubes), list(self.base.forces)
         # per column its values as Python floats (a list indexes faster than an array)

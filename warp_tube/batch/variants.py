@@ -237,6 +237,25 @@ def _scene_prims_hint(stage, most: int = 6) -> str:
     return f" (the scene's warp_tube prims: {', '.join(found[:most])}{more})"
 
 
+def _prim_kind_attributes(prim) -> set:
+    """The ``warptube:`` attributes a prim of ``prim``'s kind takes (what a mistyped column name is
+    matched against): a force's, a tube's, a Mesh tube's, or any where the kind is not known."""
+    from pxr import UsdGeom
+
+    from ..scene.attributes import FORCE_ATTRS, KNOWN_ATTRS, MESH_ATTRS, SETTINGS_ATTRS, TUBE_ATTRS
+
+    names = {n for n in prim.GetPropertyNames() if n.startswith("warptube:")}
+    if prim.GetRelationship("warptube:target"):
+        return FORCE_ATTRS
+    if names & set(SETTINGS_ATTRS):
+        return set(SETTINGS_ATTRS)
+    if prim.IsA(UsdGeom.BasisCurves):
+        return TUBE_ATTRS
+    if prim.IsA(UsdGeom.Mesh):
+        return MESH_ATTRS
+    return KNOWN_ATTRS
+
+
 def _resolve_columns(stage, table: Table, context: str):
     """Per column: the attribute to author and its USD type name (or a problem message)."""
     from pxr import Sdf
@@ -260,7 +279,7 @@ def _resolve_columns(stage, table: Table, context: str):
             t = CONTRACT_TYPES[col.attribute]
             out.append((prim.CreateAttribute(col.attribute, Sdf.ValueTypeNames.Find(t)), t, None))
         else:
-            names = list(prim.GetPropertyNames()) + list(CONTRACT_TYPES)
+            names = list(prim.GetPropertyNames()) + sorted(_prim_kind_attributes(prim))
             out.append((None, None, f"{table.path}: column {col.header}: {col.prim} has no attribute {col.attribute} "
                                     f"in {context} (and it is not a warptube: scene attribute)"
                                     f"{_did_you_mean(col.attribute, names)}"))  # fmt: skip
@@ -359,7 +378,12 @@ def _collect(scene_path, table, variant_sets, extract, progress):
         raise SceneError("nothing to vary: give --variants TABLE, --variant-sets, or both")
     stage = open_stage(scene_path)
     reader = SceneReader(stage, scene_path, extract)
-    reader.read()  # the scene as it is must be valid
+    try:
+        reader.read()  # the scene as it is must be valid, unless its variantSets are expanded
+    except SceneError:
+        if not variant_sets:
+            raise
+        # without a selection it may be incomplete (a set without a default): each combination is read below
     axes = select_variant_sets(find_variant_sets(stage), variant_sets, scene_path) if variant_sets else []
     if table is not None and axes and table.first_row == 0:  # (once, not per part of the table)
         _warn_overridden(stage, axes, table)

@@ -90,13 +90,15 @@ def explain_integrator(settings: SimulationSettings, critical_dt: float, frame_d
     """Why :func:`decide_integrator` chose what it chose, in words (the run summary's line)."""
     s, hc = settings, critical_dt
     integrator, dt = decide_integrator(settings, critical_dt, frame_dt, implicit_cost)
+    # a timeStep longer than a frame runs as one substep a frame: said, with the value asked for
+    capped = f" (timeStep {s.time_step:.3g} s is longer than a frame: one substep a frame)" if s.time_step and s.time_step > frame_dt else ""
     if s.integrator == "implicitEuler":
-        return f"from the scene, substep {dt:.3g} s"
+        return f"from the scene, substep {dt:.3g} s{capped}"
     if s.integrator == "semiImplicitEuler":
         if s.time_step is not None:
             if is_forced(settings, critical_dt, frame_dt):
-                return f"forced; timeStep {dt:.3g} s exceeds the stability bound {hc:.3g} s"
-            return f"from the scene, timeStep {dt:.3g} s (bound {hc:.3g} s)"
+                return f"forced; timeStep {dt:.3g} s exceeds the stability bound {hc:.3g} s{capped}"
+            return f"from the scene, timeStep {dt:.3g} s (bound {hc:.3g} s){capped}"
         if not math.isfinite(hc):
             return "from the scene; nothing stiff: one substep per frame"
         return f"from the scene, substep {SAFETY:g} x the stability bound {hc:.3g} s"
@@ -107,11 +109,13 @@ def explain_integrator(settings: SimulationSettings, critical_dt: float, frame_d
     impl_dt = min(s.time_step or IMPLICIT_DT, frame_dt)
     semi_steps = math.ceil(frame_dt / (SAFETY * hc) - 1e-9)
     impl_steps = math.ceil(frame_dt / impl_dt - 1e-9)
+    # a timeStep beyond the bound is taken by implicit Euler only (force it with semiImplicitEuler)
+    over = f"timeStep {s.time_step:.3g} s exceeds the stability bound; " if s.time_step is not None else ""
     if integrator == "implicitEuler":
-        return (f"auto: stiff ({semi_steps} stable semi-implicit substeps a frame against {impl_steps} implicit "
-                f"ones at ~{implicit_cost:g}x the cost each)")  # fmt: skip
+        return (f"auto: {over}stiff ({semi_steps} stable semi-implicit substeps a frame against {impl_steps} implicit "
+                f"ones at ~{implicit_cost:g}x the cost each){capped}")  # fmt: skip
     why = f"cheaper than implicit ({impl_steps} substeps at ~{implicit_cost:g}x the cost)"
-    return f"auto: {semi_steps} substeps a frame at {SAFETY:g} x the stability bound {hc:.3g} s; {why}"
+    return f"auto: {over}{semi_steps} substeps a frame at {SAFETY:g} x the stability bound {hc:.3g} s; {why}"
 
 
 def choose_integrator(settings: SimulationSettings, critical_dt: float, frame_dt: float,

@@ -5,3 +5,7 @@ the queries on it (:mod:`.queries`), the distance field (:mod:`.distance_map`), 
 branches (:mod:`.branches`), fidelity of the simulator's rest surface (:mod:`.fidelity`), the
 tube-likeness check (:mod:`.tubelike`) with closed rings (:mod:`.closed_ring`), the scene it writes
 (:mod:`.usd`), the command (:mod:`.command`) and the counts in its messages (:mod:`.wording`)."""
+
+from ..runtime.submodules import lazy_submodules
+
+__getattr__ = lazy_submodules(__name__)  # its modules, imported on first use

@@ -35,7 +35,7 @@ class Extraction:
 
 
 def extract_to_scene(mesh_path, output, *, hubs=None, spokes=16, scale=None, device=None, progress=None,
-                     strict=False) -> Extraction:  # fmt: skip
+                     strict=False, staging=None) -> Extraction:  # fmt: skip
     """Extract the tube in a mesh file and write a simulation scene for it.
 
     Args:
@@ -50,6 +50,9 @@ def extract_to_scene(mesh_path, output, *, hubs=None, spokes=16, scale=None, dev
         device: Warp device for the queries.
         progress: status lines for the long phases on stderr (default: when it is a terminal).
         strict: refuse a mesh that is not tube-like (SceneError) instead of warning.
+        staging: write the scene there instead (a name beside ``output``), for a caller that edits
+            it before renaming it to ``output`` (``warp-tube extract`` sizes its push first); None:
+            ``output`` itself.
 
     Returns:
         The :class:`Extraction`. Warnings (a shape that does not look like a tube, a closed ring
@@ -79,18 +82,19 @@ def extract_to_scene(mesh_path, output, *, hubs=None, spokes=16, scale=None, dev
     fid = tube.fidelity
     warnings += tube.warnings  # the tube-likeness check and the fit on the simulator's rest surface (logged)
     found = tube_warnings(tube, fid, automatic_hubs=hubs is None)
-    if tube.length > 20.0:
-        found.append(f"the tube is {tube.length:.3g} m long: is the mesh in mm or voxels? Pass --scale")
-    elif tube.length < 1e-3:  # under 1 mm: e.g. --scale 0.001 given for a mesh already in metres
+    length = tube.tip_to_tip  # (the length the summary gives)
+    if length > 20.0:
+        found.append(f"the tube is {length:.3g} m long: is the mesh in mm or voxels? Pass --scale")
+    elif length < 1e-3:  # under 1 mm: e.g. --scale 0.001 given for a mesh already in metres
         found.append(
-            f"the tube is {tube.length:.3g} m long ({1e3 * tube.length:.3g} mm): is the mesh already in metres "
+            f"the tube is {length:.3g} m long ({1e3 * length:.3g} mm): is the mesh already in metres "
             "(then leave --scale out), or is --scale too small?"
         )
     for w in found:
         log.warning("%s: %s", mesh_path, w)
     warnings += found
     with Phase(f"writing {os.path.basename(output)}", enabled=progress):
-        write_scene(tube, output, meters_per_unit=1.0, inputs=[mesh_path])
+        write_scene(tube, staging or output, meters_per_unit=1.0, inputs=[mesh_path], final_name=output)
     log.info("%s: %d hubs x %d spokes, %.4g m, %s -> %s (%.2f s)", mesh_path, tube.hubs, tube.spokes, tube.length,
              side_branches(len(tube.branches)), output, tube.timings["total"])  # fmt: skip
     return Extraction(tube, fid, output, warnings, given)

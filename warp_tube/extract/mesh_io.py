@@ -37,6 +37,8 @@ log = logging.getLogger(__name__)
 MIN_EDGE = 10.0 * trimesh.tol.merge
 """Least median edge length of a mesh after scaling [units of the result]: trimesh merges vertices
 closer than ``trimesh.tol.merge`` (1e-8), which collapses the faces of a smaller mesh."""
+#: the largest mesh file taken, across after scaling [m]: a larger one has a wrong --scale
+MAX_SIZE = 1e4
 _SEAL_FACES = 3  # least faces of a seal: a cut across a tube of five sides or more has three at least
 _TREADS = 0.25  # a flat patch with parallel faces of this x its area just off its plane is a terrace
 _FORMATS = {"stl": "STL", "stl_ascii": "STL", "ply": "PLY", "obj": "OBJ", "off": "OFF", "glb": "glTF", "gltf": "glTF"}
@@ -51,13 +53,14 @@ def _scale3(scale) -> np.ndarray:
     return s
 
 
-def clean_mesh(mesh: trimesh.Trimesh, source: str, scale=(1.0, 1.0, 1.0)) -> trimesh.Trimesh:
+def clean_mesh(mesh: trimesh.Trimesh, source: str, scale=(1.0, 1.0, 1.0), max_size: float | None = None) -> trimesh.Trimesh:
     """Checked, scaled, welded copy of ``mesh``, reduced to its largest connected component.
 
     Args:
         mesh: input triangle mesh [mesh units].
         source: name used in messages (file or prim path).
         scale: factor per axis (or one for all) applied to the vertices, e.g. CT voxel sizes.
+        max_size: the largest extent taken after scaling [units of the result], or None.
 
     Returns:
         A new mesh with merged duplicate vertices and without degenerate or duplicate faces.
@@ -84,8 +87,10 @@ def clean_mesh(mesh: trimesh.Trimesh, source: str, scale=(1.0, 1.0, 1.0)) -> tri
             f"{source}: {counted(int(bad.sum()), 'vertex')} with NaN or infinite coordinates "
             f"(first: vertex {int(np.argmax(bad))}): expected finite coordinates"
         )
-    _check_size(v * s, f, s, source)
-    out = trimesh.Trimesh(v * s, f, process=False)
+    with np.errstate(over="ignore", invalid="ignore"):  # (an absurd --scale: named below, not a NumPy warning)
+        scaled = v * s
+    _check_size(scaled, f, s, source, max_size)
+    out = trimesh.Trimesh(scaled, f, process=False)
     out.merge_vertices()
     out.update_faces(out.nondegenerate_faces())
     out.update_faces(out.unique_faces())
@@ -105,21 +110,25 @@ def clean_mesh(mesh: trimesh.Trimesh, source: str, scale=(1.0, 1.0, 1.0)) -> tri
     return out
 
 
-def _check_size(v: np.ndarray, f: np.ndarray, s: np.ndarray, source: str) -> None:
+def _check_size(v: np.ndarray, f: np.ndarray, s: np.ndarray, source: str, max_size: float | None = None) -> None:
     """Refuse a mesh whose median edge, after scaling, is below :data:`MIN_EDGE` (its vertices
-    would merge and its faces collapse).
+    would merge and its faces collapse), or that is more than ``max_size`` across (or None).
 
     Args:
         v: scaled vertices [units of the result], shape (V, 3); f: faces, int (F, 3), indices checked.
         s: the scale factors per axis; source: name used in messages.
     """
-    edges = np.linalg.norm(v[f[:, [1, 2, 0]]] - v[f], axis=-1).reshape(-1)
+    factors = s[:1] if (s == s[0]).all() else s
+    scaled = "" if (s == 1.0).all() else f" after scaling by {' x '.join(f'{x:g}' for x in factors)}"
+    with np.errstate(over="ignore", invalid="ignore"):
+        size = float(np.ptp(v, axis=0).max())
+        edges = np.linalg.norm(v[f[:, [1, 2, 0]]] - v[f], axis=-1).reshape(-1)
+    if max_size is not None and not size <= max_size:  # (inf and NaN included)
+        raise SceneError(f"{source}: the mesh is {size:.3g} m across{scaled}: more than {max_size:g} m, no tube; check "
+                         "--scale (metres per mesh unit)")  # fmt: skip
     edges = edges[edges > 0]
     if len(edges) == 0 or np.median(edges) >= MIN_EDGE:
         return  # no edge with length: "every face has zero area" below
-    size = float(np.ptp(v, axis=0).max())
-    factors = s[:1] if (s == s[0]).all() else s
-    scaled = "" if (s == 1.0).all() else f" after scaling by {' x '.join(f'{x:g}' for x in factors)}"
     raise SceneError(f"{source}: the mesh is {size:.3g} across{scaled} (median edge {np.median(edges):.3g}): too "
                      f"small, vertices closer than {trimesh.tol.merge:g} merge; check --scale (metres per mesh unit)")
 
@@ -135,8 +144,8 @@ def _file_type(path: str) -> str:
     found = next((t for t in types if name.endswith("." + t)), None)
     if found is None:
         ext = os.path.splitext(name)[1]
-        raise SceneError(f"{path}: {f'a {ext} file' if ext else 'no extension'}: expected a mesh file (.stl, .ply "
-                         "or .obj)")  # fmt: skip
+        raise SceneError(f"{path}: {f'a {ext} file' if ext else 'no extension'}: expected a mesh file (.stl, .ply, "
+                         ".obj, .off or .glb)")  # fmt: skip
     return found
 
 
@@ -181,11 +190,13 @@ def load_mesh(path, scale=(1.0, 1.0, 1.0)) -> trimesh.Trimesh:
         SceneError: no such file, unreadable, not a mesh, empty, NaN coordinates, ...
     """
     path = os.fspath(path)
+    if os.path.isdir(path):
+        raise SceneError(f"{path}: is a folder: expected a mesh file")
     if not os.path.isfile(path):
         raise SceneError(f"{path}: no such file")
     ext = os.path.splitext(path)[1].lower()
     if ext in (".usd", ".usda", ".usdc", ".usdz"):
-        raise SceneError(f"{path}: a USD stage, not a mesh file: extract reads STL, PLY or OBJ; a USD Mesh prim is "
+        raise SceneError(f"{path}: a USD stage, not a mesh file: extract reads STL, PLY, OBJ, OFF or glTF binary; a USD Mesh prim is "
                          "extracted when its scene loads, with warptube:extract = true (see the README)")  # fmt: skip
     file_type = _file_type(path)
     try:
@@ -210,7 +221,11 @@ def load_mesh(path, scale=(1.0, 1.0, 1.0)) -> trimesh.Trimesh:
         if points:
             raise SceneError(f"{path}: {counted(points, 'point')} and no faces (a point cloud): expected a surface "
                              "mesh")
-    return clean_mesh(mesh, path, scale)
+        kind = _FORMATS.get(file_type, file_type.upper())
+        if os.path.getsize(path) == 0:
+            raise SceneError(f"{path}: an empty file: expected a surface mesh")
+        raise SceneError(f"{path}: no mesh read as {kind}: the file is damaged or not {kind}")
+    return clean_mesh(mesh, path, scale, max_size=MAX_SIZE)
 
 
 def mesh_from_arrays(points, face_vertex_counts, face_vertex_indices, *, source="<mesh>", scale=(1.0, 1.0, 1.0)):

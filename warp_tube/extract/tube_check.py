@@ -51,7 +51,7 @@ def tube_warnings(tube, fidelity=None, automatic_hubs: bool = True, units: str =
         out.append(
             "the fit of the rebuilt surface could not be measured: no mesh vertex lies away from the tube's ends "
             "(a mesh with vertices only at its end rings, such as a plain cylinder, has none); subdivide the mesh "
-            "along its length or pass --hubs N"
+            "along its length" + (" or pass --hubs N" if automatic_hubs else "")
         )
     per_radius = (tube.hubs - 1) * r / length if length > 0 else math.inf
     if automatic_hubs and per_radius > MAX_HUBS_PER_RADIUS:

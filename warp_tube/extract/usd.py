@@ -90,6 +90,7 @@ def write_scene(
     up_axis: str = "Y",
     end_time_code: int = 96,
     inputs=(),
+    final_name: str | None = None,
 ) -> str:
     """Write a simulation scene for an extracted tube (DESIGN scene contract).
 
@@ -109,6 +110,8 @@ def write_scene(
         up_axis: "Y" or "Z".
         end_time_code: last frame (24 per second).
         inputs: files the scene must not be written over (the mesh it was extracted from).
+        final_name: the name the scene will have, where ``path_usda`` is a name it is edited under
+            first (the scene's doc string names it); default ``path_usda``.
 
     Returns:
         The tube prim's path.
@@ -148,7 +151,7 @@ def write_scene(
         f"{side_branches(len(extracted.branches))} left out.\n"
         "Success criteria: the tube bends smoothly under the push on its middle hub (frames 0-48), is "
         "released at frame 60 and returns to its extracted rest shape, held by its anchored ends.\n"
-        f"Runs: `warp-tube run {os.path.basename(path_usda)}`."
+        f"Runs: `warp-tube run {os.path.basename(final_name or path_usda)}`."
     )
 
     curves = UsdGeom.BasisCurves.Define(stage, f"/World/{tube_name}")

@@ -10,7 +10,7 @@ from __future__ import annotations
 import contextlib
 import logging
 
-__all__ = ["silenced", "once_each"]
+__all__ = ["silenced", "once_each", "renamed"]
 
 
 @contextlib.contextmanager
@@ -29,9 +29,10 @@ def silenced(name: str):
     return _filtered(name, lambda record: False)
 
 
-def once_each(name: str):
+def once_each(name: str, prefix: str = ""):
     """Logger ``name`` passes each distinct message once inside the block (the same warning for
-    every variant is one)."""
+    every variant is one), each after ``prefix`` (what the block is doing, where that is not what
+    the user asked for)."""
     seen: set = set()
 
     def keep(record) -> bool:
@@ -39,6 +40,29 @@ def once_each(name: str):
         if message in seen:
             return False
         seen.add(message)
+        if prefix:
+            record.msg, record.args = prefix + message, None
         return True
 
     return _filtered(name, keep)
+
+
+@contextlib.contextmanager
+def renamed(old: str, new: str):
+    """Every record that reaches a handler of the root logger names ``new`` where it would name
+    ``old`` (a file edited under a temporary name, named in messages as the file it becomes)."""
+
+    def rename(record: logging.LogRecord) -> bool:
+        text = record.getMessage()
+        if old in text:
+            record.msg, record.args = text.replace(old, new), None
+        return True
+
+    handlers = list(logging.getLogger().handlers)
+    for h in handlers:
+        h.addFilter(rename)
+    try:
+        yield
+    finally:
+        for h in handlers:
+            h.removeFilter(rename)

@@ -4,10 +4,17 @@ no other (a misspelling, or an attribute of another kind of prim, is an error na
 from __future__ import annotations
 
 import difflib
+import logging
 
 from .spec import SceneError
 
-__all__ = ["SETTINGS_ATTRS", "TUBE_ATTRS", "FORCE_ATTRS", "MESH_ATTRS", "KNOWN_ATTRS", "check_names"]
+__all__ = ["SETTINGS_ATTRS", "TUBE_ATTRS", "FORCE_ATTRS", "MESH_ATTRS", "KNOWN_ATTRS", "check_names", "check_relationships",
+           "not_simulated"]
+
+log = logging.getLogger("warp_tube.scene.usd")
+
+#: the one ``warptube:`` relationship: a force prim's tube
+TARGET = "warptube:target"
 
 SETTINGS_ATTRS = ("warptube:timeStep", "warptube:integrator", "warptube:gravity")
 TUBE_ATTRS = {
@@ -36,3 +43,30 @@ def check_names(path: str, prim, names: list, known: set, kind: str) -> None:
             what = "unknown attribute" + (f": did you mean {near[0]}?" if near else "")
         takes = ", ".join(sorted(n.split(":")[1] for n in known))
         raise SceneError(f"{path}: {prim.GetPath()}.{name}: {what} (a {kind} prim takes {takes})")
+
+
+def check_relationships(path: str, prim) -> None:
+    """A ``warptube:`` relationship other than ``warptube:target`` is a mistake (a misspelled
+    target would otherwise leave its force out without a word): an error naming it."""
+    for rel in prim.GetRelationships():
+        name = rel.GetName()
+        if name.startswith("warptube:") and name != TARGET:
+            raise SceneError(f"{path}: {prim.GetPath()}.{name}: unknown relationship: did you mean {TARGET} "
+                             "(a force's tube: rel warptube:target = </PATH/TO/TUBE>)?")  # fmt: skip
+
+
+def not_simulated(path: str, prim, names: list) -> None:
+    """``prim`` carries known ``warptube:`` attributes (``names``) but is no tube, force or
+    settings prim: a force's attributes without its target are an error (the force would be left
+    out without a word); a tube's on another kind of prim are ignored, with a warning saying why."""
+    force = sorted(set(names) & FORCE_ATTRS)
+    if force:
+        raise SceneError(f"{path}: {prim.GetPath()}: {', '.join(force)} without a {TARGET} relationship: a force prim "
+                         f"names its tube with rel {TARGET} = </PATH/TO/TUBE>")  # fmt: skip
+    kind = prim.GetTypeName() or "typeless"
+    if kind == "Mesh":
+        hint = "set warptube:extract = true on it to extract a tube from it"
+    else:
+        hint = "tube attributes belong on a linear BasisCurves prim (or a Mesh with warptube:extract = true)"
+    log.warning("%s: %s (a %s prim) carries %s but is not a tube, force or settings prim: ignored (%s)", path,
+                prim.GetPath(), kind, ", ".join(sorted(names)), hint)

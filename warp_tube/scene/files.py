@@ -102,6 +102,11 @@ def output_path(path, extensions: Iterable[str], *, inputs: Iterable = (), what:
         raise SceneError(f"{raw}: {what} extension {ext or '(none)'}: expected {', '.join(extensions)}")
     folder = os.path.dirname(path)
     if not os.path.isdir(folder):
+        up = folder
+        while up and not os.path.exists(up) and os.path.dirname(up) != up:
+            up = os.path.dirname(up)
+        if os.path.exists(up) and not os.path.isdir(up):
+            raise SceneError(f"{raw}: cannot write the {what}: {up} is a file, not a folder")
         raise SceneError(f"{raw}: cannot write the {what}: folder {folder} does not exist")
     if not os.access(folder, os.W_OK):
         raise SceneError(f"{raw}: cannot write the {what}: folder {folder} is not writable")

@@ -10,6 +10,7 @@ Geometry (points, widths, spoke lengths) is stored in SI metres here; the stage'
 from __future__ import annotations
 
 import math
+import re
 from dataclasses import dataclass, field
 
 import numpy as np
@@ -118,6 +119,23 @@ class SimulationSettings:
             object.__setattr__(self, "gravity", tuple(float(x) for x in g))
 
 
+#: an absolute USD prim path: names of letters, digits and underscores (not starting with a digit)
+_PRIM_PATH = re.compile(r"(/[^\W\d]\w*)+")
+
+
+def check_prim_path(path, what: str) -> None:
+    """A SceneError unless ``path`` is an absolute USD prim path (what the output's prims are made at)."""
+    if not isinstance(path, str) or not _PRIM_PATH.fullmatch(path):
+        raise SceneError(f"{what} path {path!r}: expected an absolute USD prim path such as /World/Tube (names of "
+                         "letters, digits and underscores, not starting with a digit)")  # fmt: skip
+
+
+def number(name: str, v) -> None:
+    """A SceneError naming ``name`` unless ``v`` is a real number (not a bool or a string)."""
+    if isinstance(v, bool) or not isinstance(v, (int, float, np.integer, np.floating)):
+        raise SceneError(f"{name} {v!r}: expected a number")
+
+
 @dataclass(frozen=True)
 class TubeParams:
     """Material and surface parameters of one tube prim (all its curves), SI units.
@@ -150,10 +168,12 @@ class TubeParams:
 
     def __post_init__(self):
         def positive(name, v):
+            number(name, v)
             if not (math.isfinite(v) and v > 0.0):
                 raise SceneError(f"{name} {v!r}: expected a positive finite number")
 
         def nonneg(name, v):
+            number(name, v)
             if not (math.isfinite(v) and v >= 0.0):
                 raise SceneError(f"{name} {v!r}: expected a finite number >= 0")
 
@@ -217,6 +237,9 @@ class TubeSpec:
     metadata: dict = field(default_factory=dict)
 
     def __post_init__(self):
+        check_prim_path(self.path, "tube")
+        if not isinstance(self.params, TubeParams):
+            raise SceneError(f"tube {self.path}: params {type(self.params).__name__}: expected a TubeParams")
         pts = np.asarray(self.points, dtype=np.float64)
         where = f"tube {self.path}"
         if pts.ndim != 2 or pts.shape[1] != 3 or len(pts) < 2:
@@ -308,6 +331,7 @@ class ForceSpec:
     assistant_line: bool = True
 
     def __post_init__(self):
+        check_prim_path(self.path, "force")
         t = np.asarray(self.times, dtype=np.float64).reshape(-1)
         v = np.asarray(self.values, dtype=np.float64).reshape(-1, 3)
         if len(t) != len(v) or len(t) == 0:

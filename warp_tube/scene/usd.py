@@ -17,7 +17,7 @@ import os
 import numpy as np
 
 from .curves import check_curve_type, check_points_type, curve_widths
-from .attributes import FORCE_ATTRS, KNOWN_ATTRS, MESH_ATTRS, SETTINGS_ATTRS, TUBE_ATTRS, check_names
+from .attributes import FORCE_ATTRS, KNOWN_ATTRS, MESH_ATTRS, SETTINGS_ATTRS, TUBE_ATTRS, check_names, check_relationships, not_simulated
 from .spec import (
     FRAME_MODES,
     INTEGRATORS,
@@ -33,6 +33,9 @@ from .opening import open_stage, usd_error_in_user_terms
 from .transforms import to_world, warn_about_layer_units, warn_about_transforms
 
 log = logging.getLogger(__name__)
+
+#: a moving pin's track holds at most this many frames (the stage's own frames are limited alike)
+MAX_PIN_FRAMES = 1_000_001
 
 __all__ = ["load_scene", "open_stage", "save_scene", "usd_error_in_user_terms", "SceneReader"]
 
@@ -213,6 +216,9 @@ def _read_tube(file: str, prim, info: StageInfo, frame_times, varying: dict | No
         )
     if EA is not None and EA == 0.0:
         r.fail("warptube:stretchStiffness", 0.0, "a positive axial stiffness [N]")
+    if E is not None and EA is not None and EI is not None:
+        log.warning("%s: not used: stretchStiffness and bendStiffness are both given and take its place",
+                    r.where("warptube:youngsModulus"))  # fmt: skip
     spokes = r.integer("warptube:spokes", default=16, lo=3, hi=1024)
     rn = r.vec3("warptube:referenceNormal")
     if rn is not None and np.linalg.norm(rn) == 0.0:
@@ -244,6 +250,8 @@ def _read_tube(file: str, prim, info: StageInfo, frame_times, varying: dict | No
         idx[attr] = v
     if len(idx["warptube:anchorPoints"]) and params.anchor_stiffness == 0.0:
         log.warning("%s: anchorPoints given with anchorStiffness 0: the returning springs do nothing", r.where("warptube:anchorStiffness"))
+    if not len(idx["warptube:anchorPoints"]) and params.anchor_stiffness > 0.0:
+        log.warning("%s: no anchorPoints: the returning springs act on none of the points", r.where("warptube:anchorStiffness"))
     sl = r.reals("warptube:spokeLengths")
     if sl is not None:
         if len(sl) != n * spokes:
@@ -259,7 +267,7 @@ def _read_tube(file: str, prim, info: StageInfo, frame_times, varying: dict | No
                     "(the rest shape is the first frame's): nothing here follows them", r.where("points"))  # fmt: skip
     if pattr.GetNumTimeSamples() > 1 and len(pinned):
         track = []
-        for tc in frame_times:
+        for tc in pin_frame_times(frame_times, pattr.GetTimeSamples()[-1]):
             p = np.asarray(pattr.Get(Usd.TimeCode(tc)), dtype=np.float64)
             if p.shape != pts.shape or not np.isfinite(p).all():
                 r.fail("points", f"a sample at time {tc} of shape {p.shape}", f"finite points of shape {pts.shape}")
@@ -272,6 +280,16 @@ def _read_tube(file: str, prim, info: StageInfo, frame_times, varying: dict | No
         )  # fmt: skip
     except SceneError as e:
         raise SceneError(f"{file}: {e}") from None
+
+
+def pin_frame_times(frame_times: list, last_sample: float) -> list:
+    """The time codes of frames a moving pin's track holds: the stage's frames, and on to the
+    frame at or after the points' last time sample (a run of more frames than the stage's follows
+    the samples to there, as it follows a force's; after it the pins hold, as USD holds a value
+    after its last sample), at most :data:`MAX_PIN_FRAMES` frames."""
+    start = frame_times[0]
+    needed = min(int(math.ceil(last_sample - start - 1e-9)) + 1, MAX_PIN_FRAMES)
+    return frame_times + [start + k for k in range(len(frame_times), needed)]
 
 
 def _read_force(file: str, prim, tubes_by_path: dict, tube_specs, info: StageInfo) -> ForceSpec:
@@ -400,6 +418,7 @@ class SceneReader:
         # Into instances too: a tube under an instanceable prim is a tube (at its instance's path).
         for prim in stage.Traverse(Usd.TraverseInstanceProxies(Usd.PrimDefaultPredicate)):
             names = [a.GetName() for a in prim.GetAttributes() if a.GetName().startswith("warptube:")]
+            check_relationships(path, prim)
             if prim.GetRelationship("warptube:target"):
                 check_names(path, prim, names, FORCE_ATTRS, "force")
                 force_prims.append(prim)
@@ -415,7 +434,7 @@ class SceneReader:
                     mesh_prims.append(prim)
             elif names:
                 check_names(path, prim, names, KNOWN_ATTRS, "warp_tube")
-                log.info("%s: %s carries warptube: attributes but is not a tube, force or settings prim: ignored", path, prim.GetPath())
+                not_simulated(path, prim, names)
         _check_output_names(path, tubes + mesh_prims)
         if len(settings_prims) > 1:
             raise SceneError(

@@ -114,7 +114,9 @@ def size_push(path: str, force_path: str = "/World/Push", radii: float = 2.0, fr
         return largest_displacement(dataclasses.replace(scene, forces=(*scene.forces[:k], scaled, *scene.forces[k + 1:])), frames)
 
     # Each distinct warning of the runs once (a contact at rest, say, is met by every run).
-    with once_each("warp_tube.sim.simulation"), once_each("warp_tube.centerline.policy"):
+    # (said as what they are: warnings of the sizing's runs of the scene, not of a run asked for)
+    said = "while sizing the push, a run of the scene: "
+    with once_each("warp_tube.sim.simulation", said), once_each("warp_tube.centerline.policy", said):
         return _sized(path, force_path, force, target, moved)
 
 

@@ -442,8 +442,8 @@ class Simulation(RunBudget):
         summary = RunSummary(
             scene=self.scene.source, device=self.device, frames=0, substeps=self.substeps, dt=self.dt,
             integrator=self.integrator, reason=self.reason, wall_time=0.0, max_displacement=0.0,
-            stage_defaults=[k for k in ("metersPerUnit", "upAxis", "timeCodesPerSecond", "startTimeCode", "endTimeCode")
-                            if k not in info.authored],
+            stage_defaults=[k for k in ("metersPerUnit", "upAxis", "timeCodesPerSecond", "framesPerSecond", "startTimeCode",
+                                        "endTimeCode") if k not in info.authored],
             first_frame=first_written if written_count else first, setup_time=setup_time + setup,
         )  # fmt: skip
         self.last_summary = summary
