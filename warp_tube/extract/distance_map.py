@@ -121,7 +121,12 @@ def build_distance_map(
 def inside_voxels(closed_mesh: wp.Mesh, lo: np.ndarray, hi: np.ndarray, voxel_size: float, device=None):
     """The voxels of a grid over the box ``lo``..``hi`` whose centres lie inside ``closed_mesh``.
 
-    Crossing parity, one ray per (x, y) column (kernel :func:`warp_tube.kernels.raycast.fill_inside_columns`).
+    Crossing parity along each of the three axes, one ray per column of the grid (kernel
+    :func:`warp_tube.kernels.raycast.fill_inside_columns`), and a voxel inside where two of the three
+    say so. One axis alone is wrong along a whole column where a ray crosses a fold of a rough wall
+    (flipped faces that cross each other) an even number of times too many or too few: a streak of
+    voxels outside the tube taken as inside, which on a coil can join two turns and let the
+    centreline cut across them. Two axes are seldom wrong at the same voxel.
 
     Returns:
         ``(origin (3,), shape (nx, ny, nz), flat (M,))``: the centre of voxel (0, 0, 0) [mesh units],
@@ -133,16 +138,29 @@ def inside_voxels(closed_mesh: wp.Mesh, lo: np.ndarray, hi: np.ndarray, voxel_si
     jitter = np.array([0.1234567, 0.3456789, 0.0], dtype=np.float64) * h
     origin = np.asarray(lo, dtype=np.float64) - 1.5 * h + jitter
     shape = tuple(int(n) for n in np.ceil((np.asarray(hi, dtype=np.float64) - origin) / h).astype(np.int64) + 2)
+    votes = _parity(closed_mesh, origin, shape, h, device).astype(np.int8)
+    points = closed_mesh.points.numpy()
+    for axes in ((1, 2, 0), (2, 0, 1)):  # rays along x, then along y: the grid's axes turned
+        turned = wp.Mesh(points=wp.array(np.ascontiguousarray(points[:, axes]), dtype=wp.vec3, device=device),
+                         indices=closed_mesh.indices)  # fmt: skip
+        inside = _parity(turned, origin[list(axes)], tuple(shape[a] for a in axes), h, device)
+        votes += inside.transpose(np.argsort(axes))
+    return origin, shape, np.flatnonzero(votes.reshape(-1) >= 2)
+
+
+def _parity(mesh: wp.Mesh, origin: np.ndarray, shape: tuple, h: float, device) -> np.ndarray:
+    """Inside (1) or not (0) by crossing parity along +z, per voxel of the grid ``origin``,
+    ``shape``, ``h`` (as :func:`inside_voxels`), uint8 of ``shape``."""
     nx, ny, nz = shape
     inside = wp.zeros((nx * ny, nz), dtype=wp.uint8, device=device)
     wp.launch(
         raycast.fill_inside_columns,
         dim=nx * ny,
-        inputs=[closed_mesh.id, wp.vec3(*origin.astype(np.float32)), h, ny, nz, 4096],
+        inputs=[mesh.id, wp.vec3(*origin.astype(np.float32)), h, ny, nz, 4096],
         outputs=[inside],
         device=device,
     )
-    return origin, shape, np.flatnonzero(inside.numpy().reshape(-1))
+    return inside.numpy().reshape(shape)
 
 
 def _graphs(ijk, flat, shape, dfb, h):

@@ -68,6 +68,24 @@ log = logging.getLogger(__name__)
 _END_LOOP_FRACTION = 0.3  # a boundary loop may be an end if its radius >= this x median tube radius
 _CUT_AREA = 0.25  # a flat face may seal a cut end if its area >= this x pi x median tube radius^2
 _DENSE_SPACING = 0.5  # spacing of the dense axis, in median distances from the wall
+#: a mesh's edges are split to at most this fraction of its bounds' diagonal before the extraction
+_MAX_EDGE_FRACTION = 1.0 / 32.0
+
+
+def _refined(m: trimesh.Trimesh) -> trimesh.Trimesh:
+    """A coarse ``m`` (its median edge longer than :data:`_MAX_EDGE_FRACTION` of its bounds'
+    diagonal) with every edge longer than that split: the same surface, finer triangles. The
+    extraction samples the wall at the mesh's vertices (the radius estimate, the fit of the rebuilt
+    surface): a box of 12 triangles, or a cylinder with vertices at its end rings only, is then
+    sampled as a fine mesh of the same shape would be. Any other mesh comes back as it is (a fine
+    mesh's few long edges, e.g. across a flat cut, are left alone)."""
+    limit = _MAX_EDGE_FRACTION * float(np.linalg.norm(m.bounds[1] - m.bounds[0]))
+    if not len(m.edges_unique) or float(np.median(m.edges_unique_length)) <= limit:
+        return m
+    v, f = trimesh.remesh.subdivide_to_size(m.vertices, m.faces, max_edge=limit, max_iter=16)
+    out = trimesh.Trimesh(v, f, process=False)
+    out.merge_vertices()  # (the new vertices on an edge two faces share, once)
+    return out
 AUTO_FIDELITY = (0.03, 0.12, 0.35)
 """Default hub count: from one hub per mean radius, 1.5 times more until the mesh's vertices (ends
 and side branches left out) lie within these fractions of the mean radius (mean, 99th percentile,
@@ -268,7 +286,7 @@ def extract_centerline(
     device = wp.get_device(device)
     m = clean_mesh(mesh, src, scale)
     shift = 0.5 * (m.bounds[0] + m.bounds[1])  # work near the origin: float32 queries keep precision
-    m = trimesh.Trimesh(np.asarray(m.vertices) - shift, m.faces, process=False)
+    m = _refined(trimesh.Trimesh(np.asarray(m.vertices) - shift, m.faces, process=False))
     lo, hi = m.bounds
     diag = float(np.linalg.norm(hi - lo))
 

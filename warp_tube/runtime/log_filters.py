@@ -29,17 +29,18 @@ def silenced(name: str):
     return _filtered(name, lambda record: False)
 
 
-def once_each(name: str, prefix: str = ""):
+def once_each(name: str, prefix: str = "", key=None):
     """Logger ``name`` passes each distinct message once inside the block (the same warning for
     every variant is one), each after ``prefix`` (what the block is doing, where that is not what
-    the user asked for)."""
+    the user asked for); ``key(message)``: what makes two messages the same (default: the text)."""
     seen: set = set()
 
     def keep(record) -> bool:
         message = record.getMessage()
-        if message in seen:
+        k = message if key is None else key(message)
+        if k in seen:
             return False
-        seen.add(message)
+        seen.add(k)
         if prefix:
             record.msg, record.args = prefix + message, None
         return True
