@@ -311,7 +311,7 @@ def cases() -> list[Case]:
     ext("--scale 0", ["mesh.ply", "-o", "s.usda", "--scale", "0"])
     ext("--scale nan", ["mesh.ply", "-o", "s.usda", "--scale", "nan"])
     ext("a sphere, not a tube (warning)", ["ball.ply", "-o", "ball.usda"], 0, files={"ball.ply": _sphere}, creates=("ball.usda",))
-    ext("a cylinder with vertices only at its ends (warning)", ["can.ply", "-o", "can.usda"], 0, files={"can.ply": _plain_cylinder},
+    ext("a cylinder with vertices only at its ends (refined first: measured, no warning)", ["can.ply", "-o", "can.usda"], 0, files={"can.ply": _plain_cylinder},
         creates=("can.usda",), machine=True)  # fmt: skip  # rays along its few long faces' edges: device-dependent
 
     # -- preview

@@ -196,3 +196,47 @@ def test_where_the_platform_has_no_fork_server_the_writers_are_spawned(tmp_path,
     for k in range(2):
         name = f"variant_{k:05d}.usdc"
         assert filecmp.cmp(tmp_path / "spawned" / name, tmp_path / "here" / name, shallow=False), name
+
+
+def _descendants(pid: int) -> list[int]:
+    """Every process below ``pid`` (from /proc)."""
+    out, todo = [], [pid]
+    while todo:
+        kids = _children(todo.pop())
+        out += kids
+        todo += kids
+    return out
+
+
+@pytest.mark.skipif(not os.path.isdir("/proc/self"), reason="finds the batch's processes through /proc")
+def test_a_batch_killed_with_sigkill_leaves_no_process_behind(tmp_path):
+    """A batch killed outright (SIGKILL: no handler runs) leaves none of its processes running:
+    its writer processes wait on queues they hold both ends of and never saw it go, and kept their
+    fork server and the resource tracker alive for ever; now each ends with the batch."""
+    import signal
+    import time
+
+    table = tmp_path / "t.csv"
+    table.write_text("/World/Tube.warptube:youngsModulus\n" + "".join(f"{80000 + 100 * k}\n" for k in range(300)))
+    out = tmp_path / "out"
+    args = [sys.executable, "-m", "warp_tube", "batch", str(DEFAULT), "--variants", str(table), "-o", str(out),
+            "--writers", "1", "--chunk", "20", "--frames", "200", "--quiet"]  # fmt: skip
+    batch = subprocess.Popen(args, stderr=subprocess.DEVNULL)
+    deadline = time.time() + 120
+    below = []
+    while batch.poll() is None and time.time() < deadline:
+        if (out / "variant_00001.usdc").exists():  # a chunk written: the writer process is up
+            below = _descendants(batch.pid)
+            if any(_children(p) for p in below):  # (the writer, forked by the batch's server)
+                break
+        time.sleep(0.02)
+    assert below, "no process of the batch found while it ran"
+    os.kill(batch.pid, signal.SIGKILL)
+    batch.wait(timeout=30)
+    deadline = time.time() + 20
+    while time.time() < deadline and any(os.path.exists(f"/proc/{p}") for p in below):
+        time.sleep(0.1)
+    left = [p for p in below if os.path.exists(f"/proc/{p}")]
+    for p in left:  # (not to leave them to the other tests)
+        os.kill(p, signal.SIGKILL)
+    assert not left, f"{len(left)} of the batch's {len(below)} processes outlived it"

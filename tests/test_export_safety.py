@@ -182,3 +182,12 @@ def test_a_forced_export_replaces_every_file_and_leaves_no_hidden_one(stage, cap
     assert tree(stage / "frames") == [f"out.{f:04d}.obj" for f in FRAMES]
     assert (stage / "frames" / "out.0001.obj").read_bytes() != KEEP
     assert capsys.readouterr().out.split() == [f"frames/out.{f:04d}.obj" for f in FRAMES]
+
+
+def test_one_frame_to_a_file_of_another_format_is_refused_not_made_a_folder(stage, capsys):
+    """``-o f.gltf --frame T`` asks for a file: export writes .obj or .glb only, so it says so
+    (exit 2, nothing made) rather than make a folder ``f.gltf/`` holding an OBJ."""
+    before = tree(stage)
+    assert main(["export", "out.usda", "-o", "f.gltf", "--frame", str(FRAMES[1])]) == 2
+    assert "f.gltf: extension .gltf: export writes .obj or .glb" in one_line(capsys.readouterr().err)
+    assert tree(stage) == before

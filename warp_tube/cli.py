@@ -217,9 +217,8 @@ def _cmd_check(a) -> int:
 
 def _cmd_extract(a) -> int:
     from .extract.command import extract_to_scene
-    from .runtime.progress import stderr_is_terminal
-
     from .runtime.log_filters import renamed
+    from .runtime.progress import stderr_is_terminal
     from .scene.files import USD_EXTENSIONS, output_path, temp_path
 
     if a.scale is not None and len(a.scale) not in (1, 3):

@@ -39,11 +39,12 @@ _worker_device = None
 _worker_done = None  # the queue a simulating process reports its written chunks on
 
 
-def _init_sim_worker(devices, done):
+def _init_sim_worker(devices, done, batch_pid=None):
     """Take a device and get ready to simulate on it: import the simulation and start Warp and
-    the device (a CUDA context), while the batch's variants are still being read."""
+    the device (a CUDA context), while the batch's variants are still being read; end with the
+    batch's process ``batch_pid`` (:func:`~warp_tube.batch.writer_pool.watch_batch`)."""
     global _worker_device, _worker_done
-    ignore_sigint()
+    ignore_sigint(batch_pid)
     _worker_device, _worker_done = devices.get(), done
     import warp as wp
 
@@ -79,7 +80,7 @@ class SimWorkers:
             queue.put(d)
         self.done = ctx.Queue()
         self.pool = cf.ProcessPoolExecutor(len(devices), mp_context=ctx, initializer=_init_sim_worker,
-                                           initargs=(queue, self.done))  # fmt: skip
+                                           initargs=(queue, self.done, os.getpid()))  # fmt: skip
         for _ in devices:  # start them now (one new process per waiting task)
             self.pool.submit(_ready)
 

@@ -114,7 +114,8 @@ def _prepare_batch(scene, table, variant_sets, bar, pool, pool_size, keep_nodes)
     own = None
     try:
         if pool is None:
-            own = pool = cf.ProcessPoolExecutor(parts, mp_context=multiprocessing.get_context("spawn"), initializer=ignore_sigint)
+            own = pool = cf.ProcessPoolExecutor(parts, mp_context=multiprocessing.get_context("spawn"), initializer=ignore_sigint,
+                                                initargs=(os.getpid(),))  # fmt: skip
         futures = [pool.submit(_prepare_part, scene, table.part(a, b), variant_sets) for a, b in zip(bounds[:-1], bounds[1:])]
         results = []
         for f in futures:

@@ -17,6 +17,7 @@ from __future__ import annotations
 import concurrent.futures as cf
 import multiprocessing
 import os
+import select
 import signal
 import threading
 import time
@@ -24,7 +25,7 @@ import time
 from .outputs import WriteTask, write
 
 __all__ = ["Writers", "writer_count", "inline_write_seconds", "INLINE_WRITE_S", "ARRAY_WRITER_THREADS", "ignore_sigint",
-           "terminate_pool", "timed_write", "timed_write_when_ready"]
+           "watch_batch", "terminate_pool", "timed_write", "timed_write_when_ready"]
 
 
 def terminate_pool(pool: cf.ProcessPoolExecutor) -> None:
@@ -37,9 +38,43 @@ def terminate_pool(pool: cf.ProcessPoolExecutor) -> None:
         proc.join(timeout=5)
 
 
-def ignore_sigint():
-    """Worker processes leave Ctrl-C to the batch, which stops them in order."""
+def ignore_sigint(batch_pid: int | None = None):
+    """Worker processes leave Ctrl-C to the batch, which stops them in order; and end when the
+    batch's process ``batch_pid`` ends without stopping them (:func:`watch_batch`), or None."""
     signal.signal(signal.SIGINT, signal.SIG_IGN)
+    if batch_pid is not None:
+        watch_batch(batch_pid)
+
+
+def watch_batch(pid: int) -> None:
+    """End this process when process ``pid`` (the batch that started it) has ended.
+
+    A pool's process waits for work on a queue it holds both ends of, so it never sees the batch
+    go: a batch killed with SIGKILL (or by the system, short of memory) left its writer processes,
+    their fork server and multiprocessing's resource tracker running for ever. A thread here waits
+    for the batch's process to end (on a pidfd where Linux has them, else checking every second)
+    and ends this one at once; what a writer left half-written is a hidden temporary file, which
+    ``--resume`` removes."""
+
+    def wait() -> None:
+        try:
+            fd = os.pidfd_open(pid)
+        except (AttributeError, OSError):  # (not Linux, or the batch has ended already)
+            fd = None
+        if fd is not None:
+            select.select([fd], [], [])  # readable once the process has ended
+        else:
+            while True:
+                try:
+                    os.kill(pid, 0)
+                except ProcessLookupError:
+                    break
+                except PermissionError:
+                    pass
+                time.sleep(1.0)
+        os._exit(1)
+
+    threading.Thread(target=wait, name="batch-watch", daemon=True).start()
 
 
 class Writers:
@@ -64,7 +99,8 @@ class Writers:
             return
         self.count = count
         if self.processes:
-            self.pool = cf.ProcessPoolExecutor(count, mp_context=writer_context(), initializer=ignore_sigint)
+            self.pool = cf.ProcessPoolExecutor(count, mp_context=writer_context(), initializer=ignore_sigint,
+                                               initargs=(os.getpid(),))  # fmt: skip
             # Started now (one new process per waiting task), from a thread: the first start waits
             # for the fork server's imports (~0.3 s), which the batch's reading need not wait for.
             self._starter = threading.Thread(target=_start, args=(self.pool, count), name="batch-writer-start", daemon=True)

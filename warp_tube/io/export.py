@@ -181,6 +181,10 @@ def export(usd_path, fmt: str = "obj", out=None, frame=None, overwrite: bool = F
         times = [stage.GetStartTimeCode()]
 
     names_file = out is not None and Path(out).suffix.lower() in tuple(f".{f}" for f in FORMATS)
+    if frame is not None and out is not None and Path(out).suffix and not names_file and not Path(out).is_dir():
+        # (one frame to a name with another extension, .gltf say: meant as a file, not a folder)
+        raise SceneError(f"{out}: extension {Path(out).suffix}: export writes {' or '.join(f'.{f}' for f in FORMATS)} "
+                         "(.glb: glTF binary); name the file so, or give a folder")  # fmt: skip
     if names_file and Path(out).suffix.lower() != f".{fmt}":
         raise SceneError(f"{out}: extension {Path(out).suffix}: expected .{fmt} for --format {fmt}")
     if names_file and len(times) > 1:

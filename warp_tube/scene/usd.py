@@ -317,7 +317,7 @@ def _read_force(file: str, prim, tubes_by_path: dict, tube_specs, info: StageInf
     else:
         times, values = np.zeros(1), np.array([r.vec3("warptube:force")])
     if np.abs(values).max() > 1e9:
-        r.fail("warptube:force", f"|f| = {np.abs(values).max():.3g} N", "at most 1e9 N")
+        r.fail("warptube:force", f"a component of {np.abs(values).max():.3g} N", "at most 1e9 N a component")
     if point in set(tube_specs[t].pinned.tolist()):
         log.warning("%s: point %d of %s is pinned: this force does nothing", r.where("warptube:point"), point, tpath)
     return ForceSpec(
