@@ -90,3 +90,43 @@ def test_worlds_of_one_geometry_share_one_worlds_pairs(vary):
     got = m._pairs[0].numpy().astype(np.int64) * (W * N) + m._pairs[1].numpy()
     i, j = m._keep(*proximity._group_pairs(m.group))
     assert len(got) > 0 and np.array_equal(np.sort(got), np.sort(i * (W * N) + j))
+
+
+def test_the_hash_grid_finds_what_all_pairs_find_in_any_layout():
+    """Random wavy tubes in three groups (some overlapping, some not), and a long row of tubes:
+    the hash grid (its table shaped to the points' extent, :func:`proximity.grid_dims`) and all
+    pairs give the same deepest overlap of every group, to the bit (the same float32 distances)."""
+    rng = np.random.default_rng(3)
+    scenes = []
+    for _ in range(12):
+        nt, npts = int(rng.integers(2, 30)), int(rng.integers(8, 40))
+        s = np.linspace(0.0, 0.15, npts)
+        tubes = []
+        for _ in range(nt):
+            d = rng.normal(size=3)
+            d /= np.linalg.norm(d)
+            tubes.append(rng.uniform(-0.1, 0.1, 3) + s[:, None] * d + 0.01 * np.sin(s[:, None] * rng.uniform(5, 40) + rng.uniform(0, 6, 3)))
+        scenes.append((np.concatenate(tubes), nt, npts, rng.uniform(0.003, 0.01, nt * npts), rng.integers(0, 3, nt).repeat(npts)))
+    x = np.arange(20) * 0.01  # 300 tubes along z, 2.1 cm apart: neighbours overlap by 0.1 cm, radius 1.1 cm
+    row = np.concatenate([np.stack([x, 0 * x, 0 * x + 0.021 * k], 1) for k in range(300)])
+    scenes.append((row, 300, 20, np.full(len(row), 0.011), np.zeros(len(row), dtype=int)))
+    for q, nt, npts, r, groups in scenes:
+        start = np.arange(nt + 1) * npts
+        qa = wp.array(q, dtype=wp.vec3, device="cpu")
+        grid = ContactMonitor(q, r, start, node_group=groups, small=0).deepest(qa)
+        pairs = ContactMonitor(q, r, start, node_group=groups, small=10**9).deepest(qa)
+        np.testing.assert_array_equal(grid, pairs)
+    np.testing.assert_allclose(grid, [-0.001], atol=1e-6)  # the row's neighbours: 2.1 cm apart, 2.2 cm of radii
+
+
+def test_the_hash_grid_table_follows_the_points_extent():
+    cell = 0.02
+    row = np.stack([np.arange(100_000) * 0.002, np.zeros(100_000), np.zeros(100_000)], 1)  # 200 m along x
+    dims = proximity.grid_dims(row, cell, len(row))
+    assert dims[1] == dims[2] == 1 and dims[0] >= 8_000  # every slot along the row, none wasted across it
+    cube = np.random.default_rng(0).uniform(0.0, 1.0, (100_000, 3))  # 51 cells along each axis
+    assert proximity.grid_dims(cube, cell, len(cube)) == (51, 51, 51)  # a slot for every cell (fewer than 2 a point)
+    big = np.random.default_rng(0).uniform(0.0, 10.0, (100_000, 3))  # 501 cells along each axis
+    dims = proximity.grid_dims(big, cell, len(big))
+    assert len(set(dims)) == 1 and abs(np.prod(dims) - 200_000) < 0.05 * 200_000  # ~2 slots a point, evenly
+    assert np.prod(proximity.grid_dims(np.zeros((1, 3)), cell, 1)) == 1  # one point: one cell

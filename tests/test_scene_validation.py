@@ -196,3 +196,20 @@ def BasisCurves "Tube"
     y = [float(attr.Get(t)[0][1]) for t in attr.GetTimeSamples()]
     # linear between the samples (pins move linearly between frames), then held; float32 centimetres
     np.testing.assert_allclose(y, [0.0, 2 / 3, 4 / 3, 2.0, 2.0], atol=1e-6)
+
+
+def test_a_warning_of_many_prims_alike_is_said_once_with_how_many_more(tmp_cwd, caplog):
+    """300 prims with the same time-sampled damping: one warning naming the first, and one line
+    saying that the same holds for 299 more (not 300 lines)."""
+    lines = ["#usda 1.0", "(", "    metersPerUnit = 0.01", "    startTimeCode = 0", "    endTimeCode = 2", ")"]
+    for k in range(300):
+        lines += [f'def BasisCurves "T{k}"', "{", '    uniform token type = "linear"', "    int[] curveVertexCounts = [3]",
+                  f"    point3f[] points = [(0, 0, {3 * k}), (1, 0, {3 * k}), (2, 0, {3 * k})]",
+                  '    float[] widths = [0.5] (interpolation = "constant")', "    double warptube:youngsModulus = 100000",
+                  "    double warptube:density = 1000", "    double warptube:damping.timeSamples = {0: 1, 2: 2}", "}"]  # fmt: skip
+    (tmp_cwd / "many.usda").write_text("\n".join(lines) + "\n")
+    with caplog.at_level("WARNING"):
+        load_scene(str(tmp_cwd / "many.usda"))
+    said = [r.getMessage() for r in caplog.records]
+    assert len([m for m in said if "warptube:damping: time-sampled" in m]) == 1, said
+    assert "the same for 299 more prim(s) of the scene" in said

@@ -29,6 +29,7 @@ from .spec import (
     TubeParams,
     TubeSpec,
 )
+from ..runtime.log_filters import same_for_many
 from .opening import open_stage, usd_error_in_user_terms
 from .transforms import to_world, warn_about_layer_units, warn_about_transforms
 
@@ -444,7 +445,8 @@ class SceneReader:
             )
         settings = _read_settings(path, settings_prims[0], info.start_time_code) if settings_prims else SimulationSettings()
         varying: dict = {}  # ancestors' animated transforms, looked at once
-        specs = [_read_tube(path, p, info, frame_times, varying) for p in tubes]
+        with same_for_many(log.name):  # (a warning of many prims alike: once, with how many more)
+            specs = [_read_tube(path, p, info, frame_times, varying) for p in tubes]
         if mesh_prims:
             if extract is None:
                 raise SceneError(
