@@ -13,7 +13,8 @@ seeded), so all variants are one group: the worlds of one model, in chunks.
 
 Reported per layout, from one ``run_batch`` call (seconds):
 
-- ``wall_s``: the whole batch, reading the variants to the summary;
+- ``wall_s``: the whole batch, reading the variants to the summary (one simulating process unless
+  ``--workers`` says otherwise: the kernels' time of several would add up over them);
 - ``kernels_s``: the device's time in the simulation's launches (centerline substeps, the frame
   checks' sums, surface rebuilds and frame stores): on a GPU by CUDA events around them, on the
   CPU the launches' own time (``sync_s``, also reported, is the host's time waiting for them; on
@@ -168,7 +169,9 @@ def main():
     ap.add_argument("--frames", type=int, default=61)
     ap.add_argument("--layouts", default="files,arrays")
     ap.add_argument("--device")
-    ap.add_argument("--workers", type=int)
+    ap.add_argument("--workers", type=int, default=1,
+                    help="simulating processes (default 1: the split below adds up only for one; a CPU batch of "
+                         "arrays of 512 rows a core or more runs one a core by default)")
     ap.add_argument("--writers", type=int)
     ap.add_argument("--chunk", type=int)
     ap.add_argument("--floor-variants", type=int, default=1024)

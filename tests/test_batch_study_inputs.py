@@ -167,3 +167,21 @@ def test_a_column_for_a_prim_the_scene_does_not_have_names_the_scenes_prims(tmp_
     with pytest.raises(SceneError, match=r"no prim /World/Tube in .*\(the scene's warp_tube prims: .*/World/Bowel, /World/Push\)"):
         run_batch(str(scene), str(tmp_path / "out"), str(table), frames=2)
     assert not (tmp_path / "out").exists()
+
+
+def test_a_large_arrays_batch_on_the_cpu_runs_a_worker_on_each_core(tmp_path):
+    """Without ``--workers``, a CPU batch written as arrays with at least 512 table rows a core
+    runs a simulating process on each core; files and a grid, or a smaller table, one."""
+    from warp_tube.batch import run as batch_run
+
+    class Rows:
+        def __init__(self, n):
+            self.rows = [()] * n
+
+    assert batch_run._default_cpu_workers("arrays", Rows(1024)) == 2
+    assert batch_run._default_cpu_workers("arrays", Rows(1023)) == 1
+    assert batch_run._default_cpu_workers("files", Rows(100_000)) == 1
+    assert batch_run._default_cpu_workers("arrays", None) == 1
+    cores = len(os.sched_getaffinity(0)) if hasattr(os, "sched_getaffinity") else (os.cpu_count() or 1)
+    assert batch_run._cpu_workers(None, 64) == min(64, cores)  # (at most one a core)
+    assert batch_run._cpu_workers(None) == 1 and batch_run._cpu_workers(1, 64) == 1

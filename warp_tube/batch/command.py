@@ -24,7 +24,8 @@ def add_parser(sub) -> None:
     b.add_argument("--no-surface", action="store_true", help="files, grid: write the Centerline only")
     b.add_argument("--surface-arrays", action="store_true", help="arrays: also write surface.npy")
     b.add_argument("--device", help="cpu or cuda:N (default: every GPU, else the CPU)")
-    b.add_argument("--workers", type=int, help="CPU: N processes; CUDA: the first N GPUs (default: 1 / all)")
+    b.add_argument("--workers", type=int, help="CPU: N processes; CUDA: the first N GPUs (default: CPU one, or one a core "
+                   "for --layout arrays with 512 rows a core or more; CUDA all)")
     b.add_argument("--writers", type=int, help="writer processes (threads for arrays; default: the cores left over, at most 8 threads for arrays, "
                    "none for a batch of USD files written in under ~0.3 s; 0: none)")
     b.add_argument("--chunk", type=int, help="variants per chunk (default 1024 on the CPU, 4096 on a GPU)")
