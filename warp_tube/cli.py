@@ -275,20 +275,27 @@ def _size_push(scene: str, name: str, progress: bool) -> None:
 def _cmd_preview(a) -> int:
     from .io.preview import preview
 
+    from .runtime.progress import Phase
+
     if a.frames < 1:
         raise SceneError(f"--frames {a.frames}: expected at least 1")
-    print(preview(a.stage, a.output, frames=a.frames))
+    with Phase(f"drawing {a.frames} frame(s) of {os.path.basename(a.stage)}"):  # (a status line on a terminal, after 1 s)
+        sheet = preview(a.stage, a.output, frames=a.frames)
+    print(sheet)
     return EXIT_OK
 
 
 def _cmd_export(a) -> int:
     from .io.export import export
+    from .runtime.progress import Phase
 
     fmt = a.format
     if fmt is None:  # -o FILE.glb means glTF binary; a folder or anything else: OBJ
         suffix = os.path.splitext(a.output or "")[1].lower().lstrip(".")
         fmt = suffix if suffix in ("obj", "glb") else "obj"
-    for path in export(a.stage, fmt=fmt, out=a.output, frame=a.frame, overwrite=a.force):
+    with Phase(f"exporting the Surface meshes of {os.path.basename(a.stage)} as {fmt.upper()}"):  # (on a terminal, after 1 s)
+        paths = export(a.stage, fmt=fmt, out=a.output, frame=a.frame, overwrite=a.force)
+    for path in paths:
         print(path)
     return EXIT_OK
 
