@@ -219,32 +219,31 @@ def _cmd_extract(a) -> int:
     from .extract.command import extract_to_scene
     from .runtime.log_filters import renamed
     from .runtime.progress import stderr_is_terminal
-    from .scene.files import USD_EXTENSIONS, output_path, temp_path
+    from .scene.files import USD_EXTENSIONS, output_path, temp_path, write_atomically
 
     if a.scale is not None and len(a.scale) not in (1, 3):
         raise SceneError(f"--scale takes 1 or 3 values, got {len(a.scale)}")
     # Written under a hidden name, its push sized there, and renamed only then: a run that fails
     # or is stopped on the way leaves nothing new, and an existing scene as it was.
     final = output_path(a.output, USD_EXTENSIONS, inputs=[a.mesh], what="scene")
-    staged = temp_path(final)
+    staged = temp_path(final)  # (the name write_atomically writes under)
     done = None
-    try:
-        with renamed(staged, final):  # (what is said of the scene names the file it becomes)
+
+    def extract_and_size(tmp: str) -> None:
+        nonlocal done
+        with renamed(tmp, final):  # (what is said of the scene names the file it becomes)
             done = extract_to_scene(a.mesh, a.output, hubs=a.hubs, spokes=a.spokes, scale=a.scale,
-                                    progress=stderr_is_terminal(), strict=a.strict, staging=staged)  # fmt: skip
+                                    progress=stderr_is_terminal(), strict=a.strict, staging=tmp)  # fmt: skip
             print(done.summary())
-            _size_push(staged, os.path.basename(final), stderr_is_terminal())
-        os.replace(staged, final)
+            _size_push(tmp, os.path.basename(final), stderr_is_terminal())
+
+    try:
+        write_atomically(final, extract_and_size)
     except SceneError as e:
         if done is None:  # (the extraction's own: nothing was made)
             raise
         left = "left as it was" if os.path.lexists(final) else "not written"
         raise SceneError(str(e).replace(staged, final) + f" ({a.output} {left})") from None
-    except OSError as e:
-        raise SceneError(f"{a.output}: cannot write ({e.strerror or e})") from None
-    finally:
-        if os.path.lexists(staged):
-            os.remove(staged)
     return EXIT_OK
 
 

@@ -224,7 +224,8 @@ def run_batch(scene: str, out_dir: str, table: str | None = None, *, variant_set
         frames: frames per variant, frame 0 (rest) included (default: the scene's).
         surface: write the Surface (default: yes for files and grid, no for arrays).
         device: "cpu" or "cuda:N" (default: every GPU, else the CPU).
-        workers: processes on the CPU, or how many GPUs (default: 1 on the CPU, all GPUs).
+        workers: processes on the CPU, or how many GPUs (default: all GPUs; on the CPU one, or one a
+            core for ``arrays`` with :data:`CPU_WORKER_ROWS` table rows a core or more).
         writers: writer processes, threads for ``arrays`` (default: the host's cores left over,
             at least 1, at most 8 threads for ``arrays``; none where a batch's USD outputs would
             be written in less than :data:`~warp_tube.batch.writer_pool.INLINE_WRITE_S` by one

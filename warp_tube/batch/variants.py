@@ -23,6 +23,7 @@ from typing import NamedTuple
 import numpy as np
 
 from ..runtime.log_filters import once_each
+from ..scene.attributes import attributes_of
 from ..scene.spec import Scene, SceneError
 from .fastread import PlainColumns, may_be_plain
 from .table import Table
@@ -237,25 +238,6 @@ def _scene_prims_hint(stage, most: int = 6) -> str:
     return f" (the scene's warp_tube prims: {', '.join(found[:most])}{more})"
 
 
-def _prim_kind_attributes(prim) -> set:
-    """The ``warptube:`` attributes a prim of ``prim``'s kind takes (what a mistyped column name is
-    matched against): a force's, a tube's, a Mesh tube's, or any where the kind is not known."""
-    from pxr import UsdGeom
-
-    from ..scene.attributes import FORCE_ATTRS, KNOWN_ATTRS, MESH_ATTRS, SETTINGS_ATTRS, TUBE_ATTRS
-
-    names = {n for n in prim.GetPropertyNames() if n.startswith("warptube:")}
-    if prim.GetRelationship("warptube:target"):
-        return FORCE_ATTRS
-    if names & set(SETTINGS_ATTRS):
-        return set(SETTINGS_ATTRS)
-    if prim.IsA(UsdGeom.BasisCurves):
-        return TUBE_ATTRS
-    if prim.IsA(UsdGeom.Mesh):
-        return MESH_ATTRS
-    return KNOWN_ATTRS
-
-
 def _resolve_columns(stage, table: Table, context: str):
     """Per column: the attribute to author and its USD type name (or a problem message)."""
     from pxr import Sdf
@@ -279,7 +261,7 @@ def _resolve_columns(stage, table: Table, context: str):
             t = CONTRACT_TYPES[col.attribute]
             out.append((prim.CreateAttribute(col.attribute, Sdf.ValueTypeNames.Find(t)), t, None))
         else:
-            names = list(prim.GetPropertyNames()) + sorted(_prim_kind_attributes(prim))
+            names = list(prim.GetPropertyNames()) + sorted(attributes_of(prim))
             out.append((None, None, f"{table.path}: column {col.header}: {col.prim} has no attribute {col.attribute} "
                                     f"in {context} (and it is not a warptube: scene attribute)"
                                     f"{_did_you_mean(col.attribute, names)}"))  # fmt: skip

@@ -88,11 +88,10 @@ def same_for_many(name: str, subject=re.compile(r"(?<![\w.])/[^\s:.]+")):
         held[1] += 1
         return False
 
-    logger.addFilter(keep)
     try:
-        yield
+        with _filtered(name, keep):
+            yield
     finally:
-        logger.removeFilter(keep)
         for first, more in seen.values():
             if more:
                 logger.log(first.levelno, "the same for %d more prim(s) of the scene", more)

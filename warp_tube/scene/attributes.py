@@ -8,8 +8,8 @@ import logging
 
 from .spec import SceneError
 
-__all__ = ["SETTINGS_ATTRS", "TUBE_ATTRS", "FORCE_ATTRS", "MESH_ATTRS", "KNOWN_ATTRS", "check_names", "check_relationships",
-           "not_simulated"]
+__all__ = ["SETTINGS_ATTRS", "TUBE_ATTRS", "FORCE_ATTRS", "MESH_ATTRS", "KNOWN_ATTRS", "TARGET", "check_names",
+           "check_relationships", "not_simulated", "attributes_of"]
 
 log = logging.getLogger("warp_tube.scene.usd")
 
@@ -70,3 +70,20 @@ def not_simulated(path: str, prim, names: list) -> None:
         hint = "tube attributes belong on a linear BasisCurves prim (or a Mesh with warptube:extract = true)"
     log.warning("%s: %s (a %s prim) carries %s but is not a tube, force or settings prim: ignored (%s)", path,
                 prim.GetPath(), kind, ", ".join(sorted(names)), hint)
+
+
+def attributes_of(prim) -> set:
+    """The ``warptube:`` attributes a prim of ``prim``'s kind takes (what a mistyped name is
+    matched against): a force's (it has a target), the settings', a tube's (a BasisCurves), a Mesh
+    tube's, or any where the kind is not known."""
+    from pxr import UsdGeom
+
+    if prim.GetRelationship(TARGET):
+        return FORCE_ATTRS
+    if any(n in SETTINGS_ATTRS for n in prim.GetPropertyNames()):
+        return set(SETTINGS_ATTRS)
+    if prim.IsA(UsdGeom.BasisCurves):
+        return TUBE_ATTRS
+    if prim.IsA(UsdGeom.Mesh):
+        return MESH_ATTRS
+    return KNOWN_ATTRS

@@ -17,7 +17,7 @@ import os
 import numpy as np
 
 from .curves import check_curve_type, check_points_type, curve_widths
-from .attributes import FORCE_ATTRS, KNOWN_ATTRS, MESH_ATTRS, SETTINGS_ATTRS, TUBE_ATTRS, check_names, check_relationships, not_simulated
+from .attributes import FORCE_ATTRS, KNOWN_ATTRS, MESH_ATTRS, SETTINGS_ATTRS, TUBE_ATTRS, TARGET, check_names, check_relationships, not_simulated
 from .spec import (
     FRAME_MODES,
     INTEGRATORS,
@@ -35,8 +35,8 @@ from .transforms import to_world, warn_about_layer_units, warn_about_transforms
 
 log = logging.getLogger(__name__)
 
-#: a moving pin's track holds at most this many frames (the stage's own frames are limited alike)
-MAX_PIN_FRAMES = 1_000_001
+#: a stage holds at most this many frames after its first; a moving pin's track as many
+MAX_FRAMES = 1_000_000
 
 __all__ = ["load_scene", "open_stage", "save_scene", "usd_error_in_user_terms", "SceneReader"]
 
@@ -166,8 +166,8 @@ def _stage_info(stage) -> StageInfo:
         raise SceneError(f"{path}: timeCodesPerSecond {tcps}: expected a positive number")
     if not (math.isfinite(start) and math.isfinite(end)) or end < start:
         raise SceneError(f"{path}: startTimeCode {start}, endTimeCode {end}: expected end >= start")
-    if end - start > 1e6:
-        raise SceneError(f"{path}: {end - start:.0f} frames: expected at most 1,000,000")
+    if end - start > MAX_FRAMES:
+        raise SceneError(f"{path}: {end - start:.0f} frames: expected at most {MAX_FRAMES:,}")
     if "upAxis" in authored and str(stage.GetMetadata("upAxis")) not in ("Y", "Z"):
         raise SceneError(f"{path}: upAxis {str(stage.GetMetadata('upAxis'))!r}: expected \"Y\" or \"Z\"")
     return StageInfo(
@@ -287,15 +287,15 @@ def pin_frame_times(frame_times: list, last_sample: float) -> list:
     """The time codes of frames a moving pin's track holds: the stage's frames, and on to the
     frame at or after the points' last time sample (a run of more frames than the stage's follows
     the samples to there, as it follows a force's; after it the pins hold, as USD holds a value
-    after its last sample), at most :data:`MAX_PIN_FRAMES` frames."""
+    after its last sample), at most :data:`MAX_FRAMES` + 1 frames."""
     start = frame_times[0]
-    needed = min(int(math.ceil(last_sample - start - 1e-9)) + 1, MAX_PIN_FRAMES)
+    needed = min(int(math.ceil(last_sample - start - 1e-9)) + 1, MAX_FRAMES + 1)
     return frame_times + [start + k for k in range(len(frame_times), needed)]
 
 
 def _read_force(file: str, prim, tubes_by_path: dict, tube_specs, info: StageInfo) -> ForceSpec:
     r = _Reader(file, prim, info.start_time_code)
-    targets = prim.GetRelationship("warptube:target").GetTargets()
+    targets = prim.GetRelationship(TARGET).GetTargets()
     if len(targets) != 1:
         r.fail("warptube:target", f"{len(targets)} targets", "exactly one tube prim")
     tpath = str(targets[0])
@@ -420,7 +420,7 @@ class SceneReader:
         for prim in stage.Traverse(Usd.TraverseInstanceProxies(Usd.PrimDefaultPredicate)):
             names = [a.GetName() for a in prim.GetAttributes() if a.GetName().startswith("warptube:")]
             check_relationships(path, prim)
-            if prim.GetRelationship("warptube:target"):
+            if prim.GetRelationship(TARGET):
                 check_names(path, prim, names, FORCE_ATTRS, "force")
                 force_prims.append(prim)
             elif any(n in SETTINGS_ATTRS for n in names):
