@@ -31,9 +31,9 @@ class SurfaceArrays:
         spoke_count: spokes per ring, S.
         guard_reach: inner-bend guard fraction in (0, 1); 0 turns the guard off
             (:mod:`warp_tube.kernels.surface_guard`).
-        tube_cell_radius: each tube's radius for the cell guard's window [length unit], (tube_count,):
-            hubs less than ``CELL_WINDOW`` of it apart along the centerline (its prim's mean spoke
-            length).
+        tube_cell_radius: each tube's radius for the cell guard's window [length unit], shape (1 or
+            world_count, tube_count): hubs less than ``CELL_WINDOW`` of it apart along the
+            centerline (its prim's mean spoke length in that world).
         local_frames: 1 for the paper's local frames, 0 for rotation-minimizing ones.
         tube_node_start: first hub of each tube, (tube_count + 1,).
         node_tube: tube of each hub, (node_count,).
@@ -84,7 +84,7 @@ class SurfaceArrays:
     local_frames: int
     tube_node_start: wp.array[wp.int32]
     node_tube: wp.array[wp.int32]
-    tube_cell_radius: wp.array[float]
+    tube_cell_radius: wp.array2d[float]
     node_rest_t: wp.array2d[wp.vec3]
     node_rest_r: wp.array2d[wp.vec3]
     hub_reach: wp.array2d[float]

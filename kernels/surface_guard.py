@@ -332,7 +332,7 @@ def hub_guard(w: int, h: int, arrays: SurfaceArrays, node_q: wp.array2d[wp.vec3]
     if guard_reach > 0.0:
         pw = w % hub_reach.shape[0]
         reach = hub_reach[pw, h]
-        window = CELL_WINDOW * arrays.tube_cell_radius[tube]
+        window = CELL_WINDOW * arrays.tube_cell_radius[w % arrays.tube_cell_radius.shape[0], tube]
         cell = wp.vec2i(h, h)
         for side in range(2):
             step = 2 * side - 1

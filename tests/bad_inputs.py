@@ -259,6 +259,8 @@ def cases() -> list[Case]:
     bad("curve type cubic", scene(('uniform token type = "linear"', 'uniform token type = "cubic"')))
     bad("unknown integrator", scene(('warptube:integrator = "auto"', 'warptube:integrator = "rk4"')))
     bad("negative time step", scene(('warptube:integrator = "auto"', 'warptube:integrator = "auto"\n        double warptube:timeStep = -0.001')))
+    bad("time step so small its substeps could not be counted",
+        scene(('warptube:integrator = "auto"', 'warptube:integrator = "auto"\n        double warptube:timeStep = 1e-12')))
     bad("force on a point out of range", scene(("int warptube:point = 15", "int warptube:point = 40")))
     bad("force targets a prim that does not exist", scene(("</World/Tube>", "</World/Nothing>")))
     bad("force value NaN", scene(("24: (0, 0.02, 0)", "24: (0, nan, 0)")))

@@ -24,6 +24,9 @@ def tube(path="/T", pinned=(0, 1), **kw):
     (lambda: TubeParams(density=1000.0, youngs_modulus=1e5, spokes=8.5), ["spokes 8.5", "integer"]),
     (lambda: tube(pinned=(0.5, 1.7)), ["pinnedPoints [0.5, 1.7]", "integers"]),
     (lambda: Scene((tube(), tube())), ["two tubes have the path /T"]),
+    (lambda: Scene((tube(),), (ForceSpec("/T", 0, 5, [0.0], [[0, 0.01, 0]]),)), ["a tube and a force have the path /T"]),
+    (lambda: ForceSpec("/F", 0, 2, [0.0], [[0, 1e12, 0]]), ["force /F", "1e+12 N", "at most 1e9 N"]),
+    (lambda: StageInfo(start_time_code=10.0, end_time_code=5.0), ["startTimeCode 10.0, endTimeCode 5.0", "end >= start"]),
     (lambda: ForceSpec("/F", 0, 2.0, [0.0], [[0, 1, 0]]), ["point 2.0", "integer"]),
     # a path the output could not make a prim at (USD would say so only when the output is written)
     (lambda: tube(path="World T"), ["tube path 'World T'", "absolute USD prim path"]),
@@ -92,6 +95,25 @@ def test_numerical_error_is_exported():
     assert warp_tube.NumericalError is NumericalError
 
 
+def test_save_scene_writes_what_load_scene_reads_back(tmp_path):
+    """A tube at the path the settings prim would take, a second root, a gravity of no float32
+    value: the settings prim takes a free name, every ancestor is an Xform, gravity is kept to the
+    bit (before: the reload failed, the root was typeless, gravity came back as 9.8100004)."""
+    from pxr import Usd
+
+    from warp_tube.scene.usd import load_scene, save_scene
+
+    a, b = tube(path="/W/Simulation"), tube(path="/B/Deep/T")
+    settings = SimulationSettings(integrator="implicitEuler", time_step=0.002, gravity=(0.0, -9.81, 0.0))
+    scene = Scene((a, b), (ForceSpec("/W/Push", 1, 5, [0.0], [[0.0, 0.01, 0.0]]),), settings=settings)
+    save_scene(scene, str(tmp_path / "s.usda"))
+    back = load_scene(str(tmp_path / "s.usda"))
+    assert [t.path for t in back.tubes] == ["/W/Simulation", "/B/Deep/T"] and back.forces[0].tube == 1
+    assert back.settings == settings
+    stage = Usd.Stage.Open(str(tmp_path / "s.usda"))
+    assert [stage.GetPrimAtPath(p).GetTypeName() for p in ("/W", "/B", "/B/Deep")] == ["Xform"] * 3
+
+
 def test_save_scene_keeps_moving_pins(tmp_path):
     """A tube whose pinned end follows a track (one position per frame) saved and read back has
     the same track (float32 round-off of the stage's points)."""
@@ -150,3 +172,11 @@ def test_the_stages_are_reachable_from_the_package_without_importing_them():
     r = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, timeout=120)
     assert r.returncode == 0, r.stderr
     assert r.stdout.split("\n")[:2] == ["run_batch save_scene", "AttributeError module 'warp_tube' has no attribute 'nothing'"]
+
+
+def test_run_batch_says_it_takes_a_scene_file_not_a_scene(tmp_path):
+    from warp_tube.batch import run_batch
+
+    with pytest.raises(SceneError, match="run_batch: scene is a Scene: expected a path .*save_scene"):
+        run_batch(Scene((tube(),)), str(tmp_path / "out"))
+    assert not (tmp_path / "out").exists()

@@ -98,6 +98,44 @@ def test_batch_variant_equals_the_variant_run_alone(sweep, tmp_path):
         assert filecmp.cmp(alone, out / f"variant_{k:05d}.usdc", shallow=False)
 
 
+def test_variants_of_other_widths_and_rest_shapes_run_as_worlds_of_one_group(tmp_path):
+    """Widths and rest points varied by the table, at one substep (a fixed timeStep within every
+    variant's stability bound): the surface builders hold each world's rest frames and inner-bend
+    guard window, so the variants are one group, and each still gives what it gives alone."""
+    from pxr import Vt
+
+    base = tmp_path / "base.usda"
+    base.write_text(DEFAULT.read_text().replace('token warptube:integrator = "auto"',
+                                                'token warptube:integrator = "semiImplicitEuler"\n'
+                                                '        double warptube:timeStep = 0.00005'))  # fmt: skip
+    # A U-turn of bend radius 1 (its legs 2 apart, the tubes' radii 1 and 1.3), its points 0.4
+    # apart: the inner-bend guard's cells across the U lie within one world's window along the
+    # tube (pi radii) and not within another's; turned out of the straight tube's line (other rest
+    # frames from the first hub on).
+    s = np.arange(21.0)
+    x = 0.4 * s
+    a = np.clip(x - 2.8, 0.0, np.pi)
+    u = np.stack([np.minimum(x, 2.8) + np.sin(a) - np.maximum(x - 2.8 - np.pi, 0.0), 1.0 - np.cos(a), 0 * s], 1)
+    c, d = np.cos(0.6), np.sin(0.6)
+    bent = (u @ np.array([[c, d, 0.0], [-d * c, c * c, d], [d * d, -d * c, c]])).astype(np.float32)
+    straight = np.stack([s, 0 * s, 0 * s], 1).astype(np.float32)
+    np.save(tmp_path / "bent.npy", bent)
+    np.save(tmp_path / "straight.npy", straight)
+    rows = [("[1.6]", "@straight.npy"), ("[2]", "@bent.npy"), ("[2.6]", "@bent.npy")]
+    table = write_table(tmp_path / "table.csv", [WIDTHS, "/World/Tube.points"], rows)
+    out = tmp_path / "out"
+    result = run_batch(str(base), str(out), str(table), frames=FRAMES, writers=0, chunk=3)
+    assert (result.ok, result.groups, result.chunks) == (3, 1, 1)
+    for k, (width, points) in enumerate([(1.6, straight), (2.0, bent), (2.6, bent)]):
+        scene = variant_scene(tmp_path, f"v{k}", {WIDTHS: [width], "/World/Tube.points": Vt.Vec3fArray.FromNumpy(points)}, base=base)
+        alone = tmp_path / f"alone{k}.usdc"
+        assert cli(["run", str(scene), "-o", str(alone), "--frames", str(FRAMES), "--quiet"]) == 0
+        # On the CPU each world runs the run alone's kernels on the same float32 inputs: the same
+        # files, byte for byte (a guard window or rest frame of another world would move the
+        # surface's points).
+        assert filecmp.cmp(alone, out / f"variant_{k:05d}.usdc", shallow=False), k
+
+
 @needs_shared
 def test_batch_files_pass_the_output_checker(sweep):
     _, out, _, _ = sweep
@@ -277,6 +315,28 @@ def _bad(tmp_path, capsys, header, rows, *extra, files=None):
     assert not out.exists()  # nothing was run, nothing written
     assert "Traceback" not in err
     return err
+
+
+@pytest.mark.parametrize("layout", ["files", "arrays"])
+def test_a_batch_larger_than_the_free_space_is_refused_before_it_starts(tmp_path, capsys, monkeypatch, layout):
+    """Before: --frames 100000000 began filling the disk with the chunks' buffers (520 GB files)."""
+    from warp_tube.runtime import memory
+
+    # 1,000 variant-frames of the default scene take ~9 MB with the surface, 0.25 MB of centerline
+    # points alone (arrays): say 100 kB are free
+    monkeypatch.setattr(memory, "available_disk", lambda folder: 100_000)
+    err = _bad(tmp_path, capsys, [E], [("100000",)] * 10, "--frames", "100", "--layout", layout)
+    assert "the batch would write about" in err and "GB free in" in err and "--every K" in err
+    monkeypatch.undo()
+    err = _bad(tmp_path, capsys, [E], [("100000",)], "--frames", "100000000")
+    assert "--frames 100000000: expected 1 to 1,000,001" in err
+
+
+def test_a_time_step_too_small_to_count_is_a_bad_row(tmp_path, capsys):
+    """Before: 41,666,666,667 substeps a frame wrapped the kernels' 32-bit count, and the variant
+    was "ok" with nothing moving."""
+    err = _bad(tmp_path, capsys, ["/World/Simulation.warptube:timeStep"], [("0.0004",), ("1e-12",)])
+    assert "row 1 (line 3)" in err and "41,666,666,667 substeps a frame" in err and "at most 2,147,483,647" in err
 
 
 def test_bad_header_and_rows(tmp_path, capsys):

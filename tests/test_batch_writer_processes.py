@@ -240,3 +240,35 @@ def test_a_batch_killed_with_sigkill_leaves_no_process_behind(tmp_path):
     for p in left:  # (not to leave them to the other tests)
         os.kill(p, signal.SIGKILL)
     assert not left, f"{len(left)} of the batch's {len(below)} processes outlived it"
+
+
+def test_a_hangup_to_the_batchs_process_group_stops_it_as_ctrl_c_does(tmp_path):
+    """A closed terminal hangs up the whole process group: the batch stops (exit status 129), its
+    finished variants kept, and prints no traceback (before: multiprocessing's resource tracker,
+    hung up with it, was started again and printed one for every semaphore the first had
+    registered); --resume then ends with the files an uninterrupted batch writes."""
+    import filecmp
+    import signal
+    import time
+
+    table = tmp_path / "t.csv"
+    table.write_text("/World/Tube.warptube:youngsModulus\n" + "".join(f"{80000 + 100 * k}\n" for k in range(120)))
+    out, whole = tmp_path / "out", tmp_path / "whole"
+    args = [sys.executable, "-m", "warp_tube", "batch", str(DEFAULT), "--variants", str(table), "--writers", "1", "--chunk", "20",
+            "--frames", "40", "--quiet"]  # fmt: skip
+    # (SIGHUP's default in the new session, as under a terminal, also where the tests run under nohup)
+    batch = subprocess.Popen(args + ["-o", str(out)], stderr=subprocess.PIPE, text=True, start_new_session=True,
+                             preexec_fn=lambda: signal.signal(signal.SIGHUP, signal.SIG_DFL))  # fmt: skip
+    deadline = time.time() + 120
+    while batch.poll() is None and time.time() < deadline and not (out / "variant_00001.usdc").exists():
+        time.sleep(0.02)
+    os.killpg(batch.pid, signal.SIGHUP)
+    err = batch.communicate(timeout=60)[1]
+    assert batch.returncode == 128 + signal.SIGHUP, err
+    assert "terminated (SIGHUP)" in err and "Traceback" not in err and "resource_tracker" not in err, err
+    done = subprocess.run(args + ["-o", str(out), "--resume"], capture_output=True, text=True, timeout=600)
+    assert done.returncode == 0, done.stderr
+    assert subprocess.run(args + ["-o", str(whole)], capture_output=True, text=True, timeout=600).returncode == 0
+    names = sorted(p.name for p in whole.iterdir())
+    assert sorted(p.name for p in out.iterdir()) == names
+    assert all(filecmp.cmp(out / n, whole / n, shallow=False) for n in names if n.endswith((".usdc", ".csv")))

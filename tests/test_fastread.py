@@ -194,8 +194,8 @@ def test_plain_variants_take_the_shortcuts_to_the_same_choices_and_keys(tmp_path
     scenes = [v.scene for v in variants.variants]
     choices = run_choices(scenes, plain=True)
     assert choices == run_choices(scenes)
-    general = [group_key(s, c, True) for s, c in zip(scenes, choices)]
-    assert plain_group_keys(scenes[0], choices, True) == general
+    general = [group_key(s, c) for s, c in zip(scenes, choices)]
+    assert plain_group_keys(scenes[0], choices) == general
     # a table that sets anything else is not plain
     other = tmp_path / "other.csv"
     other.write_text("/World/Bowel.warptube:spokes\n8\n12\n")

@@ -83,7 +83,38 @@ def test_time_sampled_parameter_is_read_at_the_first_frame_with_a_warning(tmp_pa
     assert_checked(tmp_path / "out.usdc")
 
 
+def test_samples_of_one_value_on_every_frame_are_no_animation(tmp_path, caplog):
+    """Houdini writes a constant as the same sample on every frame: no warning for those (before:
+    one per attribute); samples that differ are still warned of."""
+    body = BODY.replace("double warptube:youngsModulus = 100000", "double warptube:youngsModulus.timeSamples = { 0: 100000, 1: 100000, 2: 100000 }")
+    body = body.replace('float[] widths = [0.5] (interpolation = "constant")',
+                        'float[] widths.timeSamples = { 0: [0.5], 1: [0.5], 2: [0.5] }')
+    body = body.replace("int warptube:spokes = 4", "int warptube:spokes.timeSamples = { 0: 4, 2: 4 }")
+    scene = tmp_path / "constant.usda"
+    scene.write_text(HEADER + world(tube(body)))
+    with caplog.at_level("WARNING"):
+        load_scene(str(scene))
+    assert "time-sampled" not in caplog.text
+    scene.write_text(HEADER + world(tube(body.replace("2: [0.5]", "2: [0.6]"))))
+    with caplog.at_level("WARNING"):
+        load_scene(str(scene))
+    assert "widths: time-sampled" in caplog.text and "youngsModulus" not in caplog.text
+
+
 # -- composition --------------------------------------------------------------------------------
+
+
+def test_a_tube_among_a_point_instancers_prototypes_is_said_to_be_simulated_once(tmp_path, caplog):
+    """A PointInstancer's instances are not simulated (only instanceable prims are): a tube among
+    its prototypes is simulated where it is authored, and a warning says so (before: nothing)."""
+    inner = ('def PointInstancer "Inst"\n{\n    point3f[] positions = [(0, 0, 0), (0, 10, 0)]\n    int[] protoIndices = [0, 0]\n'
+             '    rel prototypes = </World/Inst/Protos/Tube>\n    def Scope "Protos"\n    {\n' + tube() + "    }\n}\n")
+    scene = tmp_path / "instancer.usda"
+    scene.write_text(HEADER + world(inner))
+    with caplog.at_level("WARNING"):
+        loaded = load_scene(str(scene))
+    assert [t.path for t in loaded.tubes] == ["/World/Inst/Protos/Tube"]
+    assert "/World/Inst/Protos/Tube: inside the PointInstancer /World/Inst: simulated once" in caplog.text
 
 
 def test_a_broken_sublayer_is_named_with_its_syntax_error(tmp_path, capsys):
@@ -357,3 +388,49 @@ def test_time_sampled_curve_vertex_counts_are_read(tmp_path):
     scene = tmp_path / "counts.usda"
     scene.write_text(HEADER + world(tube(body.replace("pinnedPoints = [0, 1]", "pinnedPoints = [0, 2]"))))
     assert load_scene(str(scene)).tubes[0].curve_counts.tolist() == [2, 3]
+
+
+# -- directions under transforms -----------------------------------------------------------------
+
+#: the tube of BODY with a cross-section that is no circle (4 spokes of 0.3, 0.5, 0.2 and 0.4 at
+#: every hub: no symmetry) whose spoke 0 points along +y
+SECTION = BODY.replace(
+    'int warptube:spokes = 4',
+    "int warptube:spokes = 4\n        float[] warptube:spokeLengths = [" + ", ".join(["0.3, 0.5, 0.2, 0.4"] * 5) + "]\n"
+    "        float3 warptube:referenceNormal = (0, 1, 0)",
+)
+
+
+@pytest.mark.parametrize("op", ['float3 xformOp:rotateXYZ = (90, 30, 0)', 'float3 xformOp:scale = (1, -1, 1)',
+                                'float3 xformOp:scale = (2, 0.5, 1)'])  # fmt: skip
+def test_a_section_turns_mirrors_and_scales_with_its_prim(tmp_path, op):
+    """A tube's referenceNormal is a direction in its prim's space: under a rotated, mirrored or
+    unevenly scaled parent the rest surface is the untransformed scene's surface moved by that
+    transform (before, the spokes kept their authored world direction: the section did not turn)."""
+    from pxr import Usd, UsdGeom
+
+    from warp_tube.sim.simulation import Simulation
+
+    name = op.split(":")[1].split(" ")[0]
+    plain, moved = tmp_path / "plain.usda", tmp_path / "moved.usda"
+    plain.write_text(HEADER + world(tube(SECTION)))
+    moved.write_text(HEADER + world(f'def Xform "Parent"\n{{\n{op}\nuniform token[] xformOpOrder = ["xformOp:{name}"]\n'
+                                    + tube(SECTION) + "}\n"))  # fmt: skip
+    stage = Usd.Stage.Open(str(moved))
+    m = np.array(UsdGeom.Xformable(stage.GetPrimAtPath("/World/Parent/Tube")).ComputeLocalToWorldTransform(0))
+    scale = abs(np.linalg.det(m[:3, :3])) ** (1 / 3)
+    surfaces = [Simulation(load_scene(str(p)), device="cpu").surface()[0][0] for p in (plain, moved)]
+    centre = load_scene(str(plain)).tubes[0].points / 0.01  # (stage units)
+    # The spokes of a hub of the plain tube, carried by the transform's linear part: the moved
+    # tube's spokes (as sets per ring, so that a mirror's reversed order compares) but for the
+    # section's size, which an uneven scale takes as its mean (the radii are lengths, not vectors)
+    expected = surfaces[0].reshape(5, 4, 3) - centre[:, None]
+    expected = expected @ m[:3, :3]
+    expected *= (scale * np.linalg.norm(surfaces[0].reshape(5, 4, 3) - centre[:, None], axis=2)
+                 / np.linalg.norm(expected, axis=2))[..., None]  # fmt: skip
+    got = surfaces[1].reshape(5, 4, 3) - (centre @ m[:3, :3] + m[3, :3])[:, None]
+    for ring in range(5):
+        d = np.linalg.norm(expected[ring][:, None] - got[ring][None], axis=2)
+        # float32 surface points of a 4-unit tube: 1e-5 units is ~100 ulps, far below the 0.1-unit
+        # differences between the section's spokes that a wrong turn gives
+        assert d.min(axis=1).max() < 1e-5, (ring, d.min(axis=1))

@@ -17,7 +17,6 @@ from __future__ import annotations
 import concurrent.futures as cf
 import dataclasses
 import math
-import multiprocessing
 import os
 import shutil
 import tempfile
@@ -29,7 +28,7 @@ import numpy as np
 from ..scene.spec import SceneError
 from .engine import TIMERS, chunk_shapes, simulate_chunk
 from .outputs import WriteTask, write
-from .writer_pool import Writers, ignore_sigint, terminate_pool, timed_write, timed_write_when_ready
+from .writer_pool import Writers, ignore_sigint, spawn_context, terminate_pool, timed_write, timed_write_when_ready
 from .rows import Rows
 
 __all__ = ["SimWorkers", "run_here", "run_pooled", "add_timings", "with_rows", "write_tasks"]
@@ -74,7 +73,7 @@ class SimWorkers:
     """
 
     def __init__(self, devices: list[str]):
-        ctx = multiprocessing.get_context("spawn")
+        ctx = spawn_context()
         queue = ctx.Queue()
         for d in devices:
             queue.put(d)

@@ -38,7 +38,7 @@ import numpy as np
 from ..scene.spec import Scene
 from .rows import Rows
 
-__all__ = ["OutputSpec", "WriteTask", "write", "surface_topology", "grid_offset", "write_summary", "summary_lines", "SUMMARY_FIELDS",
+__all__ = ["OutputSpec", "WriteTask", "write", "check_batch_fits", "surface_topology", "grid_offset", "write_summary", "summary_lines", "SUMMARY_FIELDS",
            "prepare_arrays", "finish_arrays", "write_grid_root", "LAYOUTS"]  # fmt: skip
 
 LAYOUTS = ("files", "grid", "arrays")
@@ -76,6 +76,43 @@ class OutputSpec:
     grid_cell: float = 1.0
     grid_columns: int = 1
     up_axis: str = "Y"
+
+
+def check_batch_fits(spec: OutputSpec, counts: list, chunk: int) -> None:
+    """Refuse, before anything is written, a batch whose outputs (and, for USD outputs, the two
+    chunks' frame buffers kept in its working folder while they are written) would not fit in
+    the free space of its folder.
+
+    Args:
+        spec: the batch's outputs.
+        counts: per variant its centerline points and surface vertices.
+        chunk: variants per chunk.
+
+    Raises:
+        SceneError: naming the sizes and the free space.
+    """
+    from ..runtime import memory
+    from ..scene.spec import SceneError
+
+    F = len(spec.time_codes)
+    if spec.layout == "arrays":
+        per_frame = 12 * (spec.points + (spec.vertices if spec.surface else 0))  # [bytes] a variant-frame, padded
+        size = spec.variants * F * per_frame
+    else:
+        sizes = sorted((12 * (p + 2 * v) for p, v in counts), reverse=True)  # centerline, surface points and normals
+        size = F * sum(sizes)
+        size += 2 * F * sum(sizes[:chunk])  # (the largest chunk's buffers, twice)
+        per_frame = sizes[0]
+    folder = os.path.abspath(spec.out_dir)
+    while not os.path.isdir(folder) and os.path.dirname(folder) != folder:
+        folder = os.path.dirname(folder)
+    disk = memory.available_disk(folder)
+    if disk is not None and size > disk:
+        raise SceneError(
+            f"{spec.out_dir}: the batch would write about {size / 1e9:.3g} GB ({spec.variants:,} variant(s) x {F:,} frames x up "
+            f"to {per_frame:,} bytes{'' if spec.layout == 'arrays' else ', and the chunks being written'}), more than the "
+            f"{disk / 1e9:.3g} GB free in {folder}; free some space, or write fewer frames (--every K, --frames N)"
+        )  # fmt: skip
 
 
 @dataclass(frozen=True)

@@ -8,12 +8,11 @@ computes what the variant alone would (``warp-tube run``):
   reference normal; per force its tube, point and assistant line; moving pins or not;
 - time stepping: the integrator and substeps the variant alone gets (``Simulation``'s choice from
   its own stability bound), gravity, and the stage's frames, time codes and units;
-- with the implicit integrator, its shortest rest segment (the solver's convergence tolerance);
-- with the surface: per prim the rest points (the surface's rest frames) and the mean spoke
-  length (the inner-bend guard's window), which the surface builder holds once.
+- with the implicit integrator, its shortest rest segment (the solver's convergence tolerance).
 
-Everything else (materials, damping, forces and their samples, anchors, widths, and with
-``--no-surface`` the rest shape) may differ from world to world. A group is cut into chunks of at
+Everything else (materials, damping, forces and their samples, anchors, the rest shape and the
+widths, whose rest frames and inner-bend guard window the surface builders hold per world) may
+differ from world to world. A group is cut into chunks of at
 most ``chunk`` variants in batch order; chunks are the unit of work of a worker and of resuming.
 """
 
@@ -89,7 +88,7 @@ def _geometry_key(t) -> tuple:
 
 def _group_arrays(t) -> tuple:
     """The parts of a tube's :func:`group_key` read from its arrays."""
-    return tuple(t.curve_counts.tolist()), t.pinned.tobytes(), t.points.tobytes(), mean_spoke_length(t)
+    return tuple(t.curve_counts.tolist()), t.pinned.tobytes()
 
 
 #: scenes of one layout are discretised together up to this many nodes at a time (run_choices)
@@ -155,7 +154,7 @@ def _topology(scene: Scene):
 def _choices_of(scenes: list[Scene], one, indices, keep) -> list[RunChoice]:
     """run_choices for scenes of one layout (``one``: :func:`_topology` of one of them),
     discretised in one build (kept in ``keep`` as those of ``indices``, unless None)."""
-    from ..centerline.policy import decide_integrator, implicit_cost_ratio
+    from ..centerline.policy import check_substeps, decide_integrator, implicit_cost_ratio
     from ..centerline.stability import critical_time_steps
     from ..model.tube import node_parameters
     from .worlds import combined_tubes
@@ -176,6 +175,7 @@ def _choices_of(scenes: list[Scene], one, indices, keep) -> list[RunChoice]:
         settings, frame_dt = scene.settings, scene.stage.frame_dt
         integrator, dt = decide_integrator(settings, hc, frame_dt, cost)
         substeps = max(1, ceil(frame_dt / dt - 1e-9))
+        check_substeps(substeps, frame_dt, settings)
         out.append(RunChoice(integrator, substeps, frame_dt / substeps, seg, (settings, hc, frame_dt, cost)))
     return out
 
@@ -185,47 +185,26 @@ def run_choice(scene: Scene) -> RunChoice:
     return run_choices([scene])[0]
 
 
-_mean_spokes: dict = {}  # (lengths' bytes, spokes) -> mean spoke length [m]
-
-
-def mean_spoke_length(t) -> float:
-    """The surface builder's guard window scale for a tube prim: its mean spoke length [m]
-    (remembered by content: the variants of a batch mostly share their radii)."""
-    lengths = t.spoke_lengths if t.spoke_lengths is not None else t.radius
-    key = (lengths.tobytes(), t.params.spokes, t.spoke_lengths is None)
-    value = _mean_spokes.get(key)
-    if value is None:
-        if t.spoke_lengths is not None:
-            value = float(t.spoke_lengths.mean())
-        else:
-            value = float(np.repeat(t.radius[:, None], t.params.spokes, axis=1).mean())
-        if len(_mean_spokes) > 4096:
-            _mean_spokes.clear()
-        _mean_spokes[key] = value
-    return value
-
-
-def group_key(scene: Scene, choice: RunChoice, surface: bool, memo: dict | None = None) -> tuple:
+def group_key(scene: Scene, choice: RunChoice, memo: dict | None = None) -> tuple:
     """Variants with equal keys run as worlds of one model (see the module docstring).
 
     ``memo``: a dict kept over the calls for one batch's variants, where the parts of a tube's
     key read from its arrays are worked out once per set of arrays (:func:`by_identity`), or None."""
     s = scene.stage
     memo = {} if memo is None else memo
-    tubes, shape = [], []
+    tubes = []
     for t in scene.tubes:
         p = t.params
-        arrays = by_identity(memo, (t.curve_counts, t.pinned, t.points, t.radius, t.spoke_lengths), (p.spokes,), _group_arrays, t)
+        arrays = by_identity(memo, (t.curve_counts, t.pinned), (), _group_arrays, t)
         tubes.append((t.path, arrays[0], arrays[1], p.spokes, p.frames, p.caps, p.reference_normal, t.pin_track is not None))
-        shape.append((arrays[2], arrays[3]))
     forces = tuple((f.tube, f.point, f.assistant_line) for f in scene.forces)
     run = (choice.integrator, choice.substeps, scene.settings.gravity, s.start_time_code, s.end_time_code,
            s.time_codes_per_second, s.frames_per_second, s.meters_per_unit, s.up_axis)  # fmt: skip
     implicit = choice.min_segment if choice.integrator == "implicitEuler" else None
-    return (tuple(tubes), forces, run, implicit, tuple(shape) if surface else None)
+    return (tuple(tubes), forces, run, implicit)
 
 
-def plain_group_keys(first: Scene, choices: list[RunChoice], surface: bool, memo: dict | None = None) -> list:
+def plain_group_keys(first: Scene, choices: list[RunChoice], memo: dict | None = None) -> list:
     """:func:`group_key` of each variant made by plain values (``Variants.plain``), ``first`` the
     first of them: they differ only in tube materials and force vectors, which no key holds, so a
     key follows from the run choice's integrator, substeps and shortest segment, worked out once
@@ -236,7 +215,7 @@ def plain_group_keys(first: Scene, choices: list[RunChoice], surface: bool, memo
         k = (c.integrator, c.substeps, c.min_segment)
         key = by_choice.get(k)
         if key is None:
-            key = by_choice[k] = group_key(first, c, surface, memo)
+            key = by_choice[k] = group_key(first, c, memo)
         out.append(key)
     return out
 

@@ -11,7 +11,6 @@ from __future__ import annotations
 
 import concurrent.futures as cf
 import logging
-import multiprocessing
 import os
 from concurrent.futures.process import BrokenProcessPool
 
@@ -20,7 +19,7 @@ import numpy as np
 from ..extract.hook import mesh_prim_tube
 from ..runtime.collector import collector_paused
 from ..scene.spec import SceneError
-from .writer_pool import ignore_sigint, terminate_pool
+from .writer_pool import ignore_sigint, spawn_context, terminate_pool
 from .plan import run_choice, run_choices
 
 log = logging.getLogger(__name__)
@@ -114,7 +113,7 @@ def _prepare_batch(scene, table, variant_sets, bar, pool, pool_size, keep_nodes)
     own = None
     try:
         if pool is None:
-            own = pool = cf.ProcessPoolExecutor(parts, mp_context=multiprocessing.get_context("spawn"), initializer=ignore_sigint,
+            own = pool = cf.ProcessPoolExecutor(parts, mp_context=spawn_context(), initializer=ignore_sigint,
                                                 initargs=(os.getpid(),))  # fmt: skip
         futures = [pool.submit(_prepare_part, scene, table.part(a, b), variant_sets) for a, b in zip(bounds[:-1], bounds[1:])]
         results = []

@@ -36,6 +36,7 @@ import numpy as np
 from ..runtime.collector import collector_paused, thaw
 from ..runtime.interrupts import kept_interrupts
 from ..scene.spec import SceneError
+from ..scene.usd import MAX_FRAMES
 from .engine import TIMERS, output_frames
 from .bookkeeping import PROCESS_VARIANTS, Bookkeeper
 from .recorder import Recorder
@@ -46,7 +47,7 @@ from .folder import (check_inputs_not_outputs, check_out_dir, named_files, named
 from .writer_pool import INLINE_WRITE_S, Writers, inline_write_seconds, writer_count
 from .journal import Journal, file_digest
 from .lock import BatchLock
-from .outputs import LAYOUTS, OutputSpec, finish_arrays, prepare_arrays, surface_topology, write_grid_root, write_summary
+from .outputs import LAYOUTS, OutputSpec, check_batch_fits, finish_arrays, prepare_arrays, surface_topology, write_grid_root, write_summary
 from .plan import by_identity, group_key, plain_group_keys, plan_chunks
 from .prepare import prepare_batch
 from .progress import Progress
@@ -249,6 +250,10 @@ def run_batch(scene: str, out_dir: str, table: str | None = None, *, variant_set
     if getattr(multiprocessing.current_process(), "_inheriting", False):  # a spawned process importing __main__
         raise SceneError('run_batch: called again by a process the batch started, as it imports the main module: '
                          'in a script, call it under if __name__ == "__main__":')  # fmt: skip
+    for name, value in (("scene", scene), ("table", table), ("out_dir", out_dir)):
+        if not (isinstance(value, (str, os.PathLike)) or (value is None and name == "table")):
+            hint = " (a Scene object: write it with warp_tube.scene.usd.save_scene, then pass the file)" if name == "scene" else ""
+            raise SceneError(f"run_batch: {name} is a {type(value).__name__}: expected a path{hint}")
     if variant_sets is not None and not isinstance(variant_sets, str):
         variant_sets = ",".join(str(v) for v in variant_sets) or None
     elif variant_sets is not None and not variant_sets.strip():
@@ -261,8 +266,8 @@ def run_batch(scene: str, out_dir: str, table: str | None = None, *, variant_set
         raise SceneError(f"--layout {layout}: expected one of {', '.join(LAYOUTS)}")
     if every < 1:
         raise SceneError(f"--every {every}: expected at least 1")
-    if frames is not None and frames < 1:
-        raise SceneError(f"--frames {frames}: expected at least 1")
+    if frames is not None and not 1 <= frames <= MAX_FRAMES + 1:
+        raise SceneError(f"--frames {frames}: expected 1 to {MAX_FRAMES + 1:,}")
     if chunk is not None and chunk < 1:
         raise SceneError(f"--chunk {chunk}: expected at least 1")
     if writers is not None and writers < 0:
@@ -331,9 +336,9 @@ def _run_batch(scene, out_dir, table, tab, devices, writer_pool, sim_workers, t_
     memo: dict = {}
     with collector_paused(freeze=True):  # (one small key per variant: see runtime.collector)
         if variants.plain:
-            keys = plain_group_keys(variants.variants[0].scene, choices, surface, memo)
+            keys = plain_group_keys(variants.variants[0].scene, choices, memo)
         else:
-            keys = [group_key(v.scene, c, surface, memo) for v, c in zip(variants.variants, choices)]
+            keys = [group_key(v.scene, c, memo) for v, c in zip(variants.variants, choices)]
     journal = Journal(out_dir)
     if chunk is None:
         base = DEFAULT_CHUNK_CUDA if devices[0].startswith("cuda") else DEFAULT_CHUNK_CPU
@@ -363,6 +368,8 @@ def _run_batch(scene, out_dir, table, tab, devices, writer_pool, sim_workers, t_
     with collector_paused(freeze=True):  # per variant its points and vertices
         counts = _counts(variants.variants[:1], surface) * len(variants) if variants.plain else _counts(variants.variants, surface)
     spec = _output_spec(variants, counts, layout, out_dir, journal.dir, surface, time_codes)
+    if not resume:
+        check_batch_fits(spec, counts, chunk)
     if deferred and inline_write_seconds(len(variants), len(F_idx), spec.points, spec.vertices) >= INLINE_WRITE_S:
         writer_pool.start(deferred)  # (else it is written here: less than the processes' start)
     result.prepare_s = time.perf_counter() - t_start

@@ -139,10 +139,15 @@ def _surface_builders(scenes, prim_start, device):
                                 else np.repeat(u.radius[:, None], u.params.spokes, axis=1) for u in specs])  # fmt: skip
             if np.all(lengths == lengths[:1]):
                 lengths = lengths[0]  # one row serves every world
+        rest = t.points
+        if not all(u.points is t.points for u in specs):  # (a table's points or widths: per world where they differ)
+            rest = np.stack([u.points for u in specs])
+            if np.all(rest == rest[:1]):
+                rest = t.points
         out.append(
             SurfaceBuilder(
                 tube_node_start=prim_start[k] + np.concatenate([[0], np.cumsum(t.curve_counts)]),
-                rest_q=t.points, spokes=t.params.spokes, spoke_lengths=lengths,
+                rest_q=rest, spokes=t.params.spokes, spoke_lengths=lengths,
                 reference_normal=t.params.reference_normal, frames=t.params.frames, caps=t.params.caps,
                 world_count=W, device=device,
             )  # fmt: skip

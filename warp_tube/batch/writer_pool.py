@@ -25,7 +25,7 @@ import time
 from .outputs import WriteTask, write
 
 __all__ = ["Writers", "writer_count", "inline_write_seconds", "INLINE_WRITE_S", "ARRAY_WRITER_THREADS", "ignore_sigint",
-           "watch_batch", "terminate_pool", "timed_write", "timed_write_when_ready"]
+           "watch_batch", "terminate_pool", "timed_write", "timed_write_when_ready", "writer_context", "spawn_context"]
 
 
 def terminate_pool(pool: cf.ProcessPoolExecutor) -> None:
@@ -141,10 +141,40 @@ def writer_context():
     """The multiprocessing context the writer processes start in: ``forkserver``, its server
     importing :data:`SERVER_MODULES`, where the platform has it; else ``spawn``."""
     if "forkserver" not in multiprocessing.get_all_start_methods():
-        return multiprocessing.get_context("spawn")
+        return spawn_context()
     ctx = multiprocessing.get_context("forkserver")
     ctx.set_forkserver_preload(list(SERVER_MODULES))  # (read when the server starts: once a process)
+    _helpers_deaf_to_hangup(ctx)
     return ctx
+
+
+def spawn_context():
+    """The ``spawn`` multiprocessing context, its resource tracker started deaf to SIGHUP."""
+    ctx = multiprocessing.get_context("spawn")
+    _helpers_deaf_to_hangup(ctx)
+    return ctx
+
+
+def _helpers_deaf_to_hangup(ctx) -> None:
+    """Start multiprocessing's resource tracker (and ``ctx``'s fork server) with SIGHUP blocked, as
+    the processes they start inherit it. A closed terminal hangs up the whole process group; the
+    batch stops its processes in order, as for Ctrl-C, and needs these two to outlive the signal
+    (the tracker ignores SIGINT and SIGTERM itself: killed by SIGHUP, it was started again and
+    printed a traceback for every semaphore the first had registered). Blocked, not ignored, in
+    this process meanwhile: a hangup arriving then is delivered once it is unblocked."""
+    if not hasattr(signal, "pthread_sigmask") or threading.current_thread() is not threading.main_thread():
+        return
+    from multiprocessing import resource_tracker
+
+    old = signal.pthread_sigmask(signal.SIG_BLOCK, {signal.SIGHUP})
+    try:
+        resource_tracker.ensure_running()
+        if ctx.get_start_method() == "forkserver":
+            from multiprocessing import forkserver
+
+            forkserver.ensure_running()
+    finally:
+        signal.pthread_sigmask(signal.SIG_SETMASK, old)
 
 
 def _start(pool: cf.ProcessPoolExecutor, count: int) -> None:

@@ -13,10 +13,11 @@ import logging
 import math
 from typing import NamedTuple
 
-from ..scene.spec import SimulationSettings
+from ..scene.spec import SceneError, SimulationSettings
 
 __all__ = ["IntegratorChoice", "choose_integrator", "decide_integrator", "explain_integrator", "is_forced", "implicit_cost_ratio",
-           "implicit_substeps", "SAFETY", "IMPLICIT_DT", "IMPLICIT_COST_RATIO", "IMPLICIT_AL_COST", "RUN_WARNING"]
+           "implicit_substeps", "check_substeps", "SAFETY", "IMPLICIT_DT", "IMPLICIT_COST_RATIO", "IMPLICIT_AL_COST",
+           "MAX_SUBSTEPS", "RUN_WARNING"]
 
 log = logging.getLogger(__name__)
 
@@ -31,6 +32,9 @@ IMPLICIT_COST_RATIO = 16.0
 #: per line on a tube, relative to a semi-implicit substep with the same lines (measured on the CPU,
 #: 41 points, one line: ~5.0 us against ~0.11 us per node, i.e. ~3 x IMPLICIT_COST_RATIO).
 IMPLICIT_AL_COST = 3.0
+#: substeps a frame the kernels can count (a 32-bit loop counter); far past any run that ends
+#: (2^31 substeps of the default scene take about a day on a CPU core).
+MAX_SUBSTEPS = 2**31 - 1
 #: ``extra`` of the log records of run warnings (:mod:`warp_tube.sim.simulation` explains them).
 RUN_WARNING = {"run_warning": True}
 
@@ -48,6 +52,16 @@ def implicit_cost_ratio(model) -> float:
     :class:`~warp_tube.model.tube.TubeModel`; see the constants)."""
     lines = model.al_lines if model.features.assistant_line else 0
     return IMPLICIT_COST_RATIO * IMPLICIT_AL_COST**lines
+
+
+def check_substeps(substeps: int, frame_dt: float, settings: SimulationSettings, where: str = "") -> None:
+    """Refuse more than :data:`MAX_SUBSTEPS` substeps a frame of ``frame_dt`` [s] (a timeStep or a
+    stability bound so small that the kernels' count would wrap, and nothing move); ``where``: the
+    scene's file, which the message names first."""
+    if substeps > MAX_SUBSTEPS:
+        given = f"warptube:timeStep {settings.time_step:.3g} s" if settings.time_step is not None else "the stability bound"
+        raise SceneError(f"{where + ': ' if where else ''}{given} makes {substeps:,} substeps a frame of {frame_dt:.3g} s: expected at most {MAX_SUBSTEPS:,} "
+                         f"(a substep of at least {frame_dt / MAX_SUBSTEPS:.3g} s)")  # fmt: skip
 
 
 def implicit_substeps(frame_dt: float, time_step: float | None = None) -> int:

@@ -26,6 +26,7 @@ import re
 
 import numpy as np
 
+from ..scene.attributes import samples_differ
 from ..scene.files import USD_EXTENSIONS, output_path, write_atomically
 from .pipeline import ExtractedTube, extract_centerline
 from ..model.frames import rotation_minimizing_frames
@@ -220,7 +221,7 @@ def _attr_value(prim, name, types, start: float):
     v = a.Get(Usd.TimeCode(start))
     if v is None:
         raise SceneError(f"{prim.GetPath()}.{name}: no value at the first frame: expected a value (a default or time samples)")
-    if a.ValueMightBeTimeVarying():
+    if samples_differ(a):
         log.warning("%s.%s: time-sampled: its value at the first frame (%s) is used for the whole run", prim.GetPath(), name, v)
     return v
 

@@ -9,7 +9,7 @@ import logging
 from .spec import SceneError
 
 __all__ = ["SETTINGS_ATTRS", "TUBE_ATTRS", "FORCE_ATTRS", "MESH_ATTRS", "KNOWN_ATTRS", "TARGET", "check_names",
-           "check_relationships", "not_simulated", "attributes_of"]
+           "check_relationships", "not_simulated", "attributes_of", "samples_differ"]
 
 log = logging.getLogger("warp_tube.scene.usd")
 
@@ -87,3 +87,14 @@ def attributes_of(prim) -> set:
     if prim.IsA(UsdGeom.Mesh):
         return MESH_ATTRS
     return KNOWN_ATTRS
+
+
+def samples_differ(attr) -> bool:
+    """Whether a USD attribute's time samples hold more than one value (DCC tools often write a
+    constant as the same sample on every frame: that is no animation)."""
+    if not attr.ValueMightBeTimeVarying():
+        return False
+    times = attr.GetTimeSamples()
+    first = attr.Get(times[0]) if times else None
+    return any(attr.Get(t) != first for t in times[1:])
+

@@ -7,6 +7,7 @@ import logging
 
 import numpy as np
 
+from .attributes import samples_differ
 from .spec import SceneError
 
 log = logging.getLogger("warp_tube.scene.usd")
@@ -70,7 +71,7 @@ def curve_widths(r, curves, counts: np.ndarray, time) -> np.ndarray:
         raise SceneError(f"{r.where('widths')}: missing: expected float[] diameters (one, one per curve with "
                          "interpolation \"uniform\", or one per point), as widths or primvars:widths")  # fmt: skip
     attr = primvar.GetAttr() if name == "primvars:widths" else curves.GetWidthsAttr()
-    if attr.ValueMightBeTimeVarying():
+    if samples_differ(attr):
         log.warning("%s: time-sampled: the diameters at the first frame are used for the whole run (a tube's "
                     "widths are not animated)", r.where(name))  # fmt: skip
     if values is None or len(values) == 0:

@@ -26,10 +26,13 @@ __all__ = [
     "replace_checked",
     "INTEGRATORS",
     "FRAME_MODES",
+    "MAX_FORCE_N",
 ]
 
 INTEGRATORS = ("auto", "semiImplicitEuler", "implicitEuler")
 FRAME_MODES = ("rotationMinimizing", "local")
+#: the largest force component a scene may hold [N] (past any soft tube: a unit is likely wrong)
+MAX_FORCE_N = 1e9
 
 
 class SceneError(ValueError):
@@ -78,6 +81,8 @@ class StageInfo:
                 raise SceneError(f"{name} {v!r}: expected a finite time code")
         if self.up_axis not in ("Y", "Z"):
             raise SceneError(f"upAxis {self.up_axis!r}: expected \"Y\" or \"Z\"")
+        if self.end_time_code < self.start_time_code:
+            raise SceneError(f"startTimeCode {self.start_time_code}, endTimeCode {self.end_time_code}: expected end >= start")
 
     @property
     def frame_count(self) -> int:
@@ -338,6 +343,9 @@ class ForceSpec:
             raise SceneError(f"force {self.path}: {len(t)} times for {len(v)} values")
         if not (np.isfinite(t).all() and np.isfinite(v).all()):
             raise SceneError(f"force {self.path}: force: expected finite values")
+        if np.abs(v).max() > MAX_FORCE_N:
+            raise SceneError(f"force {self.path}: force: a component of {np.abs(v).max():.3g} N: expected at most 1e9 N a component "
+                             "(as a scene's warptube:force)")  # fmt: skip
         if (np.diff(t) <= 0).any():
             raise SceneError(f"force {self.path}: sample times must increase")
         for name, index in (("tube", self.tube), ("point", self.point)):
@@ -374,6 +382,9 @@ class Scene:
             if len(set(paths)) != len(paths):
                 twice = next(p for p in paths if paths.count(p) > 1)
                 raise SceneError(f"{self.source}: two {kind} have the path {twice}: expected one prim path each")
+        both = {t.path for t in self.tubes} & {f.path for f in self.forces}
+        if both:
+            raise SceneError(f"{self.source}: a tube and a force have the path {min(both)}: expected one prim path each")
         for f in self.forces:
             if not (0 <= f.tube < len(self.tubes)):
                 raise SceneError(f"force {f.path}: target tube index {f.tube} out of range")

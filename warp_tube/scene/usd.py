@@ -17,10 +17,12 @@ import os
 import numpy as np
 
 from .curves import check_curve_type, check_points_type, curve_widths
-from .attributes import FORCE_ATTRS, KNOWN_ATTRS, MESH_ATTRS, SETTINGS_ATTRS, TUBE_ATTRS, TARGET, check_names, check_relationships, not_simulated
+from .attributes import (FORCE_ATTRS, KNOWN_ATTRS, MESH_ATTRS, SETTINGS_ATTRS, TUBE_ATTRS, TARGET, check_names, check_relationships,
+                         not_simulated, samples_differ)  # fmt: skip
 from .spec import (
     FRAME_MODES,
     INTEGRATORS,
+    MAX_FORCE_N,
     ForceSpec,
     Scene,
     SceneError,
@@ -32,6 +34,7 @@ from .spec import (
 from ..runtime.log_filters import same_for_many
 from .opening import open_stage, usd_error_in_user_terms
 from .transforms import to_world, warn_about_layer_units, warn_about_transforms
+from .save import save_scene
 
 log = logging.getLogger(__name__)
 
@@ -81,7 +84,7 @@ class _Reader:
         v = a.Get(at)
         if v is None:
             raise SceneError(f"{self.where(name)}: no value at the first frame: expected a value (a default or time samples)")
-        if a.ValueMightBeTimeVarying():
+        if samples_differ(a):
             log.warning("%s: time-sampled: its value at the first frame (%s) is used for the whole run (only "
                         "warptube:force and points are followed in time)", self.where(name), v)  # fmt: skip
         return a, v
@@ -224,6 +227,10 @@ def _read_tube(file: str, prim, info: StageInfo, frame_times, varying: dict | No
     rn = r.vec3("warptube:referenceNormal")
     if rn is not None and np.linalg.norm(rn) == 0.0:
         r.fail("warptube:referenceNormal", rn, "a non-zero direction")
+    mirrored = np.linalg.det(matrix[:3, :3]) < 0.0
+    if rn is not None:  # a direction in the prim's space, turned (and scaled, and mirrored) as its points
+        d = np.asarray(rn, dtype=np.float64) @ matrix[:3, :3]
+        rn = tuple(float(x) for x in d / np.linalg.norm(d))
     # The reader's errors name file, prim and attribute already; TubeParams' own checks do not.
     values = dict(
         density=r.real("warptube:density", required=True, positive=True),
@@ -261,6 +268,8 @@ def _read_tube(file: str, prim, info: StageInfo, frame_times, varying: dict | No
             i = int(np.argmax(sl <= 0))
             r.fail("warptube:spokeLengths", f"{sl[i]} at index {i}", "positive lengths")
         sl = sl.reshape(n, spokes) * scale * mpu
+        if mirrored:  # spoke j at angle 2 pi j / S in the prim's space lies at -2 pi j / S in the world's
+            sl = sl[:, (-np.arange(spokes)) % spokes]
     pin_track = None
     pinned = np.unique(idx["warptube:pinnedPoints"])
     if pattr.GetNumTimeSamples() > 1 and not len(pinned):
@@ -317,7 +326,7 @@ def _read_force(file: str, prim, tubes_by_path: dict, tube_specs, info: StageInf
         values = np.array([r.vec3("warptube:force", time=tc) for tc in samples])
     else:
         times, values = np.zeros(1), np.array([r.vec3("warptube:force")])
-    if np.abs(values).max() > 1e9:
+    if np.abs(values).max() > MAX_FORCE_N:
         r.fail("warptube:force", f"a component of {np.abs(values).max():.3g} N", "at most 1e9 N a component")
     if point in set(tube_specs[t].pinned.tolist()):
         log.warning("%s: point %d of %s is pinned: this force does nothing", r.where("warptube:point"), point, tpath)
@@ -437,6 +446,7 @@ class SceneReader:
                 check_names(path, prim, names, KNOWN_ATTRS, "warp_tube")
                 not_simulated(path, prim, names)
         _check_output_names(path, tubes + mesh_prims)
+        _warn_about_prototypes(path, tubes + mesh_prims + force_prims)
         if len(settings_prims) > 1:
             raise SceneError(
                 f"{path}: {len(settings_prims)} simulation settings prims "
@@ -491,71 +501,17 @@ class SceneReader:
         return scene
 
 
-def save_scene(scene: Scene, path: str) -> None:
-    """Write ``scene`` as a USD stage following the scene contract (points in stage units)."""
-    from pxr import Gf, Sdf, Usd, UsdGeom, Vt
+def _warn_about_prototypes(path: str, prims) -> None:
+    """Warn of tube and force prims inside a PointInstancer: they are simulated once, where they are
+    authored; the instancer's instances are not (USD draws a prototype only through them)."""
+    from pxr import UsdGeom
 
-    info = scene.stage
-    mpu = info.meters_per_unit
-    stage = Usd.Stage.CreateNew(os.fspath(path))
-    UsdGeom.SetStageMetersPerUnit(stage, mpu)
-    UsdGeom.SetStageUpAxis(stage, info.up_axis)
-    stage.SetTimeCodesPerSecond(info.time_codes_per_second)
-    stage.SetFramesPerSecond(info.frames_per_second)
-    stage.SetStartTimeCode(info.start_time_code)
-    stage.SetEndTimeCode(info.end_time_code)
-    root_name = scene.tubes[0].path.strip("/").split("/")[0]
-    stage.SetDefaultPrim(UsdGeom.Xform.Define(stage, "/" + root_name).GetPrim())
-    s = scene.settings
-    sim = UsdGeom.Scope.Define(stage, f"/{root_name}/Simulation").GetPrim()
-    sim.CreateAttribute("warptube:integrator", Sdf.ValueTypeNames.Token).Set(s.integrator)
-    if s.time_step is not None:
-        sim.CreateAttribute("warptube:timeStep", Sdf.ValueTypeNames.Double).Set(s.time_step)
-    if s.gravity is not None:
-        sim.CreateAttribute("warptube:gravity", Sdf.ValueTypeNames.Float3).Set(Gf.Vec3f(*s.gravity))
-    for t in scene.tubes:
-        c = UsdGeom.BasisCurves.Define(stage, t.path)
-        c.CreateTypeAttr("linear")
-        points = c.CreatePointsAttr(Vt.Vec3fArray.FromNumpy((t.points / mpu).astype(np.float32)))
-        if t.pin_track is not None:  # moving pins: the points time-sampled, one sample a frame
-            for k, pins in enumerate(t.pin_track):
-                frame = t.points.copy()
-                frame[t.pinned] = pins
-                points.Set(Vt.Vec3fArray.FromNumpy((frame / mpu).astype(np.float32)), Usd.TimeCode(scene.stage.start_time_code + k))
-        c.CreateCurveVertexCountsAttr(Vt.IntArray([int(v) for v in t.curve_counts]))
-        c.CreateWidthsAttr(Vt.FloatArray.FromNumpy((2.0 * t.radius / mpu).astype(np.float32)))
-        c.SetWidthsInterpolation(UsdGeom.Tokens.vertex)
-        p, prim = t.params, c.GetPrim()
-        D = Sdf.ValueTypeNames.Double
-        prim.CreateAttribute("warptube:density", D).Set(p.density)
-        for name, v in (("youngsModulus", p.youngs_modulus), ("stretchStiffness", p.stretch_stiffness),
-                        ("bendStiffness", p.bend_stiffness)):  # fmt: skip
-            if v is not None:
-                prim.CreateAttribute(f"warptube:{name}", D).Set(v)
-        prim.CreateAttribute("warptube:damping", D).Set(p.damping)
-        prim.CreateAttribute("warptube:springDamping", D).Set(p.spring_damping)
-        prim.CreateAttribute("warptube:anchorStiffness", D).Set(p.anchor_stiffness)
-        prim.CreateAttribute("warptube:spokes", Sdf.ValueTypeNames.Int).Set(p.spokes)
-        prim.CreateAttribute("warptube:frames", Sdf.ValueTypeNames.Token).Set(p.frames)
-        prim.CreateAttribute("warptube:caps", Sdf.ValueTypeNames.Bool).Set(p.caps)
-        if len(t.pinned):
-            prim.CreateAttribute("warptube:pinnedPoints", Sdf.ValueTypeNames.IntArray).Set(Vt.IntArray([int(v) for v in t.pinned]))
-        if len(t.anchors):
-            prim.CreateAttribute("warptube:anchorPoints", Sdf.ValueTypeNames.IntArray).Set(Vt.IntArray([int(v) for v in t.anchors]))
-        if t.spoke_lengths is not None:
-            prim.CreateAttribute("warptube:spokeLengths", Sdf.ValueTypeNames.FloatArray).Set(
-                Vt.FloatArray.FromNumpy((t.spoke_lengths.reshape(-1) / mpu).astype(np.float32)))  # fmt: skip
-        if p.reference_normal is not None:
-            prim.CreateAttribute("warptube:referenceNormal", Sdf.ValueTypeNames.Float3).Set(Gf.Vec3f(*p.reference_normal))
-    for k, f in enumerate(scene.forces):
-        prim = UsdGeom.Scope.Define(stage, f.path).GetPrim()
-        prim.CreateRelationship("warptube:target").SetTargets([scene.tubes[f.tube].path])
-        prim.CreateAttribute("warptube:point", Sdf.ValueTypeNames.Int).Set(int(f.point))
-        prim.CreateAttribute("warptube:assistantLine", Sdf.ValueTypeNames.Bool).Set(bool(f.assistant_line))
-        a = prim.CreateAttribute("warptube:force", Sdf.ValueTypeNames.Float3)
-        if len(f.times) == 1:
-            a.Set(Gf.Vec3f(*f.values[0]))
-        for tm, v in zip(f.times, f.values):
-            if len(f.times) > 1:
-                a.Set(Gf.Vec3f(*v), info.start_time_code + tm * info.time_codes_per_second)
-    stage.GetRootLayer().Save()
+    for prim in prims:
+        p = prim.GetParent()
+        while p and not p.IsPseudoRoot():
+            if p.IsA(UsdGeom.PointInstancer):
+                log.warning("%s: %s: inside the PointInstancer %s: simulated once, where it is authored; the instancer's "
+                            "instances are not simulated (make them instanceable prims, or copies, to simulate each)",
+                            path, prim.GetPath(), p.GetPath())  # fmt: skip
+                break
+            p = p.GetParent()

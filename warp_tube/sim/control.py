@@ -19,15 +19,13 @@ import logging
 
 import numpy as np
 
-from ..scene.spec import Scene
+from ..scene.spec import MAX_FORCE_N, Scene
 from .assistant_lines import AL_MIN_ANGLE, AL_REBUILD_ANGLE, AssistantLines
 
 log = logging.getLogger(__name__)
 
 __all__ = ["FrameControl", "AL_REBUILD_ANGLE", "AL_MIN_ANGLE", "MAX_FORCE_N", "MAX_PIN_M"]
 
-#: the largest force component :meth:`FrameControl.set_force` takes [N] (as the scene reader).
-MAX_FORCE_N = 1e9
 #: the largest pin target coordinate :meth:`FrameControl.set_pin_targets` takes [m] (as the scene
 #: reader's largest coordinate: past any tube).
 MAX_PIN_M = 1e6

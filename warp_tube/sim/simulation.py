@@ -27,7 +27,7 @@ import numpy as np
 import warp as wp
 
 from ..centerline.explicit import SemiImplicitEulerSolver
-from ..centerline.policy import RUN_WARNING, choose_integrator, implicit_cost_ratio, implicit_substeps
+from ..centerline.policy import MAX_SUBSTEPS, RUN_WARNING, check_substeps, choose_integrator, implicit_cost_ratio, implicit_substeps
 from ..centerline.stability import critical_time_step
 from ..model.tube import build_model
 from ..runtime.interrupts import Terminated, deferred_interrupts, kept_interrupts, raise_if_interrupted
@@ -122,6 +122,7 @@ class Simulation(RunBudget):
         choice = choose_integrator(scene.settings, self.critical_dt, self.frame_dt, implicit_cost_ratio(m))
         self.integrator, self.reason = choice.integrator, choice.reason
         self.substeps = max(1, math.ceil(self.frame_dt / choice.dt - 1e-9))
+        check_substeps(self.substeps, self.frame_dt, scene.settings, scene.source)
         self.dt = self.frame_dt / self.substeps
         if self.integrator == "implicitEuler":
             from ..centerline.implicit import ImplicitEulerSolver
@@ -180,7 +181,8 @@ class Simulation(RunBudget):
     def set_pin_targets(self, tube, positions) -> None:
         """Move a tube prim's pinned points, reached at the end of the next frame (linearly over it)
         and held there: ``positions`` [stage units], world space, shape (pinned, 3) with one row per
-        pinned point in ascending order of its index, or a dict from point index to position.
+        pinned point in ascending order of its index, or a dict from each pinned point's index to its
+        position (every pinned point: one left out is an error, not held).
 
         Raises:
             KeyError / IndexError: no such tube prim. ValueError: a wrong shape or set of points, or
@@ -229,7 +231,7 @@ class Simulation(RunBudget):
             problem = self._failure(failures[0], factor)
             if not self._retry:
                 raise NumericalError(problem)
-            if factor < MAX_RETRY_FACTOR:
+            if factor < MAX_RETRY_FACTOR and 2 * factor * self.substeps <= MAX_SUBSTEPS:
                 factor *= 2
                 continue
             if not self._switch_to_implicit(problem):

@@ -47,10 +47,11 @@ DEFAULT_GUARD_REACH = 0.95
 def rest_frames(
     rest_q: np.ndarray, tube_node_start: np.ndarray, reference_normal: np.ndarray | None = None
 ) -> tuple[np.ndarray, np.ndarray]:
-    """Rest tangents and normals of every hub, each (N, 3) float64, per :mod:`warp_tube.model.frames`.
+    """Rest tangents and normals of every hub, each shaped as ``rest_q``, float64, per
+    :mod:`warp_tube.model.frames`.
 
     Args:
-        rest_q: rest hub positions, (N, 3).
+        rest_q: rest hub positions, (N, 3), or (W, N, 3) for W worlds of one layout.
         tube_node_start: first hub of each tube, (T + 1,), starting at 0.
         reference_normal: None, one direction (3,) for every tube, or (T, 3) with NaN rows for
             tubes without one.
@@ -64,14 +65,17 @@ def rest_frames(
         refs = np.broadcast_to(refs, (n_tubes, 3)) if refs.ndim == 1 else refs
     t = np.empty_like(x)
     r = np.empty_like(x)
-    # Tubes of one length at once (ref_frames.rotation_minimizing_frames_many).
+    lead = x.shape[:-2]  # (the worlds, or none)
+    W = int(np.prod(lead))
+    # Tubes of one length at once, of every world (ref_frames.rotation_minimizing_frames_many).
     counts = np.diff(starts)
     for n in np.unique(counts):
         tubes = np.flatnonzero(counts == n)
         rows = starts[tubes][:, None] + np.arange(n)  # (tubes, n) hub indices
-        tt, rr = ref_frames.rotation_minimizing_frames_many(x[rows], None if refs is None else refs[tubes])
-        t[rows] = tt
-        r[rows] = rr
+        ref = None if refs is None else np.tile(refs[tubes], (W, 1))
+        tt, rr = ref_frames.rotation_minimizing_frames_many(x[..., rows, :].reshape(-1, n, 3), ref)
+        t[..., rows, :] = tt.reshape(lead + (len(tubes), n, 3))
+        r[..., rows, :] = rr.reshape(lead + (len(tubes), n, 3))
     return t, r
 
 
@@ -104,8 +108,10 @@ class SurfaceBuilder(TopologyView):
         tube_node_start: first node of each tube as a column index of the ``node_q`` arrays that
             :meth:`compute` gets, int (T + 1,); it may start above 0 when ``node_q`` holds other
             prims' nodes first (their nodes are skipped). Every tube needs >= 2 hubs.
-        rest_q: rest hub positions of this prim's N hubs, (N, 3) [length unit L], where
-            ``N = tube_node_start[-1] - tube_node_start[0]``.
+        rest_q: rest hub positions of this prim's N hubs, (N, 3) [length unit L], or
+            (world_count, N, 3) for per-world variants, where ``N = tube_node_start[-1] -
+            tube_node_start[0]``. The topology's texture coordinates (``topology.st``, which
+            follow the rest arclength and the caps' radii) are world 0's.
         spokes: spokes per hub, S >= 3.
         spoke_lengths: spoke lengths [L]: (N, S), (world_count, N, S) for per-world variants, or
             (N,) for a circular tube (the radius per hub).
@@ -123,8 +129,8 @@ class SurfaceBuilder(TopologyView):
             CPU it runs with Warp's CPU blocks, slowly: for tests). Both give the same points and
             normals.
         cell_radius: each tube's radius for the inner-bend guard's window along the tube [L], (T,)
-            (several prims in one builder: each tube its prim's mean spoke length); default: the
-            mean of ``spoke_lengths``, for every tube.
+            (several prims in one builder: each tube its prim's mean spoke length) or
+            (world_count, T); default: each world's mean of its ``spoke_lengths``, for every tube.
 
     All lengths share one unit L (the core passes metres); points come out in L.
     """
@@ -156,8 +162,10 @@ class SurfaceBuilder(TopologyView):
         local_starts = starts - self.node_offset
         rest = np.asarray(rest_q, dtype=np.float64)
         n_hubs = int(local_starts[-1])
-        if rest.shape != (n_hubs, 3):
-            raise ValueError(f"rest_q must be shaped ({n_hubs}, 3), got {rest.shape}")
+        if rest.ndim == 2:
+            rest = rest[None]
+        if rest.shape[1:] != (n_hubs, 3) or rest.shape[0] not in (1, world_count):
+            raise ValueError(f"rest_q must be shaped ({n_hubs}, 3) or ({world_count}, {n_hubs}, 3), got {np.shape(rest_q)}")
         S = int(spokes)
         lengths = np.asarray(spoke_lengths, dtype=np.float64)
         if lengths.ndim == 1:
@@ -172,7 +180,7 @@ class SurfaceBuilder(TopologyView):
         if not np.all(np.isfinite(lengths)) or np.any(lengths <= 0.0):
             raise ValueError("spoke_lengths must be finite and positive")
 
-        self.topology: SurfaceTopology = tube_topology(local_starts, S, lengths[0], caps, rest)
+        self.topology: SurfaceTopology = tube_topology(local_starts, S, lengths[0], caps, rest[0])
         self.spokes = S
         self.frames = frames
         self.caps = bool(caps)
@@ -181,9 +189,14 @@ class SurfaceBuilder(TopologyView):
         self.tube_count = len(starts) - 1
         self.guard_reach = float(guard_reach)
         # the window of the cell guard along each tube: pi of these
-        cell = np.full(len(starts) - 1, float(lengths.mean())) if cell_radius is None else np.asarray(cell_radius, dtype=np.float64)
-        if cell.shape != (len(starts) - 1,) or not np.all(np.isfinite(cell) & (cell > 0.0)):
-            raise ValueError(f"cell_radius must be {len(starts) - 1} finite positive lengths, got shape {cell.shape}")
+        T = len(starts) - 1
+        if cell_radius is None:  # (each world's mean as one array's: the same sum, bit for bit, as a run alone)
+            cell = np.repeat(lengths.reshape(len(lengths), -1).mean(axis=1)[:, None], T, axis=1)
+        else:
+            cell = np.asarray(cell_radius, dtype=np.float64)
+            cell = cell[None] if cell.ndim == 1 else cell
+        if cell.shape[1:] != (T,) or cell.shape[0] not in (1, world_count) or not np.all(np.isfinite(cell) & (cell > 0.0)):
+            raise ValueError(f"cell_radius must be ({T},) or ({world_count}, {T}) finite positive lengths, got shape {np.shape(cell_radius)}")
         self._local_starts = local_starts
         self.device = wp.get_device(device)
         if kernel is None:
@@ -193,7 +206,7 @@ class SurfaceBuilder(TopologyView):
         self.kernel = kernel
         self.block_shape = BLOCK_SHAPE  # worlds per block, least resident blocks (the block kernel)
 
-        rest_t, rest_r = rest_frames(rest, local_starts, reference_normal)
+        rest_t, rest_r = rest_frames(rest, local_starts, reference_normal)  # (1 or W, N, 3) each
         node_tube = np.repeat(np.arange(self.tube_count), np.diff(local_starts))
         topo = self.topology
         # the block kernel's spans of a world (the world kernel takes a whole world: one span)
@@ -202,9 +215,9 @@ class SurfaceBuilder(TopologyView):
         with wp.ScopedDevice(self.device):
             self._tube_node_start = wp.array(local_starts.astype(np.int32), dtype=wp.int32)
             self._node_tube = wp.array(node_tube.astype(np.int32), dtype=wp.int32)
-            self._tube_cell_radius = wp.array(cell.astype(np.float32), dtype=float)
-            self._rest_t = wp.array(rest_t[None].astype(np.float32), dtype=wp.vec3)
-            self._rest_r = wp.array(rest_r[None].astype(np.float32), dtype=wp.vec3)
+            self._tube_cell_radius = wp.array(cell.astype(np.float32), dtype=float)  # (1 or W, T)
+            self._rest_t = wp.array(rest_t.astype(np.float32), dtype=wp.vec3)
+            self._rest_r = wp.array(rest_r.astype(np.float32), dtype=wp.vec3)
             self._spoke_length = wp.array(lengths.astype(np.float32), dtype=float)
             self._hub_reach = wp.array(lengths.max(axis=2).astype(np.float32), dtype=float)
             uniform = uniform_hubs(lengths.astype(np.float32))
