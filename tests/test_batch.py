@@ -339,6 +339,13 @@ def test_a_time_step_too_small_to_count_is_a_bad_row(tmp_path, capsys):
     assert "row 1 (line 3)" in err and "41,666,666,667 substeps a frame" in err and "at most 2,147,483,647" in err
 
 
+def test_a_relationship_column_and_an_absurd_width_are_named_as_such(tmp_path, capsys):
+    err = _bad(tmp_path, capsys, ["/World/Push.warptube:target"], [("/World/Nothing",)])
+    assert "/World/Push.warptube:target is a relationship: a table sets attributes only" in err
+    err = _bad(tmp_path, capsys, [WIDTHS], [("[1e30]",)])
+    assert "row 0 (line 2)" in err and "/World/Tube.widths: found a radius of 5e+27 m" in err
+
+
 def test_bad_header_and_rows(tmp_path, capsys):
     err = _bad(tmp_path, capsys, ["World/Tube.warptube:youngsModulus"], [("1",)])
     assert "line 1, column 1" in err and "PRIM_PATH.ATTRIBUTE" in err

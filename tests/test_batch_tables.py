@@ -125,6 +125,27 @@ def test_point_files_bad_ones_named_and_a_line_of_column_names_skipped(tmp_path,
     assert "pickled" not in err
 
 
+def test_an_empty_array_written_inline_or_as_an_empty_file_is_no_elements(tmp_path, capsys):
+    """A tube with no pins (the scene takes int[] pinnedPoints = []): [] and () in a cell, and a
+    file of no numbers (before: [] was refused, and an empty .csv printed NumPy's warning)."""
+    from pxr import Usd
+
+    (tmp_path / "none.csv").write_text("index\n")
+    table = tmp_path / "t.csv"
+    table.write_text("/World/Tube.warptube:pinnedPoints,/World/Tube.warptube:anchorPoints\n[],[ ]\n(),@none.csv\n[0],[]\n")
+    out = tmp_path / "out"
+    assert batch(table, out) == 0
+    err = capsys.readouterr().err
+    assert "UserWarning" not in err and "loadtxt" not in err, err
+    assert [r["status"] for r in summary(out)] == ["ok"] * 3
+    moved = [float(r["max_displacement_m"]) for r in summary(out)]
+    # rows 0 and 1 are the same tube (no pins, no anchors), row 2 is held at its first point
+    assert moved[0] == moved[1] and moved[2] != moved[0] and min(moved) > 0
+    stages = [Usd.Stage.Open(str(out / f"variant_{k:05d}.usdc")) for k in range(3)]
+    first = [tuple(st.GetAttributeAtPath("/World/Tube/Centerline.points").Get(1)[0]) for st in stages]
+    assert first[2] == (0.0, 0.0, 0.0) and first[0] != (0.0, 0.0, 0.0)  # the pin holds; no pin, the push moves it
+
+
 # -- output folders and --resume ------------------------------------------------------------------
 
 
@@ -272,3 +293,38 @@ def test_a_folder_holding_a_file_named_like_variant_but_no_batch_takes_a_new_bat
     table.write_text(f"{E}\n1e5\n2e5\n")
     assert batch(table, out) == 0
     assert (out / "variant_list.txt").read_text() == "my notes\n" and (out / "variant_00001.usdc").exists()
+
+
+def test_an_interrupt_while_reading_says_how_to_go_on(tmp_path, capsys, monkeypatch):
+    """Stopped before its folder is made, a batch has nothing for --resume (before: the message
+    gave no advice, and README's, --resume, answered "no such folder")."""
+    from warp_tube.batch import run as run_module
+
+    def interrupted(*args, **kwargs):
+        raise KeyboardInterrupt
+
+    monkeypatch.setattr(run_module, "prepare_batch", interrupted)
+    table = tmp_path / "t.csv"
+    table.write_text(f"{E}\n100000\n")
+    assert batch(table, tmp_path / "out") == 130
+    err = capsys.readouterr().err
+    assert "interrupted; nothing was written (nothing to --resume: run the batch again as it was)" in err, err
+
+
+def test_a_folder_of_files_named_as_outputs_is_told_from_a_batchs(tmp_path, capsys):
+    """A user's summary.csv in the folder: refused, untouched, and not said to be a batch's (whose
+    --resume would then answer that it is none); a finished batch's folder: --resume offered."""
+    table = tmp_path / "t.csv"
+    table.write_text(f"{E}\n100000\n")
+    mine = tmp_path / "mine"
+    mine.mkdir()
+    (mine / "summary.csv").write_text("precious")
+    assert batch(table, mine) == 2
+    err = capsys.readouterr().err
+    assert "holds files named as a batch's outputs (summary.csv)" in err and "write to another folder" in err, err
+    assert (mine / "summary.csv").read_text() == "precious"
+    done = tmp_path / "done"
+    assert batch(table, done) == 0
+    assert batch(table, done) == 2
+    assert "holds batch outputs already (summary.csv, .batch-finished.json, variant_00000.usdc): --resume continues" in \
+        capsys.readouterr().err  # fmt: skip

@@ -384,7 +384,10 @@ def main(argv=None) -> int:
         print(f"warp-tube: {e}", file=sys.stderr)
         return EXIT_INPUT
     except KeyboardInterrupt as e:
-        print(f"warp-tube: {stopped_by(e)}; nothing was written", file=sys.stderr)
+        again = ""
+        if args.command == "batch":  # (the batch's folder is made once its variants are read)
+            again = " (--resume goes on as before)" if args.resume else " (nothing to --resume: run the batch again as it was)"
+        print(f"warp-tube: {stopped_by(e)}; nothing was written{again}", file=sys.stderr)
         return exit_status(e)
     except BrokenPipeError:  # stdout closed by the reader (`| head`): stop quietly, as other tools do
         devnull = os.open(os.devnull, os.O_WRONLY)

@@ -56,8 +56,11 @@ def check_out_dir(out_dir: str, resume: bool) -> None:
             raise SceneError(f"{out_dir}: no batch there to resume")
     elif journal.exists() or found:
         what = ", ".join((["an unfinished batch (.batch)"] if journal.exists() else []) + found)
-        raise SceneError(f"{out_dir}: holds batch outputs already ({what}): --resume continues that batch; "
-                         "or write to another folder")  # fmt: skip
+        if journal.exists() or ".batch-finished.json" in found:
+            raise SceneError(f"{out_dir}: holds batch outputs already ({what}): --resume continues that batch; "
+                             "or write to another folder")  # fmt: skip
+        raise SceneError(f"{out_dir}: holds files named as a batch's outputs ({what}), which a batch would write over: "
+                         "write to another folder (or --resume, if a batch wrote them)")  # fmt: skip
 
 
 def check_inputs_not_outputs(out_dir: str, inputs) -> None:

@@ -22,6 +22,7 @@ import functools
 import math
 import os
 import re
+import warnings
 
 import numpy as np
 
@@ -35,6 +36,7 @@ _INT_RANGES = {"int": (-(2**31), 2**31 - 1), "uint": (0, 2**32 - 1), "int64": (-
                "uint64": (0, 2**64 - 1), "uchar": (0, 255), "int2": (-(2**31), 2**31 - 1),
                "int3": (-(2**31), 2**31 - 1), "int4": (-(2**31), 2**31 - 1)}  # fmt: skip
 _DIGIT = re.compile(r"\d")
+_EMPTY_ARRAY = re.compile(r"^\s*(?:\[\s*\]|\(\s*\))\s*$")
 _THOUSANDS = re.compile(r"^\s*[-+]?\d{1,3}(?:,\d{3})+\s*$")
 _DECIMAL_COMMA = re.compile(r"^\s*[-+]?\d+,\d+(?:[eE][-+]?\d+)?\s*$")
 _UNIT = re.compile(r"^\s*[-+]?(?:\d+\.?\d*|\.\d+)(?:[eE][-+]?\d+)?\s*[A-Za-z%\u00b0\u00b5/]+[A-Za-z0-9/^*.\u00b2\u00b3]*\s*$")
@@ -138,6 +140,8 @@ def _load_file(name: str, folder: str, files: dict):
     path = name if os.path.isabs(name) else os.path.join(folder, name)
     if path in files:
         return files[path]
+    if os.path.isdir(path):
+        raise ValueError(f"{path}: is a folder: expected a .npy, .csv or .txt file")
     if not os.path.isfile(path):
         raise ValueError(f"no such file {path}")
     ext = os.path.splitext(path)[1].lower()
@@ -151,7 +155,9 @@ def _load_file(name: str, folder: str, files: dict):
                 first = f.readline()
             delimiter = "," if "," in first else ";" if ";" in first else None
             names = _numbers(first, "real") is None and not _DIGIT.search(first)  # a line of column names: x,y,z
-            arr = np.loadtxt(path, delimiter=delimiter, ndmin=1, encoding="utf-8-sig", skiprows=int(names))
+            with warnings.catch_warnings():  # (a file of no numbers is an empty array: no NumPy warning)
+                warnings.simplefilter("ignore", UserWarning)
+                arr = np.loadtxt(path, delimiter=delimiter, ndmin=1, encoding="utf-8-sig", skiprows=int(names))
     except Exception as e:  # a corrupt file raises what NumPy's reader raises
         if ext == ".npy":
             raise ValueError(f"{path}: not a readable .npy array (damaged, not NumPy's format, or Python objects)") from None
@@ -279,6 +285,8 @@ def parse_value(text: str, type_name: str, *, folder: str = ".", is_file: bool =
         if low in ("false", "0", "no"):
             return False
         raise ValueError(f"found {text!r}: expected {expected}")
+    if array and _EMPTY_ARRAY.match(text):  # [] or (): no elements
+        return np.zeros((0, n) if n > 1 else 0, dtype=np.int64 if kind == "int" else np.float64)
     nums = _numbers(text, "int" if kind == "int" else "real")
     if nums is None or len(nums) == 0:
         raise ValueError(f"found {text!r}: expected {expected}{_why(text, kind, n, array)}")

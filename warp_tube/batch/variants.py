@@ -254,6 +254,10 @@ def _resolve_columns(stage, table: Table, context: str):
             out.append((None, None, f"{table.path}: column {col.header}: {col.prim} authors primvars:widths, which "
                                     f"takes precedence over widths: name the column {col.prim}.primvars:widths"))  # fmt: skip
             continue
+        if prim.GetRelationship(col.attribute):
+            out.append((None, None, f"{table.path}: column {col.header}: {col.prim}.{col.attribute} is a relationship: "
+                                    "a table sets attributes only (a variantSet can change a relationship)"))  # fmt: skip
+            continue
         attr = prim.GetAttribute(col.attribute)
         if attr and attr.GetTypeName():
             out.append((attr, str(attr.GetTypeName()), None))

@@ -204,9 +204,10 @@ def _read_tube(file: str, prim, info: StageInfo, frame_times, varying: dict | No
     mpu = info.meters_per_unit
     widths = curve_widths(r, curves, counts, start_tc)
     radius = 0.5 * widths * scale * mpu
-    far = max(float(np.abs(world).max()) * mpu, float(radius.max()))
-    if far > MAX_WORLD_M:
-        r.fail("points", f"a coordinate or radius of {far:.3g} m (after the transforms and metersPerUnit)",
+    coordinate, largest_radius = float(np.abs(world).max()) * mpu, float(radius.max())
+    if max(coordinate, largest_radius) > MAX_WORLD_M:
+        name, what = ("points", "coordinate") if coordinate >= largest_radius else ("widths", "radius")
+        r.fail(name, f"a {what} of {max(coordinate, largest_radius):.3g} m (after the transforms and metersPerUnit)",
                f"at most {MAX_WORLD_M:g} m (past any tube: a transform or metersPerUnit is likely wrong)")  # fmt: skip
     warn_about_transforms(prim, matrix, curves.GetPointsAttr().GetNumTimeSamples() > 1, r.where("points"), varying)
     warn_about_layer_units(prim, pattr, matrix, mpu, info.up_axis, r.where("points"))
