@@ -434,3 +434,27 @@ def test_a_section_turns_mirrors_and_scales_with_its_prim(tmp_path, op):
         # float32 surface points of a 4-unit tube: 1e-5 units is ~100 ulps, far below the 0.1-unit
         # differences between the section's spokes that a wrong turn gives
         assert d.min(axis=1).max() < 1e-5, (ring, d.min(axis=1))
+
+
+def test_a_reference_normal_along_the_tube_is_warned_of(tmp_path, caplog):
+    """Spoke 0 points across the tube: a referenceNormal along its first segment cannot set it
+    (before: taken silently)."""
+    for normal, warned in (("(1, 0, 0)", True), ("(1, 0.001, 0)", True), ("(0, 1, 0)", False), ("(1, 0.1, 0)", False)):
+        scene = tmp_path / "normal.usda"
+        scene.write_text(HEADER + world(tube(BODY + f"        float3 warptube:referenceNormal = {normal}\n")))
+        caplog.clear()
+        with caplog.at_level("WARNING"):
+            load_scene(str(scene))
+        assert ("/World/Tube.warptube:referenceNormal: along the first segment of curve 0" in caplog.text) == warned, normal
+
+
+def test_a_warptube_attribute_written_as_a_primvar_is_named(tmp_path, capsys):
+    """DCC tools export custom attributes as primvars: primvars:warptube:youngsModulus is named,
+    with the spelling to use (before: "youngsModulus: missing", with no hint)."""
+    body = BODY.replace("double warptube:youngsModulus", "double primvars:warptube:youngsModulus")
+    scene = tmp_path / "primvar.usda"
+    scene.write_text(HEADER + world(tube(body)))
+    status, err = run([scene, "-o", tmp_path / "out.usdc"], capsys)
+    assert status == 2
+    assert "/World/Tube.primvars:warptube:youngsModulus: warptube: attributes are plain attributes, not primvars: " \
+           "author it as warptube:youngsModulus" in err, err  # fmt: skip

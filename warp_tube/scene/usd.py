@@ -232,6 +232,13 @@ def _read_tube(file: str, prim, info: StageInfo, frame_times, varying: dict | No
     if rn is not None:  # a direction in the prim's space, turned (and scaled, and mirrored) as its points
         d = np.asarray(rn, dtype=np.float64) @ matrix[:3, :3]
         rn = tuple(float(x) for x in d / np.linalg.norm(d))
+        first = np.concatenate([[0], np.cumsum(counts)[:-1]])
+        seg = world[first + 1] - world[first]
+        along = np.abs(seg @ np.asarray(rn)) / np.maximum(np.linalg.norm(seg, axis=1), 1e-300)
+        if (along > math.cos(math.radians(1.0))).any():  # (within 1 degree of a curve's first segment)
+            log.warning("%s: along the first segment of curve %d: spoke 0 points across the tube, so the part of it across "
+                        "the tube sets its direction (none: the world axis least along the tube)",
+                        r.where("warptube:referenceNormal"), int(np.argmax(along)))  # fmt: skip
     # The reader's errors name file, prim and attribute already; TubeParams' own checks do not.
     values = dict(
         density=r.real("warptube:density", required=True, positive=True),
@@ -428,7 +435,11 @@ class SceneReader:
 
         # Into instances too: a tube under an instanceable prim is a tube (at its instance's path).
         for prim in stage.Traverse(Usd.TraverseInstanceProxies(Usd.PrimDefaultPredicate)):
-            names = [a.GetName() for a in prim.GetAttributes() if a.GetName().startswith("warptube:")]
+            names = [a.GetName() for a in prim.GetAttributes() if a.GetName().startswith(("warptube:", "primvars:warptube:"))]
+            primvars = [n for n in names if n.startswith("primvars:")]
+            if primvars:  # (as a DCC tool exports custom attributes)
+                raise SceneError(f"{path}: {prim.GetPath()}.{primvars[0]}: warptube: attributes are plain attributes, not "
+                                 f"primvars: author it as {primvars[0].removeprefix('primvars:')}")  # fmt: skip
             check_relationships(path, prim)
             if prim.GetRelationship(TARGET):
                 check_names(path, prim, names, FORCE_ATTRS, "force")
