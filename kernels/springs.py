@@ -485,8 +485,15 @@ def stability_rows_kernel(lines: int, tube_node_start: wp.array[int], m: Stabili
 def pin_step(x_start: wp.vec3, x_end: wp.vec3, frac: float, x: Vec, dt: wp.Float):
     """A pinned node's substep: its target [m], lerped over the frame from ``x_start`` to
     ``x_end`` (``frac`` of the way at the substep's end), and the velocity [m/s] that takes it there
-    from ``x`` in ``dt`` [s] (in the precision of ``x``)."""
-    x_new = wp.lerp(x_start, x_end, frac)
+    from ``x`` in ``dt`` [s] (in the precision of ``x``).
+
+    The target is ``x_start + frac (x_end - x_start)``, exactly ``x_start`` for a pin that holds
+    and exactly ``x_end`` at the frame's end (``wp.lerp``'s ``x_start (1 - frac) + x_end frac``
+    wandered by a float32 step between substeps for a pin that holds: 1 um at 10 m from the
+    origin, whose velocity of ulp / dt shook the tube)."""
+    x_new = x_end
+    if frac < 1.0:
+        x_new = x_start + (x_end - x_start) * frac
     return x_new, (type(x)(x_new) - x) / dt
 
 

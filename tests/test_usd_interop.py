@@ -458,3 +458,15 @@ def test_a_warptube_attribute_written_as_a_primvar_is_named(tmp_path, capsys):
     assert status == 2
     assert "/World/Tube.primvars:warptube:youngsModulus: warptube: attributes are plain attributes, not primvars: " \
            "author it as warptube:youngsModulus" in err, err  # fmt: skip
+
+
+def test_gravity_across_the_stages_up_axis_is_warned_of(tmp_path, caplog):
+    """A Z-up stage with gravity along -Y (a scene moved between up axes): warned (before: none)."""
+    settings = 'def Scope "Simulation"\n{\n    float3 warptube:gravity = (0, -9.81, 0)\n}\n'
+    for up, warned in (("Z", True), ("Y", False)):
+        scene = tmp_path / f"up{up}.usda"
+        scene.write_text(HEADER.replace('upAxis = "Y"', f'upAxis = "{up}"') + world(settings + tube()))
+        caplog.clear()
+        with caplog.at_level("WARNING"):
+            load_scene(str(scene))
+        assert ("warptube:gravity (0, -9.81, 0) is not down the stage's upAxis Z (down is (0, 0, -1))" in caplog.text) == warned, caplog.text

@@ -466,6 +466,12 @@ class SceneReader:
                 "warptube:timeStep, warptube:integrator or warptube:gravity"
             )
         settings = _read_settings(path, settings_prims[0], info.start_time_code) if settings_prims else SimulationSettings()
+        g = np.asarray(settings.gravity if settings.gravity is not None else (0.0, 0.0, 0.0), dtype=np.float64)
+        down = -np.eye(3)[1 if info.up_axis == "Y" else 2]
+        if np.linalg.norm(g) > 0.0 and g @ down < math.cos(math.radians(45.0)) * np.linalg.norm(g):
+            vec = lambda v: "(" + ", ".join(f"{x:.4g}" for x in v + 0.0) + ")"  # noqa: E731
+            log.warning("%s: %s.warptube:gravity %s is not down the stage's upAxis %s (down is %s): meant for a stage "
+                        "with another up axis?", path, settings_prims[0].GetPath(), vec(g), info.up_axis, vec(down))  # fmt: skip
         varying: dict = {}  # ancestors' animated transforms, looked at once
         with same_for_many(log.name):  # (a warning of many prims alike: once, with how many more)
             specs = [_read_tube(path, p, info, frame_times, varying) for p in tubes]
