@@ -487,13 +487,12 @@ def pin_step(x_start: wp.vec3, x_end: wp.vec3, frac: float, x: Vec, dt: wp.Float
     ``x_end`` (``frac`` of the way at the substep's end), and the velocity [m/s] that takes it there
     from ``x`` in ``dt`` [s] (in the precision of ``x``).
 
-    The target is ``x_start + frac (x_end - x_start)``, exactly ``x_start`` for a pin that holds
-    and exactly ``x_end`` at the frame's end (``wp.lerp``'s ``x_start (1 - frac) + x_end frac``
-    wandered by a float32 step between substeps for a pin that holds: 1 um at 10 m from the
-    origin, whose velocity of ulp / dt shook the tube)."""
-    x_new = x_end
-    if frac < 1.0:
-        x_new = x_start + (x_end - x_start) * frac
+    The target is ``x_end - (1 - frac) (x_end - x_start)``: exactly ``x_end`` at the frame's end
+    (``frac`` = 1: the next frame starts from it) and exactly where it is for a pin that holds
+    (``wp.lerp``'s ``x_start (1 - frac) + x_end frac`` wandered by a float32 step between
+    substeps for a pin that holds: 1 um at 10 m from the origin, whose velocity of ulp / dt shook
+    the tube)."""
+    x_new = x_end - (x_end - x_start) * (1.0 - frac)
     return x_new, (type(x)(x_new) - x) / dt
 
 
