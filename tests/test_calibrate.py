@@ -53,3 +53,25 @@ def test_the_trial_runs_warn_of_a_contact_at_rest_once(tmp_path, caplog):
     contacts = [r for r in caplog.records if "closer than the sum of their radii" in r.getMessage()]
     assert len(contacts) == 1, [r.getMessage() for r in contacts]
     assert contacts[0].getMessage().startswith("while sizing the push, a run of the scene: frame 1:")  # (said as the sizing's)
+
+
+def test_a_push_that_would_pass_the_force_limit_is_held_there(tmp_path):
+    """A tube 3 km long, 160 m across (a mesh in mm taken as metres): the push that would move it
+    two radii is beyond the 1e9 N a scene may hold; it is held at that limit and said to be (before:
+    the sizing stopped with "force /World/Push: a component of 5.4e+11 N", nothing written)."""
+    from pxr import Usd
+
+    x = np.linspace(0.0, 3000.0, 21)
+    pts = ", ".join(f"({v:.1f}, 0, 0)" for v in x)
+    path = tmp_path / "huge.usda"
+    path.write_text(_hairpin_scene(tmp_path / "h.usda").read_text().split("point3f[] points = [")[0] + f"point3f[] points = [{pts}]\n"
+                    + '        float[] widths = [160] (interpolation = "constant")\n'
+                    + "        double warptube:youngsModulus = 100000\n        double warptube:density = 1050\n"
+                    + "        int[] warptube:pinnedPoints = [0, 1]\n    }\n"
+                    + '    def Scope "Push"\n    {\n        rel warptube:target = </World/Tube>\n        int warptube:point = 10\n'
+                    + "        float3 warptube:force = (0, 0, 1)\n    }\n}\n")  # fmt: skip
+    size = size_push(str(path))
+    assert size is not None and size.at_limit and not size.within_tolerance
+    stage = Usd.Stage.Open(str(path))
+    force = stage.GetAttributeAtPath("/World/Push.warptube:force").Get()
+    assert abs(force[2]) <= 1e9 and abs(force[2]) > 0.99e9, force

@@ -213,3 +213,21 @@ def test_messages_say_one_face_one_vertex_one_point_one_entry(tmp_path, monkeypa
     assert err == ["warp-tube: pt.ply: 1 point and no faces (a point cloud): expected a surface mesh",
                    "warp-tube: tri.stl: only 1 face: expected a tube surface"], err  # fmt: skip
     assert not (tmp_path / "s.usda").exists()
+
+
+def test_a_capillary_in_metres_extracts_as_the_same_tube_a_million_times_larger():
+    """Extraction is the same at every size: a tube 30 um long and 0.8 um across, in metres, gives
+    the hubs and spokes of the same mesh in metres a million times larger, scaled (before: trimesh's
+    face normals, cut off at an absolute 1e-12, were 0 on every face, and the mesh "enclosed no
+    volume")."""
+    from .test_extract import tube_mesh
+
+    big, _, _ = tube_mesh(curve=lambda u: np.stack([30.0 * u, 3.0 * np.sin(4.0 * u), 0.0 * u], 1),
+                          radius=lambda u: 0.8 + 0.0 * u, stations=120, ring=24)  # fmt: skip
+    small = trimesh.Trimesh(big.vertices * 1e-6, big.faces, process=False)
+    a = extract_centerline(big, device="cpu")
+    b = extract_centerline(small, device="cpu")
+    assert a.hubs == b.hubs
+    # the same extraction but for the float32 queries' round-off (relative to each mesh's size)
+    assert np.abs(b.points * 1e6 - a.points).max() < 1e-3 * 0.8
+    assert np.abs(b.spoke_lengths * 1e6 - a.spoke_lengths).max() < 1e-3 * 0.8

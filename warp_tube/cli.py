@@ -264,7 +264,12 @@ def _size_push(scene: str, name: str, progress: bool) -> None:
         print(f"{name}: push {size.force_n:.3g} N on the middle hub: the tube moves by "
               f"{size.moved_m * 1e3:.3g} mm by frame {PUSH_FRAMES - 1} (target {size.target_m * 1e3:.3g} mm; "
               f"x{size.factor:.3g} of the straight-beam estimate; {size.runs} runs)")  # fmt: skip
-        if not size.within_tolerance:
+        if not size.within_tolerance and size.at_limit:
+            logging.getLogger("warp_tube.extract").warning(
+                "%s: the push is held at 1e9 N a component, the most a scene holds, and moves the tube by %.3g mm, not "
+                "the %.3g mm it was sized for: a tube this large is likely in other units than metres (--scale)",
+                name, size.moved_m * 1e3, size.target_m * 1e3)  # fmt: skip
+        elif not size.within_tolerance:
             logging.getLogger("warp_tube.extract").warning(
                 "%s: the push moves the tube by %.3g mm, not the %.3g mm it was sized for: the tube does not answer "
                 "in proportion to the force (it snaps through or stiffens); edit /World/Push's warptube:force to taste",

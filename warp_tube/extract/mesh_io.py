@@ -25,6 +25,7 @@ __all__ = [
     "mesh_from_arrays",
     "load_usd_mesh",
     "clean_mesh",
+    "unit_face_normals",
     "BoundaryLoop",
     "boundary_loops",
     "cap_loops",
@@ -92,7 +93,11 @@ def clean_mesh(mesh: trimesh.Trimesh, source: str, scale=(1.0, 1.0, 1.0), max_si
     _check_size(scaled, f, s, source, max_size)
     out = trimesh.Trimesh(scaled, f, process=False)
     out.merge_vertices()
-    out.update_faces(out.nondegenerate_faces())
+    # Faces whose corners merged into fewer than three vertices go; a sliver of three distinct
+    # collinear corners (marching cubes leaves many) stays: removing it would open a crack where
+    # its edges join its neighbours', and a closed mesh would be closed no more.
+    g = out.faces
+    out.update_faces((g[:, 0] != g[:, 1]) & (g[:, 1] != g[:, 2]) & (g[:, 0] != g[:, 2]))
     out.update_faces(out.unique_faces())
     out.remove_unreferenced_vertices()
     if len(out.faces) == 0:
@@ -108,6 +113,16 @@ def clean_mesh(mesh: trimesh.Trimesh, source: str, scale=(1.0, 1.0, 1.0), max_si
     if len(out.faces) < 8:
         raise SceneError(f"{source}: only {counted(len(out.faces), 'face')}: expected a tube surface")
     return out
+
+
+def unit_face_normals(mesh: trimesh.Trimesh) -> np.ndarray:
+    """Each face's unit normal (the winding's), (F, 3); 0 for a face of no area. Whatever the
+    mesh's size: trimesh's ``face_normals`` gives 0 for faces whose cross product is below its
+    absolute tolerance (1e-12: every face of a tube a few micrometres across, in metres)."""
+    tri = np.asarray(mesh.triangles, dtype=np.float64)
+    n = np.cross(tri[:, 1] - tri[:, 0], tri[:, 2] - tri[:, 0])
+    length = np.linalg.norm(n, axis=1)
+    return np.divide(n, length[:, None], out=np.zeros_like(n), where=length[:, None] > 0.0)
 
 
 def _check_size(v: np.ndarray, f: np.ndarray, s: np.ndarray, source: str, max_size: float | None = None) -> None:
@@ -466,7 +481,7 @@ def flat_cuts(mesh: trimesh.Trimesh, min_area: float, angle_deg: float = 1.0) ->
     patches with faces parallel to them all round, just out of their plane
     (:func:`_is_terrace`; a seal meets the tube's wall there, across it).
     """
-    n = np.asarray(mesh.face_normals)
+    n = unit_face_normals(mesh)
     area = np.asarray(mesh.area_faces)
     c = np.asarray(mesh.triangles_center)
     adj = np.asarray(mesh.face_adjacency)

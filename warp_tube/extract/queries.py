@@ -15,6 +15,7 @@ import trimesh
 import warp as wp
 
 from ..kernels import raycast
+from .mesh_io import unit_face_normals
 
 __all__ = ["MeshQueries"]
 
@@ -73,7 +74,7 @@ class MeshQueries:
         """Distances across the tube from up to ``samples`` face centroids (valid ones only)."""
         step = max(1, len(mesh.faces) // samples)
         c = np.asarray(mesh.triangles_center[::step])
-        n = np.asarray(mesh.face_normals[::step])
+        n = unit_face_normals(mesh)[::step]
         ok = np.isfinite(n).all(axis=1) & (np.linalg.norm(n, axis=1) > 0.5)
         c, n = c[ok], n[ok]
         out = wp.empty(len(c), dtype=float, device=self.device)

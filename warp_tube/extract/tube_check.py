@@ -110,8 +110,9 @@ def summary_line(tube, fidelity, output: str, units: str = "m") -> str:
             if fidelity.to_surface.counted
             else "fit not measurable"
         )
+    span = f" ({tube.length:.4g} between its end hubs)" if not tube.caps and tube.length < 0.95 * tube.tip_to_tip else ""
     return (
-        f"{output}: {tube.hubs} hubs x {tube.spokes} spokes, {tube.tip_to_tip:.4g} {units} long, radius "
+        f"{output}: {tube.hubs} hubs x {tube.spokes} spokes, {tube.tip_to_tip:.4g} {units} long{span}, radius "
         f"{tube.radius.min():.3g}-{tube.radius.max():.3g} {units}, ends {ends}, {side_branches(len(tube.branches))} "
         f"left out, {fit}"
     )

@@ -78,6 +78,7 @@ def check(tube: ExtractedTube, open_rays: np.ndarray, *, hubs_given: bool) -> li
                 f"ends or in side branches); a tube holds most of its mesh (a sheet or a plate gives a thin tube "
                 "across it)"
             )
+    out += _end_warnings(tube, radius)
     if fid is not None and not fid.within(*FIDELITY_BOUNDS):
         bounds = " / ".join(f"{100 * b:g}" for b in FIDELITY_BOUNDS)
         text = (
@@ -91,6 +92,27 @@ def check(tube: ExtractedTube, open_rays: np.ndarray, *, hubs_given: bool) -> li
                 "leave --hubs out to have the count chosen"
             )
         out.append(text)
+    return out
+
+
+#: the ends' rings trimmed back by more than this fraction of the tip-to-tip length are warned of
+MAX_TRIMMED = 0.1
+
+
+def _end_warnings(tube: ExtractedTube, radius: float) -> list[str]:
+    """What the simulated tube leaves out at its ends: much of its length trimmed back (the end
+    rings kept clear of the cuts, on a short or fat tube). (A rounded end opposite an open one has
+    no cap, caps being built where both ends close: its tip, about an end radius, is left out as
+    the fit leaves one end radius out at each end; real vessels' blunt ends are so.)"""
+    out = []
+    trimmed = [e.trimmed for e in tube.ends]
+    uncovered = [0.0 if tube.caps else t for t in trimmed]  # (caps reach the rounded tips)
+    if sum(uncovered) > MAX_TRIMMED * tube.tip_to_tip:
+        out.append(
+            f"its end hubs span {tube.length:.4g} of the {tube.tip_to_tip:.4g} from tip to tip: the ends are trimmed back "
+            f"by {trimmed[0]:.3g} and {trimmed[1]:.3g} ({trimmed[0] / radius:.2g} and {trimmed[1] / radius:.2g} mean radii; "
+            "an end ring stays clear of a cut or an opening), and the simulated surface stops there"
+        )
     return out
 
 

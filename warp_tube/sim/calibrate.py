@@ -24,6 +24,8 @@ from functools import partial
 
 import numpy as np
 
+from ..scene.spec import MAX_FORCE_N
+
 __all__ = ["PushSize", "size_push", "PUSH_FRAMES", "PUSH_TOLERANCE", "PUSH_RUNS", "MAX_LENGTH_FRACTION"]
 
 #: frames simulated to size the push: the ramp (0-24) and the hold (24-48) of an extracted scene
@@ -47,6 +49,7 @@ class PushSize:
         target_m: the displacement sized for [m].
         moved_m: the largest displacement with the force as written, as simulated [m].
         runs: simulations made.
+        at_limit: the force was held at the most a scene may hold (``MAX_FORCE_N`` a component).
     """
 
     factor: float
@@ -55,6 +58,7 @@ class PushSize:
     target_m: float
     moved_m: float
     runs: int
+    at_limit: bool = False
 
     @property
     def within_tolerance(self) -> bool:
@@ -132,7 +136,10 @@ def _sized(path: str, force_path: str, force, target: float, moved) -> PushSize 
     if not before > 0.0:
         return None
     tried = [(1.0, before)]  # (factor, displacement) of each run
-    factor, runs = target / before, 1
+    # at most the force a scene may hold (MAX_FORCE_N a component: a tube so large that it needs more
+    # is one in the wrong units, which the extraction warns of)
+    limit = MAX_FORCE_N / max(float(np.abs(force.values).max()), 1e-300)
+    factor, runs = min(target / before, limit), 1
     while runs < PUSH_RUNS:
         try:
             d = moved(factor)
@@ -147,8 +154,10 @@ def _sized(path: str, force_path: str, force, target: float, moved) -> PushSize 
         (f0, d0), (f1, d1) = tried[-2], tried[-1]
         slope = np.log(d1 / d0) / np.log(f1 / f0) if f1 != f0 and d0 > 0.0 and d1 != d0 else 1.0
         slope = float(np.clip(slope, 0.25, 4.0))  # (the response's order: 1 where proportional)
-        factor = f1 * (target / d1) ** (1.0 / slope)
+        factor = min(f1 * (target / d1) ** (1.0 / slope), limit)
+        if factor == f1:  # (at the limit already)
+            break
     best_factor, best = min(tried[1:] or tried, key=lambda fd: abs(np.log(fd[1] / target)) if fd[1] > 0 else np.inf)
     scale_force_samples(path, force_path, best_factor)
     return PushSize(factor=best_factor, force_n=best_factor * float(np.linalg.norm(force.values, axis=-1).max()), before_m=before,
-                    target_m=target, moved_m=best, runs=runs)  # fmt: skip
+                    target_m=target, moved_m=best, runs=runs, at_limit=best_factor >= limit)  # fmt: skip
