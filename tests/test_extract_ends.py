@@ -179,3 +179,31 @@ def test_cleaning_keeps_a_closed_mesh_closed_where_slivers_join_faces():
     assert mesh2.is_watertight and (mesh2.area_faces == 0).sum() >= 1
     cleaned = clean_mesh(mesh2, "slivers")
     assert cleaned.is_watertight
+
+
+def test_where_no_vertex_is_measured_the_tubes_volume_tells_a_tube_from_a_plate():
+    """A plain capsule's vertices all lie at its ends, and so do a thin plate's beyond the thin tube
+    found across it: no vertex is measured against the rings, and the left-out test says nothing.
+    The tube's own volume against the mesh's tells them apart (before: a 0.2 x 0.2 x 0.002 plate
+    passed --strict). The volume is exact for a cylinder (pi r^2 L: trapezoids of equal sections)."""
+    from types import SimpleNamespace
+
+    from warp_tube.extract.fidelity import Distances, Fidelity
+    from warp_tube.extract.tubelike import tube_volume
+    from warp_tube.extract.tubelike import check as tubelike_check
+
+    r, length = 0.01, 0.2
+    x = np.linspace(0.0, length, 21)
+    points = np.stack([x, 0 * x, 0 * x], 1)
+    assert abs(tube_volume(SimpleNamespace(points=points, spoke_lengths=np.full((21, 16), r))) / (np.pi * r * r * length) - 1) < 1e-12
+    none = Distances(float("nan"), float("nan"), float("nan"), 0, 500)
+    fid = Fidelity(to_surface=none, to_input=Distances(0.01, 0.02, 0.03, 100, 0), rings_to_input=none, mean_radius=r,
+                   end_ratios=(1.0, 1.0), guard_moved=0.0)  # fmt: skip
+    end = SimpleNamespace(kind="closed", trimmed=r, radius=r)
+    tube = SimpleNamespace(ring=None, spoke_lengths=np.full((21, 16), r), points=points, tip_to_tip=length + 2 * r, length=length,
+                           fidelity=fid, ends=(end, end), caps=True, hubs=21)  # fmt: skip
+    capsule_volume = np.pi * r * r * length + 4.0 / 3.0 * np.pi * r**3
+    assert not [w for w in tubelike_check(tube, np.zeros((21, 8), bool), hubs_given=False, mesh_volume=capsule_volume)
+                if w.startswith(NOT_A_TUBE)]  # fmt: skip
+    plate = tubelike_check(tube, np.zeros((21, 8), bool), hubs_given=False, mesh_volume=0.2 * 0.2 * 0.02)
+    assert any(w.startswith(f"{NOT_A_TUBE}: the tube holds 7.9% of the volume the mesh encloses") for w in plate), plate

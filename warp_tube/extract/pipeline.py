@@ -445,7 +445,8 @@ def extract_centerline(
         source=src,
         ring=None if ring is None else dataclasses.replace(ring, cuts=ring.cuts + shift),
     )
-    tube.warnings = tubelike.check(tube, open_rays(q, points, diag), hubs_given=hubs is not None)
+    volume = abs(float(trimesh.Trimesh(closed_v, closed_f, process=False).volume))
+    tube.warnings = tubelike.check(tube, open_rays(q, points, diag), hubs_given=hubs is not None, mesh_volume=volume)
     refused = [w for w in tube.warnings if w.startswith(tubelike.NOT_A_TUBE)] if strict else []
     for w in tube.warnings:
         if not refused or w != refused[0]:  # the refusal itself is the error message, not a warning too

@@ -14,7 +14,9 @@ Three checks on the mesh (their warnings start with :data:`NOT_A_TUBE`, and ``wa
 - most of the mesh on the tube: at most :data:`MAX_LEFT_OUT` of the mesh's vertices may lie off
   its rings (beyond its ends, or nearer a side branch than the axis; :func:`~warp_tube.extract.fidelity.measured_vertices`):
   a closed plate gives a thin "tube" across it and leaves 99% out; a vessel leaves out 3-23% (its
-  ends and branches), a tube five radii long about half (its ends).
+  ends and branches), a tube five radii long about half (its ends). Where no vertex could be
+  measured against the rings (a plain capsule's lie at its ends, and so do a thin plate's), the tube
+  must hold at least :data:`MIN_VOLUME_HELD` of the volume the mesh encloses instead.
 
 One check on the result: the rest surface the simulator builds (:mod:`warp_tube.extract.fidelity`)
 must lie within :data:`~warp_tube.extract.fidelity.FIDELITY_BOUNDS` of the mesh both ways; if not,
@@ -44,13 +46,14 @@ MAX_LEFT_OUT = 0.9
 """Largest fraction of the mesh's vertices off the tube's rings (beyond its ends, in side branches)."""
 
 
-def check(tube: ExtractedTube, open_rays: np.ndarray, *, hubs_given: bool) -> list[str]:
+def check(tube: ExtractedTube, open_rays: np.ndarray, *, hubs_given: bool, mesh_volume: float = 0.0) -> list[str]:
     """Warnings about ``tube`` (see the module); empty when it passes.
 
     Args:
         tube: the extracted tube (its fidelity filled in).
         open_rays: which rays of each hub's ring leave through an opening, bool (hubs, rays).
         hubs_given: whether the hub count came from the caller (``--hubs``).
+        mesh_volume: the volume the mesh encloses (its openings closed) [mesh units^3], or 0 if unknown.
     """
     out = [] if tube.ring is None else [ring_warning(tube.ring)]
     radius = float(tube.spoke_lengths.mean())
@@ -78,6 +81,15 @@ def check(tube: ExtractedTube, open_rays: np.ndarray, *, hubs_given: bool) -> li
                 f"ends or in side branches); a tube holds most of its mesh (a sheet or a plate gives a thin tube "
                 "across it)"
             )
+    if fid is not None and not fid.to_surface.counted and mesh_volume > 0.0:
+        # No vertex measured against the rings (a plain capsule's vertices all lie at its ends; so do
+        # a plate's, beyond a thin tube across it): the tube's own volume tells them apart.
+        held = tube_volume(tube) / mesh_volume
+        if held < MIN_VOLUME_HELD:
+            out.append(
+                f"{NOT_A_TUBE}: the tube holds {100.0 * held:.2g}% of the volume the mesh encloses; a tube holds most "
+                "of it (a sheet or a plate gives a thin tube across it)"
+            )
     out += _end_warnings(tube, radius)
     if fid is not None and not fid.within(*FIDELITY_BOUNDS):
         bounds = " / ".join(f"{100 * b:g}" for b in FIDELITY_BOUNDS)
@@ -93,6 +105,18 @@ def check(tube: ExtractedTube, open_rays: np.ndarray, *, hubs_given: bool) -> li
             )
         out.append(text)
     return out
+
+
+#: least fraction of the mesh's volume the tube holds, where no vertex could be measured against its rings
+MIN_VOLUME_HELD = 0.1
+
+
+def tube_volume(tube: ExtractedTube) -> float:
+    """The volume of the tube's rings swept along its hubs [mesh units^3]: each hub's section
+    (pi x its mean squared spoke length) over the segments beside it."""
+    area = np.pi * np.mean(np.asarray(tube.spoke_lengths, dtype=np.float64) ** 2, axis=1)
+    seg = np.linalg.norm(np.diff(np.asarray(tube.points, dtype=np.float64), axis=0), axis=1)
+    return float(np.sum(0.5 * (area[:-1] + area[1:]) * seg))
 
 
 #: the ends' rings trimmed back by more than this fraction of the tip-to-tip length are warned of
