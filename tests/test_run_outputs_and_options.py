@@ -77,6 +77,8 @@ def test_every_output_counts_the_frames_it_writes(tmp_path):
     sim = warp_tube.Simulation(warp_tube.load_scene(str(scene)), device="cpu")
     s = sim.run(frames=8, output=str(tmp_path / "a.usdc"), every=3)
     assert (s.frames, s.first_frame, s.last_frame) == (3, 0, 6)
+    # frame 7 is simulated, not written: said (a shot framed to the scene's end would lose it)
+    assert any("every 3: frames 7 to 7 are simulated but not written (the last written is frame 6)" in w for w in s.warnings)
     sim = warp_tube.Simulation(warp_tube.load_scene(str(scene)), device="cpu")
     for _ in range(4):
         sim.step()
@@ -175,3 +177,21 @@ def test_a_folder_given_as_the_output_is_named_as_a_folder(tmp_path, capsys):
     err = capsys.readouterr().err
     assert f"{folder}: is a folder" in err and str(folder / "out.usdc") in err and "extension" not in err
     assert list(folder.iterdir()) == []
+
+
+def test_tubes_under_several_root_prims_are_said_to_leave_the_default_prim_short(tmp_path):
+    """The output's defaultPrim is the first tube's root: a reference without a prim path brings in
+    only the tubes under it, which the run now says where the tubes have several roots."""
+    import warp_tube
+    from warp_tube.scene.spec import Scene
+
+    scene = warp_tube.load_scene(str(_scene(tmp_path / "s.usda", _straight(3, 1.0), 1.0)))
+    t = scene.tubes[0]
+    two = Scene((t, type(t)(path="/Other/Tube", points=t.points + [0.0, 0.1, 0.0], curve_counts=t.curve_counts, radius=t.radius,
+                           params=t.params, pinned=t.pinned)), stage=scene.stage)  # fmt: skip
+    s = warp_tube.Simulation(two, device="cpu").run(frames=2, output=str(tmp_path / "two.usdc"))
+    root = "/" + t.path.strip("/").split("/")[0]
+    assert any(f"lie under 2 root prims ({root}, /Other): the output's defaultPrim is {root}" in w for w in s.warnings), s.warnings
+    one = warp_tube.Simulation(scene, device="cpu").run(frames=2, output=str(tmp_path / "one.usdc"))
+    assert not any("root prims" in w for w in one.warnings)
+

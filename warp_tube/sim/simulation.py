@@ -431,6 +431,15 @@ class Simulation(RunBudget):
             raise SceneError(f"every {every}: none of frames {first} to {end - 1} is a multiple of it: nothing to write")
         if output and written_count == 1 and end - first > 1:
             self._warn(f"every {every}: of frames {first} to {end - 1} only frame {first_written} is written")
+        elif output and written_count > 1 and (end - 1 - first_written) % every:
+            last = first_written + (written_count - 1) * every
+            self._warn(f"every {every}: frames {last + 1} to {end - 1} are simulated but not written (the last written is "
+                       f"frame {last})")  # fmt: skip
+        roots = list(dict.fromkeys("/" + t.path.strip("/").split("/")[0] for t in self.scene.tubes))
+        if output and len(roots) > 1:
+            self._warn(f"the tube prims lie under {len(roots)} root prims ({', '.join(roots[:4])}{', ...' if len(roots) > 4 else ''}): "
+                       f"the output's defaultPrim is {roots[0]}, and a reference to the file without a prim path brings "
+                       "in only the tubes under it")  # fmt: skip
         if output:
             self._check_output_fits(written_count, output)
             inputs = [self.scene.source] if self.scene.source and os.path.exists(self.scene.source) else []
