@@ -27,3 +27,24 @@ def test_a_ctrl_c_dropped_in_a_finalizer_is_raised_at_the_next_check():
             raise_if_interrupted()
         raise_if_interrupted()  # raised once: nothing pending now
     assert signal.getsignal(signal.SIGINT) is signal.default_int_handler
+
+
+def test_an_interrupt_during_an_import_is_raised_once_the_module_is_in(tmp_path, monkeypatch):
+    """usd-core's import, cut by a Ctrl-C, left its bindings half registered (a later call failed
+    with "No to_python converter", or the command ran on): import_whole holds the interrupt until
+    the module is whole, then raises it."""
+    import sys
+
+    from warp_tube.runtime.interrupts import import_whole
+
+    (tmp_path / "slow_to_import.py").write_text(
+        "import os, signal, time\n"
+        "os.kill(os.getpid(), signal.SIGINT)\n"
+        "for _ in range(100):\n    time.sleep(0.001)\n"
+        "WHOLE = True\n"
+    )
+    monkeypatch.syspath_prepend(str(tmp_path))
+    with pytest.raises(KeyboardInterrupt):
+        import_whole("slow_to_import")
+    assert sys.modules["slow_to_import"].WHOLE
+    del sys.modules["slow_to_import"]

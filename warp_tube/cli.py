@@ -11,12 +11,13 @@ from __future__ import annotations
 import argparse
 import logging
 import os
+import signal
 import sys
 import time
 import traceback
 from importlib import resources
 
-from .runtime.interrupts import exit_status, stopped_by, terminate_as_interrupt
+from .runtime.interrupts import exit_status, import_whole, stopped_by, terminate_as_interrupt
 from .scene.spec import SceneError
 
 EXIT_OK, EXIT_INTERNAL, EXIT_INPUT, EXIT_NUMERICAL = 0, 1, 2, 3
@@ -367,8 +368,21 @@ def _cmd_bench(a) -> int:
     return EXIT_OK
 
 
+def console_main() -> int:
+    """The ``warp-tube`` console script (and ``python -m warp_tube``): :func:`main`, then interrupts
+    ignored while the process ends. The command's outcome is decided and said by then: a Ctrl-C in
+    the ~0.3 s of tearing down (threads, Warp's and usd-core's own clean-up) made a complete run
+    exit 130 with nothing said."""
+    status = main()
+    for name in ("SIGINT", "SIGTERM", "SIGHUP"):
+        if hasattr(signal, name):
+            signal.signal(getattr(signal, name), signal.SIG_IGN)
+    return status
+
+
 def main(argv=None) -> int:
-    """Entry point of the ``warp-tube`` console script; returns the exit status."""
+    """The command line: parse ``argv`` (default ``sys.argv[1:]``), run the command and return the
+    exit status (without ending the process: tests call it)."""
     from .runtime.warp_setup import set_verbose
 
     parser = _parser()
@@ -384,6 +398,8 @@ def main(argv=None) -> int:
                "batch": _cmd_batch, "bench": _cmd_bench}
     try:
         with terminate_as_interrupt():  # SIGTERM, SIGHUP: stop as after Ctrl-C, keeping what is finished
+            if args.command != "bench":  # (usd-core whole before anything: an interrupt in its import broke it)
+                import_whole("pxr.Tf", "pxr.Gf", "pxr.Vt", "pxr.Sdf", "pxr.Usd", "pxr.UsdGeom")
             return handler[args.command](args)
     except SceneError as e:
         print(f"warp-tube: {e}", file=sys.stderr)

@@ -22,7 +22,7 @@ import contextlib
 import signal
 import threading
 
-__all__ = ["kept_interrupts", "raise_if_interrupted", "terminate_as_interrupt", "deferred_interrupts", "Terminated",
+__all__ = ["kept_interrupts", "raise_if_interrupted", "terminate_as_interrupt", "deferred_interrupts", "import_whole", "Terminated",
            "exit_status", "stopped_by"]  # fmt: skip
 
 _pending = None  # the signal (SIGINT, SIGTERM, SIGHUP) that arrived and may not have been delivered
@@ -147,3 +147,18 @@ def deferred_interrupts():
         if _pending is not None:
             got.append(_pending)
         _pending = before
+
+
+def import_whole(*modules: str) -> None:
+    """Import ``modules`` with interrupts held back until they are in: a Ctrl-C in the middle of
+    usd-core's import left its Python bindings half registered (later calls failed with "No
+    to_python converter", or the command ran on and exited 0), so the interrupt is raised after the
+    import, as if it had come just then."""
+    import importlib
+
+    with deferred_interrupts() as got:
+        for name in modules:
+            importlib.import_module(name)
+    if got:
+        raise _interrupt(got[0])
+
