@@ -50,3 +50,25 @@ def test_a_mesh_named_surface_extracts_to_a_tube_not_named_like_the_outputs_part
     surfaces = [str(p.GetPath()) for p in stage.Traverse() if p.IsA(UsdGeom.Mesh)]
     assert surfaces == ["/World/Surface_tube/Surface"], surfaces
     assert np.isfinite(np.asarray(UsdGeom.Mesh(stage.GetPrimAtPath(surfaces[0])).GetPointsAttr().Get(1.0))).all()
+
+
+def test_a_plain_cylinder_given_in_a_scene_is_measured_as_extract_measures_it(tmp_path, caplog):
+    """A cylinder whose vertices are its two end rings (trimesh's): `warp-tube extract` measures its
+    fit on the mesh as it refined it; given as a scene's Mesh, it was measured on the raw mesh,
+    with no vertex away from the ends, and warned "could not be measured"."""
+    cyl = trimesh.creation.cylinder(radius=1.0, height=20.0, sections=32)
+    assert len(np.unique(np.round(cyl.vertices[:, 2], 6))) <= 3  # (its end rings, and the caps' centres)
+    stage = Usd.Stage.CreateNew(str(tmp_path / "s.usda"))
+    UsdGeom.Xform.Define(stage, "/World")
+    mesh = UsdGeom.Mesh.Define(stage, "/World/Tube")
+    mesh.CreatePointsAttr(Vt.Vec3fArray([Gf.Vec3f(*p) for p in cyl.vertices.astype(float)]))
+    mesh.CreateFaceVertexCountsAttr(Vt.IntArray([3] * len(cyl.faces)))
+    mesh.CreateFaceVertexIndicesAttr(Vt.IntArray(cyl.faces.reshape(-1).tolist()))
+    prim = mesh.GetPrim()
+    prim.CreateAttribute("warptube:extract", Sdf.ValueTypeNames.Bool).Set(True)
+    prim.CreateAttribute("warptube:youngsModulus", Sdf.ValueTypeNames.Double).Set(1e5)
+    prim.CreateAttribute("warptube:density", Sdf.ValueTypeNames.Double).Set(1000.0)
+    stage.GetRootLayer().Save()
+    with caplog.at_level("WARNING"):
+        load_scene(str(tmp_path / "s.usda"))
+    assert "could not be measured" not in caplog.text, caplog.text

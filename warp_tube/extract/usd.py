@@ -266,7 +266,11 @@ def tube_from_mesh_prim(file: str, prim, info: StageInfo) -> TubeSpec:
     init_warp()
     mesh = load_usd_mesh(prim, source=where)
     tube = extract_centerline(mesh, hubs=None if hubs is None else int(hubs), spokes=spokes, source=where)
-    fid = surface_fidelity(tube, mesh) if tube.hubs * tube.spokes <= 2_000_000 else None
+    # as `warp-tube extract` has it: measured by the extraction on the mesh as it refined it (a coarse
+    # mesh's long edges split: the raw one of a plain cylinder has no vertex to measure away from its ends)
+    fid = tube.fidelity
+    if fid is None and tube.hubs * tube.spokes <= 2_000_000:
+        fid = surface_fidelity(tube, mesh)
     for w in tube_warnings(tube, fid, automatic_hubs=hubs is None, units="stage units"):
         log.warning("%s: %s", where, w)
     mpu = info.meters_per_unit
