@@ -25,7 +25,7 @@ from warp_tube.cli import BUILD_SECONDS_PER_POINT
 from warp_tube.scene.spec import Scene, SimulationSettings, StageInfo, TubeParams, TubeSpec
 from warp_tube import Simulation
 from warp_tube.centerline.policy import IMPLICIT_COST_RATIO
-from warp_tube.sim.simulation import CPU_SEMI_STEP_COST
+from warp_tube.sim.budget import CPU_SEMI_STEP_COST, CPU_SUBSTEP_COST
 
 ROOT = pathlib.Path(__file__).resolve().parents[1]
 
@@ -71,7 +71,23 @@ def main():
         per_point = per_step / sim.model.node_count
         print(f"stiff default scene, {sim.integrator}: {sim.substeps:,} substeps a frame, median frame "
               f"{statistics.median(times):.3f} s, {per_step * 1e6:.2f} us a substep, {per_point * 1e9:.0f} ns a point "
-              f"and substep ({sim.model.node_count} points; estimate uses {CPU_SEMI_STEP_COST * factor * 1e9:.0f})")  # fmt: skip
+              f"and substep ({sim.model.node_count} points; the estimate takes "
+              f"{(CPU_SUBSTEP_COST + sim.model.node_count * CPU_SEMI_STEP_COST) * factor * 1e6:.2f} us a substep)")  # fmt: skip
+    for n in (21, 201, 2001, 20001):  # a straight tube under gravity, semi-implicit: the cost a substep and a point
+        x = np.linspace(0.0, 0.01 * (n - 1), n)
+        tube = TubeSpec("/World/Tube", np.stack([x, 0 * x, 0 * x], 1), [n], np.full(n, 0.01),
+                        TubeParams(density=1050.0, youngs_modulus=1e5, damping=2.0), pinned=[0, 1])  # fmt: skip
+        settings = SimulationSettings(integrator="semiImplicitEuler", time_step=1e-4, gravity=(0.0, -9.81, 0.0))
+        sim = Simulation(Scene((tube,), (), settings=settings, stage=StageInfo(meters_per_unit=1.0)), device="cpu", surface=False)
+        sim.step()
+        times = []
+        for _ in range(a.repeat):
+            t0 = time.perf_counter()
+            sim.step()
+            times.append(time.perf_counter() - t0)
+        per_step = statistics.median(times) / sim.substeps
+        print(f"straight tube, {n:,} points: {per_step * 1e6:.1f} us a substep ({per_step / n * 1e9:.0f} ns a point; the "
+              f"estimate takes {(CPU_SUBSTEP_COST + n * CPU_SEMI_STEP_COST) * 1e6:.1f} us)")  # fmt: skip
 
 if __name__ == "__main__":
     main()

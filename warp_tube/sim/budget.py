@@ -19,13 +19,18 @@ from ..scene.spec import SceneError
 
 log = logging.getLogger("warp_tube.sim.simulation")
 
-__all__ = ["RunBudget", "CPU_SEMI_STEP_COST", "OUTPUT_MEMORY_FACTOR", "LARGE_OUTPUT_BYTES", "LONG_RUN_SECONDS",
+__all__ = ["RunBudget", "CPU_SEMI_STEP_COST", "CPU_SUBSTEP_COST", "OUTPUT_MEMORY_FACTOR", "LARGE_OUTPUT_BYTES", "LONG_RUN_SECONDS",
            "whole_number", "check_world_count"]  # fmt: skip
 
-#: CPU cost of one semi-implicit substep per centerline point [s], for the up-front estimate of a
-#: long run only (implicit substeps cost IMPLICIT_COST_RATIO times more); benchmarks/bench_estimates.py
-#: measures it (0.18 us for the 21 points and assistant line of the default scene on a busy core).
-CPU_SEMI_STEP_COST = 0.15e-6
+#: CPU cost of one semi-implicit substep [s]: :data:`CPU_SUBSTEP_COST` and this per centerline point,
+#: for the up-front estimate of a long run only (implicit substeps cost IMPLICIT_COST_RATIO times
+#: more); benchmarks/bench_estimates.py measures them (2-core CPU, 2026-11-27: a straight tube with
+#: gravity 1.6 / 7.8 / 66 / 648 us a substep at 21 / 201 / 2,001 / 20,001 points, 32-40 ns a point
+#: past 200; the default scene's 21 points with their assistant line 3.8 us). A single cost per
+#: point, 0.15 us, had a 20,000-point run announced at 2.4 min that took 52 s.
+CPU_SEMI_STEP_COST = 0.04e-6
+#: CPU cost of a substep whatever its points [s] (its launch and the tube's loop): see above.
+CPU_SUBSTEP_COST = 2e-6
 #: a run's memory over its output's samples (usd-core's layer, the simulation, the frame being
 #: written): measured 2.7-3.8x on the CPU for outputs of 0.5-2 GB, a 0.3 GB process included.
 OUTPUT_MEMORY_FACTOR = 2.5
@@ -58,10 +63,10 @@ class RunBudget:
     reads ``model``, ``surfaces``, ``substeps``, ``integrator``, ``device`` and ``reason``)."""
 
     def estimated_seconds(self, frames: int) -> float:
-        """Rough time [s] to simulate ``frames`` frames: substeps x points x a per-point cost
-        (:data:`CPU_SEMI_STEP_COST`, x :data:`IMPLICIT_COST_RATIO` for implicit Euler). On CUDA,
-        where points run in parallel, 10 us per substep at the least."""
-        per_step = self.model.node_count * self.model.world_count * CPU_SEMI_STEP_COST
+        """Rough time [s] to simulate ``frames`` frames: substeps x (a cost per substep and one per
+        point: :data:`CPU_SUBSTEP_COST`, :data:`CPU_SEMI_STEP_COST`; x :data:`IMPLICIT_COST_RATIO` for
+        implicit Euler). On CUDA, where points run in parallel, 10 us per substep at the least."""
+        per_step = CPU_SUBSTEP_COST + self.model.node_count * self.model.world_count * CPU_SEMI_STEP_COST
         if self.integrator == "implicitEuler":
             per_step *= IMPLICIT_COST_RATIO
         if self.device != "cpu":
