@@ -2,10 +2,11 @@
 
 - model set-up per centerline point: ``Simulation(scene)`` (build_model and the surface topology)
   of straight tubes of N points, against ``warp_tube.cli.BUILD_SECONDS_PER_POINT``;
-- a semi-implicit substep per point on the CPU: the default scene made stiff (E = 1e10 Pa, tens of
-  thousands of substeps a frame) with semi-implicit Euler forced, frames after the first (kernels
-  compiled), against ``warp_tube.sim.simulation.CPU_SEMI_STEP_COST``; and the same scene with
-  ``auto`` (which takes implicit Euler), against that cost x ``IMPLICIT_COST_RATIO``.
+- a semi-implicit substep on the CPU: the default scene made stiff (E = 1e10 Pa, tens of thousands
+  of substeps a frame) with semi-implicit Euler forced, frames after the first (kernels compiled),
+  against ``Simulation.estimated_seconds`` (``warp_tube.sim.budget``'s costs); the same scene with
+  ``auto`` (which takes implicit Euler, estimated at ``IMPLICIT_COST_RATIO`` times the cost); and
+  straight tubes of 21 to 20,001 points.
 
 Prints medians of ``--repeat`` runs. Usage: ``.venv/bin/python benchmarks/bench_estimates.py``.
 """
@@ -24,8 +25,6 @@ import warp_tube
 from warp_tube.cli import BUILD_SECONDS_PER_POINT
 from warp_tube.scene.spec import Scene, SimulationSettings, StageInfo, TubeParams, TubeSpec
 from warp_tube import Simulation
-from warp_tube.centerline.policy import IMPLICIT_COST_RATIO
-from warp_tube.sim.budget import CPU_SEMI_STEP_COST, CPU_SUBSTEP_COST
 
 ROOT = pathlib.Path(__file__).resolve().parents[1]
 
@@ -57,37 +56,37 @@ def main():
               f"(estimate uses {BUILD_SECONDS_PER_POINT * 1e3:.3f})")  # fmt: skip
 
     stiff = (ROOT / "scenes" / "default.usda").read_text().replace("youngsModulus = 100000", "youngsModulus = 1e10")
-    for integrator, factor in (("semiImplicitEuler", 1.0), ("auto", IMPLICIT_COST_RATIO)):
+    for integrator in ("semiImplicitEuler", "auto"):
         path = pathlib.Path("/tmp") / f"warp_tube_bench_stiff_{integrator}.usda"
         path.write_text(stiff.replace('warptube:integrator = "auto"', f'warptube:integrator = "{integrator}"'))
         sim = Simulation(warp_tube.load_scene(str(path)), device="cpu", surface=False)
-        sim.step()  # compiles the kernels
-        times = []
-        for _ in range(a.repeat):
-            t0 = time.perf_counter()
-            sim.step()
-            times.append(time.perf_counter() - t0)
-        per_step = statistics.median(times) / sim.substeps
+        frame = _frame_seconds(sim, a.repeat)
+        per_step = frame / sim.substeps
         per_point = per_step / sim.model.node_count
         print(f"stiff default scene, {sim.integrator}: {sim.substeps:,} substeps a frame, median frame "
-              f"{statistics.median(times):.3f} s, {per_step * 1e6:.2f} us a substep, {per_point * 1e9:.0f} ns a point "
+              f"{frame:.3f} s, {per_step * 1e6:.2f} us a substep, {per_point * 1e9:.0f} ns a point "
               f"and substep ({sim.model.node_count} points; the estimate takes "
-              f"{(CPU_SUBSTEP_COST + sim.model.node_count * CPU_SEMI_STEP_COST) * factor * 1e6:.2f} us a substep)")  # fmt: skip
+              f"{sim.estimated_seconds(1) / sim.substeps * 1e6:.2f} us a substep)")  # fmt: skip
     for n in (21, 201, 2001, 20001):  # a straight tube under gravity, semi-implicit: the cost a substep and a point
         x = np.linspace(0.0, 0.01 * (n - 1), n)
         tube = TubeSpec("/World/Tube", np.stack([x, 0 * x, 0 * x], 1), [n], np.full(n, 0.01),
                         TubeParams(density=1050.0, youngs_modulus=1e5, damping=2.0), pinned=[0, 1])  # fmt: skip
         settings = SimulationSettings(integrator="semiImplicitEuler", time_step=1e-4, gravity=(0.0, -9.81, 0.0))
         sim = Simulation(Scene((tube,), (), settings=settings, stage=StageInfo(meters_per_unit=1.0)), device="cpu", surface=False)
-        sim.step()
-        times = []
-        for _ in range(a.repeat):
-            t0 = time.perf_counter()
-            sim.step()
-            times.append(time.perf_counter() - t0)
-        per_step = statistics.median(times) / sim.substeps
+        per_step = _frame_seconds(sim, a.repeat) / sim.substeps
         print(f"straight tube, {n:,} points: {per_step * 1e6:.1f} us a substep ({per_step / n * 1e9:.0f} ns a point; the "
-              f"estimate takes {(CPU_SUBSTEP_COST + n * CPU_SEMI_STEP_COST) * 1e6:.1f} us)")  # fmt: skip
+              f"estimate takes {sim.estimated_seconds(1) / sim.substeps * 1e6:.1f} us)")  # fmt: skip
+
+
+def _frame_seconds(sim, repeat: int) -> float:
+    """Median wall time [s] of ``repeat`` frames of ``sim``, after one (its kernels compiled)."""
+    sim.step()
+    times = []
+    for _ in range(repeat):
+        t0 = time.perf_counter()
+        sim.step()
+        times.append(time.perf_counter() - t0)
+    return statistics.median(times)
 
 if __name__ == "__main__":
     main()

@@ -18,7 +18,6 @@ most ``chunk`` variants in batch order; chunks are the unit of work of a worker 
 
 from __future__ import annotations
 
-import math
 from dataclasses import dataclass
 from types import SimpleNamespace
 from typing import NamedTuple
@@ -154,7 +153,7 @@ def _topology(scene: Scene):
 def _choices_of(scenes: list[Scene], one, indices, keep) -> list[RunChoice]:
     """run_choices for scenes of one layout (``one``: :func:`_topology` of one of them),
     discretised in one build (kept in ``keep`` as those of ``indices``, unless None)."""
-    from ..centerline.policy import check_substeps, decide_integrator, implicit_cost_ratio
+    from ..centerline.policy import decide_integrator, implicit_cost_ratio, substeps_for
     from ..centerline.stability import critical_time_steps
     from ..model.tube import node_parameters
     from .worlds import combined_tubes
@@ -170,12 +169,10 @@ def _choices_of(scenes: list[Scene], one, indices, keep) -> list[RunChoice]:
     cost = implicit_cost_ratio(one)
     seg_min = np.where(np.isfinite(seg_min), seg_min, 0.0).tolist()
     out = []
-    ceil = math.ceil
     for scene, hc, seg in zip(scenes, bounds.tolist(), seg_min):
         settings, frame_dt = scene.settings, scene.stage.frame_dt
         integrator, dt = decide_integrator(settings, hc, frame_dt, cost)
-        substeps = max(1, ceil(frame_dt / dt - 1e-9))
-        check_substeps(substeps, frame_dt, settings)
+        substeps = substeps_for(frame_dt, dt, settings)
         out.append(RunChoice(integrator, substeps, frame_dt / substeps, seg, (settings, hc, frame_dt, cost)))
     return out
 

@@ -16,7 +16,7 @@ from typing import NamedTuple
 from ..scene.spec import SceneError, SimulationSettings
 
 __all__ = ["IntegratorChoice", "choose_integrator", "decide_integrator", "explain_integrator", "is_forced", "implicit_cost_ratio",
-           "implicit_substeps", "check_substeps", "SAFETY", "IMPLICIT_DT", "IMPLICIT_COST_RATIO", "IMPLICIT_AL_COST",
+           "implicit_substeps", "substeps_for", "SAFETY", "IMPLICIT_DT", "IMPLICIT_COST_RATIO", "IMPLICIT_AL_COST",
            "MAX_SUBSTEPS", "RUN_WARNING"]
 
 log = logging.getLogger(__name__)
@@ -54,14 +54,16 @@ def implicit_cost_ratio(model) -> float:
     return IMPLICIT_COST_RATIO * IMPLICIT_AL_COST**lines
 
 
-def check_substeps(substeps: int, frame_dt: float, settings: SimulationSettings, where: str = "") -> None:
-    """Refuse more than :data:`MAX_SUBSTEPS` substeps a frame of ``frame_dt`` [s] (a timeStep or a
-    stability bound so small that the kernels' count would wrap, and nothing move); ``where``: the
-    scene's file, which the message names first."""
+def substeps_for(frame_dt: float, dt: float, settings: SimulationSettings, where: str = "") -> int:
+    """Substeps a frame of ``frame_dt`` [s] takes at a substep of at most ``dt`` [s]; more than
+    :data:`MAX_SUBSTEPS` is refused (a timeStep or stability bound so small that the kernels'
+    count would wrap, and nothing move). ``where``: the scene's file, which the message names first."""
+    substeps = max(1, math.ceil(frame_dt / dt - 1e-9))
     if substeps > MAX_SUBSTEPS:
         given = f"warptube:timeStep {settings.time_step:.3g} s" if settings.time_step is not None else "the stability bound"
         raise SceneError(f"{where + ': ' if where else ''}{given} makes {substeps:,} substeps a frame of {frame_dt:.3g} s: expected at most {MAX_SUBSTEPS:,} "
                          f"(a substep of at least {frame_dt / MAX_SUBSTEPS:.3g} s)")  # fmt: skip
+    return substeps
 
 
 def implicit_substeps(frame_dt: float, time_step: float | None = None) -> int:

@@ -445,8 +445,7 @@ def extract_centerline(
         source=src,
         ring=None if ring is None else dataclasses.replace(ring, cuts=ring.cuts + shift),
     )
-    tri = np.asarray(closed_v, dtype=np.float64)[np.asarray(closed_f)]  # the enclosed volume, from the signed tetrahedra
-    volume = abs(float(np.einsum("ij,ij->", tri[:, 0], np.cross(tri[:, 1], tri[:, 2])))) / 6.0
+    volume = dm.count * dm.voxel_size**3  # (the enclosed volume, as the inside voxels measure it)
     tube.warnings = tubelike.check(tube, open_rays(q, points, diag), hubs_given=hubs is not None, mesh_volume=volume)
     refused = [w for w in tube.warnings if w.startswith(tubelike.NOT_A_TUBE)] if strict else []
     for w in tube.warnings:

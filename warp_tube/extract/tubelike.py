@@ -53,7 +53,8 @@ def check(tube: ExtractedTube, open_rays: np.ndarray, *, hubs_given: bool, mesh_
         tube: the extracted tube (its fidelity filled in).
         open_rays: which rays of each hub's ring leave through an opening, bool (hubs, rays).
         hubs_given: whether the hub count came from the caller (``--hubs``).
-        mesh_volume: the volume the mesh encloses (its openings closed) [mesh units^3], or 0 if unknown.
+        mesh_volume: the volume the mesh encloses (its openings closed; its inside voxels') [mesh units^3],
+            or 0 if unknown.
     """
     out = [] if tube.ring is None else [ring_warning(tube.ring)]
     radius = float(tube.spoke_lengths.mean())

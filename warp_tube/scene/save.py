@@ -7,6 +7,7 @@ import os
 
 import numpy as np
 
+from .attributes import TARGET
 from .spec import Scene
 
 __all__ = ["save_scene"]
@@ -26,14 +27,15 @@ def save_scene(scene: Scene, path: str) -> None:
     stage.SetStartTimeCode(info.start_time_code)
     stage.SetEndTimeCode(info.end_time_code)
     paths = [x.path for x in (*scene.tubes, *scene.forces)]
-    for p in paths:  # (the prims' ancestors: Xforms, as a DCC tool makes them; the prims' order kept)
-        for a in ("/".join(p.split("/")[:k]) for k in range(2, p.count("/") + 1)):
-            if a not in paths and not stage.GetPrimAtPath(a):
+    taken = {str(a) for p in paths for a in Sdf.Path(p).GetPrefixes()}  # the prims and their ancestors
+    for p in paths:  # (the ancestors: Xforms, as a DCC tool makes them; the prims' order kept)
+        for a in Sdf.Path(p).GetPrefixes()[:-1]:
+            if str(a) not in paths and not stage.GetPrimAtPath(a):
                 UsdGeom.Xform.Define(stage, a)
-    root_name = scene.tubes[0].path.strip("/").split("/")[0]
-    stage.SetDefaultPrim(stage.GetPrimAtPath("/" + root_name))
+    root = Sdf.Path(scene.tubes[0].path).GetPrefixes()[0]
+    stage.SetDefaultPrim(stage.GetPrimAtPath(root))
     s = scene.settings
-    sim = UsdGeom.Scope.Define(stage, _free_path(f"/{root_name}/Simulation", paths)).GetPrim()
+    sim = UsdGeom.Scope.Define(stage, _free_path(f"{root}/Simulation", taken)).GetPrim()
     sim.CreateAttribute("warptube:integrator", Sdf.ValueTypeNames.Token).Set(s.integrator)
     if s.time_step is not None:
         sim.CreateAttribute("warptube:timeStep", Sdf.ValueTypeNames.Double).Set(s.time_step)
@@ -75,7 +77,7 @@ def save_scene(scene: Scene, path: str) -> None:
             prim.CreateAttribute("warptube:referenceNormal", Sdf.ValueTypeNames.Float3).Set(Gf.Vec3f(*p.reference_normal))
     for k, f in enumerate(scene.forces):
         prim = UsdGeom.Scope.Define(stage, f.path).GetPrim()
-        prim.CreateRelationship("warptube:target").SetTargets([scene.tubes[f.tube].path])
+        prim.CreateRelationship(TARGET).SetTargets([scene.tubes[f.tube].path])
         prim.CreateAttribute("warptube:point", Sdf.ValueTypeNames.Int).Set(int(f.point))
         prim.CreateAttribute("warptube:assistantLine", Sdf.ValueTypeNames.Bool).Set(bool(f.assistant_line))
         a = prim.CreateAttribute("warptube:force", Sdf.ValueTypeNames.Float3)
@@ -87,11 +89,9 @@ def save_scene(scene: Scene, path: str) -> None:
     stage.GetRootLayer().Save()
 
 
-def _free_path(path: str, taken: list) -> str:
-    """``path``, or ``path`` with the first number appended that makes it no prim of ``taken``
-    and none of their ancestors."""
-    used = {"/".join(p.split("/")[:k]) for p in taken for k in range(2, p.count("/") + 2)}
+def _free_path(path: str, taken: set) -> str:
+    """``path``, or ``path`` with the first number appended that makes it none of ``taken``."""
     k, out = 1, path
-    while out in used:
+    while out in taken:
         k, out = k + 1, f"{path}{k}"
     return out

@@ -16,7 +16,6 @@ summary (the command line) can leave the log record out, and kept in :attr:`Simu
 from __future__ import annotations
 
 import logging
-import math
 import os
 import re
 import sys
@@ -27,7 +26,7 @@ import numpy as np
 import warp as wp
 
 from ..centerline.explicit import SemiImplicitEulerSolver
-from ..centerline.policy import MAX_SUBSTEPS, RUN_WARNING, check_substeps, choose_integrator, implicit_cost_ratio, implicit_substeps
+from ..centerline.policy import MAX_SUBSTEPS, RUN_WARNING, choose_integrator, implicit_cost_ratio, implicit_substeps, substeps_for
 from ..centerline.stability import critical_time_step
 from ..model.tube import build_model
 from ..runtime.interrupts import Terminated, deferred_interrupts, kept_interrupts, raise_if_interrupted
@@ -121,8 +120,7 @@ class Simulation(RunBudget):
         self.critical_dt = critical_time_step(m.host, m.features.assistant_line, spring_damping)
         choice = choose_integrator(scene.settings, self.critical_dt, self.frame_dt, implicit_cost_ratio(m))
         self.integrator, self.reason = choice.integrator, choice.reason
-        self.substeps = max(1, math.ceil(self.frame_dt / choice.dt - 1e-9))
-        check_substeps(self.substeps, self.frame_dt, scene.settings, scene.source)
+        self.substeps = substeps_for(self.frame_dt, choice.dt, scene.settings, scene.source)
         self.dt = self.frame_dt / self.substeps
         if self.integrator == "implicitEuler":
             from ..centerline.implicit import ImplicitEulerSolver
@@ -435,8 +433,8 @@ class Simulation(RunBudget):
             last = first_written + (written_count - 1) * every
             self._warn(f"every {every}: frames {last + 1} to {end - 1} are simulated but not written (the last written is "
                        f"frame {last})")  # fmt: skip
-        roots = list(dict.fromkeys("/" + t.path.strip("/").split("/")[0] for t in self.scene.tubes))
-        if output and len(roots) > 1:
+        roots = list(dict.fromkeys("/" + t.path.strip("/").split("/")[0] for t in self.scene.tubes)) if output else []
+        if len(roots) > 1:
             self._warn(f"the tube prims lie under {len(roots)} root prims ({', '.join(roots[:4])}{', ...' if len(roots) > 4 else ''}): "
                        f"the output's defaultPrim is {roots[0]}, and a reference to the file without a prim path brings "
                        "in only the tubes under it")  # fmt: skip
