@@ -303,7 +303,7 @@ def make_implicit_kernel(features: Features, al_lines: int = 0):
         g = wp.float64(0.0)
         half = wp.float64(0.5)
         if wp.static(CURVED):
-            curvature_targets(w, pw, start, end, state.node_q, model.node_rest_q, model.node_kappa_rest, model.node_bend_k,
+            curvature_targets(w, pw, start, end, state.node_q, state.node_q_lo, model.node_rest_q, model.node_kappa_rest, model.node_bend_k,
                               model.node_inv_mass, scratch.node_kappa_target)
         for u in range(start * PER_NODE, end * PER_NODE):
             ref = unknown(model, control, w, t, start, u)

@@ -141,7 +141,7 @@ def make_kernels(features: Features):
         for step in range(substep_count):
             frac = float(step + 1) / float(substep_count)
             if wp.static(CURVED):
-                curvature_targets(w, pw, start, end, node_q, model.node_rest_q, model.node_kappa_rest, model.node_bend_k,
+                curvature_targets(w, pw, start, end, node_q, node_q_lo, model.node_rest_q, model.node_kappa_rest, model.node_bend_k,
                                   model.node_inv_mass, node_kappa_target)
             for i in range(start, end):
                 node_f[w, i] = node_force(load_node(model, control, w, pw, i), node_q[w, i], node_qd[w, i])

@@ -312,12 +312,24 @@ def first_edge_free(node_inv_mass: wp.array2d[float], pw: int, start: int) -> bo
 
 
 @wp.func
+def node_delta(node_q: wp.array2d[wp.vec3], node_q_lo: wp.array2d[wp.vec3], w: int, i: int, j: int) -> wp.vec3:
+    """``x_j - x_i`` [m] from the compensated positions ``node_q + node_q_lo``.
+
+    The float32 difference of nearby positions is exact, so adding the difference of the
+    low-order parts recovers the segment to well below the positions' own rounding (which times a
+    stiff spring would be force noise that heats a long undamped run).
+    """
+    return (node_q[w, j] - node_q[w, i]) + (node_q_lo[w, j] - node_q_lo[w, i])
+
+
+@wp.func
 def curvature_targets(
     w: int,
     pw: int,
     start: int,
     end: int,
     node_q: wp.array2d[wp.vec3],
+    node_q_lo: wp.array2d[wp.vec3],
     node_rest_q: wp.array2d[wp.vec3],
     node_kappa_rest: wp.array2d[wp.vec3],
     node_bend_k: wp.array2d[float],
@@ -332,7 +344,7 @@ def curvature_targets(
     turn of the whole tube changes nothing; there the stencils' ``mu`` sum to zero, so
     :func:`first_frame_gradient` vanishes and the forces stay the energy's exact gradient."""
     t_rest = wp.normalize(node_rest_q[pw, start + 1] - node_rest_q[pw, start])
-    t = wp.normalize(node_q[w, start + 1] - node_q[w, start])
+    t = wp.normalize(node_delta(node_q, node_q_lo, w, start, start + 1))
     u = rotate_minimal(t_rest, t, first_edge_normal(t_rest))
     node_kappa_target_out[w, start] = wp.vec3(0.0)
     node_kappa_target_out[w, end - 1] = wp.vec3(0.0)
@@ -341,9 +353,9 @@ def curvature_targets(
     for j in range(start + 1, end - 1):
         target = kappa_target(t, u, node_kappa_rest[pw, j])
         node_kappa_target_out[w, j] = target
-        t_next = wp.normalize(node_q[w, j + 1] - node_q[w, j])
+        t_next = wp.normalize(node_delta(node_q, node_q_lo, w, j, j + 1))
         if free:
-            ab += twist_terms(t, target, curvature_binormal(node_q[w, j] - node_q[w, j - 1], node_q[w, j + 1] - node_q[w, j]), node_bend_k[pw, j])
+            ab += twist_terms(t, target, curvature_binormal(node_delta(node_q, node_q_lo, w, j - 1, j), node_delta(node_q, node_q_lo, w, j, j + 1)), node_bend_k[pw, j])
         u = rotate_minimal(t, t_next, u)
         u = wp.normalize(u - t_next * wp.dot(u, t_next))
         t = t_next
@@ -352,19 +364,8 @@ def curvature_targets(
         c = wp.cos(psi)
         s = wp.sin(psi)
         for j in range(start + 1, end - 1):
-            t_j = wp.normalize(node_q[w, j] - node_q[w, j - 1])
+            t_j = wp.normalize(node_delta(node_q, node_q_lo, w, j - 1, j))
             node_kappa_target_out[w, j] = twisted(t_j, node_kappa_target_out[w, j], c, s)
-
-
-@wp.func
-def node_delta(node_q: wp.array2d[wp.vec3], node_q_lo: wp.array2d[wp.vec3], w: int, i: int, j: int) -> wp.vec3:
-    """``x_j - x_i`` [m] from the compensated positions ``node_q + node_q_lo``.
-
-    The float32 difference of nearby positions is exact, so adding the difference of the
-    low-order parts recovers the segment to well below the positions' own rounding (which times a
-    stiff spring would be force noise that heats a long undamped run).
-    """
-    return (node_q[w, j] - node_q[w, i]) + (node_q_lo[w, j] - node_q_lo[w, i])
 
 
 @wp.func

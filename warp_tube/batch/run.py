@@ -35,6 +35,7 @@ import numpy as np
 
 from ..runtime.collector import collector_paused, thaw
 from ..runtime.interrupts import kept_interrupts
+from ..runtime.replay import SIM_LOCK, holding
 from ..scene.spec import SceneError
 from ..scene.usd import MAX_FRAMES
 from .engine import TIMERS, output_frames
@@ -206,6 +207,7 @@ def _device_list(devices: list[str]) -> str:
     return ", ".join(devices) or "-"
 
 
+@holding(SIM_LOCK)  # (a simulation or another batch in another thread waits)
 def run_batch(scene: str, out_dir: str, table: str | None = None, *, variant_sets: str | list[str] | None = None,
               layout: str = "files", every: int = 1, frames: int | None = None, surface: bool | None = None,
               device: str | None = None, workers: int | None = None, writers: int | None = None,

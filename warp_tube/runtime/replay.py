@@ -10,16 +10,36 @@ their arguments in Python (on the paper's 20-point tube that halves a frame's co
 from __future__ import annotations
 
 import contextlib
+import functools
 import threading
 
 import warp as wp
 
-__all__ = ["GraphCache", "can_capture", "cpu_blocks", "CAPTURE_LOCK"]
+__all__ = ["GraphCache", "can_capture", "cpu_blocks", "CAPTURE_LOCK", "SIM_LOCK", "holding"]
 
 #: held while a graph is captured: other threads of the process that call into Warp on a device
 #: (copying frames back beside the simulation) take it around those calls, since Warp refuses to
 #: synchronize with a device while a capture on it is active
 CAPTURE_LOCK = threading.Lock()
+
+#: held by a Simulation while it is built and steps, and by a batch while it runs: a capture
+#: records every launch and copy on its device, from any thread, so two simulations of one process
+#: stepping in two threads corrupted each other's graphs (Warp errors, crashes); they take turns
+SIM_LOCK = threading.RLock()
+
+def holding(lock):
+    """Decorator: the function runs holding ``lock``."""
+
+    def wrap(fn):
+        @functools.wraps(fn)
+        def held(*args, **kwargs):
+            with lock:
+                return fn(*args, **kwargs)
+
+        return held
+
+    return wrap
+
 
 _cpu_capture = None
 

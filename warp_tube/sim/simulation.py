@@ -19,7 +19,6 @@ import logging
 import os
 import re
 import sys
-import threading
 import time
 
 import numpy as np
@@ -29,6 +28,7 @@ from ..centerline.explicit import SemiImplicitEulerSolver
 from ..centerline.policy import MAX_SUBSTEPS, RUN_WARNING, choose_integrator, implicit_cost_ratio, implicit_substeps, substeps_for
 from ..centerline.stability import critical_time_step
 from ..model.tube import build_model
+from ..runtime.replay import SIM_LOCK
 from ..runtime.interrupts import Terminated, deferred_interrupts, kept_interrupts, raise_if_interrupted
 from ..scene.spec import Scene, SceneError
 from .budget import CPU_SEMI_STEP_COST, LARGE_OUTPUT_BYTES, LONG_RUN_SECONDS, OUTPUT_MEMORY_FACTOR, RunBudget, check_world_count, whole_number  # noqa: F401 (re-exported)
@@ -110,9 +110,13 @@ class Simulation(RunBudget):
     """
 
     def __init__(self, scene: Scene, device=None, world_count: int = 1, surface: bool = True):
+        with SIM_LOCK:  # (building launches on the device too)
+            self._build(scene, device, world_count, surface)
+
+    def _build(self, scene, device, world_count, surface):
         self.scene = scene
         self.device = resolve_device(device)
-        self._lock = threading.RLock()  # step and run: one thread at a time
+        self._lock = SIM_LOCK  # step and run: one thread at a time, of all simulations and batches
         self.model = build_model(scene, world_count=check_world_count(world_count), device=self.device)
         m = self.model
         self.frame_dt = scene.stage.frame_dt
