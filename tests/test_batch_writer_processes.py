@@ -272,3 +272,24 @@ def test_a_hangup_to_the_batchs_process_group_stops_it_as_ctrl_c_does(tmp_path):
     names = sorted(p.name for p in whole.iterdir())
     assert sorted(p.name for p in out.iterdir()) == names
     assert all(filecmp.cmp(out / n, whole / n, shallow=False) for n in names if n.endswith((".usdc", ".csv")))
+
+
+def test_buffer_folders_in_memory_left_by_killed_batches_are_removed(tmp_path):
+    """A batch killed outright leaves its chunks' buffers in /dev/shm (memory, until the machine
+    restarts): the next batch's buffers are named with its process id, and those of processes that
+    no longer run are removed (never a live one's, nor folders named otherwise)."""
+    from warp_tube.batch.folder import SHM_PREFIX, buffer_folder
+
+    shm = tmp_path / "shm"
+    shm.mkdir()
+    gone = subprocess.Popen([sys.executable, "-c", "pass"])
+    gone.wait()
+    dead = shm / f"{SHM_PREFIX}{gone.pid}-abc"
+    live = shm / f"{SHM_PREFIX}{os.getppid()}-def"
+    other = shm / "warp-tube-batch-unnamed"
+    for d in (dead, live, other):
+        d.mkdir()
+        (d / "chunk.npy").write_bytes(b"0" * 64)
+    made = buffer_folder(1024, str(tmp_path / "work"), shm=str(shm))
+    assert os.path.dirname(made) == str(shm) and os.path.basename(made).startswith(f"{SHM_PREFIX}{os.getpid()}-")
+    assert not dead.exists() and live.exists() and other.exists()

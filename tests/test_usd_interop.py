@@ -236,6 +236,20 @@ def test_a_tube_named_surface_under_another_tube_is_refused(tmp_path, capsys):
     assert not (tmp_path / "out.usdc").exists()
 
 
+@pytest.mark.parametrize("group", ["Centerline", "Surface"])
+def test_a_tube_deeper_under_a_tubes_output_prim_is_refused(tmp_path, capsys, group):
+    """A tube in a group named Surface (or Centerline) under a tube: its output Xform was written
+    under the outer tube's Surface Mesh, exit 0, an output usd-core's validators refuse (nested
+    gprims)."""
+    inner = tube(BODY.replace("(0, 0, 0), (1, 0, 0)", "(0, 5, 0), (1, 5, 0)"), name="Inner")
+    scene = tmp_path / "deep.usda"
+    scene.write_text(HEADER + world(tube(BODY + f'def Xform "{group}" {{\n{inner}\n}}\n')))
+    status, err = run([scene, "-o", tmp_path / "out.usdc"], capsys)
+    assert status == 2
+    assert f"deep.usda: /World/Tube/{group}/Inner: a tube under /World/Tube/{group}, where the output writes" in err
+    assert not (tmp_path / "out.usdc").exists()
+
+
 def test_a_lone_tube_named_surface_runs_with_a_warning(tmp_path, capsys):
     """As `warp-tube extract Surface.stl` names it: its parent then holds a child 'Surface' that is
     not a Mesh, which the warning says; the tube itself is written as the contract says."""

@@ -19,7 +19,6 @@ import dataclasses
 import math
 import os
 import shutil
-import tempfile
 import threading
 import time
 
@@ -27,6 +26,7 @@ import numpy as np
 
 from ..scene.spec import SceneError
 from .engine import TIMERS, chunk_shapes, simulate_chunk
+from .folder import buffer_folder
 from .outputs import WriteTask, write
 from .writer_pool import Writers, ignore_sigint, spawn_context, terminate_pool, timed_write, timed_write_when_ready
 from .rows import Rows
@@ -291,19 +291,6 @@ def with_rows(tasks: list[WriteTask], rows, arrays: dict) -> list[WriteTask]:
     return out
 
 
-def _buffer_folder(chunk_bytes: int, work_dir: str) -> str:
-    """A folder for chunks' arrays between simulation and writing: /dev/shm when it has room for
-    a few chunks (memory), else the batch's working folder."""
-    shm = "/dev/shm"
-    try:
-        st = os.statvfs(shm)
-        if os.access(shm, os.W_OK) and st.f_bavail * st.f_frsize > 4 * chunk_bytes:
-            return tempfile.mkdtemp(prefix="warp-tube-batch-", dir=shm)
-    except OSError:
-        pass
-    return tempfile.mkdtemp(prefix="buffers-", dir=work_dir)
-
-
 def write_tasks(chunk, context, parts: int) -> list[WriteTask]:
     """A chunk's variants split into ``parts`` write tasks (the grid: one), rows filled in later."""
     variants, spec = context["variants"].variants, context["spec"]
@@ -366,7 +353,7 @@ def run_here(todo, device, context, result) -> None:
             if pool is not None and ring is None:
                 if writers.processes:  # the writers read the arrays from files
                     shapes = chunk_shapes(scenes, context["frames"], context["every"], context["surface"], context["spec"].vertices)
-                    buffers = _buffer_folder(sum(4 * math.prod(s) for s in shapes.values()), context["spec"].work_dir)
+                    buffers = buffer_folder(sum(4 * math.prod(s) for s in shapes.values()), context["spec"].work_dir)
                 ring = BufferRing(2, buffers)
             if ring is not None:
                 t0, books = time.perf_counter(), 0.0
@@ -461,7 +448,7 @@ def run_pooled(todo, devices, workers: SimWorkers, context, result) -> None:
     if not by_workers:
         first = [context["variants"].variants[i].scene for i in todo[0].indices]
         shapes = chunk_shapes(first, context["frames"], context["every"], context["surface"], context["spec"].vertices)
-        buffers = _buffer_folder(sum(4 * math.prod(s) for s in shapes.values()) * len(devices), context["spec"].work_dir)
+        buffers = buffer_folder(sum(4 * math.prod(s) for s in shapes.values()) * len(devices), context["spec"].work_dir)
     queue_chunks = list(todo)
     simulating: dict = {}  # future -> chunk
     writing: dict = {}  # chunk id -> (futures, rows)

@@ -6,7 +6,9 @@ and what a batch being resumed left there.
   it names) is a file the batch would write;
 - the files a batch depends on, with their contents' digests (:func:`named_files`,
   :func:`scene_files`), so that ``--resume`` sees a changed one;
-- :func:`outputs_kept` and :func:`remove_stray_partials`: what is left of a batch being resumed.
+- :func:`outputs_kept` and :func:`remove_stray_partials`: what is left of a batch being resumed;
+- :func:`buffer_folder`: where chunks' arrays wait for the writers, and what batches killed before
+  they could remove theirs left there.
 """
 
 from __future__ import annotations
@@ -14,6 +16,8 @@ from __future__ import annotations
 import logging
 import os
 import re
+import shutil
+import tempfile
 
 from ..scene.spec import SceneError
 from .journal import Journal, file_digest
@@ -22,7 +26,7 @@ from .lock import BatchLock
 log = logging.getLogger(__name__)
 
 __all__ = ["BATCH_FILES", "OUTPUT_NAME", "check_out_dir", "check_inputs_not_outputs", "named_paths", "named_files",
-           "scene_dependencies", "scene_files", "outputs_kept", "remove_stray_partials"]
+           "scene_dependencies", "scene_files", "outputs_kept", "remove_stray_partials", "buffer_folder"]
 
 #: files a batch writes into its folder (an existing one means a batch is there already)
 BATCH_FILES = ("summary.csv", "centerline.npy", "surface.npy", "arrays.json", "grid.usda", ".batch-finished.json")
@@ -146,3 +150,41 @@ def remove_stray_partials(out_dir: str) -> None:
             for n in os.listdir(folder):
                 if n.startswith(".") and (".partial-" in n or ".tmp-" in n) and os.path.isfile(os.path.join(folder, n)):
                     os.remove(os.path.join(folder, n))
+
+
+#: buffer folders in memory (/dev/shm) are named with this prefix and their batch's process id
+SHM_PREFIX = "warp-tube-batch-"
+
+
+def buffer_folder(chunk_bytes: int, work_dir: str, shm: str = "/dev/shm") -> str:
+    """A new folder for chunks' arrays between simulation and writing: in ``shm`` (memory) when it
+    has room for a few chunks, else in the batch's working folder. A batch removes its own when it
+    ends, but one killed outright (SIGKILL, the system short of memory) cannot: folders in ``shm``
+    of this user's batches whose process is gone are removed first, as they would hold memory until
+    the machine restarts."""
+    try:
+        st = os.statvfs(shm)
+        if os.access(shm, os.W_OK):
+            _remove_orphaned_buffers(shm)
+            if st.f_bavail * st.f_frsize > 4 * chunk_bytes:
+                return tempfile.mkdtemp(prefix=f"{SHM_PREFIX}{os.getpid()}-", dir=shm)
+    except OSError:
+        pass
+    return tempfile.mkdtemp(prefix="buffers-", dir=work_dir)
+
+
+def _remove_orphaned_buffers(shm: str) -> None:
+    """Remove ``shm``'s buffer folders of this user whose batch process no longer runs."""
+    pattern = re.compile(rf"^{re.escape(SHM_PREFIX)}(\d+)-")
+    for name in os.listdir(shm):
+        m = pattern.match(name)
+        path = os.path.join(shm, name)
+        if m is None or not os.path.isdir(path) or os.stat(path).st_uid != os.getuid():
+            continue
+        try:
+            os.kill(int(m.group(1)), 0)
+        except ProcessLookupError:  # (gone; PermissionError: another user's live process)
+            shutil.rmtree(path, ignore_errors=True)
+            log.info("removed %s, left by a batch that was killed", path)
+        except (OverflowError, OSError):
+            continue

@@ -359,6 +359,11 @@ def _check_output_names(path: str, tube_prims) -> None:
     parent merely looks like a tube to a reader of the output (a warning)."""
     tube_paths = {p.GetPath() for p in tube_prims}
     for prim in tube_prims:
+        for above in prim.GetPath().GetAncestorsRange():  # (the output's gprims hold no prims)
+            if above != prim.GetPath() and above.name in ("Centerline", "Surface") and above.GetParentPath() in tube_paths:
+                raise SceneError(f"{path}: {prim.GetPath()}: a tube under {above}, where the output writes the tube "
+                                 f"{above.GetParentPath()}'s {above.name}: expected it elsewhere (a mesh or curves prim "
+                                 f"cannot hold another prim's output)")  # fmt: skip
         if prim.GetName() not in ("Centerline", "Surface"):
             continue
         parent = prim.GetParent().GetPath()
