@@ -213,3 +213,81 @@ def test_a_warning_of_many_prims_alike_is_said_once_with_how_many_more(tmp_cwd, 
     said = [r.getMessage() for r in caplog.records]
     assert len([m for m in said if "warptube:damping: time-sampled" in m]) == 1, said
     assert "the same for 299 more prim(s) of the scene" in said
+
+
+@pytest.mark.parametrize("authored, time", [("startTimeCode = 1001\n", 1001.0), ("endTimeCode = -5\n", -5.0)])
+def test_an_unauthored_end_or_start_time_code_is_taken_as_the_authored_one(authored, time, tmp_cwd, capsys):
+    """USD's fallback 0 for the one not authored lay on the wrong side of the other: the scene was
+    refused ("expected end >= start"), even with --frames N."""
+    from pxr import Usd
+
+    (tmp_cwd / "s.usda").write_text(mutate("startTimeCode = 0\n    endTimeCode = 96\n", authored))
+    info = load_scene("s.usda").stage
+    assert (info.start_time_code, info.end_time_code, info.frame_count) == (time, time, 1)
+    assert main(["run", "s.usda", "-o", "one.usdc", "--no-surface", "--quiet"]) == 0
+    assert "not authored: taken as the" in capsys.readouterr().err
+    assert main(["run", "s.usda", "-o", "three.usdc", "--frames", "3", "--no-surface", "--quiet"]) == 0
+    stage = Usd.Stage.Open(str(tmp_cwd / "three.usdc"))
+    assert (stage.GetStartTimeCode(), stage.GetEndTimeCode()) == (time, time + 2)
+
+
+@pytest.mark.parametrize("old, new, words", [
+    ("startTimeCode = 0\n    endTimeCode = 96", "startTimeCode = 5\n    endTimeCode = 2", "startTimeCode 5.0, endTimeCode 2.0: expected end >= start"),
+    ("endTimeCode = 96", "endTimeCode = inf", "endTimeCode inf: expected a finite time code"),
+    ("startTimeCode = 0", "startTimeCode = nan", "startTimeCode nan: expected a finite time code"),
+])  # fmt: skip
+def test_a_time_range_that_cannot_be_run_is_named(old, new, words, tmp_cwd):
+    """A non-finite time code was reported as "expected end >= start"."""
+    (tmp_cwd / "bad.usda").write_text(mutate(old, new))
+    with pytest.raises(SceneError) as err:
+        load_scene("bad.usda")
+    assert str(err.value) == f"bad.usda: {words}"
+
+
+#: the default scene's 21 points along x, as authored
+POINTS = [f"({i}, 0, 0)" for i in range(21)]
+
+
+def sampled_points(time, later):
+    """The default scene with its points time-sampled: at 0 as authored, at ``time`` ``later``."""
+    authored = "point3f[] points = [" + ", ".join(POINTS) + "]"
+    assert authored in BASE
+    return BASE.replace(authored, f"point3f[] points.timeSamples = {{0: [{', '.join(POINTS)}], {time}: [{', '.join(later)}]}}")
+
+
+@pytest.mark.parametrize("time, later, words", [
+    # between frames 1 and 2 (read there interpolated): the sample itself is named
+    (1.5, POINTS[:7] + ["(nan, 0, 0)"] + POINTS[8:],
+     "/World/Tube.points: found [nan, 0.0, 0.0] at index 7 in the sample at time 1.5: expected finite values"),
+    # a pinned point's track is read at every frame; the first frame's limit holds there too (it ran, exit 3)
+    (2, POINTS[:7] + ["(1e30, 0, 0)"] + POINTS[8:],
+     "/World/Tube.points: found a coordinate of 1e+28 m (after the transforms and metersPerUnit) in the sample at time 2: "
+     "expected at most 1e+06 m"),
+    (2, POINTS[:9], "/World/Tube.points: found shape (9, 3) in the sample at time 2: expected points of the first frame's shape (21, 3)"),
+])  # fmt: skip
+def test_later_samples_of_points_are_checked_as_the_first_frames(time, later, words, tmp_cwd, capsys):
+    """A NaN in a later sample was "found a sample at time 1.0 of shape (21, 3): expected finite
+    points of shape (21, 3)": neither the value nor the sample was named."""
+    (tmp_cwd / "bad.usda").write_text(sampled_points(time, later).replace("pinnedPoints = [0, 1]", "pinnedPoints = [0, 1, 7]"))
+    with pytest.raises(SceneError) as err:
+        load_scene("bad.usda")
+    assert str(err.value).startswith(f"bad.usda: {words}"), str(err.value)
+    assert main(["run", "bad.usda", "-o", "out.usdc", "--frames", "3", "--quiet"]) == 2
+    assert not list(tmp_cwd.glob("out*")) and words in capsys.readouterr().err
+
+
+def test_an_over_without_a_def_is_warned_of_or_named_where_it_was_the_tube(tmp_cwd, caplog):
+    """An `over` (no `def` in any layer: USD composes no prim there) was skipped without a word:
+    an override at a mistyped path, or a tube written with `over` instead of `def`."""
+    (tmp_cwd / "asset.usda").write_text(BASE)
+    (tmp_cwd / "shot.usda").write_text('#usda 1.0\n(\n    subLayers = [@asset.usda@]\n)\n'
+                                       'over "World"\n{\n    over "Tub"\n    {\n        double warptube:density = 5000\n    }\n}\n')
+    with caplog.at_level("WARNING"):
+        assert load_scene("shot.usda").tubes[0].params.density == 1050.0
+    assert ("shot.usda: /World/Tub (an `over` with no `def`) carries warptube:density but is not a tube, force or settings "
+            "prim: ignored (a mistyped path? did you mean /World/Tube?)") in caplog.text
+    (tmp_cwd / "over.usda").write_text(BASE.replace('def BasisCurves "Tube"', 'over BasisCurves "Tube"'))
+    with pytest.raises(SceneError) as err:
+        load_scene("over.usda")
+    assert str(err.value).startswith("over.usda: no tube: expected a BasisCurves prim")
+    assert str(err.value).endswith("; /World/Tube is an `over` with no `def`: define it")

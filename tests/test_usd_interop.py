@@ -141,6 +141,28 @@ def test_a_truncated_payload_is_named_as_damaged(tmp_path, capsys):
     assert "cannot open the payload" in err and "asset.usdc (at /Shot): damaged or truncated binary USD" in err
 
 
+@pytest.mark.parametrize("make, name, words", [
+    ("usdc", "binary.usda", "binary.usda: a binary USD (crate) file named .usda: rename it .usdc or .usd"),
+    ("usda", "text.usdc", "text.usdc: a USD text file named .usdc: rename it .usda or .usd"),
+    ("usdz", "package.usda", "package.usda: a USD package (a zip archive) named .usda: rename it .usdz"),
+])  # fmt: skip
+def test_a_sound_file_under_another_formats_extension_is_named_so(tmp_path, capsys, make, name, words):
+    """usd-core reads a file by its extension: a sound binary file named .usda was reported as "damaged
+    or truncated binary USD", a text one named .usdc as "not a valid USD text file"."""
+    from pxr import Sdf, UsdUtils
+
+    (tmp_path / "scene.usda").write_text(HEADER + world(tube()))
+    made = tmp_path / f"scene.{make}"
+    if make == "usdc":
+        Sdf.Layer.FindOrOpen(str(tmp_path / "scene.usda")).Export(str(made))
+    elif make == "usdz":
+        assert UsdUtils.CreateNewUsdzPackage(str(tmp_path / "scene.usda"), str(made))
+    made.rename(tmp_path / name)
+    status, err = run([tmp_path / name, "-o", tmp_path / "out.usdc"], capsys)
+    assert status == 2 and words in err, err
+    assert not (tmp_path / "out.usdc").exists()
+
+
 def test_tubes_under_instanceable_prims_are_simulated_at_their_instances(tmp_path, capsys):
     """Two instances of one referenced asset, each with its own translation: two tubes, each where
     its instance puts it, each pushed by its own instance's force (before: 'no tube')."""
@@ -314,6 +336,8 @@ def test_a_reference_in_other_units_or_axes_is_warned_of_unless_made_up_for(tmp_
          ["/World/Tube.points", "type string", "point3f[]"]),
         ("point3f[] points = [(0, 0, 0), (1, 0, 0), (2, 0, 0), (3, 0, 0), (4, 0, 0)]", "int[] points = [1, 2, 3, 4, 5]",
          ["/World/Tube.points", "type int[]", "point3f[]"]),
+        # (was "curveVertexCounts 5: expected counts >= 2 summing to 5 points")
+        ("int[] curveVertexCounts = [5]", "int curveVertexCounts = 5", ["/World/Tube.curveVertexCounts", "found type int: expected int[]"]),
     ],
 )  # fmt: skip
 def test_mistyped_curve_attributes_are_named(tmp_path, capsys, old, new, words):
@@ -402,6 +426,31 @@ def test_time_sampled_curve_vertex_counts_are_read(tmp_path):
     scene = tmp_path / "counts.usda"
     scene.write_text(HEADER + world(tube(body.replace("pinnedPoints = [0, 1]", "pinnedPoints = [0, 2]"))))
     assert load_scene(str(scene)).tubes[0].curve_counts.tolist() == [2, 3]
+
+
+def test_unauthored_curve_vertex_counts_are_one_curve_with_a_warning(tmp_path, caplog):
+    """Without curveVertexCounts the points ran as one curve without a word."""
+    scene = tmp_path / "counts.usda"
+    scene.write_text(HEADER + world(tube(BODY.replace("        int[] curveVertexCounts = [5]\n", ""))))
+    with caplog.at_level("WARNING"):
+        assert load_scene(str(scene)).tubes[0].curve_counts.tolist() == [5]
+    assert ("counts.usda: /World/Tube: no curveVertexCounts: taken as one curve of 5 points; author "
+            "curveVertexCounts = [5]") in caplog.text
+
+
+def test_animated_curve_vertex_counts_are_read_at_the_first_frame_with_a_warning(tmp_path, caplog):
+    """Samples of other counts (a topology that changes) were left out without a word."""
+    body = BODY.replace("int[] curveVertexCounts = [5]", "int[] curveVertexCounts.timeSamples = { 0: [5], 2: [2, 3] }")
+    scene = tmp_path / "counts.usda"
+    scene.write_text(HEADER + world(tube(body)))
+    with caplog.at_level("WARNING"):
+        assert load_scene(str(scene)).tubes[0].curve_counts.tolist() == [5]
+    assert "counts.usda: /World/Tube.curveVertexCounts: time-sampled: the curves at the first frame ([5])" in caplog.text
+    caplog.clear()
+    scene.write_text(HEADER + world(tube(body.replace("2: [2, 3]", "2: [5]"))))
+    with caplog.at_level("WARNING"):
+        load_scene(str(scene))
+    assert "time-sampled" not in caplog.text
 
 
 # -- directions under transforms -----------------------------------------------------------------

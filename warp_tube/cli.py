@@ -151,9 +151,11 @@ def _cmd_run(a) -> int:
         log.warning("building the model of %s points will take about %s (set-up in Python, point by point)",
                     f"{points:,}", format_seconds(points * BUILD_SECONDS_PER_POINT))  # fmt: skip
     info = scene.stage
-    if a.frames is None and info.frame_count == 1 and "endTimeCode" not in info.authored:
-        log.warning("%s: endTimeCode not authored: USD's fallback (%g, the start) gives one frame and nothing to simulate; "
-                    "author endTimeCode or pass --frames N", scene_path or "the scene", info.end_time_code)  # fmt: skip
+    unauthored = [k for k in ("endTimeCode", "startTimeCode") if k not in info.authored]
+    if a.frames is None and info.frame_count == 1 and unauthored:
+        log.warning("%s: %s not authored: taken as the %s (%g), which gives one frame and nothing to simulate; "
+                    "author %s or pass --frames N", scene_path or "the scene", unauthored[0],
+                    "start" if unauthored[0] == "endTimeCode" else "end", info.end_time_code, unauthored[0])  # fmt: skip
     # Run warnings go into the summary; with --quiet (no summary unless the run stops) they are
     # printed as they happen instead.
     _RUN_WARNINGS.summary_prints_them = not a.quiet

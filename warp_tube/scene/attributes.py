@@ -9,7 +9,7 @@ import logging
 from .spec import SceneError
 
 __all__ = ["SETTINGS_ATTRS", "TUBE_ATTRS", "FORCE_ATTRS", "MESH_ATTRS", "KNOWN_ATTRS", "TARGET", "check_names",
-           "check_relationships", "not_simulated", "attributes_of", "samples_differ"]
+           "check_relationships", "not_simulated", "not_defined", "undefined", "attributes_of", "samples_differ"]
 
 log = logging.getLogger("warp_tube.scene.usd")
 
@@ -70,6 +70,33 @@ def not_simulated(path: str, prim, names: list) -> None:
         hint = "tube attributes belong on a linear BasisCurves prim (or a Mesh with warptube:extract = true)"
     log.warning("%s: %s (a %s prim) carries %s but is not a tube, force or settings prim: ignored (%s)", path,
                 prim.GetPath(), kind, ", ".join(sorted(names)), hint)
+
+
+def undefined(prim) -> tuple[str, str]:
+    """Why an undefined prim (``over`` only: no ``def`` of it, or of an ancestor, in any layer, so
+    USD composes no prim there) is so, and what defines it: ("an `over` with no `def`", "it")."""
+    overs, p = [], prim  # it and its ancestors without a def, innermost first
+    while p and not p.IsPseudoRoot():
+        if not p.HasDefiningSpecifier():
+            overs.append(str(p.GetPath()))
+        p = p.GetParent()
+    if not overs or overs[0] != str(prim.GetPath()):  # a def under an over
+        above = ", ".join(reversed(overs)) or "an ancestor"
+        return f"under {above}, an `over` with no `def`", above
+    if len(overs) == 1:
+        return "an `over` with no `def`", "it"
+    return f"an `over` with no `def`, as is its ancestor {', '.join(overs[1:])}", "them"
+
+
+def not_defined(path: str, prim, names: list) -> None:
+    """``prim`` carries ``warptube:`` attributes (``names``) but is not defined (an override whose
+    path is mistyped, or an ``over`` written for a ``def``): ignored, with a warning saying why."""
+    what, it = undefined(prim)
+    parent = prim.GetParent()
+    near = difflib.get_close_matches(prim.GetName(), [c.GetName() for c in parent.GetChildren()], n=1) if parent else []
+    hint = f"a mistyped path? did you mean {parent.GetPath().AppendChild(near[0])}?" if near else f"define {it} with def"
+    log.warning("%s: %s (%s) carries %s but is not a tube, force or settings prim: ignored (%s)", path,
+                prim.GetPath(), what, ", ".join(sorted(names)), hint)
 
 
 def attributes_of(prim) -> set:

@@ -1,5 +1,6 @@
-"""A tube prim's BasisCurves schema values as DCC tools author them: its curve type and wrap, and its
-diameters from ``widths`` or ``primvars:widths`` in any of their interpolations."""
+"""A tube prim's BasisCurves schema values as DCC tools author them: its curve type and wrap, its
+curves' point counts, its diameters from ``widths`` or ``primvars:widths`` in any of their
+interpolations, and the later time samples of its ``points`` that moving pins follow."""
 
 from __future__ import annotations
 
@@ -9,13 +10,19 @@ import numpy as np
 
 from .attributes import samples_differ
 from .spec import SceneError
+from .transforms import to_world
 
 log = logging.getLogger("warp_tube.scene.usd")
 
-__all__ = ["check_curve_type", "check_points_type", "curve_widths"]
+__all__ = ["check_curve_type", "check_points_type", "curve_counts", "curve_widths", "moving_pin_track", "MAX_WORLD_M",
+           "BEYOND_WORLD"]  # fmt: skip
 
 #: the array types a tube's points may be authored as
 POINT_ARRAYS = ("point3f[]", "point3d[]", "float3[]", "double3[]", "vector3f[]", "vector3d[]", "half3[]", "point3h[]")
+#: the largest coordinate or radius a tube may have in world space [m]
+MAX_WORLD_M = 1e6
+#: what is expected of a coordinate or radius beyond :data:`MAX_WORLD_M`
+BEYOND_WORLD = f"at most {MAX_WORLD_M:g} m (past any tube: a transform or metersPerUnit is likely wrong)"
 
 
 def check_curve_type(r, curves) -> None:
@@ -102,3 +109,63 @@ def _check_array_type(r, name: str, attr, allowed=("float[]", "double[]", "half[
     tname = str(specs[0].typeName) if specs else str(attr.GetTypeName())
     if tname not in allowed:
         r.fail(name, f"type {tname}", expected)
+
+
+def curve_counts(r, curves, n_points: int, time) -> np.ndarray:
+    """The points of each curve, at ``time``: ``curveVertexCounts`` checked against the
+    ``n_points`` points; one curve of them all where it is not authored (with a warning)."""
+    attr = curves.GetCurveVertexCountsAttr()
+    counts = None
+    if attr.HasAuthoredValue():
+        _check_array_type(r, "curveVertexCounts", attr, ("int[]",), "int[] points per curve")
+        counts = attr.Get(time)
+    if counts is None:
+        log.warning("%s: %s: no curveVertexCounts: taken as one curve of %d points; author curveVertexCounts = [%d]",
+                    r.file, r.prim.GetPath(), n_points, n_points)  # fmt: skip
+        return np.array([n_points], dtype=np.int64)
+    if samples_differ(attr):
+        log.warning("%s: time-sampled: the curves at the first frame (%s) are used for the whole run (a tube's "
+                    "topology is not animated)", r.where("curveVertexCounts"), list(counts))  # fmt: skip
+    counts = np.asarray(counts, dtype=np.int64).reshape(-1)
+    if counts.sum() != n_points or (counts < 2).any():
+        r.fail("curveVertexCounts", counts.tolist(), f"counts >= 2 summing to the {n_points} points")
+    return counts
+
+
+def moving_pin_track(r, prim, attr, times, first: np.ndarray, pinned: np.ndarray, mpu: float, file: str) -> np.ndarray:
+    """The pinned points' world positions [m] at each of ``times``, from the time-sampled ``points``
+    ``attr`` (``first``: the first frame's, for its shape). Every value read is checked as the first
+    frame's is (shape, finite, within :data:`MAX_WORLD_M`); a bad value between two samples is
+    named by the authored sample that makes it so."""
+    track = []
+    for tc in times:
+        world, problem = _points_at(prim, attr, tc, first.shape, mpu, file)
+        if problem is not None:
+            for sample in dict.fromkeys(attr.GetBracketingTimeSamples(tc)):
+                bad = _points_at(prim, attr, sample, first.shape, mpu, file)[1]
+                if bad is not None:
+                    r.fail("points", f"{bad[0]} in the sample at time {sample:g}", bad[1])
+            r.fail("points", f"{problem[0]} at time {tc:g}", problem[1])
+        track.append(world[pinned])
+    return np.asarray(track) * mpu
+
+
+def _points_at(prim, attr, time, shape, mpu, file):
+    """(world points in stage units, None) of ``attr`` at ``time``, or (None, (found, expected))
+    where they cannot be followed."""
+    from pxr import Usd
+
+    value = attr.Get(Usd.TimeCode(time))
+    if value is None:
+        return None, ("no value (a blocked sample)", f"points of the first frame's shape {shape}")
+    p = np.asarray(value, dtype=np.float64)
+    if p.shape != shape:
+        return None, (f"shape {p.shape}", f"points of the first frame's shape {shape}")
+    if not np.isfinite(p).all():
+        i = int(np.argmax(~np.isfinite(p).all(axis=1)))
+        return None, (f"{p[i].tolist()} at index {i}", "finite values")
+    world = to_world(prim, p, Usd.TimeCode(time), file)[0]
+    coordinate = float(np.abs(world).max()) * mpu
+    if not coordinate <= MAX_WORLD_M:  # (also where the transform overflowed)
+        return None, (f"a coordinate of {coordinate:.3g} m (after the transforms and metersPerUnit)", BEYOND_WORLD)
+    return world, None

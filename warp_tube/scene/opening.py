@@ -56,6 +56,9 @@ _SYNTAX = re.compile(r"^.*?:(\d+):(\d+):\s*(.*)$", re.S)
 def usd_error_in_user_terms(path: str, text: str) -> str:
     """What usd-core's error text ``text`` for opening ``path`` means, without C++ locations."""
     messages = [m.strip() for m in _TF_MESSAGE.findall(text)] or [text.strip()]
+    misnamed = _format_unlike_extension(path)
+    if misnamed:
+        return misnamed
     for m in messages:
         hit = _SYNTAX.match(m)
         if hit:
@@ -81,6 +84,27 @@ def usd_error_in_user_terms(path: str, text: str) -> str:
     shown = repr(head.decode("ascii").splitlines()[0]) if printable else f"the bytes {head[:8].hex(' ')}"
     return (f"not a USD file: it starts with {shown}; a USD text file starts with '#usda 1.0' and a binary "
             "one with 'PXR-USDC'")  # fmt: skip
+
+
+#: each format's first bytes, what it is, and the extensions usd-core reads it under
+_FORMATS = ((b"PXR-USDC", "a binary USD (crate) file", (".usdc", ".usd")), (b"#usda", "a USD text file", (".usda", ".usd")),
+            (b"PK\x03\x04", "a USD package (a zip archive)", (".usdz",)))  # fmt: skip
+
+
+def _format_unlike_extension(path: str) -> str | None:
+    """What is wrong where the file's format is not the one its extension names (usd-core picks the
+    reader by the extension, and that reader's own error would call a sound file damaged)."""
+    try:
+        with open(path, "rb") as f:
+            head = f.read(8)
+    except OSError:
+        return None
+    ext = os.path.splitext(path)[1].lower()
+    for magic, what, extensions in _FORMATS:
+        if head.startswith(magic) and ext not in extensions:
+            named = f"named {ext}" if ext else "without an extension"
+            return f"{what} {named}: rename it {' or '.join(extensions)}"
+    return None
 
 
 def _composition_error_in_user_terms(message: str) -> str:

@@ -16,9 +16,9 @@ import os
 
 import numpy as np
 
-from .curves import check_curve_type, check_points_type, curve_widths
+from .curves import BEYOND_WORLD, MAX_WORLD_M, check_curve_type, check_points_type, curve_counts, curve_widths, moving_pin_track
 from .attributes import (FORCE_ATTRS, KNOWN_ATTRS, MESH_ATTRS, SETTINGS_ATTRS, TUBE_ATTRS, TARGET, check_names, check_relationships,
-                         not_simulated, samples_differ)  # fmt: skip
+                         not_defined, not_simulated, samples_differ, undefined)  # fmt: skip
 from .spec import (
     FRAME_MODES,
     INTEGRATORS,
@@ -44,8 +44,6 @@ MAX_FRAMES = 1_000_000
 __all__ = ["load_scene", "open_stage", "save_scene", "usd_error_in_user_terms", "SceneReader"]
 
 REAL = ("float", "double", "half")
-#: the largest coordinate or radius a tube may have in world space [m]
-MAX_WORLD_M = 1e6
 REAL3 = ("float3", "double3", "half3", "vector3f", "vector3d", "vector3h", "point3f", "point3d", "normal3f", "normal3d")
 
 
@@ -167,7 +165,16 @@ def _stage_info(stage) -> StageInfo:
         raise SceneError(f"{path}: metersPerUnit {mpu}: expected a positive number")
     if not (math.isfinite(tcps) and tcps > 0):
         raise SceneError(f"{path}: timeCodesPerSecond {tcps}: expected a positive number")
-    if not (math.isfinite(start) and math.isfinite(end)) or end < start:
+    for name, v in (("startTimeCode", start), ("endTimeCode", end)):
+        if not math.isfinite(v):
+            raise SceneError(f"{path}: {name} {v}: expected a finite time code")
+    # An unauthored end or start takes USD's fallback 0, which may lie on the wrong side of the
+    # one authored: the range is then that one time code (--frames N runs on from it).
+    if end < start and "endTimeCode" not in authored:
+        end = start
+    elif end < start and "startTimeCode" not in authored:
+        start = end
+    if end < start:
         raise SceneError(f"{path}: startTimeCode {start}, endTimeCode {end}: expected end >= start")
     if end - start > MAX_FRAMES:
         raise SceneError(f"{path}: {end - start:.0f} frames: expected at most {MAX_FRAMES:,}")
@@ -195,11 +202,8 @@ def _read_tube(file: str, prim, info: StageInfo, frame_times, varying: dict | No
     if not np.isfinite(pts).all():
         i = int(np.argmax(~np.isfinite(pts).all(axis=1)))
         r.fail("points", f"{pts[i].tolist()} at index {i}", "finite values")
-    counts = curves.GetCurveVertexCountsAttr().Get(Usd.TimeCode(info.start_time_code))  # also where time-sampled
-    counts = np.asarray(counts if counts is not None else [len(pts)], dtype=np.int64)
-    if counts.sum() != len(pts) or (counts < 2).any():
-        r.fail("curveVertexCounts", counts.tolist(), f"counts >= 2 summing to the {len(pts)} points")
     start_tc = Usd.TimeCode(info.start_time_code)
+    counts = curve_counts(r, curves, len(pts), start_tc)  # (also where time-sampled)
     world, scale, matrix = to_world(prim, pts, start_tc, file)
     mpu = info.meters_per_unit
     widths = curve_widths(r, curves, counts, start_tc)
@@ -207,8 +211,7 @@ def _read_tube(file: str, prim, info: StageInfo, frame_times, varying: dict | No
     coordinate, largest_radius = float(np.abs(world).max()) * mpu, float(radius.max())
     if max(coordinate, largest_radius) > MAX_WORLD_M:
         name, what = ("points", "coordinate") if coordinate >= largest_radius else ("widths", "radius")
-        r.fail(name, f"a {what} of {max(coordinate, largest_radius):.3g} m (after the transforms and metersPerUnit)",
-               f"at most {MAX_WORLD_M:g} m (past any tube: a transform or metersPerUnit is likely wrong)")  # fmt: skip
+        r.fail(name, f"a {what} of {max(coordinate, largest_radius):.3g} m (after the transforms and metersPerUnit)", BEYOND_WORLD)
     warn_about_transforms(prim, matrix, curves.GetPointsAttr().GetNumTimeSamples() > 1, r.where("points"), varying)
     warn_about_layer_units(prim, pattr, matrix, mpu, info.up_axis, r.where("points"))
     E = r.real("warptube:youngsModulus", positive=True)
@@ -284,13 +287,8 @@ def _read_tube(file: str, prim, info: StageInfo, frame_times, varying: dict | No
         log.warning("%s: time-sampled, but the tube has no pinnedPoints: only pinned points follow the samples "
                     "(the rest shape is the first frame's): nothing here follows them", r.where("points"))  # fmt: skip
     if pattr.GetNumTimeSamples() > 1 and len(pinned):
-        track = []
-        for tc in pin_frame_times(frame_times, pattr.GetTimeSamples()[-1]):
-            p = np.asarray(pattr.Get(Usd.TimeCode(tc)), dtype=np.float64)
-            if p.shape != pts.shape or not np.isfinite(p).all():
-                r.fail("points", f"a sample at time {tc} of shape {p.shape}", f"finite points of shape {pts.shape}")
-            track.append(to_world(prim, p, Usd.TimeCode(tc), file)[0][pinned])
-        pin_track = np.asarray(track) * mpu
+        times = pin_frame_times(frame_times, pattr.GetTimeSamples()[-1])
+        pin_track = moving_pin_track(r, prim, pattr, times, pts, pinned, mpu, file)
     try:
         return TubeSpec(
             path=str(prim.GetPath()), points=world * mpu, curve_counts=counts, radius=radius, params=params,
@@ -435,12 +433,18 @@ class SceneReader:
         self._last = None
         info = _stage_info(stage)
         frame_times = [info.start_time_code + k for k in range(info.frame_count)]
-        tubes, settings_prims, force_prims, mesh_prims = [], [], [], []
+        tubes, settings_prims, force_prims, mesh_prims, overs = [], [], [], [], []
         from pxr import Usd
 
-        # Into instances too: a tube under an instanceable prim is a tube (at its instance's path).
-        for prim in stage.Traverse(Usd.TraverseInstanceProxies(Usd.PrimDefaultPredicate)):
+        # Into instances too: a tube under an instanceable prim is a tube (at its instance's path);
+        # and into undefined prims (`over`s alone), whose warptube: attributes are ignored, said so.
+        for prim in stage.Traverse(Usd.TraverseInstanceProxies(Usd.PrimIsActive & Usd.PrimIsLoaded & ~Usd.PrimIsAbstract)):
             names = [a.GetName() for a in prim.GetAttributes() if a.GetName().startswith(("warptube:", "primvars:warptube:"))]
+            if not prim.IsDefined():
+                if names:
+                    not_defined(path, prim, names)
+                    overs += [prim] if prim.IsA(UsdGeom.BasisCurves) or "warptube:extract" in names else []
+                continue
             primvars = [n for n in names if n.startswith("primvars:")]
             if primvars:  # (as a DCC tool exports custom attributes)
                 raise SceneError(f"{path}: {prim.GetPath()}.{primvars[0]}: warptube: attributes are plain attributes, not "
@@ -487,6 +491,10 @@ class SceneReader:
                     "extraction: load the scene with warp_tube.load_scene"
                 )
             specs += [extract(path, p, info) for p in mesh_prims]
+        if not specs and overs:
+            what, it = undefined(overs[0])
+            raise SceneError(f"{path}: no tube: expected a BasisCurves prim carrying warptube: attributes (or a Mesh with "
+                             f"warptube:extract = true); {overs[0].GetPath()} is {what}: define {it}")  # fmt: skip
         by_path = {s.path: k for k, s in enumerate(specs)}
         forces = tuple(_read_force(path, p, by_path, specs, info) for p in force_prims)
         scene = Scene(tubes=tuple(specs), forces=forces, settings=settings, stage=info, source=path)
