@@ -404,6 +404,25 @@ def test_bad_requests(tmp_path, capsys):
     assert not (tmp_path / "o").exists()
 
 
+@pytest.mark.parametrize("options, expect", [
+    ({"every": 1.5}, "every 1.5: expected a whole number"), ({"chunk": 2.5}, "chunk 2.5: expected a whole number"),
+    ({"workers": 1.5}, "workers 1.5: expected a whole number"), ({"writers": 0.5}, "writers 0.5: expected a whole number"),
+    ({"frames": "3"}, "frames '3': expected a whole number"), ({"frames": 2.5}, "frames 2.5: expected a whole number"),
+    ({"frames": True}, "frames True: expected a whole number"),
+])  # fmt: skip
+def test_run_batch_takes_whole_numbers_as_simulation_run_does(tmp_path, options, expect):
+    """Before: a TypeError deep inside (every, chunk, workers, frames='3'), or 2.5 frames run as 2
+    and True as 1. A float of no fraction is that number, as for Simulation.run."""
+    table = write_table(tmp_path / "t.csv", [E], [("1e5",)])
+    with pytest.raises(SceneError) as e:
+        run_batch(str(DEFAULT), str(tmp_path / "o"), str(table), **{"frames": 3, **options})
+    assert str(e.value) == expect
+    assert not (tmp_path / "o").exists()
+    if "every" in options:
+        result = run_batch(str(DEFAULT), str(tmp_path / "w"), str(table), layout="arrays", frames=3.0, every=2.0, chunk=1.0)
+        assert result.ok == 1 and np.load(tmp_path / "w" / "centerline.npy").shape[1] == 2
+
+
 def stiffness_sets_scene(tmp_path):
     """The default scene with a variantSet ``stiffness`` on /World/Tube: ``soft`` (youngsModulus
     6e4 Pa, selected) and ``stiff`` (3e5 Pa)."""
@@ -809,8 +828,26 @@ def test_a_scene_warning_is_given_once_not_per_variant(tmp_path, caplog):
     with caplog.at_level("WARNING", logger="warp_tube.scene.usd"):
         variants = prepare_variants(str(DEFAULT), read_table(str(table)))
     assert len(variants) == 4
-    pinned = [r for r in caplog.records if "is pinned" in r.getMessage()]
+    pinned = [r.getMessage() for r in caplog.records if "is pinned" in r.getMessage()]
     assert len(pinned) == 1  # point 1 is pinned in all four: one warning
+    # naming the first row that gave it and how many others did (before: no row)
+    assert pinned[0].startswith(f"{table}: row 0 (line 2), column /World/Push.warptube:point, and 3 other row(s): ")
+
+
+def test_a_rows_warning_names_the_first_row_across_processes_reading_parts(tmp_path, monkeypatch, caplog):
+    """Rows read by several processes: their warnings are said once by the batch, naming the first
+    row and counting every part's rows (a row equal to an earlier one too)."""
+    import warp_tube.batch.prepare as prepare
+
+    monkeypatch.setattr(prepare, "PREPARE_ROWS_PER_PROCESS", 2)
+    monkeypatch.setattr(prepare.os, "cpu_count", lambda: 2)
+    rows = [("9e4", "15"), ("9.1e4", "1"), ("9.2e4", "15"), ("9.3e4", "1"), ("9.1e4", "1")]
+    table = write_table(tmp_path / "t.csv", [E, "/World/Push.warptube:point"], rows)
+    with caplog.at_level("WARNING"):
+        assert run_batch(str(DEFAULT), str(tmp_path / "o"), str(table), layout="arrays", frames=2, writers=0).ok == 5
+    pinned = [r.getMessage() for r in caplog.records if "is pinned" in r.getMessage()]
+    assert pinned == [f"{table}: row 1 (line 3), column /World/Push.warptube:point, and 2 other row(s): {DEFAULT}: "
+                      "/World/Push.warptube:point: point 1 of /World/Tube is pinned: this force does nothing"], pinned
 
 
 def test_critical_time_steps_of_many_parts_equal_each_part_alone():

@@ -7,6 +7,7 @@ import sys
 import numpy as np
 import pytest
 
+from tests.conftest import SCENES
 from warp_tube.batch import run_batch
 from warp_tube.scene.spec import SceneError
 
@@ -118,3 +119,55 @@ def test_a_mistyped_column_names_the_closest_prim_or_attribute(tmp_path):
     table = write(tmp_path / "t.csv", "/World/Elsewhere.warptube:youngsModulus\n100000\n")
     r = cli("batch", scene, "--variants", table, "-o", tmp_path / "out", "--frames", 2)
     assert r.returncode == 2 and "no prim /World/Elsewhere" in r.stderr and "did you mean" not in r.stderr
+
+
+DEFAULT = str(SCENES / "default.usda")
+NO_SETTINGS = """#usda 1.0
+(
+    defaultPrim = "World"
+    metersPerUnit = 0.01
+    upAxis = "Y"
+    endTimeCode = 4
+)
+
+def Xform "World"
+{
+    def BasisCurves "Tube"
+    {""" + TUBE.format(widths='float[] widths = [1] (interpolation = "constant")') + """    }
+}
+"""
+
+
+@pytest.mark.parametrize("column, value, kind", [
+    ("/World/Simulation.warptube:spokes", "8", "/World/Simulation is a simulation settings prim, which takes gravity, integrator, timeStep"),
+    ("/World/Simulation.warptube:density", "1000", "/World/Simulation is a simulation settings prim"),
+    ("/World/Push.warptube:youngsModulus", "1e5", "/World/Push is a force prim, which takes assistantLine, force, point"),
+    ("/World/Push.warptube:density", "1000", "/World/Push is a force prim"),
+    ("/World/Tube.warptube:gravity", '"(0, -9.81, 0)"', "/World/Tube is a tube prim, which takes anchorPoints, anchorStiffness"),
+    ("/World.warptube:point", "3", "/World has no warptube:target relationship"),
+    ("/World.warptube:timeStep", "0.001", "the scene's simulation settings prim is /World/Simulation: set warptube:timeStep there"),
+])  # fmt: skip
+def test_a_column_its_prims_kind_does_not_take_is_refused_naming_what_it_takes(tmp_path, column, value, kind):
+    """As `warp-tube check` refuses such a scene. Before: authored, never read (the batch re-reads
+    only the prims a row changes, without the reader's per-kind check), exit 0 and no effect."""
+    table = write(tmp_path / "t.csv", f"{column}\n{value}\n{value}\n")
+    with pytest.raises(SceneError) as e:
+        run_batch(DEFAULT, str(tmp_path / "out"), table, layout="arrays", frames=3)
+    assert f"t.csv: column {column}: {kind}" in str(e.value)
+    assert not (tmp_path / "out").exists()
+
+
+def test_a_tube_column_on_a_prim_of_no_kind_is_warned_of_once_and_a_new_settings_prim_is_read(tmp_path, caplog):
+    """A tube's attribute on a prim that is no tube, force or settings prim: ignored with the
+    reader's warning, said once and naming the column (before: no word). A setting on a prim of a
+    scene without a settings prim makes it the settings prim, as the reader would take it."""
+    table = write(tmp_path / "t.csv", "/World.warptube:density\n1000\n2000\n")
+    with caplog.at_level("WARNING"):
+        assert run_batch(DEFAULT, str(tmp_path / "out"), table, layout="arrays", frames=3).ok == 2
+    said = [r.getMessage() for r in caplog.records if "is not a tube, force or settings prim" in r.getMessage()]
+    assert len(said) == 1 and "t.csv: column /World.warptube:density: /World (a Xform prim)" in said[0], said
+    scene = write(tmp_path / "s.usda", NO_SETTINGS)
+    gravity = write(tmp_path / "g.csv", '/World.warptube:gravity\n"(0, 0, 0)"\n"(0, -9.81, 0)"\n')
+    assert run_batch(scene, str(tmp_path / "g"), gravity, layout="arrays", frames=3).ok == 2
+    q = np.load(tmp_path / "g" / "centerline.npy")
+    assert np.abs(q[0, -1] - q[0, 0]).max() < 1e-6 and q[1, -1, -1, 1] < -1e-3  # the second falls

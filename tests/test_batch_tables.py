@@ -18,6 +18,7 @@ DEFAULT = SCENES / "default.usda"
 E = "/World/Tube.warptube:youngsModulus"
 DENSITY = "/World/Tube.warptube:density"
 SPOKES = "/World/Tube.warptube:spokes"
+FORCE = "/World/Push.warptube:force"
 
 
 def batch(table, out, *args):
@@ -84,7 +85,38 @@ def test_a_workbook_or_other_text_encoding_is_refused_with_what_to_do(tmp_path, 
 
 def test_an_unclosed_quote_is_named_not_read_as_one_long_cell(tmp_path, capsys):
     err = refused(tmp_path, capsys, f'{E},{DENSITY}\n1e5,1050\n"2e5,1100\n3e5,1100\n4e5,1100\n'.encode())
-    assert f"row 1 (line 3), column {E}: the cell runs over lines 3 to 5: an unclosed quote" in err
+    assert 't.csv: line 3: a quote (") opens a cell there and is never closed' in err
+    # at the end of the file, with or without a line end (before: read as the cell "2e5" or "(0, 0.02, 0)\n")
+    for data, line in ((f'{E}\n1e5\n"2e5', 3), (f'{FORCE}\n"(0, 0.01, 0)"\n"(0,\n 0.02, 0)"\n"(0, 0.02, 0)\n', 5)):
+        assert f"t.csv: line {line}: a quote" in refused(tmp_path, capsys, data.encode())
+    err = refused(tmp_path, capsys, f'{FORCE},{E}\n"(0,\n 0.01, 0)","1e5"\n"(0, 0.02, 0)", "2e5\n'.encode())
+    assert 't.csv: line 4: a quote (") opens a cell there and is never closed' in err  # (its own line, not its row's)
+
+
+def test_a_quoted_cell_over_lines_is_read_and_later_rows_keep_their_lines(tmp_path, capsys):
+    """As pandas writes a long NumPy array: "(0,\n 0.02, 0)" (before: refused as an unclosed quote)."""
+    data = f'{FORCE},{E}\r\n"(0,\r\n 0.02, 0)",1e5\r\n"(0, 0.01, 0)",2e5\r\n"(0,\n 0.03,\n 0)",soft\r\n'
+    err = refused(tmp_path, capsys, data.encode())
+    assert f"row 2 (line 5), column {E}: found 'soft'" in err and "1 problem(s)" in err, err
+    table = tmp_path / "ok.csv"
+    table.write_bytes(data.replace("soft", "3e5").encode())
+    out = tmp_path / "ok"
+    assert batch(table, out) == 0
+    assert [(r[FORCE].split(), r["status"]) for r in summary(out)] == [
+        (["(0,", "0.02,", "0)"], "ok"), (["(0,", "0.01,", "0)"], "ok"), (["(0,", "0.03,", "0)"], "ok")]
+
+
+def test_a_quoted_empty_cell_or_a_row_of_empty_cells_is_a_row_not_a_blank_line(tmp_path, capsys):
+    """A quoted empty cell (pandas' NaN in a table of one column) and a row of empty cells before a
+    later row are rows, refused for their empty cells (before: skipped, so that the later rows'
+    values went to other variants); lines with nothing on them are skipped."""
+    err = refused(tmp_path, capsys, f'{DENSITY}\n1000\n""\n\n1100\n'.encode())
+    assert f"row 1 (line 3), column {DENSITY}: empty cell: expected a number" in err and "1 problem(s)" in err
+    err = refused(tmp_path, capsys, f"{DENSITY},{E}\n1000,1e5\n,\n1100,2e5\n".encode())
+    assert f"row 1 (line 3), column {DENSITY}: empty cell: expected a number" in err
+    assert f"row 1 (line 3), column {E}: empty cell: expected a number" in err
+    err = refused(tmp_path, capsys, f'{DENSITY}\n1000\n1100\n""\n'.encode())  # last, but quoted: a value
+    assert f"row 2 (line 4), column {DENSITY}: empty cell" in err
 
 
 def test_a_header_after_blank_lines_and_a_value_under_an_empty_header(tmp_path, capsys):

@@ -47,7 +47,7 @@ def _prepare_part(scene: str, table, variant_sets):
 
     init_warp()  # quietly: no missing-driver line from each process on a machine without a GPU
     with collector_paused():
-        variants, problems = collect_variants(scene, table, variant_sets, extract=mesh_prim_tube)
+        variants, problems = collect_variants(scene, table, variant_sets, extract=mesh_prim_tube, say=False)  # (said with the others')
         if problems:
             return variants, problems, None
         try:
@@ -90,7 +90,7 @@ def reading_parts(table, variant_sets, width: int) -> int:
 
 
 def _prepare_batch(scene, table, variant_sets, bar, pool, pool_size, keep_nodes):
-    from .variants import Variants, name_width, prepare_variants, raise_problems
+    from .variants import Variants, merged_warnings, name_width, prepare_variants, raise_problems, say_warnings
 
     rows = len(table.rows) if table is not None else 1
     parts = reading_parts(table, variant_sets, pool_size if pool is not None else (os.cpu_count() or 1))
@@ -140,7 +140,8 @@ def _prepare_batch(scene, table, variant_sets, bar, pool, pool_size, keep_nodes)
         choices += part_choices
     first = results[0][0]
     out = Variants(scene_path=scene, table=table, axes=first.axes, variants=tuple(merged),
-                   plain=all(r[0].plain for r in results))  # fmt: skip
+                   plain=all(r[0].plain for r in results), warnings=merged_warnings(r[0] for r in results))  # fmt: skip
+    say_warnings(out)
     warn_forced(out, choices)
     return out, choices, None
 

@@ -38,6 +38,7 @@ from ..runtime.interrupts import kept_interrupts
 from ..runtime.replay import SIM_LOCK, holding
 from ..scene.spec import SceneError
 from ..scene.usd import MAX_FRAMES
+from ..sim.budget import whole_number
 from .engine import TIMERS, output_frames
 from .bookkeeping import PROCESS_VARIANTS, Bookkeeper
 from .recorder import Recorder
@@ -266,6 +267,10 @@ def run_batch(scene: str, out_dir: str, table: str | None = None, *, variant_set
     out_dir = os.path.abspath(os.fspath(out_dir))
     if layout not in LAYOUTS:
         raise SceneError(f"--layout {layout}: expected one of {', '.join(LAYOUTS)}")
+    # (as Simulation.run takes them: 2.0 is 2; 2.5, "3" and True are refused, not run as 2, 1 or a TypeError)
+    every = whole_number("every", every)
+    frames, chunk, workers, writers = (None if v is None else whole_number(name, v) for name, v in
+                                       (("frames", frames), ("chunk", chunk), ("workers", workers), ("writers", writers)))  # fmt: skip
     if every < 1:
         raise SceneError(f"--every {every}: expected at least 1")
     if frames is not None and not 1 <= frames <= MAX_FRAMES + 1:

@@ -9,8 +9,9 @@ table); messages give the row and its line in the file.
 
 Tables as spreadsheets save them are read: UTF-8 with or without a byte-order mark, UTF-16 with
 one, any line endings, cells separated by ``,`` or, where the header holds no comma, by ``;`` or
-a tab (as some locales save CSV), spaces around cells, and empty columns after the last header
-and empty rows (skipped). A workbook (``.xlsx``, ``.xls``, ``.ods``) is refused with a message
+a tab (as some locales save CSV), spaces around cells, quoted cells running over lines, and
+empty columns after the last header, empty lines, and rows of empty cells before the header or after
+the last row (skipped). A workbook (``.xlsx``, ``.xls``, ``.ods``) is refused with a message
 that says to save it as CSV.
 """
 
@@ -143,13 +144,49 @@ def _hint(row: list[str], columns: int, separator: str) -> str:
     return ""
 
 
+def _unclosed_quote(lines: list[str], first: int, separator: str) -> int | None:
+    """The line (``lines[0]`` is line ``first``) where a quote opens a cell that no later quote
+    closes, as the csv module reads ``lines`` (a quote opens a cell only at its start, spaces
+    before it skipped; ``""`` inside a quoted cell is a quote), or None where every quote closes.
+    The csv module reads such a cell to the end of the file without a word."""
+    state, opened = "start", None
+    for n, line in enumerate(lines, first):
+        for ch in line:
+            if state == "quoted":
+                if ch == '"':
+                    state = "quote"  # the closing quote, or the first of a doubled one
+            elif state == "quote" and ch == '"':
+                state = "quoted"
+            elif ch == separator or ch in "\r\n":
+                state = "start"
+            elif state == "start":
+                if ch == '"':
+                    state, opened = "quoted", n
+                elif ch != " ":
+                    state = "field"
+            else:
+                state = "field"
+    return opened if state == "quoted" else None
+
+
+def _blank(line: str, separator: str) -> bool:
+    """Whether ``line`` holds nothing: no cell, not even an empty one (``,``, ``""``)."""
+    return not line.strip(" \r\n" if separator == "\t" else " \t\r\n")
+
+
 def read_table(path: str) -> Table:
     """Read and check the table's structure (not its values: they need the scene's types).
+
+    Lines with nothing on them are skipped, as are rows of empty unquoted cells (``,,``) before the
+    header and after the last row holding a value (a spreadsheet saves its empty rows so); any
+    other row of empty cells (``""``: what pandas writes for NaN in a table of one column; ``,``
+    before a later row) is a row, whose empty cells the values' check refuses: a row skipped there
+    would give the later rows' values to other variants. A quoted cell may run over lines.
 
     Raises:
         SceneError: no such file, not CSV text, no header, a header cell that is not
             ``PRIM_PATH.ATTRIBUTE``, the same attribute twice, no rows, a row with more or fewer
-            cells than the header, or a quoted cell that runs over lines (an unclosed quote).
+            cells than the header, or a quote that is never closed.
     """
     path = os.fspath(path)
     if not os.path.isfile(path):
@@ -163,15 +200,29 @@ def read_table(path: str) -> Table:
         reader = csv.reader(io.StringIO(text, newline=""), delimiter=separator, skipinitialspace=True)
         start = 1
         for row in reader:
-            end = reader.line_num
-            records.append((start, row, end > start))  # (a record over several lines: a cell holds a line break)
-            start = end + 1
+            records.append((start, row))
+            start = reader.line_num + 1
     except csv.Error as e:
         raise SceneError(f"{path}: line {start}: not readable as CSV ({e})") from None
-    records = [rec for rec in records if "".join(rec[1]).strip()]  # (empty rows skipped)
+    raw = None  # the file's lines as the csv module split them, where needed
+    if records and '"' in text:
+        raw = io.StringIO(text, newline="").readlines()
+        opened = _unclosed_quote(raw[records[-1][0] - 1:], records[-1][0], separator)
+        if opened is not None:
+            raise SceneError(f"{path}: line {opened}: a quote (\") opens a cell there and is never closed (the rest of "
+                             "the file would be read as that cell): close it, and write a quote inside a quoted cell "
+                             "as two (\"\")")  # fmt: skip
+    empty = [k for k, (_, row) in enumerate(records) if not "".join(row).strip()]
+    if empty:
+        raw = raw if raw is not None else io.StringIO(text, newline="").readlines()
+        held = [k for k in range(len(records)) if "".join(records[k][1]).strip()]
+        first, last = (held[0], held[-1]) if held else (len(records), -1)
+        drop = {k for k in empty if _blank(raw[records[k][0] - 1], separator)
+                or ((k < first or k > last) and '"' not in raw[records[k][0] - 1])}  # fmt: skip
+        records = [rec for k, rec in enumerate(records) if k not in drop]
     if not records:
         raise SceneError(f"{path}: empty: expected a header row of PRIM_PATH.ATTRIBUTE columns and a row per variant")
-    head_line, header, _ = records[0]
+    head_line, header = records[0]
     width = len(header)
     while width > 0 and not header[width - 1].strip():  # empty columns after the last header
         width -= 1
@@ -184,19 +235,12 @@ def read_table(path: str) -> Table:
     rows, lines = [], []
     n_columns = len(columns)
     strip = str.strip
-    for line, row, multi in records[1:]:
-        if not multi and len(row) == n_columns:  # (most rows: one line, a cell per column)
+    for line, row in records[1:]:
+        if len(row) == n_columns:  # (most rows: a cell per column)
             rows.append(tuple(map(strip, row)))
             lines.append(line)
             continue
         r = len(rows)
-        for k, cell in enumerate(row):
-            if "\n" in cell or "\r" in cell:
-                body = cell.rstrip("\r\n").replace("\r\n", "\n")
-                end = line + body.count("\n") + body.count("\r")
-                name = columns[k].header if k < len(columns) else k + 1
-                raise SceneError(f"{path}: row {r} (line {line}), column {name}: the cell runs over lines {line} to "
-                                 f"{end}: an unclosed quote (\")?")  # fmt: skip
         extra = [k for k in range(len(columns), len(row)) if row[k].strip()]
         if len(row) < len(columns) or (extra and extra[-1] >= len(header)):
             hint = _hint(row, len(columns), separator) if len(row) > len(columns) else ""

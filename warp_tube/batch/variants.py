@@ -8,31 +8,34 @@ layers), and the scene is read again through :class:`~warp_tube.scene.usd.SceneR
 re-reads only the prims the table overrides (and the tubes below them, and forces on them). A
 table that sets only tubes' scalar parameters and forces' vectors makes its variants from the
 base scene instead (:mod:`warp_tube.batch.fastread`), reading the stage only for a row whose
-values the reader would refuse or warn about. Every
+values the reader would refuse or warn about. Each ``warptube:`` column is first checked against
+the kind of prim it sets (:mod:`warp_tube.batch.kinds`), which the partial reads do not. Every
 cell is parsed and every variant read before anything is simulated; all problems found are
-reported together, each naming the row, the column and what is wrong.
+reported together, each naming the row, the column and what is wrong; what a row's values are
+warned of is said once, naming the first row (:mod:`warp_tube.batch.warned`).
 """
 
 from __future__ import annotations
 
 import itertools
 import logging
-from dataclasses import dataclass
+from dataclasses import dataclass, replace
 from typing import NamedTuple
 
 import numpy as np
 
-from ..runtime.log_filters import once_each
 from ..scene.attributes import attributes_of
 from ..scene.spec import Scene, SceneError
 from .fastread import PlainColumns, may_be_plain
+from .kinds import check_kinds
+from .warned import HeldWarnings, merged_warnings, say_warnings, warned_where
 from .table import Table
 from .values import CONTRACT_TYPES, parse_plain, parse_plain_column, parse_value
 
 log = logging.getLogger(__name__)
 
 __all__ = ["VariantSetAxis", "Variant", "Variants", "find_variant_sets", "select_variant_sets", "prepare_variants",
-           "collect_variants", "raise_problems", "plain_table"]
+           "collect_variants", "raise_problems", "plain_table", "say_warnings", "merged_warnings"]
 
 #: at most this many problems are listed in one message
 MAX_PROBLEMS = 10
@@ -88,6 +91,10 @@ class Variants:
     #: every variant made from the one base scene by plain values (:mod:`warp_tube.batch.fastread`):
     #: they differ in tube materials and force vectors only, their layout and geometry the base's
     plain: bool = False
+    #: what reading variants warned of (and reading the scene alone did not): (message, the first
+    #: variant's index, where it is named, how many variants; a column's: -1, None, 1), said by
+    #: :func:`~warp_tube.batch.warned.say_warnings`
+    warnings: tuple = ()
 
     def __len__(self) -> int:
         return len(self.variants)
@@ -238,12 +245,13 @@ def _scene_prims_hint(stage, most: int = 6) -> str:
     return f" (the scene's warp_tube prims: {', '.join(found[:most])}{more})"
 
 
-def _resolve_columns(stage, table: Table, context: str):
-    """Per column: the attribute to author and its USD type name (or a problem message)."""
+def _resolve_columns(stage, table: Table, context: str, ignored=frozenset()):
+    """Per column: the attribute to author and its USD type name (or a problem message); for the
+    columns in ``ignored`` (the reader would ignore them) no attribute, none being authored."""
     from pxr import Sdf
 
     out = []
-    for col in table.columns:
+    for k, col in enumerate(table.columns):
         prim = stage.GetPrimAtPath(col.prim)
         if not prim:
             paths = [str(p.GetPath()) for p in stage.Traverse()]
@@ -260,7 +268,9 @@ def _resolve_columns(stage, table: Table, context: str):
             continue
         attr = prim.GetAttribute(col.attribute)
         if attr and attr.GetTypeName():
-            out.append((attr, str(attr.GetTypeName()), None))
+            out.append((None if k in ignored else attr, str(attr.GetTypeName()), None))
+        elif k in ignored and col.attribute in CONTRACT_TYPES:
+            out.append((None, CONTRACT_TYPES[col.attribute], None))
         elif col.attribute in CONTRACT_TYPES:
             t = CONTRACT_TYPES[col.attribute]
             out.append((prim.CreateAttribute(col.attribute, Sdf.ValueTypeNames.Find(t)), t, None))
@@ -301,7 +311,7 @@ def raise_problems(problems: list) -> None:
 
 
 def collect_variants(scene_path: str, table: Table | None = None, variant_sets: str | None = None, extract=None,
-                     progress=None) -> tuple[Variants, list]:  # fmt: skip
+                     progress=None, say: bool = True) -> tuple[Variants, list]:  # fmt: skip
     """Read every variant of a batch (or of a part of its table), collecting the problems.
 
     Args:
@@ -310,6 +320,8 @@ def collect_variants(scene_path: str, table: Table | None = None, variant_sets: 
         variant_sets: ``all``, a comma-separated list of ``SET`` / ``/PRIM{SET}``, or None.
         extract: the extraction hook for ``Mesh`` tubes (as :func:`warp_tube.scene.usd.load_scene`).
         progress: None, or a callable taking the number of variants read so far.
+        say: say what reading the variants warned of (:func:`say_warnings`); else it is only kept
+            in the variants' ``warnings``.
 
     Returns:
         The variants (None where a variant has a problem) and the problems, (row or -1, message)
@@ -318,8 +330,17 @@ def collect_variants(scene_path: str, table: Table | None = None, variant_sets: 
     Raises:
         SceneError: the scene itself is invalid, or the request is (``variant_sets``, no table).
     """
-    with once_each("warp_tube.scene.usd"):  # a scene's warning, once, not once per variant
-        return _collect(scene_path, table, variant_sets, extract, progress)
+    held = HeldWarnings()  # a scene's warning once, not once per variant; a variant's naming it
+    reader_log = logging.getLogger("warp_tube.scene.usd")
+    reader_log.addFilter(held)
+    try:
+        variants, problems = _collect(scene_path, table, variant_sets, extract, progress, held)
+    finally:
+        reader_log.removeFilter(held)
+    variants = replace(variants, warnings=tuple((m, *h) for m, h in held.held.items()))
+    if say:
+        say_warnings(variants)
+    return variants, problems
 
 
 def _plain_scenes(plain: PlainColumns, table: Table, columns) -> list:
@@ -355,7 +376,7 @@ def _plain_scenes(plain: PlainColumns, table: Table, columns) -> list:
     return out
 
 
-def _collect(scene_path, table, variant_sets, extract, progress):
+def _collect(scene_path, table, variant_sets, extract, progress, held):
     from pxr import Usd
 
     from ..scene.usd import SceneReader, open_stage
@@ -398,12 +419,17 @@ def _collect(scene_path, table, variant_sets, extract, progress):
             out[c] = Variant(index=c, name=f"variant_{c:0{width}d}", row=None, cells=(), selection=combo, scene=base)
             done += 1
             continue
-        columns = _resolve_columns(stage, table, context)
-        bad_cols = [msg for _, _, msg in columns if msg]
+        kinds = check_kinds(stage, table)
+        for msg in kinds.warnings:  # (a column's: said as it is, once)
+            held.add(msg, -1, None, 1)
+        columns = _resolve_columns(stage, table, context, kinds.ignored)
+        bad_cols = kinds.problems + [msg for _, _, msg in columns if msg]
         if bad_cols:
             problems += [(-1, msg) for msg in bad_cols]
+            if kinds.problems:  # (columns of the wrong kind: the same in every combination)
+                break
             continue
-        changed = sorted({col.prim for col in table.columns})
+        changed = None if kinds.full else sorted({col.prim for k, col in enumerate(table.columns) if k not in kinds.ignored})
         plain = PlainColumns.of(base, _targets(stage, table, columns))
         made = _plain_scenes(plain, table, columns) if plain is not None else None
         if made is None or any(m is None for m in made):  # rows authored in the stage
@@ -412,6 +438,7 @@ def _collect(scene_path, table, variant_sets, extract, progress):
                 problems += [(-1, f"{msg} ({context})") for msg in inside]
                 continue
         seen_rows: dict = {}
+        row_warnings: dict = {}  # a row's cells -> what reading its variant warned of
         folder = table.folder
         for r, cells in enumerate(table.rows, start=table.first_row):
             here = (r - table.first_row) * len(combos) + c  # in this (part of the) table
@@ -419,6 +446,8 @@ def _collect(scene_path, table, variant_sets, extract, progress):
             name = f"variant_{index:0{width}d}"
             if cells in seen_rows:  # the same values as an earlier row: the same scene
                 out[here] = Variant(index, name, r, cells, combo, seen_rows[cells])
+                for msg in row_warnings.get(cells, ()):  # (and the same warnings)
+                    held.add(msg, index, warned_where(table, r, chosen, msg), 1)
                 done += 1
                 continue
             if made is not None and made[r - table.first_row] is not None:  # plain values, made from the base scene
@@ -450,11 +479,12 @@ def _collect(scene_path, table, variant_sets, extract, progress):
                     progress(done)
                 continue
             for attr, value in values:
-                if not attr.Set(value):
+                if attr is not None and not attr.Set(value):
                     problems.append((r, f"{table.where(r)}: {attr.GetPath()}: usd-core refused the value"))
                     ok = False
             if not ok:
                 continue
+            given = held.reading(index, lambda msg: warned_where(table, r, chosen, msg))
             try:
                 scene = reader.read(changed=changed)
             except SceneError as e:
@@ -466,6 +496,9 @@ def _collect(scene_path, table, variant_sets, extract, progress):
                         msg += f" (the row's {col.header} gives another point count: set {col.prim}.curveVertexCounts in the table too)"
                 problems.append((r, f"{table.where(r, col)}{' with ' + chosen if chosen else ''}: {msg}"))
                 continue
+            finally:
+                held.reading(None)
+            row_warnings[cells] = given
             seen_rows[cells] = scene
             out[here] = Variant(index, name, r, cells, combo, scene)
             done += 1

@@ -9,7 +9,8 @@ import logging
 from .spec import SceneError
 
 __all__ = ["SETTINGS_ATTRS", "TUBE_ATTRS", "FORCE_ATTRS", "MESH_ATTRS", "KNOWN_ATTRS", "TARGET", "check_names",
-           "check_relationships", "not_simulated", "not_defined", "undefined", "attributes_of", "samples_differ"]
+           "check_relationships", "not_simulated", "not_defined", "undefined", "attributes_of", "samples_differ", "kind_of",
+           "taken", "ignored_hint"]
 
 log = logging.getLogger("warp_tube.scene.usd")
 
@@ -29,6 +30,35 @@ MESH_ATTRS = TUBE_ATTRS | {"warptube:extract", "warptube:hubs"}
 KNOWN_ATTRS = TUBE_ATTRS | MESH_ATTRS | FORCE_ATTRS | set(SETTINGS_ATTRS)
 
 
+def kind_of(prim, names) -> tuple[str, set] | None:
+    """What the reader takes ``prim`` for, carrying the ``warptube:`` attributes ``names``: its kind
+    (``force``, ``simulation settings``, ``tube``, ``Mesh tube``) and the attributes that kind
+    takes; None for a prim of none of them (ignored, or with ``names`` warned of: :func:`not_simulated`)."""
+    from pxr import UsdGeom
+
+    if prim.GetRelationship(TARGET):
+        return "force", FORCE_ATTRS
+    if any(n in SETTINGS_ATTRS for n in names):
+        return "simulation settings", set(SETTINGS_ATTRS)
+    if names and prim.IsA(UsdGeom.BasisCurves):
+        return "tube", TUBE_ATTRS
+    if "warptube:extract" in names and prim.IsA(UsdGeom.Mesh):
+        return "Mesh tube", MESH_ATTRS
+    return None
+
+
+def taken(known) -> str:
+    """``known`` attributes for a message: ``gravity, integrator, timeStep``."""
+    return ", ".join(sorted(n.split(":")[1] for n in known))
+
+
+def ignored_hint(prim) -> str:
+    """Where a tube's attributes found on ``prim`` (no tube, force or settings prim) belong."""
+    if prim.GetTypeName() == "Mesh":
+        return "set warptube:extract = true on it to extract a tube from it"
+    return "tube attributes belong on a linear BasisCurves prim (or a Mesh with warptube:extract = true)"
+
+
 def check_names(path: str, prim, names: list, known: set, kind: str) -> None:
     """A ``warptube:`` attribute of ``prim`` that is not one of ``known`` (a ``kind`` prim's) is a
     mistake (a misspelling, or an attribute of another kind of prim): an error naming it, with the
@@ -41,8 +71,7 @@ def check_names(path: str, prim, names: list, known: set, kind: str) -> None:
         else:
             near = difflib.get_close_matches(name, sorted(known), n=1)
             what = "unknown attribute" + (f": did you mean {near[0]}?" if near else "")
-        takes = ", ".join(sorted(n.split(":")[1] for n in known))
-        raise SceneError(f"{path}: {prim.GetPath()}.{name}: {what} (a {kind} prim takes {takes})")
+        raise SceneError(f"{path}: {prim.GetPath()}.{name}: {what} (a {kind} prim takes {taken(known)})")
 
 
 def check_relationships(path: str, prim) -> None:
@@ -63,13 +92,8 @@ def not_simulated(path: str, prim, names: list) -> None:
     if force:
         raise SceneError(f"{path}: {prim.GetPath()}: {', '.join(force)} without a {TARGET} relationship: a force prim "
                          f"names its tube with rel {TARGET} = </PATH/TO/TUBE>")  # fmt: skip
-    kind = prim.GetTypeName() or "typeless"
-    if kind == "Mesh":
-        hint = "set warptube:extract = true on it to extract a tube from it"
-    else:
-        hint = "tube attributes belong on a linear BasisCurves prim (or a Mesh with warptube:extract = true)"
     log.warning("%s: %s (a %s prim) carries %s but is not a tube, force or settings prim: ignored (%s)", path,
-                prim.GetPath(), kind, ", ".join(sorted(names)), hint)
+                prim.GetPath(), prim.GetTypeName() or "typeless", ", ".join(sorted(names)), ignored_hint(prim))
 
 
 def undefined(prim) -> tuple[str, str]:

@@ -17,8 +17,8 @@ import os
 import numpy as np
 
 from .curves import BEYOND_WORLD, MAX_WORLD_M, check_curve_type, check_points_type, curve_counts, curve_widths, moving_pin_track
-from .attributes import (FORCE_ATTRS, KNOWN_ATTRS, MESH_ATTRS, SETTINGS_ATTRS, TUBE_ATTRS, TARGET, check_names, check_relationships,
-                         not_defined, not_simulated, samples_differ, undefined)  # fmt: skip
+from .attributes import (KNOWN_ATTRS, TARGET, check_names, check_relationships, kind_of, not_defined, not_simulated, samples_differ,
+                         undefined)  # fmt: skip
 from .spec import (
     FRAME_MODES,
     INTEGRATORS,
@@ -427,14 +427,12 @@ class SceneReader:
         return self._read_all()
 
     def _read_all(self) -> Scene:
-        from pxr import UsdGeom
-
         stage, path, extract = self.stage, self.path, self.extract
         self._last = None
         info = _stage_info(stage)
         frame_times = [info.start_time_code + k for k in range(info.frame_count)]
         tubes, settings_prims, force_prims, mesh_prims, overs = [], [], [], [], []
-        from pxr import Usd
+        from pxr import Usd, UsdGeom
 
         # Into instances too: a tube under an instanceable prim is a tube (at its instance's path);
         # and into undefined prims (`over`s alone), whose warptube: attributes are ignored, said so.
@@ -450,22 +448,21 @@ class SceneReader:
                 raise SceneError(f"{path}: {prim.GetPath()}.{primvars[0]}: warptube: attributes are plain attributes, not "
                                  f"primvars: author it as {primvars[0].removeprefix('primvars:')}")  # fmt: skip
             check_relationships(path, prim)
-            if prim.GetRelationship(TARGET):
-                check_names(path, prim, names, FORCE_ATTRS, "force")
+            kind = kind_of(prim, names)
+            if kind is None:
+                if names:
+                    check_names(path, prim, names, KNOWN_ATTRS, "warp_tube")
+                    not_simulated(path, prim, names)
+                continue
+            check_names(path, prim, names, kind[1], kind[0])
+            if kind[0] == "force":
                 force_prims.append(prim)
-            elif any(n in SETTINGS_ATTRS for n in names):
-                check_names(path, prim, names, set(SETTINGS_ATTRS), "simulation settings")
+            elif kind[0] == "simulation settings":
                 settings_prims.append(prim)
-            elif prim.IsA(UsdGeom.BasisCurves) and names:
-                check_names(path, prim, names, TUBE_ATTRS, "tube")
+            elif kind[0] == "tube":
                 tubes.append(prim)
-            elif prim.IsA(UsdGeom.Mesh) and "warptube:extract" in names:
-                check_names(path, prim, names, MESH_ATTRS, "Mesh tube")
-                if _Reader(path, prim, info.start_time_code).boolean("warptube:extract", False):
-                    mesh_prims.append(prim)
-            elif names:
-                check_names(path, prim, names, KNOWN_ATTRS, "warp_tube")
-                not_simulated(path, prim, names)
+            elif _Reader(path, prim, info.start_time_code).boolean("warptube:extract", False):
+                mesh_prims.append(prim)
         _check_output_names(path, tubes + mesh_prims)
         _warn_about_prototypes(path, tubes + mesh_prims + force_prims)
         if len(settings_prims) > 1:
