@@ -365,6 +365,9 @@ XFORM = '        {}\n        uniform token[] xformOpOrder = ["{}"]\n'
         (False, 'string xformOp:translate = "x"', ["/World/Tube.xformOpOrder", "cannot be computed", "Invalid combination"]),
         (False, "double3 xformOp:translate = (nan, 0, 0)", ["/World/Tube.xformOpOrder", "is not finite"]),
         (True, "float3 xformOp:scale = (1, 0, 1)", ["/World.xformOpOrder", "zero scale", "places the tube /World/Tube"]),
+        # a projective part was dropped without a word (the points placed by the affine part only)
+        (True, "matrix4d xformOp:transform = ((1, 0, 0, 0), (0, 1, 0, 0), (0, 0, 1, 0.5), (0, 0, 0, 1))",
+         ["/World.xformOpOrder", "is projective (last column [0.0, 0.0, 0.5, 1.0]", "expected finite, affine"]),
     ],
 )  # fmt: skip
 def test_a_transform_that_cannot_place_the_tube_is_named(tmp_path, capsys, on_world, op, words):

@@ -532,7 +532,6 @@ def run_pooled(todo, devices, workers: SimWorkers, context, result) -> None:
                 free_slots.append(slot_of.pop(cid))  # its files stay for the next chunk
                 context["finish"](cid, rows, outputs)
             submit_sim()
-        result.simulate_s += sum(result.timings[k] for k in TIMERS if k not in ("sync_s", "flush_wait_s"))  # (waits: not the simulation's)
     except KeyboardInterrupt:
         # Stop simulating at once; the chunks already simulated are written to the end and kept
         # (those the simulating processes write themselves: the ones they report written).
@@ -552,6 +551,8 @@ def run_pooled(todo, devices, workers: SimWorkers, context, result) -> None:
         finally:
             raise
     finally:
+        # (the chunks simulated so far, also where the batch was interrupted)
+        result.simulate_s += sum(result.timings[k] for k in TIMERS if k not in ("sync_s", "flush_wait_s"))  # (waits: not the simulation's)
         if own is not None:
             own.shutdown()
         if buffers is not None:

@@ -95,6 +95,7 @@ class BatchResult:
         write_s: the writer tasks' time, summed over writers; write_wait_s: waiting for writers
             (and for frames to be copied back from the device for them);
         books_s: recording the finished chunks (journal records, summary lines);
+        frames: frames written per variant (with ``every``: every K-th of those simulated);
         timings: the simulation's own split (build, kernels, launch, readback, control, checks, copy, rerun), summed.
         failures: (variant name, reason) of the failed variants.
         contacts: (variant name, frame) of the variants where distant parts of their tubes came

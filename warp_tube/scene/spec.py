@@ -363,7 +363,16 @@ class ForceSpec:
 
 @dataclass(frozen=True)
 class Scene:
-    """A whole scene: tubes, forces, settings and stage metadata."""
+    """A whole scene: tubes, forces, settings and stage metadata.
+
+    Attributes:
+        tubes: the tubes (:class:`TubeSpec`; at least one), in the order their points are laid out
+            in the model and the outputs.
+        forces: the point forces (:class:`ForceSpec`), each naming its tube by index into ``tubes``.
+        settings: the integrator, forced substep and gravity (:class:`SimulationSettings`).
+        stage: the time range, frame rate, units and up axis (:class:`StageInfo`).
+        source: where the scene came from (a file path, or ``"<python>"``), named in messages.
+    """
 
     tubes: tuple[TubeSpec, ...]
     forces: tuple[ForceSpec, ...] = ()

@@ -116,8 +116,9 @@ def warn_about_layer_units(prim, points_attr, matrix: np.ndarray, stage_mpu: flo
 
 
 def _usable(m: np.ndarray) -> bool:
-    """A finite matrix whose linear part keeps volumes (relative to its size) away from zero."""
-    if not np.isfinite(m).all():
+    """A finite affine matrix (row vectors: last column (0, 0, 0, 1)) whose linear part keeps
+    volumes (relative to its size) away from zero."""
+    if not np.isfinite(m).all() or not _affine(m):
         return False
     size = np.abs(m[:3, :3]).max()
     return size > 0.0 and abs(np.linalg.det(m[:3, :3] / size)) > 1e-12
@@ -145,6 +146,9 @@ def _raise_for_transform(prim, time, file: str):
             if not np.isfinite(local).all():
                 what = "is not finite"
                 break
+            if not _affine(local):
+                what = f"is projective (last column {np.round(local[:, 3], 6).tolist()}, not [0, 0, 0, 1])"
+                break
             if not _usable(local):
                 what = "has a zero scale"
                 break
@@ -152,4 +156,10 @@ def _raise_for_transform(prim, time, file: str):
     else:
         p = prim
     raise SceneError(f"{file}: {p.GetPath()}.xformOpOrder: its transform {what} (it places the tube {prim.GetPath()}): "
-                     "expected finite xformOps of their own types, with a non-zero scale")  # fmt: skip
+                     "expected finite, affine xformOps of their own types, with a non-zero scale")  # fmt: skip
+
+
+def _affine(m: np.ndarray) -> bool:
+    """Whether the 4x4 row-vector matrix ``m`` is affine (a projective part would bend straight
+    segments and has no length scale for the widths)."""
+    return bool(np.allclose(m[:, 3], (0.0, 0.0, 0.0, 1.0), rtol=0.0, atol=1e-12 * max(1.0, float(np.abs(m).max()))))
