@@ -267,6 +267,10 @@ def cases() -> list[Case]:
     bad("metersPerUnit 0", scene(("metersPerUnit = 0.01", "metersPerUnit = 0")))
     bad("upAxis neither Y nor Z", scene(('upAxis = "Y"', 'upAxis = "Q"')))
     bad("endTimeCode before startTimeCode", scene(("endTimeCode = 2", "endTimeCode = -5")))
+    bad("curveVertexCounts authored as a scalar", scene(("int[] curveVertexCounts = [21]", "int curveVertexCounts = 21")))
+    bad("a projective transform over the tube", scene(('def Xform "World"\n{\n', 'def Xform "World"\n{\n    matrix4d xformOp:transform = '
+                                                       '((1, 0, 0, 0), (0, 1, 0, 0), (0, 0, 1, 0.5), (0, 0, 0, 1))\n'
+                                                       '    uniform token[] xformOpOrder = ["xformOp:transform"]\n')))
     run("forced time step that blows up, over an existing output", [BAD, "-o", "keep.usdc"], 3, files={BAD: FORCED_BLOWUP}, creates=("keep.partial.usdc",))
     # -- run: the output and the flags
     run("-o the scene itself", ["scene.usda", "-o", "scene.usda"])
