@@ -280,6 +280,7 @@ def cases() -> list[Case]:
     run("scene named like the output's partial file", ["x.partial.usda", "-o", "x.usda"], files={"x.partial.usda": scene()})
     run("-o with a non-USD extension", ["scene.usda", "-o", "out.txt"])
     run("-o in a folder that does not exist", ["scene.usda", "-o", "nowhere/out.usdc"])
+    run("-o a name too long for its temporary name (246 characters)", ["scene.usda", "-o", "z" * 241 + ".usdc"])
     run("-o an existing folder", ["scene.usda", "-o", "afolder.usdc"], files={"afolder.usdc": _folder})
     run("--frames 0", ["scene.usda", "--frames", "0"])
     run("--frames -3", ["scene.usda", "--frames", "-3"])

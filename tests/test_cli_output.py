@@ -1,5 +1,9 @@
 """warp-tube run end to end: the output contract, every example scene, failures and interrupts."""
 
+import os
+import subprocess
+import sys
+
 import numpy as np
 import pytest
 from pxr import Usd, UsdGeom
@@ -78,6 +82,18 @@ def test_blow_up_exits_3_and_keeps_the_finished_frames(tmp_cwd, capsys):
     assert 1 <= len(samples) < 97 and st.GetEndTimeCode() == samples[-1]
     assert check_output_problems(out) == []
     assert np.isfinite(np.array(UsdGeom.BasisCurves(st.GetPrimAtPath("/World/Tube/Centerline")).GetPointsAttr().Get(samples[-1]))).all()
+
+
+@pytest.mark.skipif(not os.path.exists("/dev/full"), reason="needs /dev/full (a device that is always full)")
+def test_a_full_standard_output_is_named_and_the_output_kept(tmp_cwd):
+    """Standard output on a full disk (a CI log): exit 1 "internal error ... please report it",
+    although the output was complete. Now exit 2 naming standard output, the output as written."""
+    with open("/dev/full", "w") as full:
+        r = subprocess.run([sys.executable, "-m", "warp_tube", "run", "--frames", "2", "-o", "out.usdc"], stdout=full,
+                           stderr=subprocess.PIPE, text=True, timeout=300)  # fmt: skip
+    assert r.returncode == 2, r.stderr
+    assert "cannot write to standard output (No space left on device)" in r.stderr and "internal error" not in r.stderr
+    assert Usd.Stage.Open("out.usdc").GetEndTimeCode() == 1.0  # frames 0 and 1
 
 
 def test_check_validates_without_writing(tmp_cwd, capsys):

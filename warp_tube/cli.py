@@ -385,7 +385,7 @@ def console_main() -> int:
 def main(argv=None) -> int:
     """The command line: parse ``argv`` (default ``sys.argv[1:]``), run the command and return the
     exit status (without ending the process: tests call it)."""
-    from .runtime.warp_setup import set_verbose
+    from .runtime.warp_setup import env_verbose, set_verbose
 
     parser = _parser()
     args, unknown = parser.parse_known_args(argv)
@@ -393,11 +393,13 @@ def main(argv=None) -> int:
         parser.commands[args.command].error(f"unrecognized arguments: {' '.join(unknown)}")
     raw = list(sys.argv[1:] if argv is None else argv)
     args.argv = raw[raw.index(args.command) + 1 :]  # the command's own arguments (after any -v before it)
-    set_verbose(args.verbose)
+    set_verbose(args.verbose or env_verbose())
     _configure_logging(args.verbose)
     _RUN_WARNINGS.summary_prints_them = False
     handler = {"run": _cmd_run, "check": _cmd_check, "extract": _cmd_extract, "preview": _cmd_preview, "export": _cmd_export,
                "batch": _cmd_batch, "bench": _cmd_bench}
+    plain_stdout = sys.stdout
+    sys.stdout = _GuardedStdout(plain_stdout)
     try:
         with terminate_as_interrupt():  # SIGTERM, SIGHUP: stop as after Ctrl-C, keeping what is finished
             if args.command != "bench":  # (usd-core whole before anything: an interrupt in its import broke it)
@@ -413,15 +415,61 @@ def main(argv=None) -> int:
         print(f"warp-tube: {stopped_by(e)}; nothing was written{again}", file=sys.stderr)
         return exit_status(e)
     except BrokenPipeError:  # stdout closed by the reader (`| head`): stop quietly, as other tools do
-        devnull = os.open(os.devnull, os.O_WRONLY)
-        os.dup2(devnull, sys.stdout.fileno())  # so that Python's own flush at exit does not fail again
+        _stdout_to_devnull()
         return 128 + 13  # SIGPIPE
+    except StdoutError as e:  # (a full disk under a redirected log): the files written are as they were said to be
+        _stdout_to_devnull()
+        print(f"warp-tube: cannot write to standard output ({e.strerror or e}); what the command printed is lost "
+              "there", file=sys.stderr)  # fmt: skip
+        return EXIT_INPUT
     except Exception as e:
-        if args.verbose:
-            traceback.print_exc()
-        print(f"warp-tube: internal error ({type(e).__name__}: {e}); run with -v for the traceback and please report it",
-              file=sys.stderr)  # fmt: skip
-        return EXIT_INTERNAL
+        return _internal_error(args, e)
+    finally:
+        sys.stdout = plain_stdout
+
+
+def _internal_error(args, e: BaseException) -> int:
+    if args.verbose:
+        traceback.print_exc()
+    print(f"warp-tube: internal error ({type(e).__name__}: {e}); run with -v for the traceback and please report it",
+          file=sys.stderr)  # fmt: skip
+    return EXIT_INTERNAL
+
+
+class StdoutError(OSError):
+    """Standard output could not be written (not a closed pipe: a full disk, an I/O error)."""
+
+
+class _GuardedStdout:
+    """``sys.stdout`` whose failed writes raise :class:`StdoutError`, told apart from the errors of
+    the files a command writes."""
+
+    def __init__(self, stream):
+        self._stream = stream
+
+    def _guard(self, call, *args):
+        try:
+            return call(*args)
+        except BrokenPipeError:
+            raise
+        except OSError as e:
+            raise StdoutError(e.errno, e.strerror) from None
+
+    def write(self, text):
+        return self._guard(self._stream.write, text)
+
+    def flush(self):
+        return self._guard(self._stream.flush)
+
+    def __getattr__(self, name):
+        return getattr(self._stream, name)
+
+
+def _stdout_to_devnull() -> None:
+    """Point standard output at the null device, so that Python's own flush at exit does not fail
+    again (what waits in its buffer is dropped)."""
+    devnull = os.open(os.devnull, os.O_WRONLY)
+    os.dup2(devnull, sys.stdout.fileno())
 
 
 if __name__ == "__main__":

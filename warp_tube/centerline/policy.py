@@ -131,6 +131,8 @@ def explain_integrator(settings: SimulationSettings, critical_dt: float, frame_d
         return (f"auto: {over}stiff ({semi_steps} stable semi-implicit substeps a frame against {impl_steps} implicit "
                 f"ones at ~{implicit_cost:g}x the cost each){capped}")  # fmt: skip
     why = f"cheaper than implicit ({impl_steps} substeps at ~{implicit_cost:g}x the cost)"
+    if semi_steps == 1:  # (a frame is shorter than the step the bound allows)
+        return f"auto: {over}one substep a frame, within {SAFETY:g} x the stability bound {hc:.3g} s; {why}"
     return f"auto: {over}{semi_steps} substeps a frame at {SAFETY:g} x the stability bound {hc:.3g} s; {why}"
 
 

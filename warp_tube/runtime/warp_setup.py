@@ -20,7 +20,7 @@ from __future__ import annotations
 import os
 import sys
 
-__all__ = ["init_warp", "set_verbose", "VERBOSE_ENV"]
+__all__ = ["init_warp", "set_verbose", "env_verbose", "VERBOSE_ENV"]
 
 VERBOSE_ENV = "WARP_TUBE_VERBOSE"
 #: the native start-up line that :func:`init_warp` drops unless verbose.
@@ -38,10 +38,15 @@ def set_verbose(flag: bool) -> None:
         wp.config.log_level = wp.LOG_INFO if flag else wp.LOG_WARNING
 
 
+def env_verbose() -> bool:
+    """Whether the environment asks for Warp's messages (:data:`VERBOSE_ENV` set, not 0/false/no)."""
+    return os.environ.get(VERBOSE_ENV, "").strip().lower() not in ("", "0", "false", "no")
+
+
 def _is_verbose() -> bool:
     if _verbose is not None:
         return _verbose
-    return os.environ.get(VERBOSE_ENV, "").strip().lower() not in ("", "0", "false", "no")
+    return env_verbose()
 
 
 def _warp_started() -> bool:

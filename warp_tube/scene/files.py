@@ -110,6 +110,11 @@ def output_path(path, extensions: Iterable[str], *, inputs: Iterable = (), what:
         raise SceneError(f"{raw}: cannot write the {what}: folder {folder} does not exist")
     if not os.access(folder, os.W_OK):
         raise SceneError(f"{raw}: cannot write the {what}: folder {folder} is not writable")
+    longest = _name_max(folder) - DERIVED_NAME_EXTRA
+    if len(os.path.basename(path).encode()) > longest:
+        raise SceneError(f"{raw}: a file name of {len(os.path.basename(path).encode())} bytes: expected at most {longest} "
+                         f"(the {what} is written under a longer temporary name beside it first, and an unfinished "
+                         f"one under NAME.partial{ext})")  # fmt: skip
     for src in inputs:
         for candidate, role in ((path, ""), (partial_path(path), " (its partial name)"), (temp_path(path), " (its temporary name)")):
             if same_file(candidate, src):
@@ -117,6 +122,19 @@ def output_path(path, extensions: Iterable[str], *, inputs: Iterable = (), what:
                     f"{raw}: is the input {os.fspath(src)}{role}: refusing to write over an input; choose another {what} name"
                 )
     return path
+
+
+#: how much longer than an output's name the names written beside it may be: the temporary name
+#: (".NAME.tmp-PID", twice where a staged file is itself written atomically) or "NAME.partial-K"
+DERIVED_NAME_EXTRA = 28
+
+
+def _name_max(folder: str) -> int:
+    """The longest file name [bytes] the file system of ``folder`` takes (255 where not said)."""
+    try:
+        return int(os.pathconf(folder, "PC_NAME_MAX"))
+    except (OSError, ValueError):
+        return 255
 
 
 def default_run_output(scene_path: str | None) -> str:

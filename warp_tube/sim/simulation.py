@@ -71,7 +71,7 @@ def resolve_device(device=None) -> str:
             raise SceneError(f"device {name}: no such CUDA device ({count} found): use the CPU (--device cpu; device=\"cpu\" in Python)")
         return f"cuda:{idx}"
     if name != "cpu":
-        raise SceneError(f"device {name!r}: expected cpu or cuda:N")
+        raise SceneError(f"device {name!r}: expected cpu, cuda or cuda:N")
     return name
 
 
