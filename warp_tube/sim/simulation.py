@@ -455,8 +455,10 @@ class Simulation(RunBudget):
         summary = RunSummary(
             scene=self.scene.source, device=self.device, frames=0, substeps=self.substeps, dt=self.dt,
             integrator=self.integrator, reason=self.reason, wall_time=0.0, max_displacement=0.0,
-            stage_defaults=[k for k in ("metersPerUnit", "upAxis", "timeCodesPerSecond", "framesPerSecond", "startTimeCode",
-                                        "endTimeCode") if k not in info.authored],
+            stage_defaults=[f"{k} {v:g}" if isinstance(v, float) else f"{k} {v}" for k, v in (
+                ("metersPerUnit", info.meters_per_unit), ("upAxis", info.up_axis),
+                ("timeCodesPerSecond", info.time_codes_per_second), ("framesPerSecond", info.frames_per_second),
+                ("startTimeCode", info.start_time_code), ("endTimeCode", info.end_time_code)) if k not in info.authored],
             first_frame=first_written if written_count else first, setup_time=setup_time + setup,
         )  # fmt: skip
         self.last_summary = summary

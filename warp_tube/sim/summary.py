@@ -79,7 +79,7 @@ class RunSummary:
             f"largest displacement  {self.max_displacement:.4g} m",
         ]
         if self.stage_defaults:
-            lines.append("stage        unauthored, USD fallback used: " + ", ".join(self.stage_defaults))
+            lines.append("stage        unauthored, taken as: " + ", ".join(self.stage_defaults))
         if self.output:
             lines.append(f"output       {self.output}")
         if self.partial:
