@@ -237,12 +237,32 @@ def test_an_output_larger_than_the_free_disk_space_is_refused_before_it_starts(t
 
     (tmp_cwd / "scene.usda").write_text(scene())
     (tmp_cwd / "out.usdc").write_bytes(KEEP)
-    monkeypatch.setattr(memory, "available_disk", lambda folder: 10_000)  # bytes: less than one frame of the scene
+    monkeypatch.setattr(memory, "available_disk", lambda folder: 10_000)  # bytes: less than the topology alone
     assert main(["run", "scene.usda", "-o", "out.usdc"]) == 2
     err = capsys.readouterr().err
-    assert f"more than the 10.0 kB free in {tmp_cwd}" in err and "write fewer frames" in err and "internal error" not in err
+    assert f"more than the 10.0 kB free in {tmp_cwd}; free some space\n" in err and "internal error" not in err
     assert sorted(p.name for p in tmp_cwd.iterdir()) == ["out.usdc", "scene.usda"]
     assert (tmp_cwd / "out.usdc").read_bytes() == KEEP
+
+
+@pytest.mark.parametrize("suffix", [".usdc", ".usda"])
+def test_the_free_space_check_counts_what_an_output_holds_once(tmp_cwd, capsys, monkeypatch, suffix):
+    """The topology, texture coordinates and metadata are written once (the default scene's 3
+    frames: ~23 of 55 kB): a folder with less free space than the file takes is refused before
+    the run, and one with twice that is not (the estimate is an upper bound, not a wild one)."""
+    import warp_tube.runtime.memory as memory
+
+    (tmp_cwd / "scene.usda").write_text(scene())
+    assert main(["run", "scene.usda", "-o", "first" + suffix, "--frames", "3", "--quiet"]) == 0
+    size = (tmp_cwd / ("first" + suffix)).stat().st_size
+    monkeypatch.setattr(memory, "available_disk", lambda folder: size - 1)
+    assert main(["run", "scene.usda", "-o", "out" + suffix, "--frames", "3", "--quiet"]) == 2
+    err = capsys.readouterr().err
+    assert "bytes of topology and metadata), more than the" in err and "write fewer frames" in err
+    assert not (tmp_cwd / ("out" + suffix)).exists()
+    monkeypatch.setattr(memory, "available_disk", lambda folder: 2 * size)
+    assert main(["run", "scene.usda", "-o", "out" + suffix, "--frames", "3", "--quiet"]) == 0
+    assert (tmp_cwd / ("out" + suffix)).stat().st_size == size
 
 
 # -- Ctrl-C while saving ------------------------------------------------------------------------------

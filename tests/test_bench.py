@@ -27,8 +27,51 @@ def readme_figures():
 @pytest.fixture(scope="module")
 def quick_run(tmp_path_factory):
     out = tmp_path_factory.mktemp("bench")
+    (out / "logs").mkdir()
+    (out / "logs" / "warp_tube-0.log").write_text("an earlier bench's log")
+    (out / "mine.txt").write_text("a user's file")
     assert main(["bench", "--suite", "accuracy", "--quick", "--peers", "none", "--device", "cpu", "-o", str(out)]) == 0
     return out, json.loads((out / "results.json").read_text())
+
+
+def test_a_bench_over_an_earlier_one_replaces_its_files_and_leaves_the_others(quick_run):
+    out, _ = quick_run
+    assert (out / "mine.txt").read_text() == "a user's file"
+    assert "an earlier bench's log" not in (out / "logs" / "warp_tube-0.log").read_text()
+    assert not [p for p in out.rglob("*") if p.name.startswith(".") or p.name.endswith(".partial")]
+
+
+@pytest.fixture
+def interrupted_worker(monkeypatch):
+    """The bench's worker process stopped by the Ctrl-C that stops the bench: its log holds the
+    traceback, and the bench gets the interrupt while it waits for it."""
+    import subprocess
+
+    def run(cmd, stdout=None, stderr=None, **kwargs):
+        stderr.write("Traceback (most recent call last):\nKeyboardInterrupt\n")
+        stderr.flush()
+        raise KeyboardInterrupt
+
+    monkeypatch.setattr(subprocess, "run", run)
+
+
+def test_an_interrupted_bench_removes_the_folder_it_made(tmp_path, capsys, interrupted_worker):
+    out = tmp_path / "new" / "bench"
+    assert main(["bench", "--suite", "accuracy", "--quick", "--peers", "none", "--device", "cpu", "-o", str(out)]) == 130
+    assert "warp-tube: interrupted; nothing was written\n" in capsys.readouterr().err
+    assert list(tmp_path.iterdir()) == []
+
+
+def test_an_interrupted_bench_leaves_a_folder_that_was_there_as_it_was(tmp_path, capsys, interrupted_worker):
+    (tmp_path / "logs").mkdir()
+    before = {"mine.txt": "a user's file", "logs/warp_tube-0.log": "an earlier bench's log", "logs/other.log": "x",
+              "results.json": "{}"}  # fmt: skip
+    for name, text in before.items():
+        (tmp_path / name).write_text(text)
+    assert main(["bench", "--suite", "accuracy", "--quick", "--peers", "none", "--device", "cpu", "-o", str(tmp_path)]) == 130
+    assert "warp-tube: interrupted; nothing was written\n" in capsys.readouterr().err
+    after = {str(p.relative_to(tmp_path)): p.read_text() for p in tmp_path.rglob("*") if p.is_file()}
+    assert after == before
 
 
 def _row(results, problem, segments, api="simulation", kind="static"):

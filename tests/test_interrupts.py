@@ -132,3 +132,41 @@ def test_interrupt_of_a_real_kernel_compile(folder, tmp_path_factory):
     else:
         assert "nothing" in err
     assert "Traceback" not in err
+
+
+def _samples(path):
+    st = Usd.Stage.Open(str(path))
+    curve = UsdGeom.BasisCurves(st.GetPrimAtPath("/World/Tube/Centerline")).GetPointsAttr().GetTimeSamples()
+    mesh = UsdGeom.Mesh(st.GetPrimAtPath("/World/Tube/Surface")).GetPointsAttr().GetTimeSamples()
+    return list(curve), list(mesh), st.GetEndTimeCode()
+
+
+@pytest.mark.parametrize("point", ["after the step", "while counting the frame"])
+@pytest.mark.parametrize("sig", [signal.SIGINT, signal.SIGTERM])
+def test_an_interrupt_right_after_a_frame_is_simulated_keeps_that_frame(folder, monkeypatch, capsys, point, sig):
+    """The signal lands where the run has just finished frame 5 and not yet handed it to the writer
+    (raised there, not timed): the summary and the partial file agree, and both hold frame 5."""
+    from warp_tube.cli import main
+    from warp_tube.runtime.interrupts import Terminated
+    from warp_tube.sim.simulation import Simulation
+
+    name = "step" if point == "after the step" else "max_displacement"
+    original = getattr(Simulation, name)
+    fired = []
+
+    def interrupted(self):
+        out = original(self)
+        if self.frame == 5 and not fired:
+            fired.append(True)
+            raise KeyboardInterrupt if sig == signal.SIGINT else Terminated(sig)
+        return out
+
+    monkeypatch.setattr(Simulation, name, interrupted)
+    monkeypatch.chdir(folder)
+    assert main(["run", "scene.usda", "-o", "keep.usdc", "--device", "cpu"]) == 128 + sig
+    err = capsys.readouterr().err
+    partial = folder / "keep.partial.usdc"
+    assert "frames       6 written (5 simulated)" in err and "while simulating frame 6" in err, err
+    assert f"frames 0-5 (6 frames) kept in {partial}" in err
+    assert _samples(partial) == ([0.0, 1.0, 2.0, 3.0, 4.0, 5.0], [0.0, 1.0, 2.0, 3.0, 4.0, 5.0], 5.0)
+    assert (folder / "keep.usdc").read_bytes() == KEEP and leftovers(folder) == []

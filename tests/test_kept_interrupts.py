@@ -7,7 +7,7 @@ import time
 
 import pytest
 
-from warp_tube.runtime.interrupts import kept_interrupts, raise_if_interrupted
+from warp_tube.runtime.interrupts import held_interrupts, kept_interrupts, raise_if_interrupted
 
 
 class Freed:
@@ -48,3 +48,19 @@ def test_an_interrupt_during_an_import_is_raised_once_the_module_is_in(tmp_path,
         import_whole("slow_to_import")
     assert sys.modules["slow_to_import"].WHOLE
     del sys.modules["slow_to_import"]
+
+
+def test_a_ctrl_c_in_a_held_block_is_raised_at_its_end():
+    """A run counts and writes each frame in such a block: the frame is finished before the
+    interrupt stops the run."""
+    finished = []
+    with kept_interrupts():
+        with pytest.raises(KeyboardInterrupt):
+            with held_interrupts():
+                os.kill(os.getpid(), signal.SIGINT)
+                for _ in range(100):  # the handler runs here, and only notes the signal
+                    time.sleep(0.001)
+                finished.append(True)
+        assert finished == [True]
+        raise_if_interrupted()  # raised once: nothing pending now
+    assert signal.getsignal(signal.SIGINT) is signal.default_int_handler

@@ -89,6 +89,30 @@ def test_every_output_counts_the_frames_it_writes(tmp_path):
         sim.run(frames=8, output=str(tmp_path / "c.usdc"), every=5)
 
 
+@pytest.mark.parametrize("stop, said", [(10, None), (35, "frames 31 to 35 are simulated but not written (the last written is frame 30)")])
+def test_every_speaks_only_of_frames_simulated_when_a_run_stops(tmp_path, monkeypatch, stop, said):
+    """Frames 0..39 every 15 write 0, 15 and 30: a run stopped at frame 10 never simulated 31 to 39,
+    and its summary does not say it did; one stopped at frame 35 simulated 31 to 35, not written."""
+    import warp_tube
+    from warp_tube.sim.simulation import Simulation
+
+    step = Simulation.step
+
+    def interrupted(self):
+        step(self)
+        if self.frame == stop:
+            raise KeyboardInterrupt
+
+    monkeypatch.setattr(Simulation, "step", interrupted)
+    scene = _scene(tmp_path / "s.usda", _straight(3, 1.0), 1.0)
+    sim = warp_tube.Simulation(warp_tube.load_scene(str(scene)), device="cpu")
+    with pytest.raises(KeyboardInterrupt):
+        sim.run(frames=40, output=str(tmp_path / "a.usdc"), every=15)
+    s = sim.last_summary
+    unwritten = [w for w in s.warnings if "simulated but not written" in w]
+    assert unwritten == ([] if said is None else [f"every 15: {said}"]), s.warnings
+
+
 def test_export_of_a_frame_between_samples_names_the_step(tmp_path, capsys):
     scene = _scene(tmp_path / "s.usda", _straight(3, 1.0), 1.0)
     out = tmp_path / "out.usdc"

@@ -50,11 +50,25 @@ def test_run_that_cannot_save_exits_2_and_says_the_frames_were_lost(tmp_cwd, cap
     (tmp_cwd / "keep.usdc").write_bytes(KEEP)
     assert main(["run", "scene.usda", "-o", "keep.usdc"]) == 2
     err = capsys.readouterr().err
-    assert "cannot write " in err and "keep.usdc: No space left on device" in err
+    assert "cannot write " in err and "keep.usdc: No space left on device; " in err
     assert "(3 frames) could not be saved: nothing kept; " in err and "keep.usdc was left as it was" in err
+    # one line: no summary saying the frames were written
+    assert err.startswith("warp-tube: cannot write ") and err.count("\n") == 1 and "written" not in err, err
     assert "Traceback" not in err and "internal error" not in err
     assert (tmp_cwd / "keep.usdc").read_bytes() == KEEP
     assert sorted(p.name for p in tmp_cwd.iterdir()) == ["keep.usdc", "scene.usda"]  # no temporary left
+
+
+def test_a_run_that_cannot_save_has_a_summary_that_says_so(tmp_cwd, full_disk):
+    import warp_tube
+
+    (tmp_cwd / "scene.usda").write_text(scene())
+    sim = warp_tube.Simulation(warp_tube.load_scene("scene.usda"), device="cpu")
+    with pytest.raises(OSError, match="No space left on device"):
+        sim.run(output="out.usdc")
+    s = sim.last_summary
+    assert s.output is None and s.partial is None and s.stopped == "cannot write out.usdc: No space left on device"
+    assert "frames       none saved (2 simulated; 3 could not be saved)" in s.text() and "written" not in s.text()
 
 
 def test_batch_files_that_cannot_be_saved_exit_2_naming_the_file(tmp_cwd, capsys, full_disk):

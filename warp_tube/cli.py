@@ -177,8 +177,8 @@ def _cmd_run(a) -> int:
         return _stopped(sim, out, why, exit_status(e), a.quiet)
     except SceneError:
         raise
-    except OSError as e:
-        return _stopped(sim, out, f"cannot write {out}: {e.strerror or e}", EXIT_INPUT, a.quiet)
+    except OSError as e:  # (a save that failed: one line, no summary of frames that never reached a file)
+        return _stopped(sim, out, f"cannot write {out}: {e.strerror or e}", EXIT_INPUT, a.quiet, one_line=True)
     except Exception as e:
         if a.verbose:
             traceback.print_exc()
@@ -189,12 +189,12 @@ def _cmd_run(a) -> int:
     return EXIT_OK
 
 
-def _stopped(sim, out: str, why: str, status: int, quiet: bool = False) -> int:
-    """Print why a run stopped early (after its summary, unless quiet) and where its frames are."""
+def _stopped(sim, out: str, why: str, status: int, quiet: bool = False, one_line: bool = False) -> int:
+    """Print why a run stopped early (after its summary, unless quiet or ``one_line``) and where
+    its frames are (on the same line with ``one_line``)."""
     s = sim.last_summary  # (None where the run stopped before its first frame began)
-    if not quiet and s is not None:
+    if not (quiet or one_line) and s is not None:
         print(s.text(), file=sys.stderr)
-    print(f"warp-tube: {why}", file=sys.stderr)
     if s is None:
         kept = "no frame was simulated: nothing kept"
     elif s.partial:
@@ -204,7 +204,11 @@ def _stopped(sim, out: str, why: str, status: int, quiet: bool = False) -> int:
     else:
         kept = "no frame was finished: nothing kept"
     left = f"{out} was left as it was" if os.path.exists(out) else f"{out} was not written"
-    print(f"warp-tube: {kept}; {left}", file=sys.stderr)
+    if one_line:
+        print(f"warp-tube: {why}; {kept}; {left}", file=sys.stderr)
+    else:
+        print(f"warp-tube: {why}", file=sys.stderr)
+        print(f"warp-tube: {kept}; {left}", file=sys.stderr)
     return status
 
 
@@ -412,6 +416,8 @@ def main(argv=None) -> int:
         again = ""
         if args.command == "batch":  # (the batch's folder is made once its variants are read)
             again = " (--resume goes on as before)" if args.resume else " (nothing to --resume: run the batch again as it was)"
+        elif getattr(e, "left", None):  # (bench: its folder is put back as it was, but for these)
+            again = f" (but these could not be removed or put back: {', '.join(e.left)})"
         print(f"warp-tube: {stopped_by(e)}; nothing was written{again}", file=sys.stderr)
         return exit_status(e)
     except BrokenPipeError:  # stdout closed by the reader (`| head`): stop quietly, as other tools do

@@ -4,7 +4,8 @@ interleaved (warp_tube, then each peer, then again), medians; results, report an
 Output: ``DIR/logs/CODE-REP.log`` (each worker's progress: one JSON line per measurement),
 ``DIR/results.json`` (every figure, each repetition's and the medians, with device,
 versions, command and date), ``DIR/report.md`` (tables, :mod:`.report`) and, with matplotlib
-installed (``pip install "warp-tube[plots]"``), ``DIR/*.png`` (:mod:`.plots`).
+installed (``pip install "warp-tube[plots]"``), ``DIR/*.png`` (:mod:`.plots`). An interrupted bench leaves
+DIR as it was (:class:`_Made`).
 """
 
 from __future__ import annotations
@@ -70,10 +71,77 @@ def aggregate(runs: list[dict]) -> list[dict]:
     return rows
 
 
-def _output_dir(out_dir: str) -> None:
+class _Made:
+    """What a bench puts in its folder, so that an interrupted one leaves the folder as it was: the
+    folders and files it made are removed, and the files it wrote over (an earlier bench's, in the
+    same folder) are put back. Such a file waits beside itself under a hidden name until the bench
+    ends."""
+
+    def __init__(self):
+        self._made: list[str] = []  # folders and files made by this bench, in the order made
+        self._moved: list[tuple[str, str]] = []  # (a file there before it, where it waits)
+
+    def folder(self, path: str) -> None:
+        """Note each missing folder of ``path`` (before it is made)."""
+        path, missing = os.path.abspath(path), []
+        while path and not os.path.exists(path):
+            missing.append(path)
+            parent = os.path.dirname(path)
+            if parent == path:
+                break
+            path = parent
+        self._made += reversed(missing)
+
+    def file(self, path: str) -> None:
+        """Before ``path`` may be written: note it, and move a file there aside."""
+        path = os.path.abspath(path)
+        if path in self._made or any(path == p for p, _ in self._moved):
+            return
+        if not os.path.lexists(path):
+            self._made.append(path)
+            return
+        aside = os.path.join(os.path.dirname(path), f".{os.path.basename(path)}.before-bench-{os.getpid()}")
+        os.replace(path, aside)
+        self._moved.append((path, aside))
+
+    def done(self) -> None:
+        """The bench is complete: the files it wrote over are dropped, those it did not write put back."""
+        for path, aside in self._moved:
+            if os.path.lexists(path):
+                os.remove(aside)
+            else:
+                os.replace(aside, path)
+
+    def undo(self) -> list[str]:
+        """Remove what this bench made (a folder only if empty: a file put in it since stays, and the
+        folder with it) and put back what it moved aside; returns the paths it could not."""
+        failed = []
+        for path in reversed(self._made):
+            try:
+                if os.path.isdir(path) and not os.path.islink(path):
+                    if os.listdir(path):
+                        continue  # (something of someone else's)
+                    os.rmdir(path)
+                else:
+                    os.remove(path)
+            except FileNotFoundError:
+                pass
+            except OSError:
+                failed.append(path)
+        for path, aside in self._moved:
+            try:
+                os.replace(aside, path)
+            except OSError:
+                failed.append(aside)
+        return failed
+
+
+def _output_dir(out_dir: str, made: _Made | None = None) -> None:
     """Create ``out_dir`` or check it is a writable folder (SceneError otherwise)."""
     if os.path.exists(out_dir) and not os.path.isdir(out_dir):
         raise SceneError(f"{out_dir}: exists and is not a folder: -o takes a folder for results.json, report.md and plots")
+    if made is not None:
+        made.folder(out_dir)
     try:
         os.makedirs(out_dir, exist_ok=True)
     except OSError as e:
@@ -84,11 +152,32 @@ def _output_dir(out_dir: str) -> None:
 
 def run_bench(suite: str, peers: list[str], device: str, out_dir: str, repeat: int, quick: bool, log=print, command: str = "warp-tube bench") -> dict:
     """Run the benchmark and write ``results.json``, ``report.md`` and the plots into ``out_dir``;
-    ``command`` is recorded with the results."""
+    ``command`` is recorded with the results.
+
+    Raises:
+        KeyboardInterrupt: after leaving ``out_dir`` as it was: the files and folders this bench
+            made are removed, the files it wrote over (an earlier bench's there) put back; the
+            exception's ``left`` lists what could not be (normally nothing).
+    """
     from ..sim.simulation import resolve_device
 
     device = resolve_device(device)
-    _output_dir(out_dir)
+    made = _Made()
+    try:
+        results = _run_bench(suite, peers, device, out_dir, repeat, quick, log, command, made)
+    except KeyboardInterrupt as e:
+        e.left = made.undo()
+        raise
+    except BaseException:
+        made.done()  # (what it wrote is kept for a look at what failed)
+        raise
+    made.done()
+    return results
+
+
+def _run_bench(suite, peers, device, out_dir, repeat, quick, log, command, made: _Made) -> dict:
+    """:func:`run_bench` on a resolved device, noting in ``made`` what it puts in ``out_dir``."""
+    _output_dir(out_dir, made)
     codes, skipped = ["warp_tube"], {}
     for p in peers:
         ok, why = runner(p).available()
@@ -108,7 +197,9 @@ def run_bench(suite: str, peers: list[str], device: str, out_dir: str, repeat: i
                 t0 = time.perf_counter()
                 log(f"repetition {rep + 1}/{repeat}: {code} ...")
                 logpath = os.path.join(out_dir, "logs", f"{code}-{rep}.log")
+                made.folder(os.path.dirname(logpath))
                 os.makedirs(os.path.dirname(logpath), exist_ok=True)
+                made.file(logpath)
                 with open(logpath, "w") as logf:
                     proc = subprocess.run(cmd, stdout=subprocess.DEVNULL, stderr=logf)
                 if proc.returncode != 0 or not os.path.exists(path):
@@ -126,7 +217,7 @@ def run_bench(suite: str, peers: list[str], device: str, out_dir: str, repeat: i
         host=dict(platform=platform.platform(), processor=platform.processor() or platform.machine(), cpu_count=os.cpu_count()),
         gpu=_gpu_name(device), skipped=skipped, runs=runs, rows=aggregate(runs),
     )  # fmt: skip
-    write_outputs(results, out_dir, log)
+    write_outputs(results, out_dir, log, made)
     return results
 
 
@@ -138,27 +229,38 @@ def _gpu_name(device: str) -> str | None:
     return wp.get_device(device).name
 
 
-def write_outputs(results: dict, out_dir: str, log=print) -> None:
-    """``results.json``, ``report.md`` and the plots (each written to a temporary name, then renamed)."""
+def write_outputs(results: dict, out_dir: str, log=print, made: _Made | None = None) -> None:
+    """``results.json``, ``report.md`` and the plots (each written to a temporary name, then
+    renamed); ``made`` notes the first two."""
     from .report import report_markdown
 
-    _write(os.path.join(out_dir, "results.json"), json.dumps(results, indent=1, default=float))
-    _write(os.path.join(out_dir, "report.md"), report_markdown(results))
+    for name, text in (("results.json", json.dumps(results, indent=1, default=float)), ("report.md", report_markdown(results))):
+        if made is not None:
+            made.file(os.path.join(out_dir, name))
+        _write(os.path.join(out_dir, name), text)
     try:
-        from .plots import write_plots
+        from .plots import PLOTS, write_plots
     except ImportError as e:
         log(f"plots skipped: matplotlib is not installed ({e}); install it with "
             'pip install "warp-tube[plots]" (from a checkout: pip install -e ".[plots]")')
         return
+    if made is not None:
+        for name in PLOTS:
+            made.file(os.path.join(out_dir, name))
     for path in write_plots(results, out_dir):
         log(path)
 
 
 def _write(path: str, text: str) -> None:
     tmp = path + ".partial"
-    with open(tmp, "w") as f:
-        f.write(text)
-    os.replace(tmp, path)
+    try:
+        with open(tmp, "w") as f:
+            f.write(text)
+        os.replace(tmp, path)
+    except BaseException:  # (an interrupt included: no half-written file is left)
+        if os.path.exists(tmp):
+            os.remove(tmp)
+        raise
 
 
 def replot(results_path: str, out_dir: str, log=print) -> None:

@@ -71,6 +71,10 @@ def _title(results, what):
     return f"{what}\n{dev}, {results['date'][:10]}"
 
 
+#: every PNG :func:`write_plots` may write
+PLOTS = ("error_vs_time.png", "convergence.png", "throughput.png")
+
+
 def write_plots(results: dict, out_dir: str) -> list[str]:
     """Write the PNGs the results have data for into ``out_dir``; returns their paths."""
     rows = results["rows"]
@@ -156,7 +160,13 @@ def _save(fig, out_dir, name):
     path = os.path.join(out_dir, name)
     tmp = path + ".partial.png"
     fig.tight_layout(rect=(0, 0.02, 1, 1))
-    fig.savefig(tmp, dpi=110)
-    plt.close(fig)
-    os.replace(tmp, path)
+    try:
+        fig.savefig(tmp, dpi=110)
+        os.replace(tmp, path)
+    except BaseException:  # (an interrupt included: no half-written file is left)
+        if os.path.exists(tmp):
+            os.remove(tmp)
+        raise
+    finally:
+        plt.close(fig)
     return path

@@ -20,7 +20,8 @@ from ..scene.spec import SceneError
 log = logging.getLogger("warp_tube.sim.simulation")
 
 __all__ = ["RunBudget", "CPU_SEMI_STEP_COST", "CPU_SUBSTEP_COST", "OUTPUT_MEMORY_FACTOR", "LARGE_OUTPUT_BYTES", "LONG_RUN_SECONDS",
-           "whole_number", "check_world_count"]  # fmt: skip
+           "OUTPUT_FIXED_BYTES", "OUTPUT_PRIM_BYTES", "OUTPUT_SAMPLE_BYTES", "TEXT_OUTPUT_FACTOR", "whole_number",
+           "check_world_count"]  # fmt: skip
 
 #: CPU cost of one semi-implicit substep [s]: :data:`CPU_SUBSTEP_COST` and this per centerline point,
 #: for the up-front estimate of a long run only (implicit substeps cost IMPLICIT_COST_RATIO times
@@ -38,6 +39,19 @@ OUTPUT_MEMORY_FACTOR = 2.5
 LARGE_OUTPUT_BYTES = 4e9
 #: a run estimated to take longer than this [s] is announced with its estimate before it starts.
 LONG_RUN_SECONDS = 60.0
+#: An output file's size is bounded by :meth:`RunBudget.output_file_bytes`: its arrays at their
+#: uncompressed sizes (usd-core compresses the integer ones: the default scene's 34.6 kB of topology
+#: and texture coordinates take ~22 kB), and these. Measured with usd-core 26.11 (crate files):
+#: the layer's metadata and root [bytes] (a one-prim output without samples: ~1.1 kB) ...
+OUTPUT_FIXED_BYTES = 4096
+#: ... a tube prim's prims and attribute specs (200 prims without a Surface: ~27 kB; a Surface's
+#: specs add ~0.3 kB) ...
+OUTPUT_PRIM_BYTES = 1024
+#: ... and a time sample's time and value reference beside its values (~20-28 bytes).
+OUTPUT_SAMPLE_BYTES = 32
+#: a text stage (.usda) over a crate file of the same content: measured 2.6-3.1x for the samples,
+#: 1.5-2.1x for the topology.
+TEXT_OUTPUT_FACTOR = 3.5
 
 
 def whole_number(name: str, value) -> int:
@@ -60,7 +74,7 @@ def check_world_count(world_count) -> int:
 
 class RunBudget:
     """Estimates and up-front checks of a :class:`~warp_tube.sim.simulation.Simulation`'s run (a mixin:
-    reads ``model``, ``surfaces``, ``substeps``, ``integrator``, ``device`` and ``reason``)."""
+    reads ``scene``, ``model``, ``surfaces``, ``substeps``, ``integrator``, ``device`` and ``reason``)."""
 
     def estimated_seconds(self, frames: int) -> float:
         """Rough time [s] to simulate ``frames`` frames: substeps x (a cost per substep and one per
@@ -91,6 +105,24 @@ class RunBudget:
         vertices = sum(b.vertex_count for b in self.surfaces) if self.surfaces else 0
         return 12 * (self.model.node_count + 2 * vertices)
 
+    def output_file_bytes(self, output=None) -> tuple[int, int]:
+        """An upper bound of the output file's size [bytes]: ``(fixed, per_frame)``, the part
+        written once (metadata, prim specs, widths, curve counts, the Surfaces' topology and
+        texture coordinates) and what each frame adds (:meth:`output_bytes_per_frame`, each
+        Surface's extent and every sample's bookkeeping), for a text stage when ``output`` ends in
+        ``.usda``."""
+        tubes, surfaces = self.scene.tubes, self.surfaces or ()
+        arrays = sum(4 * (len(t.points) + len(t.curve_counts)) for t in tubes)  # float32 widths, int32 counts
+        for s in surfaces:
+            st_indices = getattr(s, "st_indices", None)
+            arrays += 4 * (len(s.face_vertex_counts) + len(s.face_vertex_indices)) + 8 * len(s.st)
+            arrays += 4 * len(st_indices) if st_indices is not None else 0
+        samples = self.output_bytes_per_frame() + 24 * len(surfaces)  # (and each Surface's extent)
+        if output is not None and os.fspath(output).lower().endswith(".usda"):
+            arrays, samples = int(arrays * TEXT_OUTPUT_FACTOR), int(samples * TEXT_OUTPUT_FACTOR)
+        fixed = OUTPUT_FIXED_BYTES + len(tubes) * OUTPUT_PRIM_BYTES + arrays
+        return fixed, samples + (len(tubes) + 3 * len(surfaces)) * OUTPUT_SAMPLE_BYTES
+
     def _check_output_fits(self, frames: int, output=None) -> None:
         """Refuse, before anything is written, an output larger than the memory available now
         (usd-core holds a stage's samples in memory until it is saved, so such a run would end
@@ -110,10 +142,15 @@ class RunBudget:
             return
         folder = os.path.dirname(os.path.abspath(os.fspath(output)))
         disk = memory.available_disk(folder)
-        if disk is not None and size > disk:
+        if disk is None:
+            return
+        fixed, per_frame = self.output_file_bytes(output)
+        size = fixed + frames * per_frame
+        if size > disk:
+            fewer = "" if fixed > disk else ", or write fewer frames (--every K, --frames N)"
             raise SceneError(
-                f"{output}: the output would take about {_size(size)} ({frames:,} frames x {per_frame:,} bytes), more than "
-                f"the {_size(disk)} free in {folder}; free some space, or write fewer frames (--every K, --frames N)"
+                f"{output}: the output would take about {_size(size)} ({frames:,} frames x {per_frame:,} bytes, and {fixed:,} "
+                f"bytes of topology and metadata), more than the {_size(disk)} free in {folder}; free some space{fewer}"
             )  # fmt: skip
 
     def _announce_large_output(self, frames: int) -> None:

@@ -29,7 +29,7 @@ from ..centerline.policy import MAX_SUBSTEPS, RUN_WARNING, choose_integrator, im
 from ..centerline.stability import critical_time_step
 from ..model.tube import build_model
 from ..runtime.replay import SIM_LOCK
-from ..runtime.interrupts import Terminated, deferred_interrupts, kept_interrupts, raise_if_interrupted
+from ..runtime.interrupts import Terminated, deferred_interrupts, held_interrupts, kept_interrupts, raise_if_interrupted
 from ..scene.spec import Scene, SceneError
 from .budget import CPU_SEMI_STEP_COST, LARGE_OUTPUT_BYTES, LONG_RUN_SECONDS, OUTPUT_MEMORY_FACTOR, RunBudget, check_world_count, whole_number  # noqa: F401 (re-exported)
 from .checks import FrameChecks
@@ -244,8 +244,9 @@ class Simulation(RunBudget):
             self.retried_frames += 1
             self.max_retry_factor = max(self.max_retry_factor, factor)
         self.checks.accept(frame_work)
-        self.state, self.next_state = self.next_state, self.state
-        self.frame += 1
+        # one statement with no call in it: Python runs a signal's handler at calls and loop jumps,
+        # so an interrupt cannot leave the state and the frame number disagreeing
+        self.state, self.next_state, self.frame = self.next_state, self.state, self.frame + 1
         if not self._contact_reported:
             self._report_contact()
 
@@ -433,10 +434,8 @@ class Simulation(RunBudget):
             raise SceneError(f"every {every}: none of frames {first} to {end - 1} is a multiple of it: nothing to write")
         if output and written_count == 1 and end - first > 1:
             self._warn(f"every {every}: of frames {first} to {end - 1} only frame {first_written} is written")
-        elif output and written_count > 1 and (end - 1 - first_written) % every:
-            last = first_written + (written_count - 1) * every
-            self._warn(f"every {every}: frames {last + 1} to {end - 1} are simulated but not written (the last written is "
-                       f"frame {last})")  # fmt: skip
+        # (frames simulated after the last one written are said at the end: a run may stop before them)
+        last_due = first_written + (written_count - 1) * every if output and written_count > 1 else None
         roots = list(dict.fromkeys("/" + t.path.strip("/").split("/")[0] for t in self.scene.tubes)) if output else []
         if len(roots) > 1:
             self._warn(f"the tube prims lie under {len(roots)} root prims ({', '.join(roots[:4])}{', ...' if len(roots) > 4 else ''}): "
@@ -478,12 +477,15 @@ class Simulation(RunBudget):
                 if k > first:
                     steps_before = self.substeps
                     self.step()
-                    summary.frames_simulated += 1
-                    summary.substeps_simulated += steps_before
-                    summary.max_displacement = max(summary.max_displacement, self.max_displacement())
+                elif pause == "compile":
+                    _pause_for_tests(pause)
+                with held_interrupts():  # the frame in the summary and the output both, or in neither
+                    if k > first:
+                        self._count_frame(summary, steps_before, t0)
+                    if writer and k % every == 0:
+                        self._write_frame(writer, summary, k)
+                if k > first:
                     if summary.frames_simulated == 1:
-                        summary.startup_time = time.perf_counter() - t0
-                        summary.startup_substeps = summary.substeps_simulated
                         startup.__exit__(None, None, None)
                         if progress and end - 1 - first > 1:
                             bar, beat = self._progress_bar(end - 1 - first)
@@ -491,19 +493,17 @@ class Simulation(RunBudget):
                         bar.update(1)
                     if report is not None:
                         report(summary.frames_simulated, end - 1 - first)
-                elif pause == "compile":
-                    _pause_for_tests(pause)
-                if writer and k % every == 0:
-                    writer.write_frame(info.start_time_code + k, self.centerline_points(),
-                                       self.surface() if self.surfaces is not None else None)  # fmt: skip
-                    summary.frames += 1
-                    summary.last_frame = k
                 if pause == f"frame:{k}":
                     _pause_for_tests(pause)
         except BaseException as e:
             summary.stopped = (str(e) or type(e).__name__) if not isinstance(e, KeyboardInterrupt) else stopped_by(e)
-            if writer:
-                with deferred_interrupts():  # a second Ctrl-C does not throw the partial file away
+            with deferred_interrupts():  # a second Ctrl-C does not throw the partial file away
+                if isinstance(e, KeyboardInterrupt):
+                    try:
+                        self._finish_frame(summary, writer, first, every, t0)
+                    except Exception:  # (the frames before it are kept all the same)
+                        log.debug("the frame in hand when the run was interrupted could not be kept", exc_info=True)
+                if writer:
                     summary.partial = writer.keep_partial()
             raise
         else:
@@ -512,7 +512,11 @@ class Simulation(RunBudget):
                     bar.close()
                     bar = None
                 with Phase(f"saving {os.path.basename(str(output))}", enabled=progress, after=1.0), deferred_interrupts() as late:
-                    summary.output = writer.close()
+                    try:
+                        summary.output = writer.close()
+                    except BaseException as e:  # (the summary says the frames were not saved)
+                        summary.stopped = f"cannot write {output}: {getattr(e, 'strerror', None) or e}"
+                        raise
                 if late:  # the run is complete: its result is kept, not thrown away
                     self._warn(f"{stopped_by(Terminated(late[0]))} while saving {output}: the save was finished: the output is complete")
         finally:
@@ -525,6 +529,9 @@ class Simulation(RunBudget):
                 bar.close()
             if writer and not writer.closed:
                 writer.abort()
+            if last_due is not None and self.frame > last_due:
+                self._warn(f"every {every}: frames {last_due + 1} to {self.frame} are simulated but not written (the last "
+                           f"written is frame {last_due})")  # fmt: skip
             summary.integrator, summary.reason = self.integrator, self.reason
             summary.substeps, summary.dt = self.substeps, self.dt
             summary.warnings = list(self.warnings)
@@ -533,6 +540,32 @@ class Simulation(RunBudget):
                     f"{self.retried_frames} frame(s) blew up and were redone with up to {self.max_retry_factor}x the substeps"
                 )
         return summary
+
+    def _count_frame(self, summary: RunSummary, substeps: int, t0: float) -> None:
+        """Count the frame just simulated in ``summary`` (frame 1's end closes the start-up)."""
+        summary.frames_simulated += 1
+        summary.substeps_simulated += substeps
+        summary.max_displacement = max(summary.max_displacement, self.max_displacement())
+        if summary.frames_simulated == 1:
+            summary.startup_time = time.perf_counter() - t0
+            summary.startup_substeps = summary.substeps_simulated
+
+    def _write_frame(self, writer, summary: RunSummary, k: int) -> None:
+        """Hand the current state to ``writer`` as frame ``k`` and count it in ``summary``."""
+        writer.write_frame(self.scene.stage.start_time_code + k, self.centerline_points(),
+                           self.surface() if self.surfaces is not None else None)  # fmt: skip
+        summary.frames += 1
+        summary.last_frame = k
+
+    def _finish_frame(self, summary: RunSummary, writer, first: int, every: int, t0: float) -> None:
+        """After an interrupt: count and write the frame whose simulation had finished when it came.
+
+        An interrupt is raised wherever the run is, so also between :meth:`step`'s return and the
+        frame's counting and writing: that frame is finished, and kept as the frames before it are."""
+        if self.frame > first + summary.frames_simulated:
+            self._count_frame(summary, self.substeps, t0)
+        if writer and not writer.closed and self.frame > first and self.frame % every == 0 and summary.last_frame != self.frame:
+            self._write_frame(writer, summary, self.frame)
 
     def _progress_bar(self, total: int):
         """A tqdm bar over ``total`` frames, started after frame 1 (its rate and estimate leave the

@@ -52,6 +52,12 @@ class RunSummary:
             steps, seconds = self.substeps_simulated, self.wall_time
         return steps / seconds if seconds > 0 else float("nan")
 
+    @property
+    def lost(self) -> bool:
+        """Whether the run stopped with frames handed to its output and no file holding them (a
+        save that failed)."""
+        return bool(self.stopped and self.frames and not self.output and not self.partial)
+
     def frames_written_text(self) -> str:
         """``frames 0-11 (12 frames)`` for the frames written, or ``no frame``."""
         if self.frames == 0 or self.last_frame is None:
@@ -70,7 +76,8 @@ class RunSummary:
         lines = [
             f"scene        {self.scene}",
             f"device       {self.device}",
-            f"frames       {self.frames} written ({self.frames_simulated} simulated)",
+            f"frames       {self.frames} written ({self.frames_simulated} simulated)" if not self.lost else
+            f"frames       none saved ({self.frames_simulated} simulated; {self.frames} could not be saved)",
             f"integrator   {self.integrator}: {self.reason}",
             f"substeps     {self.substeps} per frame, dt = {self.dt:.3g} s",
             *([f"set-up       {self.setup_time:.3f} s (reading the scene, building the model, setting up the output)"]
