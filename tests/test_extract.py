@@ -285,7 +285,7 @@ def test_polygons_and_usd_mesh_prim():
 
 def test_write_scene_round_trip(tmp_path):
     pytest.importorskip("pxr")
-    from warp_tube.extract.usd import write_scene
+    from warp_tube.extract.usd import section_radius, write_scene
     from warp_tube import load_scene
 
     mesh, _, _ = tube_mesh(caps=True)
@@ -297,7 +297,7 @@ def test_write_scene_round_trip(tmp_path):
     assert spec.path == path == "/World/Helix"
     assert np.allclose(spec.points, tube.points * 0.01, atol=1e-7)
     assert np.allclose(spec.spoke_lengths, tube.spoke_lengths * 0.01, atol=1e-7)
-    assert np.allclose(spec.radius, tube.radius * 0.01, atol=1e-7)
+    assert np.allclose(spec.radius, section_radius(tube.spoke_lengths) * 0.01, atol=1e-7)  # (the widths)
     assert spec.params.density == 1050.0 and spec.params.youngs_modulus == 1e5
     assert list(spec.anchors) == [0, 1, 22, 23] and spec.params.anchor_stiffness > 0
     (force,) = scene.forces
