@@ -2,6 +2,8 @@
 scene's push, write an output that meets the contract. Meshes: ../shared/data/meshes (credited in
 its SOURCES.md: HuBMAP VH Female vasculature, CC BY 4.0; Edinburgh Gut Cell Atlas, CC BY 4.0)."""
 
+import os
+
 import numpy as np
 import pytest
 from pxr import Usd, UsdGeom
@@ -107,3 +109,44 @@ def test_a_scale_that_makes_the_mesh_absurdly_large_is_refused_before_anything_i
         err = capsys.readouterr().err
         assert "m across after scaling by" in err and "check --scale" in err and "RuntimeWarning" not in err, err
     assert sorted(p.name for p in tmp_cwd.iterdir()) == ["helix.ply"]
+
+
+def test_a_closed_stdout_keeps_the_scene_and_exits_141(tmp_cwd, capsys, monkeypatch):
+    """`warp-tube extract m.stl -o s.usda | head -0`: the summary is printed only once the scene is
+    in place, so a reader that closed the pipe stops the command as a closed pipe (128 + SIGPIPE)
+    and the scene is kept, not lost with an error blamed on it."""
+    import sys
+
+    import warp_tube.sim.calibrate as calibrate
+
+    from .test_extract import helix, tube_mesh
+
+    mesh, _, _ = tube_mesh(curve=helix, stations=60, ring=16)
+    mesh.export(tmp_cwd / "helix.ply")
+    monkeypatch.setattr(calibrate, "size_push", lambda *args, **kwargs: None)  # (not what is tested: fast)
+
+    class ClosedPipe:
+        def __init__(self, sink):
+            self._sink = sink
+
+        def write(self, text):
+            raise BrokenPipeError(32, "Broken pipe")
+
+        def flush(self):
+            pass
+
+        def fileno(self):
+            return self._sink.fileno()
+
+    with open(tmp_cwd / "sink", "w") as sink:
+        saved = os.dup(1)
+        try:
+            monkeypatch.setattr(sys, "stdout", ClosedPipe(sink))
+            status = main(["extract", "helix.ply", "-o", "helix.usda", "--scale", "0.01"])
+        finally:
+            os.dup2(saved, 1)  # (the closed pipe's handling points fd 1 at the null device)
+            os.close(saved)
+    assert status == 141, capsys.readouterr().err
+    assert "cannot write" not in capsys.readouterr().err
+    assert Usd.Stage.Open(str(tmp_cwd / "helix.usda")).GetPrimAtPath("/World")
+    assert sorted(p.name for p in tmp_cwd.iterdir()) == ["helix.ply", "helix.usda", "sink"]

@@ -139,7 +139,7 @@ def _garbage(kind: str) -> bytes:
             "truncated": header + rng.bytes(30), "empty": b""}[kind]  # fmt: skip
 
 
-@pytest.mark.parametrize("kind", ["random", "ply then random", "truncated", "empty"])
+@pytest.mark.parametrize("kind", ["random", "ply then random", "truncated"])
 def test_garbage_named_ply_says_it_is_not_a_readable_ply_mesh(kind, tmp_path, monkeypatch, capsys):
     monkeypatch.chdir(tmp_path)
     (tmp_path / "garbage.ply").write_bytes(_garbage(kind))
@@ -159,6 +159,77 @@ def test_garbage_named_stl_and_a_text_file_name_the_file_and_what_is_wrong(tmp_p
     assert first == "warp-tube: garbage.stl: not a readable STL mesh: the file is damaged, truncated or not STL"
     assert second == "warp-tube: notes.txt: a .txt file: expected a mesh file (.stl, .ply, .obj, .off or .glb)"
     assert not (tmp_path / "s.usda").exists()
+
+
+@pytest.mark.parametrize("ext", ["stl", "ply", "obj", "off", "glb"])
+def test_an_empty_file_of_every_format_is_called_an_empty_file(ext, tmp_path, monkeypatch, capsys):
+    monkeypatch.chdir(tmp_path)
+    (tmp_path / f"empty.{ext}").write_bytes(b"")
+    assert main(["extract", f"empty.{ext}", "-o", "s.usda"]) == 2
+    assert capsys.readouterr().err.strip() == f"warp-tube: empty.{ext}: an empty file: expected a surface mesh"
+    assert not (tmp_path / "s.usda").exists()
+
+
+# ---------------------------------------------------------------------------------------------
+# triangle soups and several components
+
+
+def _soup(v, f, jitter_ulps=0, shrink=0.0, seed=0):
+    """Each triangle its own corners, in float32 (as STL has them), moved by up to ``jitter_ulps``
+    float32 steps each, or pulled towards their triangle's centre by ``shrink`` of the way."""
+    tri = np.asarray(v, dtype=np.float64)[f]
+    tri = tri + shrink * (tri.mean(axis=1, keepdims=True) - tri)
+    p = tri.reshape(-1, 3).astype(np.float32)
+    step = np.random.default_rng(seed).integers(-jitter_ulps, jitter_ulps + 1, p.shape)
+    for _ in range(jitter_ulps):
+        p = np.where(step > 0, np.nextafter(p, np.float32(np.inf)), np.where(step < 0, np.nextafter(p, np.float32(-np.inf)), p))
+        step = step - np.sign(step)
+    return trimesh.Trimesh(p.astype(np.float64), np.arange(len(p)).reshape(-1, 3), process=False)
+
+
+def test_a_soup_whose_shared_corners_differ_by_a_float32_step_is_welded_into_one_tube(caplog):
+    """An STL written triangle by triangle, in mm, its shared corners one float32 step apart: one
+    tube, not thousands of components (then a near-zero end radius asked for billions of samples)."""
+    v, f = straight_tube(stations=41, ring=24, length=100.0, radius=5.0, caps=False)
+    v = v + np.array([30.0, -20.0, 10.0])  # (off the origin: coarser float32 steps)
+    with caplog.at_level(logging.WARNING, logger="warp_tube"):
+        out = clean_mesh(_soup(v, f, jitter_ulps=1), "soup.stl", scale=1e-3)
+    assert "connected component" not in caplog.text, caplog.text
+    assert len(out.faces) == len(f) and len(out.vertices) == len(v)
+    tube = extract_centerline(out, hubs=20)
+    assert tube.tip_to_tip == pytest.approx(0.1, rel=0.02)
+
+
+def test_resampling_a_polyline_is_bounded_whatever_the_step():
+    from warp_tube.extract.polyline import nearest_on_polyline
+
+    line = np.array([[0.0, 0.0, 0.0], [1.0, 0.0, 0.0]])
+    dist, arc = nearest_on_polyline(np.array([[0.25, 0.5, 0.0], [0.75, 0.0, 1.0]]), line, 1e-13)
+    assert dist == pytest.approx([0.5, 1.0]) and arc == pytest.approx([0.25, 0.75], abs=1e-5)  # (1e5 samples at most)
+
+
+def test_a_mesh_fallen_into_many_small_pieces_is_named_so(caplog):
+    v, f = straight_tube(stations=11, ring=12, length=10.0, radius=1.0, caps=False)
+    with caplog.at_level(logging.WARNING, logger="warp_tube"):
+        message = _refusal(lambda: clean_mesh(_soup(v, f, shrink=0.01), "pieces.stl"))
+    assert message == "pieces.stl: only 1 face: expected a tube surface"
+    text = caplog.text
+    assert f"{len(f)} connected components" in text and "many small pieces" in text, text
+    assert f"{100.0 / len(f):.3g}% of the area" in text and f"{len(f) - 1} others" in text, text
+
+
+def test_of_several_components_the_largest_by_area_is_kept_not_the_one_of_most_faces(caplog):
+    """A 300 mm artery meshed coarsely (1,920 faces) and a 40 mm twig meshed finely (5,120): the
+    artery is kept, and the warning names both."""
+    va, fa = straight_tube(stations=61, ring=16, length=0.3, radius=0.006, caps=False)
+    vt, ft = straight_tube(stations=81, ring=32, length=0.04, radius=0.001, caps=False)
+    both = trimesh.Trimesh(np.vstack([va, vt + [0.0, 0.05, 0.0]]), np.vstack([fa, ft + len(va)]), process=False)
+    with caplog.at_level(logging.WARNING, logger="warp_tube"):
+        out = clean_mesh(both, "two.stl")
+    assert len(out.faces) == 1920 and np.ptp(out.vertices[:, 0]) == pytest.approx(0.3)
+    text = caplog.text
+    assert "2 connected components; kept the largest by surface area (1,920 faces, 0.3 m across" in text, text
+    assert "left out: 5,120 faces, 0.0401 m across" in text, text
 
 
 # ---------------------------------------------------------------------------------------------
@@ -231,3 +302,32 @@ def test_a_capillary_in_metres_extracts_as_the_same_tube_a_million_times_larger(
     # the same extraction but for the float32 queries' round-off (relative to each mesh's size)
     assert np.abs(b.points * 1e6 - a.points).max() < 1e-3 * 0.8
     assert np.abs(b.spoke_lengths * 1e6 - a.spoke_lengths).max() < 1e-3 * 0.8
+
+
+def test_an_opening_in_the_wall_is_warned_of_with_its_hub_and_size():
+    """A hole cut in the wall (a branch cut flush) is kept across and recorded in customData; the
+    README says openings are reported in the log: a warning, not only an info line."""
+    from warp_tube.extract.tube_check import tube_warnings
+
+    v, f = straight_tube(stations=61, ring=24, length=60.0, radius=5.0, caps=False)
+    i, j = np.divmod(np.arange(len(f) // 2), 24)  # (face k and k + F/2 are the quad of ring i, side j)
+    hole = (i >= 28) & (i < 36) & (j < 6)
+    keep = ~np.concatenate([hole, hole])
+    tube = extract_centerline(trimesh.Trimesh(v, f[keep], process=False), hubs=25)
+    (wall,) = [o for o in tube.openings if o.kind == "wall"]
+    found = [w for w in tube_warnings(tube) if "opening" in w]
+    assert found == [f"1 opening in the tube's wall ({2.0 * wall.radius:.3g} m across at hub {wall.hub}, of 25 hubs): "
+                     "the tube is kept across and its simulated surface closed there (recorded in customData "
+                     "warptube:openings)"], found  # fmt: skip
+    assert 26 <= wall.hub * 60.0 / 24 <= 40 and 6.0 < 2.0 * wall.radius < 10.0
+
+
+def test_a_thin_tube_along_its_boxs_diagonal_is_refused_naming_the_voxel_it_needs():
+    """A straight tube r = 1 mm, 400 mm long, along the diagonal of its bounding box: the grid's cap
+    over that mostly empty box makes voxels wider than the tube; the refusal says so and what to do."""
+    v, f = straight_tube(stations=200, ring=24, length=0.4, radius=0.001, caps=False)
+    v = v @ trimesh.geometry.align_vectors([1, 0, 0], np.ones(3) / np.sqrt(3))[:3, :3].T
+    message = _refusal(lambda: extract_centerline(trimesh.Trimesh(v, f, process=False), source="diag.stl"))
+    assert message.startswith("diag.stl: ") and "need voxels of 0.000248" in message, message
+    assert "6,000,000 voxels over its bounding box of 0.233 x 0.233 x 0.233 allow only 0.00129" in message, message
+    assert "turn the mesh so that the tube lies along an axis" in message, message

@@ -235,14 +235,15 @@ def _cmd_extract(a) -> int:
     final = output_path(a.output, USD_EXTENSIONS, inputs=[a.mesh], what="scene")
     staged = temp_path(final)  # (the name write_atomically writes under)
     done = None
+    lines = []  # printed once the scene is in place: a closed stdout (`| head`) must not cost the scene
 
     def extract_and_size(tmp: str) -> None:
         nonlocal done
         with renamed(tmp, final):  # (what is said of the scene names the file it becomes)
             done = extract_to_scene(a.mesh, a.output, hubs=a.hubs, spokes=a.spokes, scale=a.scale,
                                     progress=stderr_is_terminal(), strict=a.strict, staging=tmp)  # fmt: skip
-            print(done.summary())
-            _size_push(tmp, os.path.basename(final), stderr_is_terminal())
+            lines.append(done.summary())
+            lines.extend(_size_push(tmp, os.path.basename(final), stderr_is_terminal()))
 
     try:
         write_atomically(final, extract_and_size)
@@ -251,12 +252,15 @@ def _cmd_extract(a) -> int:
             raise
         left = "left as it was" if os.path.lexists(final) else "not written"
         raise SceneError(str(e).replace(staged, final) + f" ({a.output} {left})") from None
+    for line in lines:
+        print(line)
     return EXIT_OK
 
 
-def _size_push(scene: str, name: str, progress: bool) -> None:
+def _size_push(scene: str, name: str, progress: bool) -> list:
     """Size the push of the extracted scene at ``scene`` (its final file name ``name``) by
-    simulating it (see :mod:`warp_tube.sim.calibrate`)."""
+    simulating it (see :mod:`warp_tube.sim.calibrate`); returns the line to print (none if not
+    sized), for the caller to print once the scene is in place."""
     from .runtime.progress import Phase
     from .sim.calibrate import PUSH_FRAMES, size_push
     from .sim.simulation import NumericalError
@@ -266,21 +270,23 @@ def _size_push(scene: str, name: str, progress: bool) -> None:
             size = size_push(scene)
     except NumericalError as e:
         logging.getLogger("warp_tube.extract").warning("%s: the push was not sized (the scene failed: %s)", name, e)
-        return
-    if size is not None:
-        print(f"{name}: push {size.force_n:.3g} N on the middle hub: the tube moves by "
-              f"{size.moved_m * 1e3:.3g} mm by frame {PUSH_FRAMES - 1} (target {size.target_m * 1e3:.3g} mm; "
-              f"x{size.factor:.3g} of the straight-beam estimate; {size.runs} runs)")  # fmt: skip
-        if not size.within_tolerance and size.at_limit:
-            logging.getLogger("warp_tube.extract").warning(
-                "%s: the push is held at 1e9 N a component, the most a scene holds, and moves the tube by %.3g mm, not "
-                "the %.3g mm it was sized for: a tube this large is likely in other units than metres (--scale)",
-                name, size.moved_m * 1e3, size.target_m * 1e3)  # fmt: skip
-        elif not size.within_tolerance:
-            logging.getLogger("warp_tube.extract").warning(
-                "%s: the push moves the tube by %.3g mm, not the %.3g mm it was sized for: the tube does not answer "
-                "in proportion to the force (it snaps through or stiffens); edit /World/Push's warptube:force to taste",
-                name, size.moved_m * 1e3, size.target_m * 1e3)  # fmt: skip
+        return []
+    if size is None:
+        return []
+    line = (f"{name}: push {size.force_n:.3g} N on the middle hub: the tube moves by "
+            f"{size.moved_m * 1e3:.3g} mm by frame {PUSH_FRAMES - 1} (target {size.target_m * 1e3:.3g} mm; "
+            f"x{size.factor:.3g} of the straight-beam estimate; {size.runs} runs)")  # fmt: skip
+    if not size.within_tolerance and size.at_limit:
+        logging.getLogger("warp_tube.extract").warning(
+            "%s: the push is held at 1e9 N a component, the most a scene holds, and moves the tube by %.3g mm, not "
+            "the %.3g mm it was sized for: a tube this large is likely in other units than metres (--scale)",
+            name, size.moved_m * 1e3, size.target_m * 1e3)  # fmt: skip
+    elif not size.within_tolerance:
+        logging.getLogger("warp_tube.extract").warning(
+            "%s: the push moves the tube by %.3g mm, not the %.3g mm it was sized for: the tube does not answer "
+            "in proportion to the force (it snaps through or stiffens); edit /World/Push's warptube:force to taste",
+            name, size.moved_m * 1e3, size.target_m * 1e3)  # fmt: skip
+    return [line]
 
 
 def _cmd_preview(a) -> int:

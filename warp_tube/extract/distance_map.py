@@ -35,7 +35,7 @@ from scipy.sparse.csgraph import dijkstra
 
 from ..kernels import raycast
 
-__all__ = ["DistanceMap", "build_distance_map", "inside_voxels", "voxel_size_for", "shortest_tree", "trace_path"]
+__all__ = ["DistanceMap", "build_distance_map", "inside_voxels", "voxel_size_for", "coarse_grid_note", "shortest_tree", "trace_path"]
 
 # 13 of the 26 neighbour offsets; with the graph made symmetric they give all 26.
 _OFFSETS = np.array(
@@ -85,6 +85,21 @@ def voxel_size_for(lo: np.ndarray, hi: np.ndarray, narrow_radius: float, *, per_
     h = narrow_radius / per_radius
     h_budget = float(np.cbrt(np.prod(ext + 4.0 * h) / max_voxels))
     return max(h, h_budget)
+
+
+def coarse_grid_note(lo: np.ndarray, hi: np.ndarray, narrow_radius: float, voxel_size: float, *, per_radius=4.0,
+                     max_voxels=6e6) -> str:  # fmt: skip
+    """What to add to a refusal when the grid's cap coarsened its voxels past what the tube needs
+    (a thin tube lying across a large, mostly empty bounding box, such as along its diagonal), or "".
+    """
+    wanted = narrow_radius / per_radius
+    if not voxel_size > 2.0 * wanted:
+        return ""
+    ext = np.asarray(hi) - np.asarray(lo)
+    box = " x ".join(f"{x:.3g}" for x in ext)
+    return (f" (its narrow parts, {narrow_radius:.3g} in radius, need voxels of {wanted:.3g}, but {max_voxels:,.0f} voxels "
+            f"over its bounding box of {box} allow only {voxel_size:.3g}: the box is mostly empty, as for a thin tube "
+            "lying across it; turn the mesh so that the tube lies along an axis, or cut it into shorter pieces)")
 
 
 def build_distance_map(

@@ -18,6 +18,7 @@ import trimesh
 from scipy.sparse.csgraph import connected_components
 
 from ..scene.spec import SceneError
+from .components import largest_component, weld
 from .wording import counted
 
 __all__ = [
@@ -93,6 +94,7 @@ def clean_mesh(mesh: trimesh.Trimesh, source: str, scale=(1.0, 1.0, 1.0), max_si
     _check_size(scaled, f, s, source, max_size)
     out = trimesh.Trimesh(scaled, f, process=False)
     out.merge_vertices()
+    weld(out)
     # Faces whose corners merged into fewer than three vertices go; a sliver of three distinct
     # collinear corners (marching cubes leaves many) stays: removing it would open a crack where
     # its edges join its neighbours', and a closed mesh would be closed no more.
@@ -103,11 +105,8 @@ def clean_mesh(mesh: trimesh.Trimesh, source: str, scale=(1.0, 1.0, 1.0), max_si
     if len(out.faces) == 0:
         raise SceneError(f"{source}: every face has zero area: expected a tube surface")
     labels = trimesh.graph.connected_component_labels(out.face_adjacency, node_count=len(out.faces))
-    counts = np.bincount(labels)
-    if len(counts) > 1:
-        keep = int(np.argmax(counts))
-        log.warning("%s: %s; using the largest (%d of %s)", source, counted(len(counts), "connected component"),
-                    counts[keep], counted(len(out.faces), "face"))  # fmt: skip
+    if labels.max() > 0:
+        keep = largest_component(out, labels, source)
         out.update_faces(labels == keep)
         out.remove_unreferenced_vertices()
     if len(out.faces) < 8:
@@ -214,6 +213,8 @@ def load_mesh(path, scale=(1.0, 1.0, 1.0)) -> trimesh.Trimesh:
         raise SceneError(f"{path}: a USD stage, not a mesh file: extract reads STL, PLY, OBJ, OFF or glTF binary; a USD Mesh prim is "
                          "extracted when its scene loads, with warptube:extract = true (see the README)")  # fmt: skip
     file_type = _file_type(path)
+    if os.path.getsize(path) == 0:  # (the same words for every format: some readers fail on it, some read nothing)
+        raise SceneError(f"{path}: an empty file: expected a surface mesh")
     try:
         mesh = trimesh.load(path, force="mesh", process=False)
     except Exception as e:  # trimesh raises many kinds (ValueError, KeyError, IndexError, UnicodeDecodeError, ...)
@@ -237,8 +238,6 @@ def load_mesh(path, scale=(1.0, 1.0, 1.0)) -> trimesh.Trimesh:
             raise SceneError(f"{path}: {counted(points, 'point')} and no faces (a point cloud): expected a surface "
                              "mesh")
         kind = _FORMATS.get(file_type, file_type.upper())
-        if os.path.getsize(path) == 0:
-            raise SceneError(f"{path}: an empty file: expected a surface mesh")
         raise SceneError(f"{path}: no mesh read as {kind}: the file is damaged or not {kind}")
     return clean_mesh(mesh, path, scale, max_size=MAX_SIZE)
 

@@ -317,7 +317,7 @@ def extract_centerline(
     if dm.count < 16:
         raise SceneError(
             f"{src}: {wording.counted(dm.count, 'inside voxel')} of {h:.3g}: expected a tube enclosing volume (is it "
-            "a closed or open-ended tube surface?)"
+            "a closed or open-ended tube surface?)" + dmap.coarse_grid_note(lo, hi, r_narrow, h)
         )
     timings["distance_map"] = time.perf_counter() - t0
 
@@ -331,7 +331,8 @@ def extract_centerline(
         raise SceneError(f"{src}: its ends are not connected inside the mesh: expected one tube")
     voxel_path = dmap.trace_path(pred, choice.b)
     if len(voxel_path) < 3:
-        raise SceneError(f"{src}: the tube is {wording.counted(len(voxel_path), 'voxel')} long: expected a longer tube")
+        raise SceneError(f"{src}: the tube is {wording.counted(len(voxel_path), 'voxel')} long: expected a longer "
+                         "tube" + dmap.coarse_grid_note(lo, hi, r_narrow, h))  # fmt: skip
     path, d = dm.points[voxel_path], dm.dfb[voxel_path]
     path, d = _open_or_cut(path, d, choice.end_a, h, size.rough)
     path, d = _open_or_cut(path[::-1], d[::-1], choice.end_b, h, size.rough)

@@ -135,11 +135,15 @@ def project_points(points: np.ndarray, line: np.ndarray, chunk: int = 4096):
     return dist, arc
 
 
+MAX_SAMPLES = 100_000
+"""The most samples :func:`nearest_on_polyline` resamples a polyline into (a few MB)."""
+
+
 def nearest_on_polyline(points: np.ndarray, line: np.ndarray, step: float):
     """Approximate :func:`project_points` through a k-d tree of the polyline resampled at ``step``.
 
-    Distances are exact to within ``step**2 / (8 * distance)`` and arclengths to ``step / 2``;
-    it runs in ``O(V log n)`` instead of ``O(V n)``.
+    Distances are exact to within ``step**2 / (8 * distance)`` and arclengths to ``step / 2``,
+    ``step`` at least the polyline's length / :data:`MAX_SAMPLES`; it runs in ``O(V log n)`` instead of ``O(V n)``.
 
     Returns:
         ``(distance (V,), arclength (V,))``.
@@ -148,6 +152,9 @@ def nearest_on_polyline(points: np.ndarray, line: np.ndarray, step: float):
 
     line = np.asarray(line, dtype=np.float64)
     total = float(arclength(line)[-1])
+    # A step from a near-zero radius (a mesh fallen into slivers) would ask for billions of
+    # samples; the cap keeps arclengths within 1/(2 MAX_SAMPLES) of the length.
+    step = max(step, total / MAX_SAMPLES) if np.isfinite(step) else total / MAX_SAMPLES
     count = max(2, int(np.ceil(total / max(step, 1e-300))) + 1)
     fine = resample(line, count)
     dist, idx = cKDTree(fine).query(np.asarray(points, dtype=np.float64))

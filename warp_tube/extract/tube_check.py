@@ -13,7 +13,10 @@ the result and say what is suspicious and what to do:
 - *missed spokes*: more than :data:`MISSED_FRACTION` of the spoke rays hit nothing;
 - *a large side branch*: a branch left out is at least :data:`LARGE_BRANCH` of the tube's length
   (a Y or a tree: the tube follows the longest route between the mesh's ends, which may not be
-  the one wanted).
+  the one wanted);
+- *an opening in the wall*: an open loop that is not an end and lies within the tube's radius (a
+  branch cut flush, a leak of the segmentation); the tube is kept across it, and the simulated
+  surface closes it.
 """
 
 from __future__ import annotations
@@ -74,6 +77,14 @@ def tube_warnings(tube, fidelity=None, automatic_hubs: bool = True, units: str =
             f"a side branch {b:.3g} {units} long ({b / length:.0%} of the tube's {length:.3g} {units}) leaves it at hub {j} "
             f"and is left out{more}: the tube follows the longest route between the mesh's ends; to simulate another "
             "route, cut the mesh to it"
+        )
+    holes = [o for o in getattr(tube, "openings", []) if o.kind == "wall"]
+    if holes:
+        where = ", ".join(f"{2.0 * o.radius:.3g} {units} across at hub {o.hub}" for o in holes[:5])
+        more = f" and {len(holes) - 5} more" if len(holes) > 5 else ""
+        out.append(
+            f"{counted(len(holes), 'opening')} in the tube's wall ({where}{more}, of {tube.hubs} hubs): the tube is "
+            "kept across and its simulated surface closed there (recorded in customData warptube:openings)"
         )
     return out
 
