@@ -419,10 +419,13 @@ def main(argv=None) -> int:
         print(f"warp-tube: {e}", file=sys.stderr)
         return EXIT_INPUT
     except KeyboardInterrupt as e:
-        again = ""
         if args.command == "batch":  # (the batch's folder is made once its variants are read)
-            again = " (--resume goes on as before)" if args.resume else " (nothing to --resume: run the batch again as it was)"
-        elif getattr(e, "left", None):  # (bench: its folder is put back as it was, but for these)
+            from .batch.command import left_behind
+
+            print(f"warp-tube: {stopped_by(e)}; {left_behind(os.path.abspath(args.output))}", file=sys.stderr)
+            return exit_status(e)
+        again = ""
+        if getattr(e, "left", None):  # (bench: its folder is put back as it was, but for these)
             again = f" (but these could not be removed or put back: {', '.join(e.left)})"
         print(f"warp-tube: {stopped_by(e)}; nothing was written{again}", file=sys.stderr)
         return exit_status(e)

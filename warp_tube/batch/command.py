@@ -5,7 +5,7 @@ from __future__ import annotations
 import os
 import sys
 
-__all__ = ["add_parser", "run"]
+__all__ = ["add_parser", "run", "left_behind"]
 
 
 def add_parser(sub) -> None:
@@ -59,6 +59,9 @@ def run(a) -> int:
             print(e.result.text(), file=sys.stderr)
         print(f"warp-tube: {stopped_by(e)}; the finished variants are kept: --resume goes on", file=sys.stderr)
         return exit_status(e)
+    except KeyboardInterrupt as e:  # before the batch began writing, or while it was removing its record
+        print(f"warp-tube: {stopped_by(e)}; {left_behind(a.output)}", file=sys.stderr)
+        return exit_status(e)
     except BrokenProcessPool:
         # a writer or worker process killed from outside (the system, short of memory): not a bug
         resumable = os.path.isdir(os.path.join(a.output, ".batch"))
@@ -75,3 +78,13 @@ def run(a) -> int:
     if not a.quiet:
         print(result.text())
     return 3 if result.failed else 0
+
+
+def left_behind(out_dir: str) -> str:
+    """What a batch stopped before it ran (or while it finished) left in ``out_dir``, for the one
+    line it ends with: "nothing was written" alone misled where the folder holds a batch."""
+    if os.path.exists(os.path.join(out_dir, ".batch", "state.json")):
+        return f"{out_dir} holds an unfinished batch, its finished variants kept: --resume goes on"
+    if os.path.exists(os.path.join(out_dir, ".batch-finished.json")):
+        return f"{out_dir} holds a finished batch, its outputs complete: --resume goes on (and says it is finished)"
+    return "nothing was written (nothing to --resume: run the batch again as it was)"

@@ -28,7 +28,8 @@ from ..scene.spec import SceneError
 from .engine import TIMERS, chunk_shapes, simulate_chunk
 from .folder import buffer_folder
 from .outputs import WriteTask, write
-from .writer_pool import Writers, ignore_sigint, spawn_context, terminate_pool, timed_write, timed_write_when_ready
+from .writer_pool import (Writers, children_deaf_to_ctrl_c, ignore_sigint, spawn_context, terminate_pool, timed_write,
+                          timed_write_when_ready)
 from .rows import Rows
 
 __all__ = ["SimWorkers", "run_here", "run_pooled", "add_timings", "with_rows", "write_tasks"]
@@ -80,8 +81,9 @@ class SimWorkers:
         self.done = ctx.Queue()
         self.pool = cf.ProcessPoolExecutor(len(devices), mp_context=ctx, initializer=_init_sim_worker,
                                            initargs=(queue, self.done, os.getpid()))  # fmt: skip
-        for _ in devices:  # start them now (one new process per waiting task)
-            self.pool.submit(_ready)
+        with children_deaf_to_ctrl_c():
+            for _ in devices:  # start them now (one new process per waiting task)
+                self.pool.submit(_ready)
 
     def terminate(self):
         """Stop simulating at once (an interrupted batch)."""

@@ -122,6 +122,14 @@ class Journal:
         """The batch is complete: keep its signature (as :meth:`begin` had it) beside the outputs,
         remove the record."""
         self._atomic(self.finished_path, self.signature)
+        try:  # the record first: a folder left half removed is then no unfinished batch
+            os.remove(self.state_path)
+        except FileNotFoundError:
+            pass
+        self.remove_leftover()
+
+    def remove_leftover(self) -> None:
+        """Remove the folder of a finished batch's record (what is left of it)."""
         shutil.rmtree(self.dir, ignore_errors=True)
 
     @staticmethod

@@ -19,7 +19,7 @@ import numpy as np
 from ..extract.hook import mesh_prim_tube
 from ..runtime.collector import collector_paused
 from ..scene.spec import SceneError
-from .writer_pool import ignore_sigint, spawn_context, terminate_pool
+from .writer_pool import children_deaf_to_ctrl_c, ignore_sigint, spawn_context, terminate_pool
 from .plan import run_choice, run_choices
 
 log = logging.getLogger(__name__)
@@ -115,7 +115,8 @@ def _prepare_batch(scene, table, variant_sets, bar, pool, pool_size, keep_nodes)
         if pool is None:
             own = pool = cf.ProcessPoolExecutor(parts, mp_context=spawn_context(), initializer=ignore_sigint,
                                                 initargs=(os.getpid(),))  # fmt: skip
-        futures = [pool.submit(_prepare_part, scene, table.part(a, b), variant_sets) for a, b in zip(bounds[:-1], bounds[1:])]
+        with children_deaf_to_ctrl_c():
+            futures = [pool.submit(_prepare_part, scene, table.part(a, b), variant_sets) for a, b in zip(bounds[:-1], bounds[1:])]
         results = []
         for f in futures:
             results.append(f.result())

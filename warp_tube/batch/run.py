@@ -21,6 +21,7 @@ interrupted batch keeps them and ``--resume`` goes on from there.
 
 from __future__ import annotations
 
+import contextlib
 import gc
 import logging
 import math
@@ -34,7 +35,8 @@ from dataclasses import dataclass, field
 import numpy as np
 
 from ..runtime.collector import collector_paused, thaw
-from ..runtime.interrupts import kept_interrupts
+from ..runtime.interrupts import (Terminated, deferred_interrupts, interrupt_received, kept_interrupts, raise_if_interrupted,
+                                  stopped_by)
 from ..runtime.replay import SIM_LOCK, holding
 from ..scene.spec import SceneError
 from ..scene.usd import MAX_FRAMES
@@ -249,8 +251,6 @@ def run_batch(scene: str, out_dir: str, table: str | None = None, *, variant_set
         SceneError: bad input or request; nothing was run and nothing written.
         BatchInterrupted: interrupted; the finished chunks are kept.
     """
-    from .table import read_table
-
     if getattr(multiprocessing.current_process(), "_inheriting", False):  # a spawned process importing __main__
         raise SceneError('run_batch: called again by a process the batch started, as it imports the main module: '
                          'in a script, call it under if __name__ == "__main__":')  # fmt: skip
@@ -262,6 +262,31 @@ def run_batch(scene: str, out_dir: str, table: str | None = None, *, variant_set
         variant_sets = ",".join(str(v) for v in variant_sets) or None
     elif variant_sets is not None and not variant_sets.strip():
         raise SceneError("--variant-sets '': expected all, or SET or /PRIM{SET} names")
+    late: list = []  # the signal that came while the complete result was being saved (then kept)
+    try:
+        # From the start: a Ctrl-C that usd-core swallows (raised inside an import it makes for a
+        # stage it opens) still stops the batch at its next check, instead of being lost.
+        with kept_interrupts():
+            result = _batch(scene, out_dir, table, late, variant_sets=variant_sets, layout=layout, every=every,
+                            frames=frames, surface=surface, device=device, workers=workers, writers=writers, chunk=chunk,
+                            scheduler=scheduler, resume=resume, progress=progress, on_chunk=on_chunk)  # fmt: skip
+    except (BrokenProcessPool, OSError, EOFError):
+        # The signal reached the writer and worker processes (and their fork server) too: a pool
+        # that broke or a connection refused after it is the user's stop, not a failure.
+        signum = interrupt_received()
+        if signum is None:
+            raise
+        raise (KeyboardInterrupt() if signum == signal.SIGINT else Terminated(signum)) from None
+    if late and late[0]:
+        log.warning("%s while the batch's complete result was being saved: the save was finished: the outputs in %s "
+                    "are complete", stopped_by(Terminated(late[0][0])), result.out_dir)  # fmt: skip
+    return result
+
+
+def _batch(scene, out_dir, table, late: list, *, variant_sets, layout, every, frames, surface, device, workers, writers,
+           chunk, scheduler, resume, progress, on_chunk) -> BatchResult:  # fmt: skip
+    """:func:`run_batch` once its arguments' types are checked (``late``: see :func:`_run_batch`)."""
+    from .table import read_table
     t_start = time.perf_counter()
     if not str(os.fspath(out_dir)).strip():
         raise SceneError("-o '': expected a folder name (the batch folder)")
@@ -291,9 +316,20 @@ def run_batch(scene: str, out_dir: str, table: str | None = None, *, variant_set
     devices = _devices(device, workers, scheduler, _default_cpu_workers(layout, tab))
     sims = 0 if scheduler else len(devices)
     sim_workers = SimWorkers(devices) if sims > 1 else None  # up while the variants are read
-    writer_pool = recorder = result = None
     lock = BatchLock(out_dir)
     frozen_before = gc.get_freeze_count()
+    with contextlib.ExitStack() as saving:  # held from when the result is complete to the end of the clean-up
+        return _batch_pools(scene, out_dir, table, tab, devices, sim_workers, t_start, lock, frozen_before, saving, late,
+                            layers=layers, named=named, writers=writers, sims=sims, variant_sets=variant_sets, layout=layout,
+                            every=every, frames=frames, surface=surface, device=device, chunk=chunk, scheduler=scheduler,
+                            resume=resume, progress=progress, on_chunk=on_chunk)  # fmt: skip
+
+
+def _batch_pools(scene, out_dir, table, tab, devices, sim_workers, t_start, lock, frozen_before, saving, late, *, layers,
+                 named, writers, sims, variant_sets, layout, every, frames, surface, device, chunk, scheduler, resume,
+                 progress, on_chunk) -> BatchResult:  # fmt: skip
+    """:func:`_batch` from its writer pool on (see :func:`_run_batch` for ``saving`` and ``late``)."""
+    writer_pool = recorder = result = None
     try:
         count = 0 if scheduler else writer_count(writers, sims, layout)
         # A small batch of USD outputs: whether its writing is worth starting processes for is
@@ -302,33 +338,38 @@ def run_batch(scene: str, out_dir: str, table: str | None = None, *, variant_set
         writer_pool = Writers(layout, 0 if deferred else count)
         if tab is not None and len(tab.rows) >= PROCESS_VARIANTS:
             recorder = Recorder()  # (starting while the variants are read)
-        with kept_interrupts():  # a Ctrl-C dropped in a finalizer stops the batch at the next frame
-            result = _run_batch(scene, out_dir, table, tab, devices, writer_pool, sim_workers, t_start, lock,
-                              variant_sets=variant_sets, layout=layout, every=every, frames=frames, surface=surface,
-                              device=device, chunk=chunk, scheduler=scheduler, resume=resume, progress=progress,
-                              on_chunk=on_chunk, layers=layers, named=named, recorder=recorder, deferred=deferred)  # fmt: skip
+        result = _run_batch(scene, out_dir, table, tab, devices, writer_pool, sim_workers, t_start, lock,
+                            variant_sets=variant_sets, layout=layout, every=every, frames=frames, surface=surface,
+                            device=device, chunk=chunk, scheduler=scheduler, resume=resume, progress=progress,
+                            on_chunk=on_chunk, layers=layers, named=named, recorder=recorder, deferred=deferred,
+                            saving=saving, late=late)  # fmt: skip
         writer_pool.terminate()  # (every write returned: its files are complete)
     except BaseException:
         if sim_workers is not None:  # bad input or interrupted: do not wait for them
             sim_workers.terminate()
         raise
     finally:
-        if writer_pool is not None:
-            writer_pool.shutdown()
-        if sim_workers is not None:
-            sim_workers.shutdown()
-        if recorder is not None:
-            # (after the records it was given are made; when the batch ended, they are back: drained)
-            recorder.close(wait=result is None)
-        lock.release()  # (after the writers: their files are complete or gone)
-        thaw(frozen_before)  # (the batch's objects, kept out of the collector's passes)
+        # (each step whatever the one before raised, in the reverse order: a second Ctrl-C in the writers' end had left the lock)
+        with contextlib.ExitStack() as ends:
+            ends.callback(thaw, frozen_before)  # (the batch's objects, kept out of the collector's passes)
+            ends.callback(lock.release)  # (after the writers: their files are complete or gone)
+            if recorder is not None:
+                # (after the records it was given are made; when the batch ended, they are back: drained)
+                ends.callback(lambda: recorder.close(wait=result is None))
+            if sim_workers is not None:
+                ends.callback(sim_workers.shutdown)
+            if writer_pool is not None:
+                ends.callback(writer_pool.shutdown)
     result.wall_s = time.perf_counter() - t_start  # (the writers' and workers' ends included)
     return result
 
 
 def _run_batch(scene, out_dir, table, tab, devices, writer_pool, sim_workers, t_start, lock, *, variant_sets, layout, every,
                frames, surface, device, chunk, scheduler, resume, progress, on_chunk, layers, named, recorder,
-               deferred=0) -> BatchResult:  # fmt: skip
+               deferred=0, saving=None, late=None) -> BatchResult:  # fmt: skip
+    """The batch. Once every chunk is finished, interrupts are held back on ``saving`` (closed after
+    the clean-up; ``late`` gets the list naming one that came): the complete result is kept and its
+    work folder and lock removed, as ``run`` keeps a complete output, not left half done."""
 
     bar = Progress(progress)
     readers = writer_pool.pool if writer_pool.processes else None  # idle until the first chunk is simulated
@@ -384,7 +425,11 @@ def _run_batch(scene, out_dir, table, tab, devices, writer_pool, sim_workers, t_
 
     if resume and not journal.exists():  # the batch there finished: nothing to do
         journal.check_finished(signature)
-        return _finished(out_dir, result, t_start)
+        result = _finished(out_dir, result, t_start)
+        if os.path.isdir(journal.dir):  # (what a batch stopped while removing it left: its record is gone)
+            lock.acquire()
+            journal.remove_leftover()
+        return result
     if scheduler:
         dask_client(scheduler).close()  # the scheduler answers: checked before anything is written
     os.makedirs(out_dir, exist_ok=True)
@@ -426,17 +471,19 @@ def _run_batch(scene, out_dir, table, tab, devices, writer_pool, sim_workers, t_
             run_here(todo, devices[0], context, result)
         else:
             run_pooled(todo, devices, sim_workers, context, result)
-    except BrokenProcessPool:  # a writer or worker process killed from outside: what finished stays resumable
-        bar.close()
-        books.drain()
-        raise
+        raise_if_interrupted()  # (one that a finalizer or usd-core dropped: before the result is saved)
+    except (BrokenProcessPool, OSError, EOFError):
+        signum = interrupt_received()
+        if signum is None:  # a writer or worker process killed from outside: what finished stays resumable
+            bar.close()
+            books.drain()
+            raise
+        # (after a Ctrl-C: the pool broke because the signal reached its processes)
+        _interrupted(result, bar, books, records, variants, t_start, signum)
     except KeyboardInterrupt as e:
-        bar.close()
-        books.drain()  # every chunk recorded as finished is in the journal
-        _tally(result, records, variants)
-        result.pending = len(variants) - sum(record_count(r) for r in records.values())
-        result.wall_s = time.perf_counter() - t_start
-        raise BatchInterrupted(result, getattr(e, "signum", signal.SIGINT)) from None
+        _interrupted(result, bar, books, records, variants, t_start, getattr(e, "signum", signal.SIGINT))
+    if saving is not None:
+        late.append(saving.enter_context(deferred_interrupts()))
     bar.close()
     t = time.perf_counter()
     books.drain()
@@ -446,6 +493,16 @@ def _run_batch(scene, out_dir, table, tab, devices, writer_pool, sim_workers, t_
     _tally(result, records, variants)
     result.wall_s = time.perf_counter() - t_start
     return result
+
+
+def _interrupted(result, bar, books, records, variants, t_start, signum):
+    """Raise :class:`BatchInterrupted` for a batch stopped by ``signum``, what it finished recorded."""
+    bar.close()
+    books.drain()  # every chunk recorded as finished is in the journal
+    _tally(result, records, variants)
+    result.pending = len(variants) - sum(record_count(r) for r in records.values())
+    result.wall_s = time.perf_counter() - t_start
+    raise BatchInterrupted(result, signum) from None
 
 
 def _finished(out_dir: str, result: BatchResult, t_start: float) -> BatchResult:

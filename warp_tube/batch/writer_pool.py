@@ -15,6 +15,7 @@ arrays (``os.pwrite`` and NumPy copies release it).
 from __future__ import annotations
 
 import concurrent.futures as cf
+import contextlib
 import multiprocessing
 import os
 import select
@@ -25,17 +26,39 @@ import time
 from .outputs import WriteTask, write
 
 __all__ = ["Writers", "writer_count", "inline_write_seconds", "INLINE_WRITE_S", "ARRAY_WRITER_THREADS", "ignore_sigint",
-           "watch_batch", "terminate_pool", "timed_write", "timed_write_when_ready", "writer_context", "spawn_context"]
+           "watch_batch", "terminate_pool", "children_deaf_to_ctrl_c", "timed_write", "timed_write_when_ready", "writer_context", "spawn_context"]
 
 
 def terminate_pool(pool: cf.ProcessPoolExecutor) -> None:
     """Stop a process pool's processes at once and let it go without waiting for their work."""
     processes = list((getattr(pool, "_processes", None) or {}).values())
+    manager = getattr(pool, "_executor_manager_thread", None)
     pool.shutdown(wait=False, cancel_futures=True)
     for proc in processes:
         proc.terminate()
     for proc in processes:
         proc.join(timeout=5)
+    # Its manager thread closes the pool's wake-up pipe once it sees the processes gone; at exit
+    # Python writes to that pipe without the pool's lock (3.11), and a batch ending meanwhile
+    # printed "Exception ignored ... Bad file descriptor" after its last line.
+    if manager is not None and manager is not threading.current_thread():
+        manager.join(timeout=5)
+
+
+@contextlib.contextmanager
+def children_deaf_to_ctrl_c():
+    """SIGINT blocked in this (the main) thread over the block: the processes a pool starts in it
+    inherit it blocked until their initializer ignores it (a Ctrl-C to the process group while a
+    spawned one imported its modules printed its traceback); one arriving meanwhile is delivered
+    here when the block ends."""
+    if not hasattr(signal, "pthread_sigmask") or threading.current_thread() is not threading.main_thread():
+        yield
+        return
+    old = signal.pthread_sigmask(signal.SIG_BLOCK, {signal.SIGINT})
+    try:
+        yield
+    finally:
+        signal.pthread_sigmask(signal.SIG_SETMASK, old)
 
 
 def ignore_sigint(batch_pid: int | None = None):
@@ -166,12 +189,16 @@ def _helpers_deaf_to_hangup(ctx) -> None:
         return
     from multiprocessing import resource_tracker
 
-    old = signal.pthread_sigmask(signal.SIG_BLOCK, {signal.SIGHUP})
+    # SIGINT too: a Ctrl-C to the process group while the fork server imports usd-core killed it
+    # with a traceback, and the writers it was to start then failed as if killed from outside.
+    old = signal.pthread_sigmask(signal.SIG_BLOCK, {signal.SIGHUP, signal.SIGINT})
     try:
         resource_tracker.ensure_running()
         if ctx.get_start_method() == "forkserver":
             from multiprocessing import forkserver
 
+            # (again: starting the tracker unblocks SIGINT and SIGTERM, whatever they were before)
+            signal.pthread_sigmask(signal.SIG_BLOCK, {signal.SIGHUP, signal.SIGINT})
             forkserver.ensure_running()
     finally:
         signal.pthread_sigmask(signal.SIG_SETMASK, old)
@@ -184,7 +211,7 @@ def _start(pool: cf.ProcessPoolExecutor, count: int) -> None:
             pool.submit(warm_writer)
     except RuntimeError:  # the pool was shut down meanwhile (bad input, interrupted), or broke
         pass
-    except OSError:  # no process could start (the writes, started on demand, report it)
+    except (OSError, EOFError):  # no process could start, the fork server gone (the writes, started on demand, report it)
         pass
 
 

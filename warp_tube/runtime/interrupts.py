@@ -25,9 +25,10 @@ import signal
 import threading
 
 __all__ = ["kept_interrupts", "raise_if_interrupted", "terminate_as_interrupt", "deferred_interrupts", "held_interrupts",
-           "import_whole", "Terminated", "exit_status", "stopped_by"]  # fmt: skip
+           "import_whole", "Terminated", "exit_status", "stopped_by", "interrupt_received"]  # fmt: skip
 
 _pending = None  # the signal (SIGINT, SIGTERM, SIGHUP) that arrived and may not have been delivered
+_received = None  # the last signal that arrived since kept_interrupts began, delivered or not
 _holding = 0  # held_interrupts blocks open in the main thread: this module's handlers only note the signal
 
 
@@ -60,15 +61,15 @@ def _interrupt(signum: int) -> KeyboardInterrupt:
 
 
 def _on_sigint(signum, frame):
-    global _pending
-    _pending = signum
+    global _pending, _received
+    _pending = _received = signum
     if not _holding:
         raise KeyboardInterrupt
 
 
 def _on_terminate(signum, frame):
-    global _pending
-    _pending = signum
+    global _pending, _received
+    _pending = _received = signum
     if not _holding:
         raise Terminated(signum)
 
@@ -98,11 +99,11 @@ def terminate_as_interrupt():
 def kept_interrupts():
     """SIGINT remembered until :func:`raise_if_interrupted` (in the main thread, and only where
     Python's own handler is installed: a program with its own handler keeps it)."""
-    global _pending
+    global _pending, _received
     if threading.current_thread() is not threading.main_thread() or signal.getsignal(signal.SIGINT) is not signal.default_int_handler:
         yield
         return
-    _pending = None
+    _pending = _received = None
     signal.signal(signal.SIGINT, _on_sigint)
     try:
         yield
@@ -120,9 +121,17 @@ def raise_if_interrupted() -> None:
         raise _interrupt(signum)
 
 
+def interrupt_received() -> int | None:
+    """The signal (SIGINT, SIGTERM, SIGHUP) that arrived since :func:`kept_interrupts` last began,
+    raised or not, or None: a command whose worker processes fail after it (the signal reached them
+    too) tells the user's stop from a failure by it. It stays after the block, for the caller that
+    reports how the command ended."""
+    return _received
+
+
 def _defer(signum, frame):
-    global _pending
-    _pending = signum
+    global _pending, _received
+    _pending = _received = signum
 
 
 @contextlib.contextmanager
