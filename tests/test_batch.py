@@ -240,6 +240,78 @@ def test_failed_variant_is_marked_and_the_others_go_on(tmp_path):
     assert filecmp.cmp(alone, out / "variant_00002.usdc", shallow=False)
 
 
+def test_a_failed_variant_keeps_its_finished_frames_in_its_grid_cell(tmp_path):
+    """As the files layout keeps them in ``variant_00001.partial.usdc``: the grid holds the failed
+    variant's frames up to its failure in its cell (the same values), its prim marked partial, and
+    the summary names grid.usda as its output."""
+    import csv
+
+    from pxr import Usd
+
+    table = write_table(tmp_path / "t.csv", [E, "/World/Simulation.warptube:integrator", "/World/Simulation.warptube:timeStep"],
+                        [("100000", "semiImplicitEuler", "0.0002"), ("50000000", "semiImplicitEuler", "0.0002"),
+                         ("80000", "semiImplicitEuler", "0.0002")])  # fmt: skip
+    files, grid = tmp_path / "files", tmp_path / "grid"
+    for out, layout in ((files, "files"), (grid, "grid")):
+        status = cli(["batch", str(DEFAULT), "--variants", str(table), "-o", str(out), "--frames", "6", "--writers", "0",
+                      "--layout", layout, "--quiet"])  # fmt: skip
+        assert status == 3
+    rows = list(csv.DictReader(open(grid / "summary.csv")))
+    assert [r["status"] for r in rows] == ["ok", "failed", "ok"]
+    assert [r["output"] for r in rows] == ["grid.usda"] * 3
+    n = int(rows[1]["frames"])
+    assert 0 < n < 6
+    stage = Usd.Stage.Open(str(grid / "grid.usda"))
+    assert [p.GetName() for p in stage.GetPrimAtPath("/Grid").GetChildren()] == [f"variant_{k:05d}" for k in range(3)]
+    failed = stage.GetPrimAtPath("/Grid/variant_00001")
+    assert failed.GetCustomDataByKey("warptube:partial") is True and failed.GetCustomDataByKey("warptube:framesWritten") == n
+    assert stage.GetPrimAtPath("/Grid/variant_00000").GetCustomDataByKey("warptube:partial") is None
+    times, arrays = stage_samples(files / "variant_00001.partial.usdc")["/World/Tube/Centerline.points"]
+    pts = stage.GetAttributeAtPath("/Grid/variant_00001/World/Tube/Centerline.points")
+    assert list(pts.GetTimeSamples()) == list(times) and len(times) == n
+    assert all(np.array_equal(np.asarray(pts.Get(t)), a) for t, a in zip(times, arrays))
+    assert len(stage.GetAttributeAtPath("/Grid/variant_00002/World/Tube/Centerline.points").GetTimeSamples()) == 6
+
+
+def grid_centerlines(out):
+    """Per frame of ``out/grid.usda``, each variant's centerline points in the world and radius."""
+    from pxr import Usd, UsdGeom
+
+    stage = Usd.Stage.Open(str(out / "grid.usda"))
+    curves = [p for p in stage.Traverse() if p.GetName() == "Centerline"]
+    frames = {}
+    for t in curves[0].GetAttribute("points").GetTimeSamples():
+        for p in curves:
+            m = UsdGeom.Xformable(p).ComputeLocalToWorldTransform(t)
+            pts = np.array([m.Transform(q) for q in p.GetAttribute("points").Get(t)])
+            frames.setdefault(t, []).append((pts, max(p.GetAttribute("widths").Get(t)) / 2))
+    return frames
+
+
+def test_grid_neighbours_cannot_meet_however_they_move(tmp_path):
+    """The grid's cells are spaced from the variants' largest displacement (known at the end):
+    pushed tubes, which reach well past their rest shape, never come within the sum of their
+    radii of a neighbour; and variants whose rest shapes lie apart are each centred in a cell."""
+    import itertools
+
+    table = write_table(tmp_path / "t.csv", [E, FORCE], [("1e5", "(0, 0.1, 0)"), ("2e4", "(-0.3, 0.02, 0)"),
+                        ("1e5", "(0, 0, 0)"), ("1e5", "(0, 0, 0)")])  # fmt: skip
+    out = tmp_path / "out"
+    run_batch(str(DEFAULT), str(out), str(table), frames=20, layout="grid", writers=0)
+    for t, tubes in grid_centerlines(out).items():
+        for (a, ra), (b, rb) in itertools.combinations(tubes, 2):
+            assert np.linalg.norm(a[:, None] - b[None], axis=-1).min() > ra + rb, t
+    x = np.arange(21, dtype=np.float32)
+    np.save(tmp_path / "origin.npy", np.stack([x, 0 * x, 0 * x], 1))
+    np.save(tmp_path / "shifted.npy", np.stack([x - 33, 0 * x, 0 * x], 1))
+    table = write_table(tmp_path / "a.csv", [E, "@/World/Tube.points"], [("1e5", "origin.npy"), ("1e5", "shifted.npy")])
+    out = tmp_path / "apart"
+    run_batch(str(DEFAULT), str(out), str(table), frames=2, layout="grid", writers=0)
+    (a, _), (b, _) = grid_centerlines(out)[0.0]
+    centre_a, centre_b = (a.min(0) + a.max(0)) / 2, (b.min(0) + b.max(0)) / 2
+    assert centre_a[0] == pytest.approx(0.0, abs=1e-4) and centre_b[0] - centre_a[0] > 21
+
+
 @pytest.mark.parametrize("records", ["here", "process"])
 def test_interrupt_and_resume_end_with_the_same_files(tmp_path, monkeypatch, records):
     """Also with the chunks' records (journal, summary lines) made by a process of their own, as
@@ -549,6 +621,65 @@ def test_scheduler_without_dask_fails_before_writing(tmp_path, monkeypatch):
     with pytest.raises(SceneError, match="needs Dask distributed"):
         run_batch(str(DEFAULT), str(out), str(table), frames=3, scheduler="tcp://127.0.0.1:1")
     assert not out.exists()
+
+
+@pytest.mark.parametrize("address", ["localhost", "tcp://127.0.0.1:abc", "http://127.0.0.1:8786", "", "tcp://h:99999"])
+def test_a_malformed_scheduler_address_is_refused_before_anything_runs(tmp_path, capsys, address):
+    """Exit status 2 naming the option and the form expected (Dask's ValueError was an internal
+    error; an empty address ran here, silently)."""
+    table = write_table(tmp_path / "t.csv", [E], [("90000",)])
+    out = tmp_path / "out"
+    args = ["batch", str(DEFAULT), "--variants", str(table), "-o", str(out), "--frames", "2", "--quiet"]
+    assert cli([*args, "--scheduler", address]) == 2
+    err = capsys.readouterr().err
+    assert f"--scheduler {address!r}: expected" in err and "tcp://HOST:PORT" in err and len(err.strip().splitlines()) == 1
+    assert not out.exists()
+
+
+def test_a_lost_scheduler_is_one_line_and_resume_goes_on(tmp_path, monkeypatch, capsys):
+    """The scheduler going away mid-batch: Dask cancels the futures (FutureCancelledError,
+    scheduler-connection-lost); one line naming the scheduler, exit status 2, and --resume
+    (here, without the scheduler) finishes the batch."""
+    distributed = pytest.importorskip("distributed")
+    from distributed.client import FutureCancelledError
+
+    import warp_tube.batch.cluster as cluster
+    import warp_tube.batch.run as batch_run
+
+    class Done:
+        def __init__(self, payload, lost):
+            self.payload, self.lost = payload, lost
+
+        def result(self):
+            if self.lost:
+                raise FutureCancelledError("chunk-1", "scheduler-connection-lost")
+            return cluster._dask_task(self.payload)
+
+    class Client:  # the first chunk runs here, the scheduler is lost before the second
+        submitted = 0
+
+        def submit(self, fn, payload, pure=False):
+            Client.submitted += 1
+            return Done(payload, Client.submitted > 1)
+
+        def cancel(self, futures):
+            pass
+
+        def close(self):
+            pass
+
+    monkeypatch.setattr(cluster, "dask_client", lambda address: Client())
+    monkeypatch.setattr(batch_run, "dask_client", lambda address: Client())
+    monkeypatch.setattr(distributed, "as_completed", lambda futures: iter(futures))
+    table = write_table(tmp_path / "t.csv", [E], [("90000",), ("95000",)])
+    out = tmp_path / "out"
+    args = ["batch", str(DEFAULT), "--variants", str(table), "-o", str(out), "--frames", "3", "--chunk", "1", "--quiet"]
+    assert cli([*args, "--scheduler", "tcp://127.0.0.1:8791"]) == 2
+    err = capsys.readouterr().err.strip()
+    assert err == ("warp-tube: batch: --scheduler tcp://127.0.0.1:8791: lost the connection to the Dask scheduler; "
+                   "the variants finished before it are kept: --resume goes on")  # fmt: skip
+    assert cli([*args, "--resume"]) == 0
+    assert sorted(p.name for p in out.iterdir() if p.suffix == ".usdc") == ["variant_00000.usdc", "variant_00001.usdc"]
 
 
 def test_local_dask_cluster_of_two_workers_matches_one_process(sweep, tmp_path):

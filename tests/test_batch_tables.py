@@ -285,6 +285,16 @@ def test_every_beyond_the_frames_is_warned_of_as_run_does(tmp_path, capsys):
     assert "--every 5: of frames 0 to 1 only frame 0 is written" in capsys.readouterr().err
 
 
+def test_frames_after_the_last_written_are_warned_of_as_run_does(tmp_path, capsys):
+    """--every 3 --frames 12 writes frames 0, 3, 6, 9: 10 and 11 are simulated, not written."""
+    table = tmp_path / "t.csv"
+    table.write_text(f"{E}\n1e5\n")
+    assert batch(table, tmp_path / "out", "--every", "3", "--frames", "12") == 0
+    assert "--every 3: frames 10 to 11 are simulated but not written (the last written is frame 9)" in capsys.readouterr().err
+    assert batch(table, tmp_path / "out4", "--every", "4", "--frames", "9") == 0
+    assert "not written" not in capsys.readouterr().err  # (frame 8, the last, is written)
+
+
 def test_an_empty_variant_sets_option_is_refused(tmp_path, capsys):
     table = tmp_path / "t.csv"
     table.write_text(f"{E}\n1e5\n2e5\n")

@@ -76,7 +76,9 @@ def _lines(variants, record: dict) -> str:
 
 
 def _kept(record: dict) -> dict:
-    return dict(record, rows={k: record["rows"][k] for k in KEPT_FIELDS if k in record["rows"]})
+    # a grid's chunk keeps its variants' displacements too: the grid's spacing is set from them at the end
+    fields = (*KEPT_FIELDS, "max_displacement_m") if record.get("layer") else KEPT_FIELDS
+    return dict(record, rows={k: record["rows"][k] for k in fields if k in record["rows"]})
 
 
 def _record(journal: Journal, chunk_id: int, record: dict, variants) -> str:

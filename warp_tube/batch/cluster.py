@@ -9,14 +9,26 @@ chunk and adds its timings to the batch's result.
 
 from __future__ import annotations
 
+import re
 import time
+from concurrent.futures import CancelledError
 
 from ..scene.spec import SceneError
 from .engine import simulate_chunk
 from .execute import add_timings, with_rows, write_tasks
 from .outputs import write
 
-__all__ = ["run_dask", "dask_client", "check_dask"]
+__all__ = ["run_dask", "dask_client", "check_dask", "check_scheduler_address", "SchedulerLost"]
+
+
+class SchedulerLost(Exception):
+    """The Dask scheduler went away (or cancelled a chunk's task) during the batch: not a bug; the
+    chunks recorded before it stay, for ``--resume``."""
+
+
+#: a Dask scheduler's address: PROTOCOL://HOST:PORT (the protocol may be left out: tcp), the host a
+#: name, an IPv4 address or an IPv6 one in brackets
+_ADDRESS = re.compile(r"^(?:(?:tcp|tls|ucx|ws|wss)://)?(?:[A-Za-z0-9_.-]+|\[[0-9A-Fa-f:.]+\]):[0-9]{1,5}$")
 
 
 def _dask_task(payload):
@@ -43,6 +55,21 @@ def check_dask() -> None:
         import distributed  # noqa: F401
     except ImportError:
         raise SceneError("--scheduler needs Dask distributed: pip install 'warp-tube[dask]'") from None
+
+
+def check_scheduler_address(scheduler) -> None:
+    """Refuse a malformed ``--scheduler`` address before anything runs (Dask's own error names
+    neither the option nor the form it takes).
+
+    Raises:
+        SceneError: naming the option, the address and the form expected.
+    """
+    if not isinstance(scheduler, str):
+        return  # (from Python: a cluster object, which Dask's Client takes)
+    port = scheduler.rsplit(":", 1)[-1]
+    if scheduler.startswith("inproc://") or (_ADDRESS.match(scheduler) and 0 < int(port) < 65536):
+        return
+    raise SceneError(f"--scheduler {scheduler!r}: expected a Dask scheduler's address, tcp://HOST:PORT (or tls://HOST:PORT)")
 
 
 def dask_client(scheduler: str):
@@ -76,7 +103,13 @@ def run_dask(todo, context, result) -> None:
             futures[client.submit(_dask_task, payload, pure=False)] = c
         for fut in as_completed(list(futures)):
             c = futures[fut]
-            rows, outputs, timings, sim_s, write_s = fut.result()
+            try:
+                rows, outputs, timings, sim_s, write_s = fut.result()
+            except CancelledError as e:  # (Dask's FutureCancelledError: its reason, scheduler-connection-lost)
+                why = getattr(e, "reason", "") or "cancelled"
+                lost = why == "scheduler-connection-lost"
+                what = "lost the connection to" if lost else f"a chunk's task was cancelled ({why}) by"
+                raise SchedulerLost(f"--scheduler {context['scheduler']}: {what} the Dask scheduler") from None
             add_timings(result, timings)
             result.simulate_s += sim_s
             result.write_s += write_s

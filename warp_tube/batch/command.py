@@ -40,6 +40,7 @@ def run(a) -> int:
 
     from ..scene.spec import SceneError
     from ..runtime.interrupts import exit_status, stopped_by
+    from .cluster import SchedulerLost
     from .run import BatchInterrupted, run_batch
 
     if a.surface_arrays and a.layout != "arrays":
@@ -62,6 +63,11 @@ def run(a) -> int:
     except KeyboardInterrupt as e:  # before the batch began writing, or while it was removing its record
         print(f"warp-tube: {stopped_by(e)}; {left_behind(a.output)}", file=sys.stderr)
         return exit_status(e)
+    except SchedulerLost as e:
+        resumable = os.path.isdir(os.path.join(a.output, ".batch"))
+        more = "; the variants finished before it are kept: --resume goes on" if resumable else ""
+        print(f"warp-tube: batch: {e}{more}", file=sys.stderr)
+        return 2
     except BrokenProcessPool:
         # a writer or worker process killed from outside (the system, short of memory): not a bug
         resumable = os.path.isdir(os.path.join(a.output, ".batch"))

@@ -7,9 +7,13 @@ Layouts (``DIR`` is the batch's output folder):
   variant that failed keeps the frames finished before the failure in
   ``DIR/variant_00007.partial.usdc``.
 - ``grid``: ``DIR/grid.usda``, one stage with the variants side by side, ``/Grid/variant_00000``
-  (translated on a square grid in the ground plane) holding the variant's prims under their own
-  paths; it sublayers ``DIR/grid/chunk_00000.usdc`` ..., one layer per chunk (written in
-  parallel). Failed variants are left out.
+  (translated on a square grid in the ground plane, its rest shape centred in its cell, the cells
+  as wide as the largest rest shape and diameter and twice the largest displacement, so that no
+  two variants meet) holding the variant's prims under their own paths; it sublayers
+  ``DIR/grid/chunk_00000.usdc`` ..., one layer per chunk (written in parallel). A variant that
+  failed keeps the frames finished before the failure in its cell, its prim's customData
+  ``warptube:partial`` true, ``warptube:framesWritten`` their number and
+  ``warptube:maxDisplacement`` the largest displacement in them [stage units].
 - ``arrays``: ``DIR/centerline.npy``, float32, (variants, frames, points, 3) [stage units],
   memory-mappable (``np.load(..., mmap_mode="r")``); with ``--surface-arrays`` also
   ``DIR/surface.npy``, (variants, frames, vertices, 3); a variant with fewer points or vertices
@@ -38,7 +42,7 @@ import numpy as np
 from ..scene.spec import Scene
 from .rows import Rows
 
-__all__ = ["OutputSpec", "WriteTask", "write", "check_batch_fits", "surface_topology", "grid_offset", "write_summary", "summary_lines", "SUMMARY_FIELDS",
+__all__ = ["OutputSpec", "WriteTask", "write", "check_batch_fits", "surface_topology", "grid_offset", "grid_offsets", "output_spec", "write_summary", "summary_lines", "SUMMARY_FIELDS",
            "prepare_arrays", "finish_arrays", "write_grid_root", "LAYOUTS"]  # fmt: skip
 
 LAYOUTS = ("files", "grid", "arrays")
@@ -60,7 +64,8 @@ class OutputSpec:
         points: the most centerline points of a variant (arrays: the points axis).
         vertices: the most surface vertices of a variant (arrays: the vertices axis).
         work_dir: the batch's working folder (partial arrays, grid chunk layers).
-        grid_cell: distance between neighbouring variants in the grid [stage units].
+        grid_cell: the largest rest extent and diameter of a variant [stage units] (the grid's
+            cells are this and twice the largest displacement, known when the batch ends).
         grid_columns: variants per grid row.
         up_axis: "Y" or "Z" (the grid lies across it).
     """
@@ -306,20 +311,22 @@ def finish_arrays(spec: OutputSpec, order: list[int], names: list[str], point_co
             os.replace(os.path.join(spec.work_dir, f"{name}.npy"), os.path.join(spec.out_dir, f"{name}.npy"))
 
 
-def grid_offset(spec: OutputSpec, index: int) -> tuple[float, float, float]:
-    """Where variant ``index`` sits in the grid [stage units]: rows and columns across the up axis."""
+def grid_offset(spec: OutputSpec, index: int, cell: float, centre=(0.0, 0.0, 0.0)) -> tuple[float, float, float]:
+    """The translation of variant ``index`` in the grid [stage units]: rows and columns ``cell``
+    apart across the up axis, the variant's rest centre ``centre`` moved to its cell's centre in
+    that plane (its height kept)."""
     row, col = divmod(index, spec.grid_columns)
-    a, b = col * spec.grid_cell, row * spec.grid_cell
-    return (a, 0.0, b) if spec.up_axis.upper() == "Y" else (a, b, 0.0)
+    a, b = col * cell, row * cell
+    x, y, z = (float(c) for c in centre)
+    return (a - x, 0.0, b - z) if spec.up_axis.upper() == "Y" else (a - x, b - y, 0.0)
 
 
 def _write_grid(task: WriteTask, arrays: dict) -> list[str]:
-    from pxr import Gf, Sdf, Vt
-
     from ..io.writer import StageWriter
 
     spec = task.spec
-    keep = [(v, p, r) for v, p, r in zip(task.variants, task.positions, task.rows) if r["status"] == "ok"]
+    # a failed variant's finished frames are kept, as the files layout keeps them in a partial file
+    keep = [(v, p, r) for v, p, r in zip(task.variants, task.positions, task.rows) if r["status"] == "ok" or r["frames"] > 0]
     rel = f"grid/chunk_{task.chunk:05d}.usdc"
     if not keep:
         return [""] * len(task.variants)
@@ -332,32 +339,44 @@ def _write_grid(task: WriteTask, arrays: dict) -> list[str]:
     grid_scene = Scene(tubes=tuple(tubes), stage=first.stage, source=first.source)
     w = StageWriter(os.path.join(spec.out_dir, rel), grid_scene, topo if spec.surface else None)
     try:
-        for (index, name, _), _, _ in keep:
-            prim = w.layer.GetPrimAtPath(f"/Grid/{name}")
-            op = Sdf.AttributeSpec(prim, "xformOp:translate", Sdf.ValueTypeNames.Double3)
-            op.default = Gf.Vec3d(*grid_offset(spec, index))
-            order = Sdf.AttributeSpec(prim, "xformOpOrder", Sdf.ValueTypeNames.TokenArray, Sdf.VariabilityUniform)
-            order.default = Vt.TokenArray(["xformOp:translate"])
+        first_prim, prims = 0, []  # per variant the indices of its tube prims in the writer
+        for (index, name, scene), p, row in keep:
+            prims.append(list(range(first_prim, first_prim + len(scene.tubes))))
+            first_prim += len(scene.tubes)
+            if row["status"] != "ok":
+                # its summary's max_displacement_m counts the frame that failed: the grid's
+                # spacing takes the frames kept (nested: usd-core reads "warptube:partial" as a key path)
+                n = sum(t.points.shape[0] for t in scene.tubes)
+                cl = np.asarray(arrays["centerline"][: row["frames"], p, :n], dtype=np.float64)
+                moved = float(np.nanmax(np.linalg.norm(cl - cl[:1], axis=-1))) if cl.size else 0.0
+                info = {"partial": True, "framesWritten": int(row["frames"]), "maxDisplacement": moved}
+                w.layer.GetPrimAtPath(f"/Grid/{name}").SetInfo("customData", {"warptube": info})
         ranges = [_ranges(scene, spec.surface) for (_, _, scene), _, _ in keep]
         for f in range(len(spec.time_codes)):
-            cls, parts = [], [] if spec.surface else None
-            for ((index, name, scene), p, _), r in zip(keep, ranges):
+            cls, parts, held = [], [] if spec.surface else None, []
+            for ((index, name, scene), p, row), r, own in zip(keep, ranges, prims):
+                if f >= row["frames"]:
+                    continue  # past a failed variant's last finished frame
                 c, s = _frame_parts(r, arrays, f, p, spec.surface)
                 cls += c
+                held += own
                 if spec.surface:
                     parts += s
-            w.write_frame(spec.time_codes[f], cls, parts)
+            if held:
+                w.write_frame(spec.time_codes[f], cls, parts, prims=held)
         w.close()
     except BaseException:
         w.abort()
         raise
-    return [("grid.usda" if r["status"] == "ok" else "") for _, _, r in zip(task.variants, task.positions, task.rows)]
+    kept = {v[0] for v, _, _ in keep}
+    return [("grid.usda" if v[0] in kept else "") for v in task.variants]
 
 
-def write_grid_root(spec: OutputSpec, stage_info, chunk_layers: list[str], names: list[str]) -> None:
-    """``DIR/grid.usda``: the stage's metadata, the chunks' layers as sublayers and the variants'
-    order under ``/Grid`` (``names``, batch order)."""
-    from pxr import Sdf, Usd, UsdGeom
+def write_grid_root(spec: OutputSpec, stage_info, chunk_layers: list[str], names: list[str], offsets: list) -> None:
+    """``DIR/grid.usda``: the stage's metadata, the chunks' layers as sublayers, the variants'
+    order under ``/Grid`` (``names``, batch order) and their translations (``offsets``, per name;
+    here, since the spacing that keeps them apart is known only once every variant has moved)."""
+    from pxr import Gf, Sdf, Usd, UsdGeom, Vt
 
     from ..io.writer import save_error
 
@@ -374,7 +393,15 @@ def write_grid_root(spec: OutputSpec, stage_info, chunk_layers: list[str], names
     grid = UsdGeom.Xform.Define(st, "/Grid").GetPrim()
     st.SetDefaultPrim(grid)
     del st
-    layer.GetPrimAtPath("/Grid").nameChildrenOrder = list(names)
+    grid_spec = layer.GetPrimAtPath("/Grid")
+    with Sdf.ChangeBlock():
+        for name, offset in zip(names, offsets):
+            prim = Sdf.PrimSpec(grid_spec, name, Sdf.SpecifierOver)
+            op = Sdf.AttributeSpec(prim, "xformOp:translate", Sdf.ValueTypeNames.Double3)
+            op.default = Gf.Vec3d(*offset)
+            order = Sdf.AttributeSpec(prim, "xformOpOrder", Sdf.ValueTypeNames.TokenArray, Sdf.VariabilityUniform)
+            order.default = Vt.TokenArray(["xformOp:translate"])
+    grid_spec.nameChildrenOrder = list(names)
     layer.subLayerPaths = list(chunk_layers)
     try:
         layer.Save()
@@ -428,3 +455,52 @@ def summary_lines(variants, columns: dict) -> str:
     chosen = list(zip(*(v.selection for v in variants))) if variants and variants[0].selection else []
     out.writerows(zip([v.index for v in variants], [v.name for v in variants], *cells, *chosen, *fields))  # (a column at a time)
     return buf.getvalue()
+
+
+def output_spec(variants, counts: list, layout, out_dir, work_dir, surface, time_codes) -> OutputSpec:
+    """The batch's outputs (``counts``: per variant its centerline points and surface vertices)."""
+    vs = variants.variants
+    points = max(p for p, _ in counts)
+    vertices = max(n for _, n in counts) if surface else 0
+    first = vs[0].scene.stage
+    cell, columns = 1.0, 1
+    if layout == "grid":
+        mpu = first.meters_per_unit
+        size = max(float(np.ptp(np.concatenate([t.points for t in v.scene.tubes]), axis=0).max())
+                   + 2.0 * max(float(t.radius.max()) for t in v.scene.tubes) for v in vs)  # fmt: skip
+        cell = size / mpu
+        columns = math.ceil(math.sqrt(len(vs)))
+    return OutputSpec(layout=layout, out_dir=out_dir, surface=surface, time_codes=time_codes, variants=len(vs),
+                      points=points, vertices=vertices, work_dir=work_dir, grid_cell=cell, grid_columns=columns,
+                      up_axis=first.up_axis)  # fmt: skip
+
+
+def grid_offsets(spec: OutputSpec, vs, shown: list, cols: dict, records: dict, mpu: float) -> list:
+    """The grid's translation of each variant of ``shown`` (batch indices) [stage units]: its rest
+    shape centred in a cell of the largest rest extent and diameter, a quarter of that for a gap,
+    and twice the largest displacement of any variant shown, so that neighbours cannot meet
+    however they moved."""
+    # (a chunk recorded by an earlier version keeps no displacements: a tube's full reach, its
+    # length either side, stands for them)
+    ok = [cols["max_displacement_m"][i] for i in shown if cols["status"][i] == "ok"]
+    moved = [float(d) if d != "" else spec.grid_cell * mpu for d in ok]
+    for rec in records.values():  # failed variants: the largest displacement in their frames kept
+        rows = rec["rows"]
+        failed = [vs[i].name for i, s, o in zip(rows["index"], rows["status"], rows["output"]) if s != "ok" and o]
+        if failed and rec["layer"]:
+            from pxr import Sdf
+
+            layer = Sdf.Layer.FindOrOpen(os.path.join(spec.out_dir, rec["layer"]))
+            moved += [float(layer.GetPrimAtPath(f"/Grid/{n}").customData["warptube"]["maxDisplacement"]) * mpu for n in failed]
+    reach = max([m for m in moved if math.isfinite(m)], default=0.0) / mpu
+    cell = 1.25 * spec.grid_cell + 2.0 * reach
+    memo: dict = {}  # rest centres by the identity of the tubes' points (a batch's variants share them)
+    out = []
+    for i in shown:
+        tubes = vs[i].scene.tubes
+        key = tuple(id(t.points) for t in tubes)
+        if key not in memo:
+            pts = np.concatenate([t.points for t in tubes])
+            memo[key] = (tubes, (pts.min(axis=0) + pts.max(axis=0)) / (2.0 * mpu))  # (tubes kept: their ids stay theirs)
+        out.append(grid_offset(spec, i, cell, memo[key][1]))
+    return out

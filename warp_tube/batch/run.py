@@ -32,8 +32,6 @@ import time
 from concurrent.futures.process import BrokenProcessPool
 from dataclasses import dataclass, field
 
-import numpy as np
-
 from ..runtime.collector import collector_paused, thaw
 from ..runtime.interrupts import (Terminated, deferred_interrupts, interrupt_received, kept_interrupts, raise_if_interrupted,
                                   stopped_by)
@@ -44,14 +42,15 @@ from ..sim.budget import whole_number
 from .engine import TIMERS, output_frames
 from .bookkeeping import PROCESS_VARIANTS, Bookkeeper
 from .recorder import Recorder
-from .cluster import check_dask, dask_client, run_dask
+from .cluster import SchedulerLost, check_dask, check_scheduler_address, dask_client, run_dask
 from .execute import SimWorkers, run_here, run_pooled
 from .folder import (check_inputs_not_outputs, check_out_dir, named_files, named_paths, outputs_kept, remove_stray_partials,
                      scene_dependencies, scene_files)
 from .writer_pool import INLINE_WRITE_S, Writers, inline_write_seconds, writer_count
 from .journal import Journal, file_digest
 from .lock import BatchLock
-from .outputs import LAYOUTS, OutputSpec, check_batch_fits, finish_arrays, prepare_arrays, surface_topology, write_grid_root, write_summary
+from .outputs import (LAYOUTS, OutputSpec, check_batch_fits, finish_arrays, grid_offsets, output_spec, prepare_arrays,
+                      surface_topology, write_grid_root, write_summary)  # fmt: skip
 from .plan import by_identity, group_key, plain_group_keys, plan_chunks
 from .prepare import prepare_batch
 from .progress import Progress
@@ -303,6 +302,8 @@ def _batch(scene, out_dir, table, late: list, *, variant_sets, layout, every, fr
         raise SceneError(f"--frames {frames}: expected 1 to {MAX_FRAMES + 1:,}")
     if chunk is not None and chunk < 1:
         raise SceneError(f"--chunk {chunk}: expected at least 1")
+    if scheduler is not None:  # ('' too: not a silent run here)
+        check_scheduler_address(scheduler)
     if writers is not None and writers < 0:
         raise SceneError(f"--writers {writers}: expected 0 or more")
     surface = (layout != "arrays") if surface is None else bool(surface)
@@ -412,11 +413,14 @@ def _run_batch(scene, out_dir, table, tab, devices, writer_pool, sim_workers, t_
         signature["scene_files"] = scene_digests
     if len(F_idx) == 1 and n_frames > 1:
         log.warning("--every %d: of frames 0 to %d only frame 0 is written", every, n_frames - 1)
+    elif F_idx[-1] < n_frames - 1:  # as warp-tube run says it
+        log.warning("--every %d: frames %d to %d are simulated but not written (the last written is frame %d)",
+                    every, F_idx[-1] + 1, n_frames - 1, F_idx[-1])  # fmt: skip
     result = BatchResult(out_dir=out_dir, variants=len(variants), groups=len({c.group for c in plan}), chunks=len(plan),
                          devices=devices if devices != ["dask"] else [f"dask {scheduler}"], frames=len(F_idx))  # fmt: skip
     with collector_paused(freeze=True):  # per variant its points and vertices
         counts = _counts(variants.variants[:1], surface) * len(variants) if variants.plain else _counts(variants.variants, surface)
-    spec = _output_spec(variants, counts, layout, out_dir, journal.dir, surface, time_codes)
+    spec = output_spec(variants, counts, layout, out_dir, journal.dir, surface, time_codes)
     if not resume:
         check_batch_fits(spec, counts, chunk)
     if deferred and inline_write_seconds(len(variants), len(F_idx), spec.points, spec.vertices) >= INLINE_WRITE_S:
@@ -451,9 +455,8 @@ def _run_batch(scene, out_dir, table, tab, devices, writer_pool, sim_workers, t_
     def finish(chunk_id: int, rows: Rows, outputs: list):
         t = time.perf_counter()
         c = plan[chunk_id]
-        ok = "ok" in rows.columns["status"]
         rec = {"rows": {"index": list(c.indices), **rows.columns, "output": list(outputs)},
-               "layer": f"grid/chunk_{chunk_id:05d}.usdc" if layout == "grid" and ok else ""}  # fmt: skip
+               "layer": f"grid/chunk_{chunk_id:05d}.usdc" if layout == "grid" and any(outputs) else ""}  # fmt: skip
         records[chunk_id] = books.record(chunk_id, rec)
         bar.variants_done(len(c.indices))
         result.books_s += time.perf_counter() - t
@@ -472,9 +475,9 @@ def _run_batch(scene, out_dir, table, tab, devices, writer_pool, sim_workers, t_
         else:
             run_pooled(todo, devices, sim_workers, context, result)
         raise_if_interrupted()  # (one that a finalizer or usd-core dropped: before the result is saved)
-    except (BrokenProcessPool, OSError, EOFError):
+    except (BrokenProcessPool, SchedulerLost, OSError, EOFError):
         signum = interrupt_received()
-        if signum is None:  # a writer or worker process killed from outside: what finished stays resumable
+        if signum is None:  # a process killed from outside, a scheduler gone: what finished stays resumable
             bar.close()
             books.drain()
             raise
@@ -567,26 +570,8 @@ def _columns(counts: list, surface: bool) -> tuple[list, list]:
     return [p for p, _ in counts], ([n for _, n in counts] if surface else [])
 
 
-def _output_spec(variants, counts: list, layout, out_dir, work_dir, surface, time_codes) -> OutputSpec:
-    """The batch's outputs (``counts``: :func:`_counts` of its variants)."""
-    vs = variants.variants
-    points = max(p for p, _ in counts)
-    vertices = max(n for _, n in counts) if surface else 0
-    first = vs[0].scene.stage
-    cell, columns = 1.0, 1
-    if layout == "grid":
-        mpu = first.meters_per_unit
-        size = max(float(np.ptp(np.concatenate([t.points for t in v.scene.tubes]), axis=0).max())
-                   + 2.0 * max(float(t.radius.max()) for t in v.scene.tubes) for v in vs)  # fmt: skip
-        cell = 1.5 * size / mpu
-        columns = math.ceil(math.sqrt(len(vs)))
-    return OutputSpec(layout=layout, out_dir=out_dir, surface=surface, time_codes=time_codes, variants=len(vs),
-                      points=points, vertices=vertices, work_dir=work_dir, grid_cell=cell, grid_columns=columns,
-                      up_axis=first.up_axis)  # fmt: skip
-
-
 def _finish_outputs(spec: OutputSpec, variants, counts: list, records: dict, first_scene, out_dir: str, books: Bookkeeper) -> None:
-    index, cols = batch_columns(records.values(), ("status",))
+    index, cols = batch_columns(records.values(), ("status", "output", "max_displacement_m"))
     vs = variants.variants
     if index != list(range(len(vs))):
         raise RuntimeError(f"the batch's records hold {len(index)} variants, not each of its {len(vs)} once")
@@ -594,6 +579,7 @@ def _finish_outputs(spec: OutputSpec, variants, counts: list, records: dict, fir
         finish_arrays(spec, index, [v.name for v in vs], *_columns(counts, spec.surface))
     if spec.layout == "grid":
         layers = [records[c]["layer"] for c in sorted(records) if records[c]["layer"]]
-        ok = [v.name for v, s in zip(vs, cols["status"]) if s == "ok"]
-        write_grid_root(spec, first_scene.stage, layers, ok)
+        shown = [i for i, o in enumerate(cols["output"]) if o]  # (a failed variant's finished frames included)
+        offsets = grid_offsets(spec, vs, shown, cols, records, first_scene.stage.meters_per_unit)
+        write_grid_root(spec, first_scene.stage, layers, [vs[i].name for i in shown], offsets)
     write_summary(os.path.join(out_dir, "summary.csv"), variants.parameter_columns(), books.summary_text(records))

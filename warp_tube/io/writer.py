@@ -190,7 +190,7 @@ class StageWriter:
         self.first_time = None
         self.last_time = start
 
-    def write_frame(self, time_code: float, centerlines, surfaces=None):
+    def write_frame(self, time_code: float, centerlines, surfaces=None, prims=None):
         """Add one frame.
 
         Args:
@@ -199,10 +199,14 @@ class StageWriter:
             surfaces: per tube prim, ``(points, normals)`` or ``(points, normals, extent)`` in stage
                 units, shapes (V, 3) and (2, 3) (the points' ``[min, max]`` corners; found here when
                 not given), or None.
+            prims: the indices of the tube prims this frame holds, ``centerlines`` and ``surfaces``
+                given for these only (default: all); a prim left out has no sample at this time
+                (a grid's failed variant, whose frames end before the others').
         """
         put = self.layer.SetTimeSample  # no stage listens to the layer: nothing to batch notices for
         t = float(time_code)
-        for k, entry in enumerate(self.tubes):
+        entries = self.tubes if prims is None else [self.tubes[i] for i in prims]
+        for k, entry in enumerate(entries):
             put(entry["centerline"], t, vec3f_array(centerlines[k]))
             if entry["surface"] is not None and surfaces is not None and surfaces[k] is not None:
                 p_path, n_path, e_path = entry["surface"]
