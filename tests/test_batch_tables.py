@@ -196,6 +196,28 @@ def _interrupted_after_one_variant(scene, out, table):
     return kept
 
 
+def test_resume_takes_the_same_table_under_another_name(tmp_path, capsys):
+    """The record compared the table's path as well as its contents: a byte-identical copy of
+    the table (moved, renamed) was refused as "another table". Its contents and the files it names
+    are what the variants are made of: the copy resumes, and ends as one batch would."""
+    import shutil
+
+    table = tmp_path / "t.csv"
+    table.write_text(f"{E}\n1e5\n2e5\n")
+    out, whole = tmp_path / "out", tmp_path / "whole"
+    _interrupted_after_one_variant(DEFAULT, out, table)
+    (tmp_path / "elsewhere").mkdir()
+    copy = tmp_path / "elsewhere" / "renamed.csv"
+    shutil.copy(table, copy)
+    assert batch(copy, out, "--resume") == 0, capsys.readouterr().err
+    assert batch(table, whole) == 0
+    assert {k: v for k, v in files_of(out).items() if k.endswith(".usdc")} == {
+        k: v for k, v in files_of(whole).items() if k.endswith(".usdc")}
+    table.write_text(f"{E}\n1e5\n3e5\n")  # other contents: still refused
+    assert batch(table, out, "--resume") == 2
+    assert "other table" in capsys.readouterr().err
+
+
 def test_resume_refuses_a_points_file_changed_since_the_batch_began(tmp_path, capsys):
     points = np.zeros((21, 3))
     points[:, 0] = np.arange(21)

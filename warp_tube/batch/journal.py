@@ -56,6 +56,8 @@ class Journal:
     def _differ(old: dict, signature: dict, ignore=()) -> list[str]:
         """What differs, in words: ``table contents``, ``--frames (3 then, 4 now)`` ..."""
         keys = sorted(k for k in set(old) | set(signature) if k not in ignore and old.get(k) != signature.get(k))
+        if "table" in keys and old.get("table_sha256") and old.get("table_sha256") == signature.get("table_sha256"):
+            keys.remove("table")  # the same table moved or renamed: its contents (and the files it names) count
         if {"table", "table_sha256"} <= set(keys):  # another table: one item
             keys.remove("table_sha256")
         return [_what(k, old.get(k), signature.get(k)) for k in keys]
