@@ -110,6 +110,17 @@ def test_export_errors(stage_path, tmp_path):
         export(stage_path, "fbx")
     with pytest.raises(SceneError, match="no Surface mesh"):
         preview(empty, tmp_path / "x.png")
+    # one file named in a folder that is not there: refused as run refuses it (export made the folder)
+    with pytest.raises(SceneError, match=r"x\.obj: cannot write the file: folder .*nodir does not exist"):
+        export(stage_path, "obj", frame=1, out=tmp_path / "nodir" / "x.obj")
+    assert not (tmp_path / "nodir").exists()
+
+
+def test_preview_of_more_frames_than_the_stage_has_says_so(stage_path, tmp_path, caplog):
+    """--frames 200 on a stage of fewer frames made a sheet of those without a word."""
+    with caplog.at_level("WARNING"):
+        preview(stage_path, tmp_path / "sheet.png", frames=200, size=32, device="cpu")
+    assert any("200 frames asked for: the stage has" in r.getMessage() for r in caplog.records)
 
 
 def test_preview_contact_sheet(stage_path, tmp_path):

@@ -193,6 +193,8 @@ def export(usd_path, fmt: str = "obj", out=None, frame=None, overwrite: bool = F
         )
     if names_file:
         paths = [Path(out)]
+        if not paths[0].resolve().parent.is_dir():  # (a file named in a folder that is not there: as run refuses it)
+            raise SceneError(f"{out}: cannot write the file: folder {paths[0].resolve().parent} does not exist")
     else:
         if out is not None:
             folder = Path(out)

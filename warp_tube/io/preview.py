@@ -11,6 +11,7 @@ which the rays would mostly miss, shows as its ``Centerline`` drawn one pixel wi
 
 from __future__ import annotations
 
+import logging
 from pathlib import Path
 
 import numpy as np
@@ -27,6 +28,8 @@ TISSUE = np.array([214, 120, 112], dtype=np.float64)
 GHOST = np.array([222, 221, 216], dtype=np.float64)  # the first frame's silhouette behind later tiles
 LABEL = (70, 70, 70)  # the frame label's colour (RGB)
 LABEL_MIN_TILE = 96  # tiles smaller than this [pixels] get no label
+log = logging.getLogger(__name__)
+
 SHEET_COLUMNS = 8  # tiles per row of the sheet; more frames wrap into further rows
 THIN_SHADE = 0.6  # brightness of a centerline drawn where its tube is thinner than a pixel
 
@@ -105,6 +108,8 @@ def preview(usd_path, png_path, frames: int = 4, size: int = 320, device=None) -
     stage = open_output_stage(usd_path)
     meshes = surface_meshes(stage, usd_path)
     times = surface_frames(meshes) or [stage.GetStartTimeCode()]
+    if frames > len(times):
+        log.warning("%s: %d frames asked for: the stage has %d, all shown", usd_path, frames, len(times))
     shown = _pick_frames(times, frames)
 
     geometry = []
