@@ -63,23 +63,17 @@ def run(a) -> int:
     except KeyboardInterrupt as e:  # before the batch began writing, or while it was removing its record
         print(f"warp-tube: {stopped_by(e)}; {left_behind(a.output)}", file=sys.stderr)
         return exit_status(e)
-    except SchedulerLost as e:
+    except (SchedulerLost, BrokenProcessPool, OSError) as e:  # not bugs: what finished stays resumable
+        if isinstance(e, SchedulerLost):
+            why = str(e)
+        elif isinstance(e, BrokenProcessPool):  # a writer or worker process killed from outside (short of memory)
+            why = "a writer or worker process stopped unexpectedly (killed from outside, or out of memory?)"
+        else:
+            where = f"cannot write {e.filename}: " if e.filename else f"cannot write into {a.output}: "
+            why = f"{where}{e.strerror or e}"
         resumable = os.path.isdir(os.path.join(a.output, ".batch"))
         more = "; the variants finished before it are kept: --resume goes on" if resumable else ""
-        print(f"warp-tube: batch: {e}{more}", file=sys.stderr)
-        return 2
-    except BrokenProcessPool:
-        # a writer or worker process killed from outside (the system, short of memory): not a bug
-        resumable = os.path.isdir(os.path.join(a.output, ".batch"))
-        more = "; the variants finished before it are kept: --resume goes on" if resumable else ""
-        print(f"warp-tube: batch: a writer or worker process stopped unexpectedly (killed from outside, or out of "
-              f"memory?){more}", file=sys.stderr)  # fmt: skip
-        return 2
-    except OSError as e:
-        where = f"cannot write {e.filename}: " if e.filename else f"cannot write into {a.output}: "
-        resumable = os.path.isdir(os.path.join(a.output, ".batch"))
-        more = "; the variants finished before it are kept: --resume goes on" if resumable else ""
-        print(f"warp-tube: batch: {where}{e.strerror or e}{more}", file=sys.stderr)
+        print(f"warp-tube: batch: {why}{more}", file=sys.stderr)
         return 2
     if not a.quiet:
         print(result.text())

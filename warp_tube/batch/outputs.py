@@ -494,13 +494,18 @@ def grid_offsets(spec: OutputSpec, vs, shown: list, cols: dict, records: dict, m
             moved += [float(layer.GetPrimAtPath(f"/Grid/{n}").customData["warptube"]["maxDisplacement"]) * mpu for n in failed]
     reach = max([m for m in moved if math.isfinite(m)], default=0.0) / mpu
     cell = 1.25 * spec.grid_cell + 2.0 * reach
+    from .plan import by_identity
+
     memo: dict = {}  # rest centres by the identity of the tubes' points (a batch's variants share them)
     out = []
     for i in shown:
         tubes = vs[i].scene.tubes
-        key = tuple(id(t.points) for t in tubes)
-        if key not in memo:
-            pts = np.concatenate([t.points for t in tubes])
-            memo[key] = (tubes, (pts.min(axis=0) + pts.max(axis=0)) / (2.0 * mpu))  # (tubes kept: their ids stay theirs)
-        out.append(grid_offset(spec, i, cell, memo[key][1]))
+        centre = by_identity(memo, tuple(t.points for t in tubes), (), _rest_centre, tubes) / mpu
+        out.append(grid_offset(spec, i, cell, centre))
     return out
+
+
+def _rest_centre(tubes):
+    """The centre of the tubes' rest points' bounding box [m]."""
+    pts = np.concatenate([t.points for t in tubes])
+    return (pts.min(axis=0) + pts.max(axis=0)) / 2.0

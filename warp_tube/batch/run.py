@@ -33,8 +33,8 @@ from concurrent.futures.process import BrokenProcessPool
 from dataclasses import dataclass, field
 
 from ..runtime.collector import collector_paused, thaw
-from ..runtime.interrupts import (Terminated, deferred_interrupts, interrupt_received, kept_interrupts, raise_if_interrupted,
-                                  stopped_by)
+from ..runtime.interrupts import (Terminated, deferred_interrupts, interrupt_for, interrupt_received, kept_interrupts,
+                                  raise_if_interrupted, stopped_by)  # fmt: skip
 from ..runtime.replay import SIM_LOCK, holding
 from ..scene.spec import SceneError
 from ..scene.usd import MAX_FRAMES
@@ -275,7 +275,7 @@ def run_batch(scene: str, out_dir: str, table: str | None = None, *, variant_set
         signum = interrupt_received()
         if signum is None:
             raise
-        raise (KeyboardInterrupt() if signum == signal.SIGINT else Terminated(signum)) from None
+        raise interrupt_for(signum) from None
     if late and late[0]:
         log.warning("%s while the batch's complete result was being saved: the save was finished: the outputs in %s "
                     "are complete", stopped_by(Terminated(late[0][0])), result.out_dir)  # fmt: skip

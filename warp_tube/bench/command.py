@@ -252,15 +252,14 @@ def write_outputs(results: dict, out_dir: str, log=print, made: _Made | None = N
 
 
 def _write(path: str, text: str) -> None:
-    tmp = path + ".partial"
-    try:
+    """``text`` into ``path``, whole or not at all (an interrupt included: no half-written file)."""
+    from ..scene.files import write_atomically
+
+    def put(tmp: str) -> None:
         with open(tmp, "w") as f:
             f.write(text)
-        os.replace(tmp, path)
-    except BaseException:  # (an interrupt included: no half-written file is left)
-        if os.path.exists(tmp):
-            os.remove(tmp)
-        raise
+
+    write_atomically(path, put)
 
 
 def replot(results_path: str, out_dir: str, log=print) -> None:

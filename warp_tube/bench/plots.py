@@ -157,16 +157,12 @@ def _throughput_plot(results, fam, out_dir):
 
 
 def _save(fig, out_dir, name):
+    from ..scene.files import write_atomically
+
     path = os.path.join(out_dir, name)
-    tmp = path + ".partial.png"
     fig.tight_layout(rect=(0, 0.02, 1, 1))
-    try:
-        fig.savefig(tmp, dpi=110)
-        os.replace(tmp, path)
-    except BaseException:  # (an interrupt included: no half-written file is left)
-        if os.path.exists(tmp):
-            os.remove(tmp)
-        raise
+    try:  # (whole or not at all, an interrupt included)
+        write_atomically(path, lambda tmp: fig.savefig(tmp, dpi=110, format="png"))
     finally:
         plt.close(fig)
     return path

@@ -25,7 +25,7 @@ import signal
 import threading
 
 __all__ = ["kept_interrupts", "raise_if_interrupted", "terminate_as_interrupt", "deferred_interrupts", "held_interrupts",
-           "import_whole", "Terminated", "exit_status", "stopped_by", "interrupt_received"]  # fmt: skip
+           "import_whole", "Terminated", "exit_status", "stopped_by", "interrupt_received", "interrupt_for"]  # fmt: skip
 
 _pending = None  # the signal (SIGINT, SIGTERM, SIGHUP) that arrived and may not have been delivered
 _received = None  # the last signal that arrived since kept_interrupts began, delivered or not
@@ -56,7 +56,8 @@ def stopped_by(e: BaseException) -> str:
     return "interrupted" if signum == signal.SIGINT else f"terminated ({signal.Signals(signum).name})"
 
 
-def _interrupt(signum: int) -> KeyboardInterrupt:
+def interrupt_for(signum: int) -> KeyboardInterrupt:
+    """The exception a command stops by for ``signum``: KeyboardInterrupt for SIGINT, else :class:`Terminated`."""
     return KeyboardInterrupt() if signum == signal.SIGINT else Terminated(signum)
 
 
@@ -118,7 +119,7 @@ def raise_if_interrupted() -> None:
     global _pending
     if _pending is not None:
         signum, _pending = _pending, None
-        raise _interrupt(signum)
+        raise interrupt_for(signum)
 
 
 def interrupt_received() -> int | None:
@@ -200,5 +201,4 @@ def import_whole(*modules: str) -> None:
         for name in modules:
             importlib.import_module(name)
     if got:
-        raise _interrupt(got[0])
-
+        raise interrupt_for(got[0])

@@ -27,6 +27,7 @@ CAPTURE_LOCK = threading.Lock()
 #: stepping in two threads corrupted each other's graphs (Warp errors, crashes); they take turns
 SIM_LOCK = threading.RLock()
 
+
 def holding(lock):
     """Decorator: the function runs holding ``lock``."""
 

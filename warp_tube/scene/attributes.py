@@ -129,15 +129,10 @@ def attributes_of(prim) -> set:
     tube's, or any where the kind is not known."""
     from pxr import UsdGeom
 
-    if prim.GetRelationship(TARGET):
-        return FORCE_ATTRS
-    if any(n in SETTINGS_ATTRS for n in prim.GetPropertyNames()):
-        return set(SETTINGS_ATTRS)
-    if prim.IsA(UsdGeom.BasisCurves):
-        return TUBE_ATTRS
-    if prim.IsA(UsdGeom.Mesh):
-        return MESH_ATTRS
-    return KNOWN_ATTRS
+    kind = kind_of(prim, prim.GetPropertyNames())  # (a BasisCurves has properties: a tube)
+    if kind is not None:
+        return kind[1]
+    return MESH_ATTRS if prim.IsA(UsdGeom.Mesh) else KNOWN_ATTRS
 
 
 def samples_differ(attr) -> bool:
