@@ -157,3 +157,23 @@ def inner_diameter(
         hit_t_out[i] = q.t + offset
     else:
         hit_t_out[i] = -1.0
+
+
+@wp.kernel(enable_backward=False)
+def inside_by_parity(
+    # model:
+    mesh_id: wp.uint64,
+    # in:
+    point_in: wp.array[wp.vec3],
+    max_dist: float,
+    # out:
+    inside_out: wp.array[wp.int32],
+):
+    """1 where a point lies inside the closed mesh by ray parity (three rays, the majority), else 0;
+    points farther than ``max_dist`` from the mesh count as outside."""
+    i = wp.tid()
+    q = wp.mesh_query_point_sign_parity(mesh_id, point_in[i], max_dist, 3)
+    if q.result and q.sign < 0.0:
+        inside_out[i] = 1
+    else:
+        inside_out[i] = 0

@@ -43,6 +43,9 @@ BAD = {
     "huge force": (mutate("24: (0, 0.02, 0)", "24: (0, 1e12, 0)"), ["warptube:force", "1e+12"]),
     "misspelled attribute": (mutate("warptube:density = 1050", "warptube:densty = 1050"), ["/World/Tube.warptube:densty", "unknown attribute", "did you mean warptube:density"]),
     "force attribute on a tube": (mutate("warptube:density = 1050", "warptube:density = 1050\n        bool warptube:assistantLine = true"), ["/World/Tube.warptube:assistantLine", "not an attribute of a tube prim"]),
+    # a settings attribute on a tube is named as the mistake (the tube's own attributes were blamed)
+    "time step on a tube": (mutate("warptube:density = 1050", "warptube:density = 1050\n        double warptube:timeStep = 0.001"), ["/World/Tube.warptube:timeStep", "not an attribute of a tube prim", "belongs on the simulation settings prim"]),
+    "integrator on a tube": (mutate("warptube:density = 1050", 'warptube:density = 1050\n        token warptube:integrator = "auto"'), ["/World/Tube.warptube:integrator", "belongs on the simulation settings prim"]),
     # a force whose target is left out or misspelled would be left out of the run without a word
     "force without target": (mutate("        rel warptube:target = </World/Tube>\n", ""), ["/World/Push", "warptube:force", "without a warptube:target relationship"]),
     "misspelled target": (mutate("rel warptube:target", "rel warptube:targt"), ["/World/Push.warptube:targt", "unknown relationship", "did you mean warptube:target"]),

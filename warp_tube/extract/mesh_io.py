@@ -19,6 +19,7 @@ from scipy.sparse.csgraph import connected_components
 
 from ..scene.spec import SceneError
 from .components import largest_component, weld
+from .hollow import outer_wall
 from .wording import counted
 
 __all__ = [
@@ -104,6 +105,7 @@ def clean_mesh(mesh: trimesh.Trimesh, source: str, scale=(1.0, 1.0, 1.0), max_si
     out.remove_unreferenced_vertices()
     if len(out.faces) == 0:
         raise SceneError(f"{source}: every face has zero area: expected a tube surface")
+    out, _ = outer_wall(out, source)
     labels = trimesh.graph.connected_component_labels(out.face_adjacency, node_count=len(out.faces))
     if labels.max() > 0:
         keep = largest_component(out, labels, source)

@@ -38,7 +38,9 @@ def kind_of(prim, names) -> tuple[str, set] | None:
 
     if prim.GetRelationship(TARGET):
         return "force", FORCE_ATTRS
-    if any(n in SETTINGS_ATTRS for n in names):
+    # (a tube carrying a settings attribute by mistake is a tube: the mistake is named, not its own attributes)
+    tube_like = any(n in TUBE_ATTRS for n in names) and (prim.IsA(UsdGeom.BasisCurves) or prim.IsA(UsdGeom.Mesh))
+    if any(n in SETTINGS_ATTRS for n in names) and not tube_like:
         return "simulation settings", set(SETTINGS_ATTRS)
     if names and prim.IsA(UsdGeom.BasisCurves):
         return "tube", TUBE_ATTRS
@@ -59,6 +61,17 @@ def ignored_hint(prim) -> str:
     return "tube attributes belong on a linear BasisCurves prim (or a Mesh with warptube:extract = true)"
 
 
+def _home(name: str) -> str:
+    """The kind of prim that takes the known attribute ``name``, for a message."""
+    if name in SETTINGS_ATTRS:
+        return "the simulation settings prim (a Scope carrying gravity, integrator, timeStep)"
+    if name in FORCE_ATTRS:
+        return f"a force prim (one with rel {TARGET})"
+    if name in TUBE_ATTRS:
+        return "a tube prim (a linear BasisCurves, or a Mesh with warptube:extract = true)"
+    return "a Mesh with warptube:extract = true"
+
+
 def check_names(path: str, prim, names: list, known: set, kind: str) -> None:
     """A ``warptube:`` attribute of ``prim`` that is not one of ``known`` (a ``kind`` prim's) is a
     mistake (a misspelling, or an attribute of another kind of prim): an error naming it, with the
@@ -67,10 +80,10 @@ def check_names(path: str, prim, names: list, known: set, kind: str) -> None:
         if name in known:
             continue
         if name in KNOWN_ATTRS:
-            what = f"not an attribute of a {kind} prim"
-        else:
-            near = difflib.get_close_matches(name, sorted(known), n=1)
-            what = "unknown attribute" + (f": did you mean {near[0]}?" if near else "")
+            raise SceneError(f"{path}: {prim.GetPath()}.{name}: not an attribute of a {kind} prim: it belongs on "
+                             f"{_home(name)}")  # fmt: skip
+        near = difflib.get_close_matches(name, sorted(known), n=1)
+        what = "unknown attribute" + (f": did you mean {near[0]}?" if near else "")
         raise SceneError(f"{path}: {prim.GetPath()}.{name}: {what} (a {kind} prim takes {taken(known)})")
 
 
