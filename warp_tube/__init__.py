@@ -4,6 +4,27 @@ A deformable mass-spring centerline and a hubs-and-spokes medial surface (Huang,
 ISBMS 2006), with USD scenes in and time-sampled USD meshes out.
 """
 
+def _kernels_beside():
+    """In a source checkout the kernels sit beside the package (``kernels/``, installed as
+    ``warp_tube.kernels``); a checkout that shadows an installed copy of the package (Python
+    started at its root, the package not installed from it in place) takes them from there."""
+    import importlib.util
+    import os
+    import sys
+
+    if importlib.util.find_spec(__name__ + ".kernels") is not None:
+        return
+    init = os.path.join(os.path.dirname(os.path.dirname(os.path.abspath(__file__))), "kernels", "__init__.py")
+    if os.path.isfile(init):
+        spec = importlib.util.spec_from_file_location(__name__ + ".kernels", init,
+                                                      submodule_search_locations=[os.path.dirname(init)])  # fmt: skip
+        module = importlib.util.module_from_spec(spec)
+        sys.modules[spec.name] = module
+        spec.loader.exec_module(module)
+
+
+_kernels_beside()
+
 from .scene import ForceSpec, Scene, SceneError, SimulationSettings, StageInfo, TubeParams, TubeSpec
 from .runtime.submodules import lazy_submodules
 from .version import __version__

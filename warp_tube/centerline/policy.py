@@ -128,8 +128,9 @@ def explain_integrator(settings: SimulationSettings, critical_dt: float, frame_d
     # a timeStep beyond the bound is taken by implicit Euler only (force it with semiImplicitEuler)
     over = f"timeStep {s.time_step:.3g} s exceeds the stability bound; " if s.time_step is not None else ""
     if integrator == "implicitEuler":
-        return (f"auto: {over}stiff ({semi_steps} stable semi-implicit substeps a frame against {impl_steps} implicit "
-                f"ones at ~{implicit_cost:g}x the cost each){capped}")  # fmt: skip
+        impl = f"{impl_steps} implicit one" + ("s" if impl_steps != 1 else "")
+        return (f"auto: {over}stiff ({semi_steps} stable semi-implicit substeps a frame against {impl} at "
+                f"~{implicit_cost:g}x the cost each){capped}")  # fmt: skip
     why = f"cheaper than implicit ({impl_steps} substeps at ~{implicit_cost:g}x the cost)"
     if semi_steps == 1:  # (a frame is shorter than the step the bound allows)
         return f"auto: {over}one substep a frame, within {SAFETY:g} x the stability bound {hc:.3g} s; {why}"

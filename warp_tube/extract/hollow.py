@@ -30,6 +30,8 @@ import trimesh
 import warp as wp
 from scipy.sparse.csgraph import connected_components
 
+from .loops import boundary_loops, cap_loops
+
 __all__ = ["Bore", "outer_wall", "BORE_AREA"]
 
 log = logging.getLogger(__name__)
@@ -107,7 +109,6 @@ def _sampled(points: np.ndarray) -> np.ndarray:
 def _inside_share(outer: trimesh.Trimesh, points: np.ndarray) -> float:
     """Fraction of ``points`` inside ``outer`` with its boundary loops capped (ray parity)."""
     from ..kernels import raycast
-    from .mesh_io import boundary_loops, cap_loops
 
     v, f = cap_loops(outer, boundary_loops(outer))
     centre = 0.5 * (v.min(axis=0) + v.max(axis=0))  # float32 queries: near the origin

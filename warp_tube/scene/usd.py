@@ -34,6 +34,7 @@ from .spec import (
 from ..runtime.log_filters import same_for_many
 from .opening import open_stage, usd_error_in_user_terms
 from .transforms import to_world, warn_about_layer_units, warn_about_transforms
+from .shape_notes import warn_about_shape
 from .save import save_scene
 
 log = logging.getLogger(__name__)
@@ -289,6 +290,8 @@ def _read_tube(file: str, prim, info: StageInfo, frame_times, varying: dict | No
     if pattr.GetNumTimeSamples() > 1 and len(pinned):
         times = pin_frame_times(frame_times, pattr.GetTimeSamples()[-1])
         pin_track = moving_pin_track(r, prim, pattr, times, pts, pinned, mpu, file)
+    warn_about_shape(r.where("points"), pts, world * mpu, counts, radius, pinned, idx["warptube:anchorPoints"],
+                     r.where("warptube:anchorPoints"))  # fmt: skip
     try:
         return TubeSpec(
             path=str(prim.GetPath()), points=world * mpu, curve_counts=counts, radius=radius, params=params,

@@ -2,10 +2,14 @@
 device each frame (:mod:`warp_tube.kernels.contact`), located on the host when one is found.
 
 Two centerline points are *in contact* when their distance is below the sum of their radii (the
-tube surfaces meet) while they are *distant* along the tube: on different tubes of the same group,
-or more than ``pi / 2 x (r_i + r_j)`` apart in rest arclength on the same tube. (On a straight tube
+tube surfaces meet) while they are *distant* along the tubes: more than ``pi / 2 x (r_i + r_j)``
+apart in rest arclength on the same tube, or on different tubes of the same group unless both lie
+that close to a junction of the two (:func:`junctions`: tubes joined at rest, as the branches of an
+airway or a vessel tree). (On a straight tube
 or a smooth bend, points that close in arclength are never that close in space; a tube folded into
-a U of bend radius below its own radius, or looping onto itself, is.) A group is a set of tubes
+a U of bend radius below its own radius, or looping onto itself, is.) Points already that close at
+rest are left out: the scene puts them so (tubes joined at a shared pinned point, the legs of a
+hairpin laid side by side). A group is a set of tubes
 that share a space: a scene's tubes are one group, a batch's variants one group each.
 """
 
@@ -14,10 +18,10 @@ from __future__ import annotations
 import numpy as np
 import warp as wp
 
-from ..kernels.contact import contact_grid_kernel, contact_pairs_kernel
+from ..kernels.contact import ContactNodes, contact_grid_kernel, contact_pairs_kernel
 from .checks import HOST_SLOTS, IMMEDIATE, wait_for_stream
 
-__all__ = ["ContactMonitor", "rest_arclength", "grid_dims", "GRID_CELLS_MAX"]
+__all__ = ["ContactMonitor", "rest_arclength", "junctions", "grid_dims", "GRID_CELLS_MAX", "JOINED"]
 
 #: groups of up to this many points check all their distant pairs each frame; larger ones query
 #: a hash grid
@@ -33,6 +37,60 @@ def rest_arclength(rest: np.ndarray, tube_node_start: np.ndarray) -> np.ndarray:
     seg = np.linalg.norm(np.diff(rest, axis=-2), axis=-1)
     arc = np.concatenate([np.zeros(seg.shape[:-1] + (1,)), np.cumsum(seg, axis=-1)], axis=-1)
     return arc - arc[..., start[:-1]][..., tube]
+
+
+#: a tube's end within this fraction of its radius of a point of another tube (at rest) joins the two there
+JOINED = 1e-3
+
+
+def junctions(rest: np.ndarray, radius: np.ndarray, tube_node_start: np.ndarray, arc: np.ndarray,
+              group: np.ndarray) -> tuple[np.ndarray, np.ndarray]:  # fmt: skip
+    """Where tubes are joined at rest: an end of one within :data:`JOINED` of its radius of a point
+    of another of its group (a branch's first point on its parent's). Points joined, directly or
+    through others, make one junction.
+
+    Args:
+        rest: rest positions (node, 3) [m]; radius, arc (rest arclength from the tube's start [m])
+            and group: (node,).
+        tube_node_start: first node of each tube, (tube + 1,) int.
+
+    Returns:
+        Per node: the nearest junction along its tube (an index; -1 where its tube joins no other)
+        and the rest arclength to it [m] (infinite where none), shapes (node,).
+    """
+    n = len(rest)
+    start = np.asarray(tube_node_start, dtype=np.int64)
+    junction, to_junction = np.full(n, -1, dtype=np.int64), np.full(n, np.inf)
+    tube = np.repeat(np.arange(len(start) - 1), np.diff(start))
+    first = group[start[:-1]] if n else np.zeros(0, dtype=np.int64)
+    if n == 0 or len(np.unique(first)) == len(first):  # no group holds two tubes
+        return junction, to_junction
+    from scipy.sparse import coo_matrix
+    from scipy.sparse.csgraph import connected_components
+    from scipy.spatial import cKDTree
+
+    # Groups (a batch's worlds, which overlap in space) set apart before the search.
+    span = float(np.ptp(rest, axis=0).max()) + 4.0 * float(radius.max()) + 1.0
+    apart = rest + (group.astype(np.float64) * 3.0 * span)[:, None] * np.array([1.0, 0.0, 0.0])
+    ends = np.unique(np.concatenate([start[:-1], start[1:] - 1]))
+    near = cKDTree(apart).query_ball_point(apart[ends], JOINED * radius[ends])
+    a = np.repeat(ends, [len(k) for k in near])
+    b = np.concatenate([np.asarray(k, dtype=np.int64) for k in near]) if len(a) else np.zeros(0, dtype=np.int64)
+    other = tube[a] != tube[b]
+    a, b = a[other], b[other]
+    if len(a) == 0:
+        return junction, to_junction
+    _, label = connected_components(coo_matrix((np.ones(len(a)), (a, b)), shape=(n, n)), directed=False)
+    joined = np.unique(np.concatenate([a, b]))  # in node order: along each tube by arclength
+    k = np.searchsorted(joined, np.arange(n))
+    best = np.full(n, np.inf)
+    for cand in (joined[np.clip(k - 1, 0, len(joined) - 1)], joined[np.clip(k, 0, len(joined) - 1)]):
+        d = np.where(tube[cand] == tube, np.abs(arc - arc[cand]), np.inf)
+        closer = d < best
+        best[closer] = d[closer]
+        junction[closer] = label[cand[closer]]
+    to_junction[:] = best
+    return junction, to_junction
 
 
 def _block_size(group: np.ndarray) -> int:
@@ -109,6 +167,7 @@ class ContactMonitor:
         start = np.asarray(tube_node_start, dtype=np.int64)
         n = len(rest)
         self.radius = np.asarray(radius, dtype=np.float64)
+        self.rest = rest
         self.tube = np.repeat(np.arange(len(start) - 1), np.diff(start))
         self.arc = rest_arclength(rest, start) if node_arc is None else np.asarray(node_arc, dtype=np.float64)
         self.group = np.zeros(n, dtype=np.int32) if node_group is None else np.asarray(node_group, dtype=np.int32)
@@ -117,10 +176,15 @@ class ContactMonitor:
         self.max_radius = float(self.radius.max()) if n else 0.0
         self.device = device
         d = device
-        self._radius = wp.array(self.radius, dtype=float, device=d)
-        self._arc = wp.array(self.arc, dtype=float, device=d)
-        self._tube = wp.array(self.tube, dtype=int, device=d)
-        self._group = wp.array(self.group, dtype=int, device=d)
+        self.junction, self.to_junction = junctions(rest, self.radius, start, self.arc, self.group)
+        self._nodes = ContactNodes()
+        self._nodes.rest_q = wp.array(rest.astype(np.float32).reshape(-1, 3), dtype=wp.vec3, device=d)
+        self._nodes.radius = wp.array(self.radius, dtype=float, device=d)
+        self._nodes.arc = wp.array(self.arc, dtype=float, device=d)
+        self._nodes.tube = wp.array(self.tube, dtype=int, device=d)
+        self._nodes.group = self._group = wp.array(self.group, dtype=int, device=d)
+        self._nodes.junction = wp.array(self.junction, dtype=int, device=d)
+        self._nodes.junction_arc = wp.array(np.minimum(self.to_junction, 1e30), dtype=float, device=d)
         self._gap = wp.zeros(self.group_count, dtype=float, device=d)
         # its host copies, one per slot (checks.HOST_SLOTS: frames in flight, and IMMEDIATE)
         self._gap_host = [wp.zeros(self.group_count, dtype=float, device="cpu", pinned=wp.get_device(d).is_cuda)
@@ -151,10 +215,15 @@ class ContactMonitor:
         return self._keep(*_group_pairs(self.group))
 
     def _keep(self, i: np.ndarray, j: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
-        """The pairs of ``i``, ``j`` whose points are distant along the tubes."""
-        rsum = self.radius[i] + self.radius[j]
-        keep = (self.tube[i] != self.tube[j]) | (np.abs(self.arc[i] - self.arc[j]) > 0.5 * np.pi * rsum)
+        """The pairs of ``i``, ``j`` whose points are distant along the tubes (the kernel also
+        leaves out those in contact at rest, which differ between a batch's worlds)."""
+        keep = self._distant(i, j)
         return i[keep], j[keep]
+
+    def _distant(self, i: np.ndarray, j: np.ndarray) -> np.ndarray:
+        """Whether the points of pairs ``i``, ``j`` are distant along the tubes, bool."""
+        rsum = self.radius[i] + self.radius[j]
+        return (self.tube[i] != self.tube[j]) | (np.abs(self.arc[i] - self.arc[j]) > 0.5 * np.pi * rsum)
 
     def deepest(self, q: wp.array) -> np.ndarray:
         """The deepest overlap of each group, ``distance - (r_i + r_j)`` [m], shape (groups,): 0
@@ -185,12 +254,12 @@ class ContactMonitor:
             flat = q.reshape((q.size,))[: self.node_count] if q.ndim > 1 or q.shape[0] != self.node_count else q
             if self._pairs is not None:
                 launch = wp.launch(contact_pairs_kernel, dim=self._pairs[0].shape[0], device=self.device,
-                                   inputs=[*self._pairs, flat, self._radius, self._arc, self._tube, self._group, self._gap],
+                                   inputs=[*self._pairs, flat, self._nodes, self._gap],
                                    record_cmd=True) if self._pairs[0].shape[0] else None  # fmt: skip
             else:
                 launch = wp.launch(contact_grid_kernel, dim=self.node_count, device=self.device,
-                                   inputs=[self._grid.id, 2.0 * self.max_radius, flat, self._radius, self._arc, self._tube,
-                                           self._group, self._gap], record_cmd=True)  # fmt: skip
+                                   inputs=[self._grid.id, 2.0 * self.max_radius, flat, self._nodes, self._gap],
+                                   record_cmd=True)  # fmt: skip
             if len(self._launches) > 8:
                 self._launches.clear()
             held = self._launches[q.ptr] = (flat, launch)
@@ -221,7 +290,9 @@ class ContactMonitor:
             i, j = pairs[:, 0], pairs[:, 1]
         i, j = nodes[i], nodes[j]
         rsum = self.radius[i] + self.radius[j]
-        distant = (self.tube[i] != self.tube[j]) | (np.abs(self.arc[i] - self.arc[j]) > 0.5 * np.pi * rsum)
-        gap = np.where(distant, np.linalg.norm(q[i] - q[j], axis=1) - rsum, np.inf)
+        through = (self.tube[i] != self.tube[j]) & (self.junction[i] >= 0) & (self.junction[i] == self.junction[j]) & (
+            self.to_junction[i] + self.to_junction[j] <= 0.5 * np.pi * rsum)
+        counted = self._distant(i, j) & ~through & (np.linalg.norm(self.rest[i] - self.rest[j], axis=1) >= rsum)
+        gap = np.where(counted, np.linalg.norm(q[i] - q[j], axis=1) - rsum, np.inf)
         k = int(np.argmin(gap)) if len(gap) else -1
         return (int(i[k]), int(j[k]), float(gap[k])) if k >= 0 and gap[k] < 0.0 else None

@@ -36,6 +36,7 @@ from .checks import FrameChecks
 from .control import FrameControl
 from .output import open_writer
 from .proximity import ContactMonitor
+from .notes import model_notes
 from .summary import RunSummary
 
 log = logging.getLogger(__name__)
@@ -459,6 +460,7 @@ class Simulation(RunBudget):
                 ("timeCodesPerSecond", info.time_codes_per_second), ("framesPerSecond", info.frames_per_second),
                 ("startTimeCode", info.start_time_code), ("endTimeCode", info.end_time_code)) if k not in info.authored],
             first_frame=first_written if written_count else first, setup_time=setup_time + setup,
+            notes=model_notes(self.scene, self.model.features, self.integrator),
         )  # fmt: skip
         self.last_summary = summary
         self._announce_long_run(end - 1 - first)

@@ -18,7 +18,8 @@ class RunSummary:
     ``setup_time`` what came before the run's frames: setting up the output file, and what the
     caller adds (the CLI: reading the scene and building the model).
     ``output`` is the complete output (None while the run has not completed); ``partial`` the file
-    holding the frames finished by a run that stopped early (None if none was finished).
+    holding the frames finished by a run that stopped early (None if none was finished); ``notes``
+    where the model departs from a plain elastic rod (:func:`warp_tube.sim.notes.model_notes`).
     """
 
     scene: str
@@ -42,6 +43,7 @@ class RunSummary:
     first_frame: int = 0
     last_frame: int | None = None
     setup_time: float = 0.0
+    notes: list = field(default_factory=list)
 
     @property
     def steps_per_second(self) -> float:
@@ -91,6 +93,7 @@ class RunSummary:
             lines.append(f"output       {self.output}")
         if self.partial:
             lines.append(f"partial      {self.partial} ({self.frames_written_text()})")
+        lines += [f"note         {n}" for n in self.notes]
         lines += [f"warning      {w}" for w in self.warnings]
         if self.stopped:
             lines.append(f"stopped      {self.stopped}")

@@ -1,0 +1,73 @@
+"""Rest shapes that read but will not simulate as meant are warned of when the scene loads
+(warp_tube.scene.shape_notes), and the example scenes get none of these warnings.
+
+Oracle: the scenes are the default scene with its 21 points (1 cm apart, 2 cm wide, in a
+centimetre stage) replaced by shapes whose turning angles, lengths and coordinates are exact.
+"""
+
+import re
+
+import numpy as np
+import pytest
+
+from warp_tube.scene.usd import load_scene
+
+from .conftest import SCENES
+
+BASE = (SCENES / "default.usda").read_text()
+POINTS = re.search(r"point3f\[\] points = \[[^\]]*\]", BASE).group(0)
+
+
+def _with_points(pts, extra: str = "") -> str:
+    text = BASE.replace(POINTS, "point3f[] points = [" + ", ".join(f"({float(x)!r}, {float(y)!r}, {float(z)!r})" for x, y, z in pts) + "]")
+    return text.replace("double warptube:density = 1050", "double warptube:density = 1050" + extra)
+
+
+def _folded(turn_deg: float) -> np.ndarray:
+    """11 points along +x, then 10 more turned by ``turn_deg`` at point 10 (1 cm apart)."""
+    a = np.radians(turn_deg)
+    first = np.stack([np.arange(11.0), np.zeros(11), np.zeros(11)], 1)
+    k = np.arange(1.0, 11.0)[:, None]
+    return np.concatenate([first, first[-1] + k * [np.cos(a), np.sin(a), 0.0]])
+
+
+def _messages(tmp_path, text, caplog) -> str:
+    (tmp_path / "s.usda").write_text(text)
+    with caplog.at_level("WARNING"):
+        load_scene(str(tmp_path / "s.usda"))
+    return " ".join(r.getMessage() for r in caplog.records)
+
+
+STRAIGHT = np.stack([np.arange(21.0), np.zeros(21), np.zeros(21)], 1)
+
+
+@pytest.mark.parametrize("case, text, words", [
+    # a fold of 170 degrees at one point: its discrete bending 1 / cos^2(85 deg) = 131.6x as stiff
+    ("fold 170", _with_points(_folded(170.0)), ["turns by 170 degrees at point 10", "132x stiffer"]),
+    ("fold 150", _with_points(_folded(150.0)), []),  # (15x: measured to settle within 0.05% of a fine step)
+    # points in metres in a centimetre stage: 0.2 cm long, 2 cm wide
+    ("points in metres", _with_points(STRAIGHT * 0.01), ["curve 0 is 0.002 m long and 0.02 m wide: shorter than its diameter"]),
+    # 1 km from the origin in cm: float32 steps of 1e5 x 2^-23 = 0.0119 cm, 1.2% of a 1 cm segment
+    ("far from the origin", _with_points(STRAIGHT + [1e5, 0.0, 0.0]), ["float32 points carry them in steps of 1.2% of a segment"]),
+    # the same tube placed there by its parent's transform (double precision): nothing to warn of
+    ("placed by a transform", _with_points(STRAIGHT).replace('def Xform "World"\n{', 'def Xform "World"\n{\n    double3 '
+     'xformOp:translate = (100000, 0, 0)\n    uniform token[] xformOpOrder = ["xformOp:translate"]'), []),
+    ("anchor on a pin", _with_points(STRAIGHT, "\n        int[] warptube:anchorPoints = [1, 10]\n        double "
+     "warptube:anchorStiffness = 5"), ["warptube:anchorPoints: point 1 is pinned: a returning spring on a pinned point does nothing"]),
+])  # fmt: skip
+def test_a_rest_shape_that_will_not_simulate_as_meant_is_warned_of(case, text, words, tmp_path, caplog):
+    said = _messages(tmp_path, text, caplog)
+    for w in words:
+        assert w in said, (case, w, said)
+    if not words:
+        for w in ("turns by", "shorter than its diameter", "float32 points", "a returning spring on a pinned"):
+            assert w not in said, (case, said)
+
+
+@pytest.mark.parametrize("name", ["default.usda", "cantilever.usda", "intestine.usda"])
+def test_the_example_scenes_get_no_shape_warning(name, caplog):
+    with caplog.at_level("WARNING"):
+        load_scene(str(SCENES / name))
+    said = " ".join(r.getMessage() for r in caplog.records)
+    for w in ("turns by", "shorter than its diameter", "float32 points", "a returning spring on a pinned"):
+        assert w not in said, (name, said)
