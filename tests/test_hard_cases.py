@@ -1,6 +1,8 @@
 """Hard cases for the semi-implicit integrator. Every case: the state stays finite, the energy
 stays bounded by the work the forces did, and one criterion of its own."""
 
+import re
+
 import numpy as np
 import pytest
 
@@ -144,6 +146,8 @@ def test_impulsive_huge_force_on_a_soft_tube_switches_auto_to_implicit():
         peak = max(peak, sim.max_displacement())
     print(f"soft tube, 1e6 N for one frame: peak {peak:.2f} m, after 6 s {sim.max_displacement():.1e} m; {sim.warnings}")
     assert sim.integrator == "implicitEuler" and any("switched to implicit" in w for w in sim.warnings)
+    # the summary's reason keeps the substeps the frames before the switch ran with
+    assert re.search(r"switched to implicitEuler at frame \d+ after a blow-up \(before: \d+ substeps a frame", sim.reason)
     assert peak > 10 * r and sim.max_displacement() < 0.01 * r
 
 

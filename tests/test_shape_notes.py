@@ -52,6 +52,10 @@ STRAIGHT = np.stack([np.arange(21.0), np.zeros(21), np.zeros(21)], 1)
     # the same tube placed there by its parent's transform (double precision): nothing to warn of
     ("placed by a transform", _with_points(STRAIGHT).replace('def Xform "World"\n{', 'def Xform "World"\n{\n    double3 '
      'xformOp:translate = (100000, 0, 0)\n    uniform token[] xformOpOrder = ["xformOp:translate"]'), []),
+    # both widths and primvars:widths, other values: USD takes the primvar; the other is said to be ignored
+    ("both widths", _with_points(STRAIGHT).replace('float[] widths = [2] (interpolation = "constant")', 'float[] widths = [2] '
+     '(interpolation = "constant")\n        float[] primvars:widths = [0.5] (interpolation = "constant")'),
+     ["primvars:widths: both authored, with other values than widths: primvars:widths is used"]),
     ("anchor on a pin", _with_points(STRAIGHT, "\n        int[] warptube:anchorPoints = [1, 10]\n        double "
      "warptube:anchorStiffness = 5"), ["warptube:anchorPoints: point 1 is pinned: a returning spring on a pinned point does nothing"]),
 ])  # fmt: skip
@@ -60,7 +64,7 @@ def test_a_rest_shape_that_will_not_simulate_as_meant_is_warned_of(case, text, w
     for w in words:
         assert w in said, (case, w, said)
     if not words:
-        for w in ("turns by", "shorter than its diameter", "float32 points", "a returning spring on a pinned"):
+        for w in ("turns by", "shorter than its diameter", "float32 points", "a returning spring on a pinned", "both authored"):
             assert w not in said, (case, said)
 
 

@@ -4,6 +4,8 @@ deflection otherwise, with nothing in the output to say why)."""
 
 import dataclasses
 
+import numpy as np
+
 import pytest
 
 from warp_tube import Simulation, load_scene
@@ -40,3 +42,62 @@ def test_notes_are_printed_in_the_summary():
                    reason="r", wall_time=0.1, max_displacement=0.0, notes=["n1"])  # fmt: skip
     assert "note         n1" in s.text().splitlines()
 
+
+
+def _forced(tmp_path, step: float):
+    """The default scene forced to semi-implicit Euler at ``step`` [s] (its bound: 1.74e-3 s at 168
+    substeps of a 24 fps frame, the summary's figure), pushed by 1e4 N (a blow-up past the bound)."""
+    text = (SCENES / "default.usda").read_text()
+    text = text.replace('token warptube:integrator = "auto"', f'token warptube:integrator = "semiImplicitEuler"\n        double warptube:timeStep = {step!r}')
+    text = text.replace("24: (0, 0.02, 0)", "24: (0, 1e4, 0)")
+    path = tmp_path / "forced.usda"
+    path.write_text(text)
+    return path
+
+
+def test_check_warns_of_a_time_step_beyond_the_stability_bound(tmp_path, capsys, caplog):
+    from warp_tube.cli import main
+
+    with caplog.at_level("WARNING"):
+        assert main(["check", str(_forced(tmp_path, 0.01))]) == 0
+    said = " ".join(r.getMessage() for r in caplog.records)
+    assert "timeStep 0.01 s exceeds the semi-implicit Euler stability bound" in said
+    caplog.clear()
+    with caplog.at_level("WARNING"):
+        assert main(["check", str(_forced(tmp_path, 1e-5))]) == 0  # within the bound: nothing
+    assert "exceeds the semi-implicit Euler stability bound" not in " ".join(r.getMessage() for r in caplog.records)
+
+
+def test_a_forced_integrator_that_fails_points_to_auto(tmp_path):
+    from warp_tube import NumericalError
+
+    sim = Simulation(load_scene(str(_forced(tmp_path, 0.01))), device="cpu", surface=False)
+    with pytest.raises(NumericalError) as err:
+        sim.run(frames=48)
+    assert 'warptube:integrator "auto" redoes a failed frame' in str(err.value)
+
+
+def test_strained_segment_on_exact_lengths():
+    from warp_tube.sim.notes import strained_segment
+
+    x = np.concatenate([[0.0], np.cumsum([1.0, 1.0, 2.5, 1.0])])
+    q = np.stack([x, 0 * x, 0 * x], 1)
+    rest = np.array([1.0, 1.0, 1.0, 1.0, 0.0])  # (the last node has no segment)
+    assert strained_segment(q, rest) == (2, 2.5)
+    x = np.concatenate([[0.0], np.cumsum([1.0, 0.4, 1.2, 1.0])])
+    assert strained_segment(np.stack([x, 0 * x, 0 * x], 1), rest) == (1, pytest.approx(0.4))  # compressed 2.5x
+    x = np.concatenate([[0.0], np.cumsum([1.0, 1.4, 0.72, 1.0])])
+    assert strained_segment(np.stack([x, 0 * x, 0 * x], 1), rest) is None  # within 1.5x either way
+
+
+@pytest.mark.parametrize("force, warned", [(31.4, True), (3.0, False)])
+def test_a_tube_stretched_past_small_strains_is_warned_of(force, warned):
+    """The default tube (radius 1 cm, E = 1e5 Pa: EA = 31.4 N) pulled along its axis at its free end
+    without the line: static strain F / EA (Hooke), 100% at 31.4 N (warned), 10% at 3 N (not: with
+    the dynamic overshoot at most 2x, 20%)."""
+    scene = load_scene(str(SCENES / "default.usda"))
+    push = dataclasses.replace(scene.forces[0], point=20, assistant_line=False,
+                               values=np.tile([force, 0.0, 0.0], (len(scene.forces[0].times), 1)))  # fmt: skip
+    sim = Simulation(dataclasses.replace(scene, forces=[push]), device="cpu", surface=False)
+    sim.run(frames=24)
+    assert any("its rest length: the springs are linear" in w for w in sim.warnings) == warned

@@ -217,6 +217,10 @@ def _cmd_check(a) -> int:
 
     s = load_scene(a.scene)
     n = sum(len(t.curve_counts) for t in s.tubes)
+    if s.settings.time_step is not None:  # a step the scene sets is checked against the stability bound
+        from .sim.simulation import Simulation
+
+        Simulation(s, device="cpu", surface=False)  # (warns where it exceeds the bound)
     print(f"{a.scene}: valid: {n} tube(s) in {len(s.tubes)} prim(s), {len(s.forces)} force(s), "
           f"{s.stage.frame_count} frames at {s.stage.time_codes_per_second:g} per second")  # fmt: skip
     return EXIT_OK

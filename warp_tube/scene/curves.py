@@ -70,6 +70,11 @@ def curve_widths(r, curves, counts: np.ndarray, time) -> np.ndarray:
                 i = int(np.argmax(bad))
                 r.fail("primvars:widths:indices", f"{indices[i]} at position {i}", f"indices 0..{len(values) - 1} into primvars:widths")
             values = np.asarray(values, dtype=np.float64)[indices]
+        plain = curves.GetWidthsAttr().Get(time) if curves.GetWidthsAttr().HasAuthoredValue() else None
+        if plain is not None and values is not None and not np.array_equal(np.asarray(plain, dtype=np.float64),
+                                                                           np.asarray(values, dtype=np.float64)):  # fmt: skip
+            log.warning("%s: both authored, with other values than widths: primvars:widths is used (USD's rule), widths "
+                        "ignored", r.where("primvars:widths"))  # fmt: skip
     elif curves.GetWidthsAttr().HasAuthoredValue():
         name, interpolation = "widths", curves.GetWidthsInterpolation()
         _check_array_type(r, name, curves.GetWidthsAttr())

@@ -29,3 +29,31 @@ def model_notes(scene, features, integrator: str) -> list[str]:
         notes.append("implicit Euler on a curved tube: under small loads it settles a few % short of the static "
                      "equilibrium, and it damps fast motion by itself (semiImplicitEuler for either)")  # fmt: skip
     return notes
+
+
+#: segments stretched beyond this factor of their rest length (or compressed below its inverse) are
+#: warned of: the springs are linear, which holds for small strains only
+STRAIN_FACTOR = 1.5
+
+
+def strained_segment(q: np.ndarray, seg_rest_length: np.ndarray) -> tuple[int, float] | None:
+    """The segment whose length is farthest beyond :data:`STRAIN_FACTOR` of its rest length, stretched
+    or compressed, or None.
+
+    Args:
+        q: one world's positions [m], (node, 3).
+        seg_rest_length: rest length of segment ``i`` (node ``i`` to ``i + 1``) [m], (node,), 0 where
+            no segment (a tube's last node).
+
+    Returns:
+        ``(i, length / rest length)`` or None.
+    """
+    rest = np.asarray(seg_rest_length, dtype=np.float64).reshape(-1)[: len(q) - 1]
+    if len(rest) == 0:
+        return None
+    ratio = np.ones(len(rest))
+    inside = rest > 0.0
+    ratio[inside] = np.linalg.norm(np.diff(q, axis=0)[inside], axis=1) / rest[inside]
+    off = np.maximum(ratio, 1.0 / np.maximum(ratio, 1e-300))
+    i = int(np.argmax(off))
+    return (i, float(ratio[i])) if off[i] > STRAIN_FACTOR else None

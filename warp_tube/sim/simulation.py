@@ -36,7 +36,7 @@ from .checks import FrameChecks
 from .control import FrameControl
 from .output import open_writer
 from .proximity import ContactMonitor
-from .notes import model_notes
+from .notes import model_notes, strained_segment
 from .summary import RunSummary
 
 log = logging.getLogger(__name__)
@@ -144,6 +144,7 @@ class Simulation(RunBudget):
         self._world_q = None  # one world's positions for the surface builders, (1, node_count)
         self._contacts = ContactMonitor(m.host.node_rest_q, m.host.node_radius, m.host.tube_node_start, device=self.device)
         self._contact_reported = False
+        self._strain_said = False  # (a segment strained beyond notes.STRAIN_FACTOR is warned of once a run)
         self.contact_frame: int | None = None
         self._retry = self.scene.settings.integrator == "auto"
         extent = max(float(np.ptp(t.points, axis=0).max()) for t in scene.tubes)
@@ -263,7 +264,8 @@ class Simulation(RunBudget):
         self._warn(msg)
         self.solver = ImplicitEulerSolver(self.model)
         self.integrator = "implicitEuler"
-        self.reason += "; switched to implicitEuler after a blow-up"
+        self.reason += (f"; switched to implicitEuler at frame {self.frame + 1} after a blow-up (before: {self.substeps} "
+                        f"substeps a frame, dt = {self.dt:.3g} s)")  # fmt: skip
         self.substeps = implicit_substeps(self.frame_dt)
         self.dt = self.frame_dt / self.substeps
         return True
@@ -278,6 +280,8 @@ class Simulation(RunBudget):
             hint = f" (substep {dt:.3g} s exceeds the stability bound {self.critical_dt:.3g} s)"
         elif factor > 1:
             hint = f" (after {factor}x the substeps)"
+        if self.scene.settings.integrator == "semiImplicitEuler":  # (auto would have redone the frame)
+            hint += "; warptube:integrator \"auto\" redoes a failed frame with more substeps, then with implicit Euler"
         return f"numerical failure at frame {self.frame + 1}: {failure.what} in {self._node_name(failure.node)}{hint}"
 
     def _report_contact(self):
@@ -539,7 +543,8 @@ class Simulation(RunBudget):
             summary.warnings = list(self.warnings)
             if self.retried_frames:
                 summary.warnings.append(
-                    f"{self.retried_frames} frame(s) blew up and were redone with up to {self.max_retry_factor}x the substeps"
+                    f"{self.retried_frames} frame(s) blew up and went through when redone with up to {self.max_retry_factor}x "
+                    "the substeps"
                 )
         return summary
 
@@ -547,7 +552,13 @@ class Simulation(RunBudget):
         """Count the frame just simulated in ``summary`` (frame 1's end closes the start-up)."""
         summary.frames_simulated += 1
         summary.substeps_simulated += substeps
-        summary.max_displacement = max(summary.max_displacement, self.max_displacement())
+        q = self.state.node_q.numpy()
+        summary.max_displacement = max(summary.max_displacement, float(np.linalg.norm(q - self.model.host.node_rest_q[None], axis=-1).max()))
+        strained = None if self._strain_said else strained_segment(q[0], np.atleast_2d(self.model.host.seg_rest_length)[0])
+        if strained is not None:
+            self._strain_said = True
+            self._warn(f"frame {self.frame}: the segment from {self._node_name(strained[0])} is {strained[1]:.3g}x its rest length: "
+                       "the springs are linear, which holds for small strains (results beyond about 50% are not physical)")  # fmt: skip
         if summary.frames_simulated == 1:
             summary.startup_time = time.perf_counter() - t0
             summary.startup_substeps = summary.substeps_simulated
