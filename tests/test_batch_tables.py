@@ -73,6 +73,27 @@ def test_decimal_commas_are_named_with_row_line_and_column(tmp_path, capsys):
     assert "row 1 (line 3): 2 cells for 1 columns: a decimal comma (1,5) or a thousands separator (1,000) splits a number" in err
 
 
+def test_an_unquoted_vector_or_array_cell_is_named_as_such_not_as_a_decimal_comma(tmp_path, capsys):
+    """Its pieces (``2,2`` inside ``[2,2,2,2]``) look like a number split by a decimal comma: the
+    message says to quote the cell, and gives it quoted."""
+    err = refused(tmp_path, capsys, b"/World/Tube.widths\n[2,2,2,2]\n")
+    assert 'row 0 (line 2): 4 cells for 1 columns: a vector or array cell must be quoted (its commas split it into cells): write "[2, 2, 2, 2]" in double quotes' in err
+    assert "decimal comma" not in err
+    err = refused(tmp_path, capsys, f"{E},{FORCE}\n1e5,(0, 2, 0)\n".encode())
+    assert 'write "(0, 2, 0)" in double quotes' in err and "decimal comma" not in err
+
+
+@pytest.mark.parametrize("first", ["", "Unnamed: 0"], ids=["empty", "unnamed"])
+def test_a_pandas_index_column_is_named_with_what_to_do(tmp_path, capsys, first):
+    """``df.to_csv(path)`` writes the index as a first column with an empty header (read back and
+    written again: ``Unnamed: 0``)."""
+    err = refused(tmp_path, capsys, f"{first},{E}\n0,1e5\n1,2e5\n".encode())
+    assert f"line 1, column 1 {first!r}: expected PRIM_PATH.ATTRIBUTE" in err
+    assert "a pandas index column? write the table with index=False" in err
+    err = refused(tmp_path, capsys, f"{E},Tube.density\n1e5,1050\n".encode())  # (not said of any other header)
+    assert "index=False" not in err
+
+
 def test_a_workbook_or_other_text_encoding_is_refused_with_what_to_do(tmp_path, capsys):
     book = tmp_path / "book.xlsx"
     with zipfile.ZipFile(book, "w") as z:
@@ -313,6 +334,16 @@ def test_frames_after_the_last_written_are_warned_of_as_run_does(tmp_path, capsy
     table.write_text(f"{E}\n1e5\n")
     assert batch(table, tmp_path / "out", "--every", "3", "--frames", "12") == 0
     assert "--every 3: frames 10 to 11 are simulated but not written (the last written is frame 9)" in capsys.readouterr().err
+
+
+def test_a_single_frame_after_the_last_written_is_said_as_one_frame(tmp_path, capsys):
+    """--every 3 --frames 11 writes frames 0, 3, 6, 9: frame 10 alone is simulated, not written
+    (not "frames 10 to 10 are")."""
+    table = tmp_path / "t.csv"
+    table.write_text(f"{E}\n1e5\n")
+    assert batch(table, tmp_path / "out", "--every", "3", "--frames", "11") == 0
+    err = capsys.readouterr().err
+    assert "--every 3: frame 10 is simulated but not written (the last written is frame 9)" in err and "10 to 10" not in err
     assert batch(table, tmp_path / "out4", "--every", "4", "--frames", "9") == 0
     assert "not written" not in capsys.readouterr().err  # (frame 8, the last, is written)
 

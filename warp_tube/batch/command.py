@@ -31,7 +31,7 @@ def add_parser(sub) -> None:
     b.add_argument("--chunk", type=int, help="variants per chunk (default 1024 on the CPU, 4096 on a GPU)")
     b.add_argument("--scheduler", metavar="ADDRESS", help="run the chunks on this Dask distributed scheduler")
     b.add_argument("--resume", action="store_true", help="go on with the unfinished batch in DIR")
-    b.add_argument("--quiet", action="store_true", help="no progress bars, no summary")
+    b.add_argument("--quiet", action="store_true", help="no progress (bars, or lines in a log), no summary")
 
 
 def run(a) -> int:
@@ -40,6 +40,8 @@ def run(a) -> int:
 
     from ..scene.spec import SceneError
     from ..runtime.interrupts import exit_status, stopped_by
+    from ..runtime.progress import stderr_is_terminal
+    from .progress import LINES
     from .cluster import SchedulerLost
     from .run import BatchInterrupted, run_batch
 
@@ -48,12 +50,13 @@ def run(a) -> int:
     if a.no_surface and a.layout == "arrays":
         raise SceneError("--no-surface: only with --layout files or grid (arrays write surface.npy with --surface-arrays)")
     surface = a.surface_arrays if a.layout == "arrays" else not a.no_surface
-    tty = sys.stderr.isatty() and not a.quiet
+    # On a terminal progress bars; elsewhere (a log file) a plain line every 30 s, as run writes; none with --quiet.
+    progress = False if a.quiet else (True if stderr_is_terminal() else LINES)
     try:
         result = run_batch(
             a.scene, a.output, a.variants, variant_sets=a.variant_sets, layout=a.layout, every=a.every,
             frames=a.frames, surface=surface, device=a.device, workers=a.workers, writers=a.writers, chunk=a.chunk,
-            scheduler=a.scheduler, resume=a.resume, progress=tty,
+            scheduler=a.scheduler, resume=a.resume, progress=progress,
         )  # fmt: skip
     except BatchInterrupted as e:
         if not a.quiet:

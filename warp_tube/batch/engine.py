@@ -22,6 +22,7 @@ Output arrays (stage units, float32), for ``F`` written frames and ``W`` worlds:
 from __future__ import annotations
 
 import concurrent.futures as cf
+import math
 import time
 from dataclasses import dataclass, field
 
@@ -73,7 +74,8 @@ class ChunkRun:
             max_displacement_m, tip (the first tube's last point at the end, stage units, (3,)),
             kinetic_energy_J (at the end), work_J (of the forces and gravity, in all),
             contact_frame (the first frame at whose end distant parts of its tubes overlapped, or
-            "": :mod:`warp_tube.batch.contacts`).
+            "": :mod:`warp_tube.batch.contacts`); a failed variant's max_displacement_m, tip,
+            kinetic_energy_J and work_J are NaN (its frames and frames_simulated say how far it got).
         timings: seconds spent building, in the kernels (the device's own time), queueing
             them (``launch_s``: the host's time on a GPU; on the CPU the launches are the
             kernels' time), waiting for them (``sync_s``), copying the end state back and making
@@ -311,7 +313,10 @@ def _run_alone(scene: Scene, w: int, device: str, frames: int, every: int, surfa
     if sim.warnings:
         note += "; " + "; ".join(sim.warnings)
     # work_J: what Simulation's own checks counted over the frames it kept
+    results = dict(max_displacement_m=float(max_disp), tip=(q[0, tip] / mpu).astype(np.float64).tolist(), kinetic_energy_J=ke,
+                   work_J=float(sim.checks.work.sum()))  # fmt: skip
+    if reason:  # no result: NaN, not the last finished frame's values (at rest, where frame 1 failed), which read as one
+        results = dict(max_displacement_m=math.nan, tip=[math.nan] * 3, kinetic_energy_J=math.nan, work_J=math.nan)
     return dict(status="failed" if reason else "ok", reason=reason or note, frames=written,
                 frames_simulated=simulated, integrator=sim.integrator, substeps=sim.substeps, rerun=True,
-                max_displacement_m=float(max_disp), tip=(q[0, tip] / mpu).astype(np.float64).tolist(), kinetic_energy_J=ke,
-                work_J=float(sim.checks.work.sum()), contact_frame="" if sim.contact_frame is None else sim.contact_frame)  # fmt: skip
+                **results, contact_frame="" if sim.contact_frame is None else sim.contact_frame)  # fmt: skip

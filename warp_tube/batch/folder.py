@@ -29,7 +29,8 @@ __all__ = ["BATCH_FILES", "OUTPUT_NAME", "check_out_dir", "check_inputs_not_outp
            "scene_dependencies", "scene_files", "outputs_kept", "remove_stray_partials", "buffer_folder"]
 
 #: files a batch writes into its folder (an existing one means a batch is there already)
-BATCH_FILES = ("summary.csv", "centerline.npy", "surface.npy", "arrays.json", "grid.usda", ".batch-finished.json")
+BATCH_FILES = ("summary.csv", "centerline.npy", "surface.npy", "surface_faces.npy", "arrays.json", "grid.usda",
+               ".batch-finished.json")
 #: names of the files a batch writes there, besides those
 OUTPUT_NAME = re.compile(r"^(?:variant_\d+(?:\.partial(?:-\d+)?)?\.usdc|\.batch.*)$")
 

@@ -18,7 +18,8 @@ Layouts (``DIR`` is the batch's output folder):
   memory-mappable (``np.load(..., mmap_mode="r")``); with ``--surface-arrays`` also
   ``DIR/surface.npy``, (variants, frames, vertices, 3); a variant with fewer points or vertices
   than the largest is padded with NaN, and frames a failed variant did not reach are NaN.
-  ``DIR/arrays.json`` says what the axes are.
+  ``DIR/arrays.json`` says what the axes are, and gives the stage's units, up axis and rates;
+  with the surface, ``DIR/surface_faces.npy`` holds its triangles.
 
 Always ``DIR/summary.csv``: one row per variant (batch order) with its parameters, status,
 largest displacement, final tip, energy and output.
@@ -42,7 +43,7 @@ import numpy as np
 from ..scene.spec import Scene
 from .rows import Rows
 
-__all__ = ["OutputSpec", "WriteTask", "write", "check_batch_fits", "surface_topology", "grid_offset", "grid_offsets", "output_spec", "write_summary", "summary_lines", "SUMMARY_FIELDS",
+__all__ = ["OutputSpec", "WriteTask", "write", "check_batch_fits", "surface_topology", "surface_faces", "grid_offset", "grid_offsets", "output_spec", "write_summary", "summary_lines", "SUMMARY_FIELDS",
            "prepare_arrays", "finish_arrays", "write_grid_root", "LAYOUTS"]  # fmt: skip
 
 LAYOUTS = ("files", "grid", "arrays")
@@ -292,23 +293,68 @@ def _write_arrays(task: WriteTask, arrays: dict) -> list[str]:
 
 
 def finish_arrays(spec: OutputSpec, order: list[int], names: list[str], point_counts: list[int],
-                  vertex_counts: list[int]) -> None:  # fmt: skip
-    """Move the complete arrays into the batch folder and describe them in ``arrays.json``."""
+                  vertex_counts: list[int], stage_info=None, scenes=None) -> None:  # fmt: skip
+    """Move the complete arrays into the batch folder and describe them in ``arrays.json`` (with
+    the stage's units, up axis and rates from ``stage_info``, a
+    :class:`~warp_tube.scene.spec.StageInfo`); with the surface, write the triangles of the
+    variants' surfaces (``scenes``, batch order) in ``surface_faces.npy`` (:func:`surface_faces`)."""
     meta = {
         "centerline.npy": "float32 (variants, frames, points, 3): centerline points [stage units], prims and curves "
                           "in scene order; NaN past a variant's points and in frames a failed variant did not reach",
         "variants": names, "points": point_counts, "time_codes": list(spec.time_codes),
     }  # fmt: skip
+    if stage_info is not None:  # what the arrays' numbers mean: stage units in metres, the up axis, time codes in seconds
+        meta.update(metersPerUnit=stage_info.meters_per_unit, upAxis=stage_info.up_axis.upper(),
+                    timeCodesPerSecond=stage_info.time_codes_per_second, framesPerSecond=stage_info.frames_per_second)  # fmt: skip
+    faces = None
     if spec.surface:
         meta["surface.npy"] = ("float32 (variants, frames, vertices, 3): surface vertices [stage units], hub-major as in "
                                "the USD Surface; NaN past a variant's vertices")  # fmt: skip
         meta["vertices"] = vertex_counts
+        if scenes is not None:
+            faces, topology, counts = surface_faces(scenes)
+            meta["surface_faces.npy"] = ("int32 (topologies, faces, 3): the surface's triangles, as indices into a variant's "
+                                         "vertices in surface.npy; variant k's are surface_faces[topology[k], :faces[topology[k]]] "
+                                         "(-1 past them)")  # fmt: skip
+            meta["faces"], meta["topology"] = counts, topology
     # one key a line, each value from the C encoder (indent= encodes in Python: slow for long lists)
     text = "{\n" + ",\n".join(f" {json.dumps(k)}: {json.dumps(v)}" for k, v in meta.items()) + "\n}\n"
+    if faces is not None:
+        tmp = os.path.join(spec.work_dir, "surface_faces.npy")
+        np.save(tmp, faces)
+        os.replace(tmp, os.path.join(spec.out_dir, "surface_faces.npy"))
     _atomic_text(os.path.join(spec.out_dir, "arrays.json"), text)
     for name, on in (("centerline", True), ("surface", spec.surface)):
         if on:
             os.replace(os.path.join(spec.work_dir, f"{name}.npy"), os.path.join(spec.out_dir, f"{name}.npy"))
+
+
+def surface_faces(scenes) -> tuple[np.ndarray, list[int], list[int]]:
+    """The triangles of the variants' surfaces, as ``surface.npy`` holds their vertices (every tube
+    prim's, in scene order): ``(faces, topology, counts)``, ``faces`` int32 (topologies, most
+    faces, 3) with one row per distinct triangulation (variants of other point counts, spokes or
+    caps have their own), padded with -1; ``topology`` each variant's row; ``counts`` each row's
+    triangles."""
+    memo: dict = {}  # the prims' topologies by identity (a batch's variants share them) -> row
+    rows: dict = {}  # a triangulation's bytes -> row
+    tables, topology = [], []
+    for scene in scenes:
+        topos = tuple(surface_topology(t) for t in scene.tubes)
+        key = tuple(map(id, topos))
+        hit = memo.get(key)
+        if hit is None:
+            offsets = np.concatenate([[0], np.cumsum([t.vertex_count for t in topos])])
+            tri = np.concatenate([t.faces + int(o) for t, o in zip(topos, offsets)]).astype(np.int32)
+            row = rows.setdefault(tri.tobytes(), len(tables))
+            if row == len(tables):
+                tables.append(tri)
+            hit = memo[key] = (topos, row)  # (the topologies kept: their ids stay theirs)
+        topology.append(hit[1])
+    counts = [len(t) for t in tables]
+    faces = np.full((len(tables), max(counts, default=0), 3), -1, dtype=np.int32)
+    for k, t in enumerate(tables):
+        faces[k, : len(t)] = t
+    return faces, topology, counts
 
 
 def grid_offset(spec: OutputSpec, index: int, cell: float, centre=(0.0, 0.0, 0.0)) -> tuple[float, float, float]:

@@ -19,6 +19,7 @@ import numpy as np
 from ..extract.hook import mesh_prim_tube
 from ..runtime.collector import collector_paused
 from ..scene.spec import SceneError
+from .main_module import may_start_processes
 from .writer_pool import children_deaf_to_ctrl_c, ignore_sigint, spawn_context, terminate_pool
 from .plan import run_choice, run_choices
 
@@ -104,8 +105,8 @@ def _prepare_batch(scene, table, variant_sets, bar, pool, pool_size, keep_nodes)
         warn_forced(variants, choices)
         return variants, choices, keep
 
-    if parts < 2:
-        return read_here()
+    if parts < 2 or (pool is None and not may_start_processes("reader", False, refuse=False)):
+        return read_here()  # (a script on stdin, or one calling the batch unguarded: read here)
     from ..scene.usd import open_stage
 
     open_stage(scene)  # a missing or unreadable scene: one message, before any process starts

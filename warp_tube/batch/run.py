@@ -39,6 +39,7 @@ from ..runtime.replay import SIM_LOCK, holding
 from ..scene.spec import SceneError
 from ..scene.usd import MAX_FRAMES
 from ..sim.budget import whole_number
+from ..sim.output import unwritten_frames
 from .engine import TIMERS, output_frames
 from .bookkeeping import PROCESS_VARIANTS, Bookkeeper
 from .recorder import Recorder
@@ -49,6 +50,7 @@ from .folder import (check_inputs_not_outputs, check_out_dir, named_files, named
 from .writer_pool import INLINE_WRITE_S, Writers, inline_write_seconds, writer_count
 from .journal import Journal, file_digest
 from .lock import BatchLock
+from .main_module import may_start_processes
 from .outputs import (LAYOUTS, OutputSpec, check_batch_fits, finish_arrays, grid_offsets, output_spec, prepare_arrays,
                       surface_topology, write_grid_root, write_summary)  # fmt: skip
 from .plan import by_identity, group_key, plain_group_keys, plan_chunks
@@ -214,7 +216,7 @@ def _device_list(devices: list[str]) -> str:
 def run_batch(scene: str, out_dir: str, table: str | None = None, *, variant_sets: str | list[str] | None = None,
               layout: str = "files", every: int = 1, frames: int | None = None, surface: bool | None = None,
               device: str | None = None, workers: int | None = None, writers: int | None = None,
-              chunk: int | None = None, scheduler: str | None = None, resume: bool = False, progress: bool = False,
+              chunk: int | None = None, scheduler: str | None = None, resume: bool = False, progress: bool | str = False,
               on_chunk=None) -> BatchResult:  # fmt: skip
     """Run a batch (see the module docstring and README, "Batch").
 
@@ -240,7 +242,8 @@ def run_batch(scene: str, out_dir: str, table: str | None = None, *, variant_set
             fewer so that every worker gets two chunks).
         scheduler: a Dask scheduler address, to run the chunks on a Dask cluster.
         resume: go on with the unfinished batch in ``out_dir``.
-        progress: show progress bars.
+        progress: True: progress bars (a terminal); ``"lines"``: a plain line every 30 s with the
+            variant-frames and variants done and the time left (a log file); False: none.
         on_chunk: called with each chunk's id when it is finished (recorded).
 
     Returns:
@@ -315,6 +318,8 @@ def _batch(scene, out_dir, table, late: list, *, variant_sets, layout, every, fr
                               + [("a file the table names", p) for p in named.values()])  # fmt: skip
     check_out_dir(out_dir, resume)
     devices = _devices(device, workers, scheduler, _default_cpu_workers(layout, tab))
+    if len(devices) > 1 and not scheduler and not may_start_processes("worker", workers is not None):
+        devices = devices[:1]  # (a script on stdin: simulated in this process)
     sims = 0 if scheduler else len(devices)
     sim_workers = SimWorkers(devices) if sims > 1 else None  # up while the variants are read
     lock = BatchLock(out_dir)
@@ -336,6 +341,8 @@ def _batch_pools(scene, out_dir, table, tab, devices, sim_workers, t_start, lock
         # A small batch of USD outputs: whether its writing is worth starting processes for is
         # decided once its size is known (a large table's writers start now, while it is read).
         deferred = count if count and writers is None and layout != "arrays" and (tab is None or len(tab.rows) < DEFER_ROWS) else 0
+        if count and not deferred and layout != "arrays" and not may_start_processes("writer", writers is not None):
+            count = 0  # (a script on stdin: written in this process)
         writer_pool = Writers(layout, 0 if deferred else count)
         if tab is not None and len(tab.rows) >= PROCESS_VARIANTS:
             recorder = Recorder()  # (starting while the variants are read)
@@ -414,8 +421,7 @@ def _run_batch(scene, out_dir, table, tab, devices, writer_pool, sim_workers, t_
     if len(F_idx) == 1 and n_frames > 1:
         log.warning("--every %d: of frames 0 to %d only frame 0 is written", every, n_frames - 1)
     elif F_idx[-1] < n_frames - 1:  # as warp-tube run says it
-        log.warning("--every %d: frames %d to %d are simulated but not written (the last written is frame %d)",
-                    every, F_idx[-1] + 1, n_frames - 1, F_idx[-1])  # fmt: skip
+        log.warning("--every %d: %s", every, unwritten_frames(F_idx[-1] + 1, n_frames - 1, F_idx[-1]))
     result = BatchResult(out_dir=out_dir, variants=len(variants), groups=len({c.group for c in plan}), chunks=len(plan),
                          devices=devices if devices != ["dask"] else [f"dask {scheduler}"], frames=len(F_idx))  # fmt: skip
     with collector_paused(freeze=True):  # per variant its points and vertices
@@ -423,7 +429,8 @@ def _run_batch(scene, out_dir, table, tab, devices, writer_pool, sim_workers, t_
     spec = output_spec(variants, counts, layout, out_dir, journal.dir, surface, time_codes)
     if not resume:
         check_batch_fits(spec, counts, chunk)
-    if deferred and inline_write_seconds(len(variants), len(F_idx), spec.points, spec.vertices) >= INLINE_WRITE_S:
+    if deferred and inline_write_seconds(len(variants), len(F_idx), spec.points, spec.vertices) >= INLINE_WRITE_S \
+            and may_start_processes("writer", False):  # fmt: skip
         writer_pool.start(deferred)  # (else it is written here: less than the processes' start)
     result.prepare_s = time.perf_counter() - t_start
 
@@ -576,7 +583,8 @@ def _finish_outputs(spec: OutputSpec, variants, counts: list, records: dict, fir
     if index != list(range(len(vs))):
         raise RuntimeError(f"the batch's records hold {len(index)} variants, not each of its {len(vs)} once")
     if spec.layout == "arrays":
-        finish_arrays(spec, index, [v.name for v in vs], *_columns(counts, spec.surface))
+        scenes = ([vs[0].scene] * len(vs) if variants.plain else [v.scene for v in vs]) if spec.surface else None
+        finish_arrays(spec, index, [v.name for v in vs], *_columns(counts, spec.surface), first_scene.stage, scenes)
     if spec.layout == "grid":
         layers = [records[c]["layer"] for c in sorted(records) if records[c]["layer"]]
         shown = [i for i, o in enumerate(cols["output"]) if o]  # (a failed variant's finished frames included)

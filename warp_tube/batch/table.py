@@ -31,6 +31,8 @@ _PRIM_PATH = re.compile(r"^/(?:[A-Za-z_][A-Za-z0-9_]*)(?:/[A-Za-z_][A-Za-z0-9_]*
 _ATTRIBUTE = re.compile(r"^[A-Za-z_][A-Za-z0-9_]*(?::[A-Za-z_][A-Za-z0-9_]*)*$")
 _DIGITS = re.compile(r"^[-+]?\d+$")
 _FRACTION = re.compile(r"^\d+(?:[eE][-+]?\d+)?$")
+#: a column pandas names for an unnamed one (its index, written by ``to_csv()`` and read back)
+_UNNAMED = re.compile(r"^Unnamed: \d+$")
 #: file signatures of spreadsheet workbooks (zip: .xlsx, .ods; OLE2: .xls)
 _WORKBOOKS = (b"PK\x03\x04", b"\xd0\xcf\x11\xe0\xa1\xb1\x1a\xe1")
 #: the longest cell read (the csv module's process-wide limit is raised to it)
@@ -101,9 +103,11 @@ def _column(path: str, line: int, k: int, cell: str) -> Column:
     body = text[1:].strip() if files else text
     prim, dot, attr = body.rpartition(".")
     if not dot or not _PRIM_PATH.match(prim) or not _ATTRIBUTE.match(attr):
+        index = (k == 0 and not text) or _UNNAMED.match(text)
+        hint = ": a pandas index column? write the table with index=False (df.to_csv(path, index=False))" if index else ""
         raise SceneError(
             f"{path}: line {line}, column {k + 1} {cell!r}: expected PRIM_PATH.ATTRIBUTE, e.g. "
-            "/World/Tube.warptube:youngsModulus (or @PRIM_PATH.ATTRIBUTE for a column of file names)"
+            f"/World/Tube.warptube:youngsModulus (or @PRIM_PATH.ATTRIBUTE for a column of file names){hint}"
         )
     return Column(header=text, prim=prim, attribute=attr, files=files)
 
@@ -136,11 +140,22 @@ def _separator(text: str) -> str:
 
 
 def _hint(row: list[str], columns: int, separator: str) -> str:
-    """Why a row has more cells than the header, where it can be told."""
-    if separator == "," and any(_DIGITS.match(a.strip()) and _FRACTION.match(b.strip()) for a, b in zip(row, row[1:])):
+    """Why a row has more cells than the header, where it can be told: a vector or array cell
+    split at its commas (a piece starting with ``(`` or ``[``; named first, as its pieces may look
+    like a number split by a decimal comma), or a decimal comma or thousands separator."""
+    cells = [c.strip() for c in row]
+    opened = next((k for k, c in enumerate(cells) if c[:1] in ("(", "[")), None)
+    if opened is not None:
+        closed = next((k for k in range(opened, len(cells)) if cells[k][-1:] in (")", "]")), None)
+        if closed is not None and closed > opened:
+            whole = (", " if separator == "," else separator).join(cells[opened : closed + 1])
+            what = "commas" if separator == "," else f"{separator!r} separators"
+            return f': a vector or array cell must be quoted (its {what} split it into cells): write "{whole}" in double quotes'
+        return ': a vector or array cell must be quoted, e.g. "(0, 0.02, 0)" (in double quotes)'
+    if separator == "," and any(_DIGITS.match(a) and _FRACTION.match(b) for a, b in zip(cells, cells[1:])):
         return ": a decimal comma (1,5) or a thousands separator (1,000) splits a number: write 1.5, 1000"
-    if any(c.strip()[:1] in "([" or c.strip()[-1:] in ")]" for c in row):
-        return ': a vector or array holds commas, so quote its cell, e.g. "(0, 0.02, 0)"'
+    if any(c[-1:] in (")", "]") for c in cells):
+        return ': a vector or array cell must be quoted, e.g. "(0, 0.02, 0)" (in double quotes)'
     return ""
 
 

@@ -142,14 +142,20 @@ class PlainProgress:
         interval: seconds between two lines [s] (default :data:`PLAIN_INTERVAL`).
         stream: where to write (default: ``sys.stderr`` at each line).
         clock: the time [s] (``time.monotonic``; a test may give its own).
+        what: what is counted, after ``warp-tube:`` (a batch: ``batch``).
+        unit: what ``done`` and ``total`` count (a batch: ``variant-frames``).
     """
 
-    def __init__(self, interval: float | None = None, stream=None, clock=time.monotonic):
+    def __init__(self, interval: float | None = None, stream=None, clock=time.monotonic, what: str = "simulating",
+                 unit: str = "frames"):  # fmt: skip
         self.interval = PLAIN_INTERVAL if interval is None else interval
         self.stream, self.clock = stream, clock
+        self.what, self.unit = what, unit
         self._t0 = self._first = self._last = None
 
-    def __call__(self, done: int, total: int) -> None:
+    def __call__(self, done: int, total: int, note: str = "") -> None:
+        """Count ``done`` of ``total``; ``note`` (e.g. ``3 of 16 variants written``) follows the
+        percentage in a line."""
         now = self.clock()
         if self._t0 is None:
             self._t0, self._first, self._last = now, done, now
@@ -159,5 +165,6 @@ class PlainProgress:
         self._last = now
         rate = (done - self._first) / (now - self._t0) if now > self._t0 else 0.0
         left = f", about {format_seconds((total - done) / rate)} left" if rate > 0 else ""
-        print(f"warp-tube: simulating: {done:,} of {total:,} frames ({100 * done // max(total, 1)}%), "
+        note = f", {note}" if note else ""
+        print(f"warp-tube: {self.what}: {done:,} of {total:,} {self.unit} ({100 * done // max(total, 1)}%){note}, "
               f"{format_seconds(now - self._t0)} so far{left}", file=self.stream or sys.stderr, flush=True)  # fmt: skip

@@ -20,7 +20,7 @@ from typing import Callable
 
 from ..scene.spec import SceneError
 
-__all__ = ["register_writer", "open_writer", "writer_suffixes"]
+__all__ = ["register_writer", "open_writer", "writer_suffixes", "frame_range", "unwritten_frames"]
 
 _WRITERS: dict[str, Callable] = {}
 
@@ -48,3 +48,15 @@ def open_writer(path, scene, surfaces, **kwargs):
         known = ", ".join(writer_suffixes()) or "a registered writer's (import warp_tube.io)"
         raise SceneError(f"{path}: output extension {suffix or '(none)'}: expected {known}")
     return factory(path, scene, surfaces, **kwargs)
+
+
+def frame_range(first: int, last: int) -> str:
+    """``frame 7`` or ``frames 7 to 9``: frames ``first`` to ``last`` (included), in words."""
+    return f"frame {first}" if first == last else f"frames {first} to {last}"
+
+
+def unwritten_frames(first: int, last: int, last_written: int) -> str:
+    """What ``--every K`` leaves out at the end of a run: ``frame 19 is simulated but not written
+    (the last written is frame 18)``, ``frames 18 to 19 are ...`` for several."""
+    verb = "is" if first == last else "are"
+    return f"{frame_range(first, last)} {verb} simulated but not written (the last written is frame {last_written})"

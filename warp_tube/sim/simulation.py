@@ -34,7 +34,7 @@ from ..scene.spec import Scene, SceneError
 from .budget import CPU_SEMI_STEP_COST, LARGE_OUTPUT_BYTES, LONG_RUN_SECONDS, OUTPUT_MEMORY_FACTOR, RunBudget, check_world_count, whole_number  # noqa: F401 (re-exported)
 from .checks import FrameChecks
 from .control import FrameControl
-from .output import open_writer
+from .output import frame_range, open_writer, unwritten_frames
 from .proximity import ContactMonitor
 from .notes import model_notes, strained_segment
 from .summary import RunSummary
@@ -436,7 +436,8 @@ class Simulation(RunBudget):
         written_count = max(0, (end - 1 - first_written) // every + 1)
         writer = None
         if output and not written_count:
-            raise SceneError(f"every {every}: none of frames {first} to {end - 1} is a multiple of it: nothing to write")
+            which = f"none of {frame_range(first, end - 1)} is" if end - 1 > first else f"frame {first} is not"
+            raise SceneError(f"every {every}: {which} a multiple of it: nothing to write")
         if output and written_count == 1 and end - first > 1:
             self._warn(f"every {every}: of frames {first} to {end - 1} only frame {first_written} is written")
         # (frames simulated after the last one written are said at the end: a run may stop before them)
@@ -536,8 +537,7 @@ class Simulation(RunBudget):
             if writer and not writer.closed:
                 writer.abort()
             if last_due is not None and self.frame > last_due:
-                self._warn(f"every {every}: frames {last_due + 1} to {self.frame} are simulated but not written (the last "
-                           f"written is frame {last_due})")  # fmt: skip
+                self._warn(f"every {every}: {unwritten_frames(last_due + 1, self.frame, last_due)}")
             summary.integrator, summary.reason = self.integrator, self.reason
             summary.substeps, summary.dt = self.substeps, self.dt
             summary.warnings = list(self.warnings)
