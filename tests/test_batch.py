@@ -229,7 +229,7 @@ def test_failed_variant_is_marked_and_the_others_go_on(tmp_path):
     # no result for the failed one: NaN (not the last finished frame's, the rest state where frame 1 failed)
     import math
 
-    results = ("max_displacement_m", "tip_x", "tip_y", "tip_z", "kinetic_energy_J", "work_J")
+    results = ("max_displacement_m", "tip_x", "tip_y", "tip_z", "kinetic_energy_J", "work_J", "max_stretch")
     assert all(math.isnan(float(rows[1][k])) for k in results), rows[1]
     assert all(math.isfinite(float(rows[k][f])) for k in (0, 2) for f in results)
     assert sorted(p.name for p in out.iterdir()) == [".batch-finished.json", "summary.csv", "variant_00000.usdc",

@@ -200,3 +200,31 @@ def test_plain_variants_take_the_shortcuts_to_the_same_choices_and_keys(tmp_path
     other = tmp_path / "other.csv"
     other.write_text("/World/Bowel.warptube:spokes\n8\n12\n")
     assert not collect_variants(str(SCENE), read_table(str(other)))[0].plain
+
+
+@pytest.mark.parametrize("text, type_name, why", [
+    ("1e5)", "double", "do not balance"), ("(((1e5", "double", "do not balance"), ("((1e5))", "double", "nested 2 deep"),
+    ("[1e5]", "double", "nested 1 deep"), ("\u0661\u0662\u0663", "double", "other than ASCII"),  # Arabic-Indic 123
+    ("[0,", "int[]", "do not balance"), ("[[0]]", "int[]", "nested 2 deep"), ("[(0,0,0)]", "float3", "nested 2 deep"),
+    ("((0, 0, 0)", "float3", "do not balance"), ("(0, 0, 0))", "float3", "do not balance"), ("(0, 0, 0]", "float3", "do not balance"),
+])  # fmt: skip
+def test_a_cell_whose_brackets_do_not_fit_its_type_is_refused(text, type_name, why):
+    """Brackets and separators split a cell into numbers; a cell whose brackets do not balance or
+    nest deeper than its type (a scalar: none; a vector or an array: one pair; an array of vectors:
+    two) was read as its numbers alone (``1e5)`` as 1e5). Both parsers refuse it (the plain one
+    leaves it to the general one)."""
+    from warp_tube.batch.values import parse_plain, parse_plain_column, parse_value
+
+    with pytest.raises(ValueError, match=why):
+        parse_value(text, type_name)
+    assert parse_plain(text, type_name) is None
+    if type_name in ("double", "float3"):
+        assert parse_plain_column(["1" if type_name == "double" else "(1, 2, 3)", text], type_name) is None
+
+
+def test_a_long_cell_is_shown_cut_in_its_message():
+    from warp_tube.batch.values import parse_value
+
+    with pytest.raises(ValueError) as err:
+        parse_value("x" * 1_000_000, "double")
+    assert len(str(err.value)) < 400 and "(1,000,000 characters)" in str(err.value)

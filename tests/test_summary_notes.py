@@ -101,3 +101,37 @@ def test_a_tube_stretched_past_small_strains_is_warned_of(force, warned):
     sim = Simulation(dataclasses.replace(scene, forces=[push]), device="cpu", surface=False)
     sim.run(frames=24)
     assert any("its rest length: the springs are linear" in w for w in sim.warnings) == warned
+
+
+def test_stretch_on_exact_lengths():
+    from warp_tube.sim.notes import stretch
+
+    x = np.concatenate([[0.0], np.cumsum([1.0, 2.0, 1.0])])
+    y = np.concatenate([[0.0], np.cumsum([1.0, 0.25, 1.0])])
+    q = np.stack([np.stack([x, 0 * x, 0 * x], 1), np.stack([y, 0 * y, 0 * y], 1)])  # two worlds
+    rest = np.array([[1.0, 1.0, 1.0, 0.0]])  # shared by the worlds; the last node has no segment
+    np.testing.assert_allclose(stretch(q, rest), [2.0, 4.0])  # stretched 2x; compressed to a quarter
+
+
+def test_a_batchs_max_stretch_is_its_last_frames_own(tmp_path):
+    """summary.csv's max_stretch against the same figure computed from the batch's own centerline
+    arrays at the last frame (stage units, the scene's rest lengths): the default tube pulled along
+    its axis at its tip, without its line, by 3 N and by 31.4 N (EA = 31.4 N: about 2x near rest)."""
+    import csv
+
+    from warp_tube.batch import run_batch
+
+    from .test_batch import DEFAULT, FORCE, write_table
+
+    table = write_table(tmp_path / "t.csv", [FORCE, "/World/Push.warptube:point", "/World/Push.warptube:assistantLine"],
+                        [("(3, 0, 0)", "20", "false"), ("(31.4, 0, 0)", "20", "false")])  # fmt: skip
+    out = tmp_path / "out"
+    assert run_batch(str(DEFAULT), str(out), str(table), layout="arrays", frames=48, device="cpu", writers=0).ok == 2
+    with open(out / "summary.csv") as f:
+        got = [float(r["max_stretch"]) for r in csv.DictReader(f)]
+    last = np.load(out / "centerline.npy")[:, -1].astype(np.float64)  # (variants, points, 3), stage units
+    rest = np.linalg.norm(np.diff(np.load(out / "centerline.npy")[:, 0].astype(np.float64), axis=1), axis=-1)
+    ratio = np.linalg.norm(np.diff(last, axis=1), axis=-1) / rest
+    expected = np.maximum(ratio, 1.0 / ratio).max(axis=1)
+    np.testing.assert_allclose(got, expected, rtol=1e-5)  # (float32 positions: ~1e-7 of a length)
+    assert got[0] < 1.5 < 1.8 < got[1]  # 10% strain, about 100%

@@ -32,6 +32,7 @@ import warp as wp
 from ..runtime.interrupts import raise_if_interrupted
 from ..scene.spec import Scene
 from ..sim.checks import wait_for_stream
+from ..sim.notes import stretch
 from .checks import WorldChecks
 from .clock import DeviceClock
 from .contacts import WorldContacts
@@ -218,7 +219,8 @@ def simulate_chunk(scenes: list[Scene], choice: RunChoice, device: str, frames: 
     rows = Rows(dict(status=["ok"] * W, reason=[""] * W, frames=frames_written.tolist(), frames_simulated=frames_simulated.tolist(),
                      integrator=[choice.integrator] * W, substeps=[choice.substeps] * W, rerun=[False] * W,
                      max_displacement_m=max_disp.tolist(), tip=tips, kinetic_energy_J=np.asarray(ke, dtype=np.float64).tolist(),
-                     work_J=np.asarray(checks.work, dtype=np.float64).tolist(), contact_frame=touched))  # fmt: skip
+                     work_J=np.asarray(checks.work, dtype=np.float64).tolist(), contact_frame=touched,
+                     max_stretch=stretch(q, m.host.seg_rest_length).tolist()))  # fmt: skip
     timings["readback_s"] += time.perf_counter() - t
     t = time.perf_counter()
     if failed:
@@ -314,9 +316,10 @@ def _run_alone(scene: Scene, w: int, device: str, frames: int, every: int, surfa
         note += "; " + "; ".join(sim.warnings)
     # work_J: what Simulation's own checks counted over the frames it kept
     results = dict(max_displacement_m=float(max_disp), tip=(q[0, tip] / mpu).astype(np.float64).tolist(), kinetic_energy_J=ke,
-                   work_J=float(sim.checks.work.sum()))  # fmt: skip
+                   work_J=float(sim.checks.work.sum()), max_stretch=float(stretch(q, h.seg_rest_length)[0]))  # fmt: skip
     if reason:  # no result: NaN, not the last finished frame's values (at rest, where frame 1 failed), which read as one
-        results = dict(max_displacement_m=math.nan, tip=[math.nan] * 3, kinetic_energy_J=math.nan, work_J=math.nan)
+        results = dict(max_displacement_m=math.nan, tip=[math.nan] * 3, kinetic_energy_J=math.nan, work_J=math.nan,
+                       max_stretch=math.nan)  # fmt: skip
     return dict(status="failed" if reason else "ok", reason=reason or note, frames=written,
                 frames_simulated=simulated, integrator=sim.integrator, substeps=sim.substeps, rerun=True,
                 **results, contact_frame="" if sim.contact_frame is None else sim.contact_frame)  # fmt: skip

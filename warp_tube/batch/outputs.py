@@ -49,7 +49,7 @@ __all__ = ["OutputSpec", "WriteTask", "write", "check_batch_fits", "surface_topo
 LAYOUTS = ("files", "grid", "arrays")
 #: summary.csv columns after the variant's parameters
 SUMMARY_FIELDS = ("status", "max_displacement_m", "tip_x", "tip_y", "tip_z", "kinetic_energy_J", "work_J", "frames",
-                  "frames_simulated", "integrator", "substeps", "output", "reason", "contact_frame")  # fmt: skip
+                  "frames_simulated", "integrator", "substeps", "output", "reason", "contact_frame", "max_stretch")  # fmt: skip
 
 
 @dataclass(frozen=True)

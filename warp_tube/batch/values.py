@@ -83,7 +83,7 @@ def _describe(type_name: str) -> str:
     kind, n, array = _shape(type_name)
     if array:
         example = "[1, 2, 3]" if n == 1 else "[(0, 0, 0), (1, 0, 0)]" if n == 3 else f"[({', '.join(['0'] * n)}), ...]"
-        return f"a {type_name} array, e.g. {example}, or @FILE (.npy, .csv, .txt)"
+        return f"{'an' if type_name[0] in 'aeiou' else 'a'} {type_name} array, e.g. {example}, or @FILE (.npy, .csv, .txt)"
     if n > 1:
         return f"{n} numbers (a {type_name}), e.g. ({', '.join(['0'] * n)})"
     return {"real": f"a number (a {type_name})", "int": f"an integer (an {type_name})", "bool": "true or false",
@@ -125,7 +125,7 @@ def _check_range(text: str, nums: list, type_name: str) -> None:
     if limits is not None:
         bad = next((x for x in nums if not limits[0] <= x <= limits[1]), None)
         if bad is not None:
-            raise ValueError(f"found {text!r}: {bad} is beyond what {base} holds ({limits[0]} to {limits[1]})")
+            raise ValueError(f"found {_shown(text)}: {bad} is beyond what {base} holds ({limits[0]} to {limits[1]})")
         return
     m = _VECTOR.match(base)
     real = base if base in REALS else (m.group(1) or {"h": "half", "f": "float", "d": "double"}[m.group(5)]) if m else "double"
@@ -133,7 +133,7 @@ def _check_range(text: str, nums: list, type_name: str) -> None:
     if "inf" in text.lower() or "nan" in text.lower():
         return
     if any(not abs(x) <= top for x in nums):
-        raise ValueError(f"found {text!r}: beyond the largest {real} ({top:.6g})")
+        raise ValueError(f"found {_shown(text)}: beyond the largest {real} ({top:.6g})")
 
 
 def _load_file(name: str, folder: str, files: dict):
@@ -171,6 +171,38 @@ def _load_file(name: str, folder: str, files: dict):
 _PLAIN_LENGTH = {"double": 1, "float": 1, "double3": 3, "float3": 3}
 
 
+def _one_pair(t: str) -> bool:
+    """Whether stripped cell ``t`` has no brackets or one pair around it: ``(...)`` or ``[...]``."""
+    opened, closed = t.count("(") + t.count("["), t.count(")") + t.count("]")
+    if opened == closed == 0:
+        return True
+    return opened == closed == 1 and ((t[0] == "(" and t[-1] == ")") or (t[0] == "[" and t[-1] == "]"))
+
+
+def _depth(text: str) -> int | None:
+    """How deep ``text``'s brackets nest (0: none), or None where they do not balance (a bracket
+    closed by the other kind, or left open, or closed unopened)."""
+    if not any(c in text for c in "()[]"):
+        return 0
+    stack, deepest = [], 0
+    for c in text:
+        if c in "([":
+            stack.append(c)
+            deepest = max(deepest, len(stack))
+        elif c in ")]":
+            if not stack or "([".index(stack.pop()) != ")]".index(c):
+                return None
+    return None if stack else deepest
+
+
+#: a cell longer than this is shown cut in messages (a whole array pasted into a scalar column)
+_SHOWN = 120
+
+
+def _shown(text: str) -> str:
+    return repr(text) if len(text) <= _SHOWN else f"{text[:_SHOWN]!r}... ({len(text):,} characters)"
+
+
 def parse_plain(text: str, type_name: str):
     """:func:`parse_value`'s result for a real scalar (``double``, ``float``) or 3-vector
     (``double3``, ``float3``) cell written plainly (a number; three numbers separated by commas,
@@ -181,13 +213,16 @@ def parse_plain(text: str, type_name: str):
     characters and read by ``float``); it only skips the general path, for tables of many rows.
     """
     n = _PLAIN_LENGTH.get(type_name)
-    if n is None or text.startswith("@"):
+    if n is None or text.startswith("@") or not text.isascii():  # (float() reads other scripts' digits)
         return None
     try:
         if n == 1:
             x = float(text)
             return x if abs(x) <= _REAL_MAX[type_name] else None
-        parts = text.strip().strip("()[]").split(",")
+        t = text.strip()
+        if not _one_pair(t):
+            return None
+        parts = t.strip("()[]").split(",")
         if len(parts) != 3:
             return None
         out = (float(parts[0]), float(parts[1]), float(parts[2]))
@@ -202,14 +237,17 @@ def parse_plain_column(texts: list[str], type_name: str) -> list | None:
     some cell is not written plainly (the caller then parses cell by cell, as before): the same
     values, read by ``float`` from the same tokens, a few times faster for a column of thousands."""
     n = _PLAIN_LENGTH.get(type_name)
-    if n is None or not texts or any(t.startswith("@") for t in texts):
+    if n is None or not texts or any(t.startswith("@") for t in texts) or not "".join(texts).isascii():
         return None
     try:
         if n == 1:
             values = list(map(float, texts))
             top = _REAL_MAX[type_name]
         else:
-            stripped = [t.strip().strip("()[]") for t in texts]
+            stripped = [t.strip() for t in texts]
+            if not all(map(_one_pair, stripped)):
+                return None
+            stripped = [t.strip("()[]") for t in stripped]
             if any(t.count(",") != 2 for t in stripped):
                 return None
             values = list(map(float, ",".join(stripped).split(",")))
@@ -259,19 +297,29 @@ def parse_value(text: str, type_name: str, *, folder: str = ".", is_file: bool =
     expected = _describe(type_name)
     if text == "":
         raise ValueError(f"empty cell: expected {expected}")
+    if not (is_file or text.startswith("@")) and kind in ("real", "int"):
+        if not text.isascii():
+            raise ValueError(f"found {_shown(text)}: characters other than ASCII digits, signs and separators: expected "
+                             f"{expected}")  # fmt: skip
+        depth = _depth(text)
+        if depth is None:
+            raise ValueError(f"found {_shown(text)}: its brackets do not balance: expected {expected}")
+        allowed = (1 if n > 1 else 0) + (1 if array else 0)
+        if depth > allowed:
+            raise ValueError(f"found {_shown(text)}: brackets nested {depth} deep: expected {expected}")
     if is_file or text.startswith("@"):
         if not array:
-            raise ValueError(f"found {text!r}: a file gives arrays; expected {expected}")
+            raise ValueError(f"found {_shown(text)}: a file gives arrays; expected {expected}")
         arr = _load_file(text[1:].strip() if text.startswith("@") else text, folder, files)
         if arr.dtype.kind not in "biuf":
-            raise ValueError(f"found {text!r}: an array of {arr.dtype}: expected numbers")
+            raise ValueError(f"found {_shown(text)}: an array of {arr.dtype}: expected numbers")
         ok = (arr.ndim == 1 and (n == 1 or arr.size % n == 0)) or (arr.ndim == 2 and arr.shape[1] == n)
         if not ok:
-            raise ValueError(f"found {text!r}: an array of shape {arr.shape}: expected (n,) or (n, {n})")
+            raise ValueError(f"found {_shown(text)}: an array of shape {arr.shape}: expected (n,) or (n, {n})")
         values = arr.reshape(-1, n) if n > 1 else arr.reshape(-1)
         if kind == "int":
             if not np.all(np.equal(np.mod(values, 1), 0)):
-                raise ValueError(f"found {text!r}: non-integer values: expected integers")
+                raise ValueError(f"found {_shown(text)}: non-integer values: expected integers")
             return values.astype(np.int64)
         if kind == "bool":
             return values.astype(bool)
@@ -284,20 +332,20 @@ def parse_value(text: str, type_name: str, *, folder: str = ".", is_file: bool =
             return True
         if low in ("false", "0", "no"):
             return False
-        raise ValueError(f"found {text!r}: expected {expected}")
+        raise ValueError(f"found {_shown(text)}: expected {expected}")
     if array and _EMPTY_ARRAY.match(text):  # [] or (): no elements
         return np.zeros((0, n) if n > 1 else 0, dtype=np.int64 if kind == "int" else np.float64)
     nums = _numbers(text, "int" if kind == "int" else "real")
     if nums is None or len(nums) == 0:
-        raise ValueError(f"found {text!r}: expected {expected}{_why(text, kind, n, array)}")
+        raise ValueError(f"found {_shown(text)}: expected {expected}{_why(text, kind, n, array)}")
     if array:
         if len(nums) % n:
-            raise ValueError(f"found {text!r}: {len(nums)} numbers, not a multiple of {n}: expected {expected}")
+            raise ValueError(f"found {_shown(text)}: {len(nums)} numbers, not a multiple of {n}: expected {expected}")
         _check_range(text, nums, type_name)
         arr = np.asarray(nums, dtype=np.int64 if kind == "int" else np.float64)
         return arr.reshape(-1, n) if n > 1 else arr
     if len(nums) != n:
-        raise ValueError(f"found {text!r}: {len(nums)} number(s): expected {expected}{_why(text, kind, n, array)}")
+        raise ValueError(f"found {_shown(text)}: {len(nums)} number(s): expected {expected}{_why(text, kind, n, array)}")
     _check_range(text, nums, type_name)
     if n == 1:
         return nums[0]

@@ -57,3 +57,23 @@ def strained_segment(q: np.ndarray, seg_rest_length: np.ndarray) -> tuple[int, f
     off = np.maximum(ratio, 1.0 / np.maximum(ratio, 1e-300))
     i = int(np.argmax(off))
     return (i, float(ratio[i])) if off[i] > STRAIN_FACTOR else None
+
+
+def stretch(q: np.ndarray, seg_rest_length: np.ndarray) -> np.ndarray:
+    """Per world, the largest factor by which a segment's length departs from its rest length
+    (stretched or compressed: ``max(l / l0, l0 / l)``; 1 at rest).
+
+    Args:
+        q: positions [m], (world, node, 3).
+        seg_rest_length: (world or 1, node) [m], 0 where no segment (a tube's last node).
+
+    Returns:
+        (world,) float64.
+    """
+    q = np.asarray(q, dtype=np.float64)
+    rest = np.broadcast_to(np.atleast_2d(seg_rest_length)[:, : q.shape[1] - 1], q.shape[:2] - np.array([0, 1]))
+    length = np.linalg.norm(np.diff(q, axis=1), axis=-1)
+    inside = rest > 0.0
+    ratio = np.where(inside, length / np.where(inside, rest, 1.0), 1.0)
+    off = np.maximum(ratio, 1.0 / np.maximum(ratio, 1e-300))
+    return off.max(axis=1) if off.shape[1] else np.ones(q.shape[0])
