@@ -159,7 +159,7 @@ def _cmd_run(a) -> int:
     # Run warnings go into the summary; with --quiet (no summary unless the run stops) they are
     # printed as they happen instead.
     _RUN_WARNINGS.summary_prints_them = not a.quiet
-    with Phase(f"building the model ({points:,} points)", enabled=tty):
+    with Phase(f"building the model ({points:,} points; its kernels compile on a first run)", enabled=tty):
         sim = Simulation(scene, device=a.device, surface=not a.no_surface)
     try:
         # On a terminal a progress bar; elsewhere (a log file) a plain line every 30 s, unless --quiet.

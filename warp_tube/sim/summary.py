@@ -82,7 +82,7 @@ class RunSummary:
             f"frames       none saved ({self.frames_simulated} simulated; {self.frames} could not be saved)",
             f"integrator   {self.integrator}: {self.reason}",
             f"substeps     {self.substeps} per frame, dt = {self.dt:.3g} s",
-            *([f"set-up       {self.setup_time:.3f} s (reading the scene, building the model, setting up the output)"]
+            *([f"set-up       {self.setup_time:.3f} s (reading the scene, building the model, setting up the output; some kernels compile on a first run)"]
               if self.setup_time > 0.0 else []),
             f"wall time    {timing}",
             f"largest displacement  {self.max_displacement:.4g} m",
