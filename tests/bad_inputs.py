@@ -95,6 +95,22 @@ def _hardlink_to(target: str):
     return make
 
 
+def _surface_edit(attribute: str, value):
+    """A copy of the case's ``out.usdc`` with one attribute of its Surface set (every sample of points)."""
+    def make(path: Path):
+        from pxr import Sdf, Usd
+
+        layer = Sdf.Layer.OpenAsAnonymous(str(path.parent / "out.usdc"))
+        stage = Usd.Stage.Open(layer)
+        attr = stage.GetPrimAtPath("/World/Tube/Surface").GetAttribute(attribute)
+        for t in attr.GetTimeSamples() or [Usd.TimeCode.Default()]:
+            old = attr.Get(t)
+            attr.Set(type(old)(value(list(old))), t)
+        layer.Export(str(path))
+
+    return make
+
+
 def _folder(path: Path):
     path.mkdir()
 
@@ -271,6 +287,14 @@ def cases() -> list[Case]:
     bad("a projective transform over the tube", scene(('def Xform "World"\n{\n', 'def Xform "World"\n{\n    matrix4d xformOp:transform = '
                                                        '((1, 0, 0, 0), (0, 1, 0, 0), (0, 0, 1, 0.5), (0, 0, 0, 1))\n'
                                                        '    uniform token[] xformOpOrder = ["xformOp:transform"]\n')))
+    bad("metersPerUnit 1e-38 (outside nanometres to 1000 km)", scene(("metersPerUnit = 0.01", "metersPerUnit = 1e-38")))
+    bad("a blocked force sample (None)", scene(("            24: (0, 0.02, 0),\n", "            1: None,\n            24: (0, 0.02, 0),\n")))
+    bad("springDamping 1e38", scene(("warptube:damping = 2", "warptube:damping = 2\n        double warptube:springDamping = 1e38")))
+    bad("subnormal time step", scene(('warptube:integrator = "auto"', 'warptube:integrator = "auto"\n        double warptube:timeStep = 5e-324')))
+    bad("subnormal density", scene(("warptube:density = 1050", "warptube:density = 5e-324")))
+    bad("diameter 1e-30 (a radius below 1 nm)", scene(("float[] widths = [2]", "float[] widths = [1e-30]")))
+    bad("gravity 1e38", scene(('warptube:integrator = "auto"', 'warptube:integrator = "auto"\n        float3 warptube:gravity = (0, -1e38, 0)')))
+    bad("the last point far from the others", scene(("(19, 0, 0), (20, 0, 0)]", "(19, 0, 0), (2000000, 0, 0)]")))
     run("forced time step that blows up, over an existing output", [BAD, "-o", "keep.usdc"], 3, files={BAD: FORCED_BLOWUP}, creates=("keep.partial.usdc",))
     # -- run: the output and the flags
     run("-o the scene itself", ["scene.usda", "-o", "scene.usda"])
@@ -299,8 +323,10 @@ def cases() -> list[Case]:
     chk("USD syntax error", [BAD], files={BAD: "#usda 1.0\n(\n    upAxis = \"Y\"\n\ndef Xform \"W\" {}\n"})
     chk("negative damping", [BAD], files={BAD: scene(("warptube:damping = 2", "warptube:damping = -2"))})
     chk("spokes 2", [BAD], files={BAD: scene(("warptube:spokes = 16", "warptube:spokes = 2"))})
+    chk("damping 1e308", [BAD], files={BAD: scene(("warptube:damping = 2", "warptube:damping = 1e308"))})
     chk("a PLY mesh", ["mesh.ply"])
     chk("a stage with no tube", [BAD], files={BAD: '#usda 1.0\ndef Xform "World" {}\n'})
+    chk("a .usda that is not UTF-8 (Latin-1)", [BAD], files={BAD: b'#usda 1.0\ndef Xform "W" (doc = "caf\xe9") {}\n'})
 
     # -- extract
     ext = lambda what, args, expect=2, **kw: c.append(Case("extract", what, args, expect, **kw))  # noqa: E731
@@ -317,6 +343,10 @@ def cases() -> list[Case]:
     ext("--scale with two values", ["mesh.ply", "-o", "s.usda", "--scale", "1", "2"])
     ext("--scale 0", ["mesh.ply", "-o", "s.usda", "--scale", "0"])
     ext("--scale nan", ["mesh.ply", "-o", "s.usda", "--scale", "nan"])
+    ext("an OBJ of 2-coordinate vertices", ["flat.obj", "-o", "s.usda"], files={"flat.obj": "v 0 0\nv 1 0\nv 0 1\nf 1 2 3\n"})
+    ext("a symbolic link loop", ["loop.ply", "-o", "s.usda"], files={"loop2.ply": _symlink_to("loop.ply"), "loop.ply": _symlink_to("loop2.ply")})
+    ext("a link to /dev/zero", ["zero.ply", "-o", "s.usda"], files={"zero.ply": _symlink_to("/dev/zero")})
+    ext("--hubs 1000000000", ["mesh.ply", "-o", "s.usda", "--hubs", "1000000000"])
     ext("a sphere, not a tube (warning)", ["ball.ply", "-o", "ball.usda"], 0, files={"ball.ply": _sphere}, creates=("ball.usda",))
     ext("a cylinder with vertices only at its ends (refined first: measured, no warning)", ["can.ply", "-o", "can.usda"], 0, files={"can.ply": _plain_cylinder},
         creates=("can.usda",), machine=True)  # fmt: skip  # rays along its few long faces' edges: device-dependent
@@ -331,6 +361,9 @@ def cases() -> list[Case]:
     pre("a stage written with --no-surface, over an existing PNG", ["nosurf.usdc", "-o", "sheet.png"])
     pre("a scene instead of an output", ["scene.usda", "-o", "p.png"])
     pre("a damaged stage", ["trunc.usdc", "-o", "p.png"], files={"trunc.usdc": _truncated})
+    pre("a Surface index beyond its points", ["oob.usdc", "-o", "p.png", "--frames", "3"],
+        files={"oob.usdc": _surface_edit("faceVertexIndices", lambda v: [99999] + v[1:])})  # fmt: skip
+    pre("a Surface without points", ["nopts.usdc", "-o", "p.png", "--frames", "3"], files={"nopts.usdc": _surface_edit("points", lambda v: [])})
 
     # -- export
     exp = lambda what, args, expect=2, **kw: c.append(Case("export", what, args, expect, **kw))  # noqa: E731
@@ -344,6 +377,10 @@ def cases() -> list[Case]:
     exp("-o .glb with --format obj", ["out.usdc", "--frame", "0", "-o", "f.glb", "--format", "obj"])
     exp("a stage written with --no-surface", ["nosurf.usdc"])
     exp("-o a file where a folder is needed", ["out.usdc", "-o", "keep.usdc"])
+    exp("-o ''", ["out.usdc", "-o", ""])
+    exp("a Surface index below 0", ["neg.usdc"], files={"neg.usdc": _surface_edit("faceVertexIndices", lambda v: [-1] + v[1:])})
+    exp("a Surface point NaN", ["nan.usdc", "--format", "glb"],
+        files={"nan.usdc": _surface_edit("points", lambda v: [(math.nan, 0.0, 0.0)] + v[1:])})  # fmt: skip
 
     # -- the Python API
     api = lambda what, call, expect, **kw: c.append(Case("API", what, call, expect, **kw))  # noqa: E731

@@ -8,6 +8,7 @@ Meshes are built here with trimesh (or by hand where the topology matters) and w
 from __future__ import annotations
 
 import logging
+import os
 from itertools import pairwise
 
 import numpy as np
@@ -331,3 +332,43 @@ def test_a_thin_tube_along_its_boxs_diagonal_is_refused_naming_the_voxel_it_need
     assert message.startswith("diag.stl: ") and "need voxels of 0.000248" in message, message
     assert "6,000,000 voxels over its bounding box of 0.233 x 0.233 x 0.233 allow only 0.00129" in message, message
     assert "turn the mesh so that the tube lies along an axis" in message, message
+
+
+def test_an_obj_of_two_coordinate_vertices_is_refused(tmp_cwd, capsys):
+    """``v 0 0`` (no z) is a 2-D mesh: one line saying vertices need 3 coordinates, not a NumPy error."""
+    (tmp_cwd / "flat.obj").write_text("v 0 0\nv 1 0\nv 0 1\nf 1 2 3\n")
+    assert main(["extract", "flat.obj", "-o", "s.usda"]) == 2
+    err = capsys.readouterr().err.strip()
+    assert err == "warp-tube: flat.obj: vertices with 2 coordinates: vertices must have 3 coordinates (x, y, z)", err
+    message = _refusal(lambda: clean_mesh(trimesh.Trimesh(np.zeros((3, 2)), [[0, 1, 2]], process=False), "m"))
+    assert message == "m: vertices with 2 coordinates: vertices must have 3 coordinates (x, y, z)", message
+    assert sorted(p.name for p in tmp_cwd.iterdir()) == ["flat.obj"]
+
+
+@pytest.mark.parametrize("make, words", [
+    (lambda: (os.symlink("b.ply", "a.ply"), os.symlink("a.ply", "b.ply")), "a.ply: a symbolic link loop"),
+    (lambda: os.symlink("/dev/zero", "a.ply"), "a.ply: not a regular file (a device, pipe or socket)"),
+    (lambda: os.symlink("gone.ply", "a.ply"), "a.ply: a symbolic link to gone.ply, which does not exist"),
+])  # fmt: skip
+def test_a_link_loop_or_a_device_is_named_for_what_it_is(make, words, tmp_cwd, capsys):
+    make()
+    assert main(["extract", "a.ply", "-o", "s.usda"]) == 2
+    err = capsys.readouterr().err.strip()
+    assert err.startswith(f"warp-tube: {words}") and "no such file" not in err, err
+    assert not (tmp_cwd / "s.usda").exists()
+
+
+@pytest.mark.parametrize("hubs, spokes, words", [
+    (1_000_000_000, 16, "--hubs 1,000,000,000: expected at most 1,000,000"),
+    (1_000_000, 1024, "--hubs 1,000,000 x --spokes 1024: 1,024,000,000 spokes need about 2097.2 GB of memory"),
+])  # fmt: skip
+def test_hubs_beyond_what_memory_allows_are_refused_before_any_work(hubs, spokes, words, tmp_cwd, capsys, monkeypatch):
+    import warp_tube.extract.command as command
+
+    monkeypatch.setattr(command, "load_mesh", lambda *a: pytest.fail("the mesh was read"))
+    monkeypatch.setattr("warp_tube.runtime.memory.available_memory", lambda: 64 * 10**9)
+    (tmp_cwd / "m.ply").write_bytes(b"ply\n")
+    assert main(["extract", "m.ply", "-o", "s.usda", "--hubs", str(hubs), "--spokes", str(spokes)]) == 2
+    err = capsys.readouterr().err.strip()
+    assert err.startswith(f"warp-tube: {words}") and len(err.splitlines()) == 1, err
+    assert sorted(p.name for p in tmp_cwd.iterdir()) == ["m.ply"]

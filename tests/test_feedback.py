@@ -59,14 +59,15 @@ def test_cli_verbose_shows_warp(tmp_path):
 
 # -- each warning once ------------------------------------------------------------------------------
 
-# Two parallel tubes in one prim, 1.5 cm apart with 1 cm radii: in contact from the start.
+# Two parallel tubes in one prim, 2.5 cm apart with 1 cm radii, clamped at one end: the second one's
+# tip pushed down by 0.05 N (a cantilever's F L^3 / 3 E I = 2.1 cm), onto the first from frame 1 or 2.
 TWO_TUBES = """#usda 1.0
 (
     metersPerUnit = 0.01
     upAxis = "Y"
     timeCodesPerSecond = 24
     startTimeCode = 0
-    endTimeCode = 3
+    endTimeCode = 12
 )
 def Xform "World"
 {
@@ -81,8 +82,15 @@ def Xform "World"
         double warptube:damping = 2
         int[] warptube:pinnedPoints = [0, 1, 11, 12]
     }
+    def Scope "Push"
+    {
+        rel warptube:target = </World/Pair>
+        int warptube:point = 21
+        float3 warptube:force = (0, -0.05, 0)
+        bool warptube:assistantLine = false
+    }
 }
-""" % ", ".join([f"({x}, 0, 0)" for x in range(11)] + [f"({x}, 1.5, 0)" for x in range(11)])
+""" % ", ".join([f"({x}, 0, 0)" for x in range(11)] + [f"({x}, 2.5, 0)" for x in range(11)])
 
 
 @pytest.mark.parametrize("quiet", [False, True])

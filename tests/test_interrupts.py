@@ -154,8 +154,8 @@ def test_an_interrupt_right_after_a_frame_is_simulated_keeps_that_frame(folder, 
     original = getattr(Simulation, name)
     fired = []
 
-    def interrupted(self):
-        out = original(self)
+    def interrupted(self, *args):
+        out = original(self, *args)
         if self.frame == 5 and not fired:
             fired.append(True)
             raise KeyboardInterrupt if sig == signal.SIGINT else Terminated(sig)

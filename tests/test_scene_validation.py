@@ -49,6 +49,40 @@ BAD = {
     # a force whose target is left out or misspelled would be left out of the run without a word
     "force without target": (mutate("        rel warptube:target = </World/Tube>\n", ""), ["/World/Push", "warptube:force", "without a warptube:target relationship"]),
     "misspelled target": (mutate("rel warptube:target", "rel warptube:targt"), ["/World/Push.warptube:targt", "unknown relationship", "did you mean warptube:target"]),
+    # absurd magnitudes: each value outside its physical range, named with the range
+    "tiny metersPerUnit": (mutate("metersPerUnit = 0.01", "metersPerUnit = 1e-38"), ["metersPerUnit 1e-38", "expected 1e-9 to 1e6 m"]),
+    "small metersPerUnit": (mutate("metersPerUnit = 0.01", "metersPerUnit = 1e-12"), ["metersPerUnit 1e-12", "expected 1e-9 to 1e6 m"]),
+    "blocked force sample": (mutate("            24: (0, 0.02, 0),\n", "            1: None,\n            24: (0, 0.02, 0),\n"),
+                             ["/World/Push.warptube:force", "found a blocked sample (None) at time 1", "expected a float3 at every sample"]),
+    "huge spring damping": (mutate("warptube:damping = 2", "warptube:damping = 2\n        double warptube:springDamping = 1e38"),
+                            ["/World/Tube.warptube:springDamping", "found 1e38", "0 or 1e-15 to 10 s"]),
+    "denormal time step": (mutate('warptube:integrator = "auto"', 'warptube:integrator = "auto"\n        double warptube:timeStep = 5e-324'),
+                           ["/World/Simulation.warptube:timeStep", "found 5e-324", "1e-12 to 10 s"]),
+    "tiny time step": (mutate('warptube:integrator = "auto"', 'warptube:integrator = "auto"\n        double warptube:timeStep = 1e-300'),
+                       ["warptube:timeStep", "found 1e-300", "1e-12 to 10 s"]),
+    "denormal density": (mutate("warptube:density = 1050", "warptube:density = 5e-324"), ["/World/Tube.warptube:density", "0.01 to 1e6 kg/m^3"]),
+    "huge damping": (mutate("warptube:damping = 2", "warptube:damping = 1e308"), ["/World/Tube.warptube:damping", "found 1e308", "0 or 1e-12 to 1e6 1/s"]),
+    "large damping": (mutate("warptube:damping = 2", "warptube:damping = 1e38"), ["warptube:damping", "found 1e38"]),
+    "denormal Young's modulus": (mutate("warptube:youngsModulus = 100000", "warptube:youngsModulus = 5e-324"),
+                                 ["/World/Tube.warptube:youngsModulus", "0.001 to 1e13 Pa"]),
+    "huge anchor stiffness": (mutate("warptube:damping = 2", "warptube:damping = 2\n        double warptube:anchorStiffness = 1e38\n"
+                                     "        int[] warptube:anchorPoints = [10]"), ["warptube:anchorStiffness", "found 1e38", "0 or 1e-12 to 1e12 N/m"]),
+    "huge stretch stiffness": (mutate("warptube:damping = 2", "warptube:damping = 2\n        double warptube:stretchStiffness = 1e38\n"
+                                      "        double warptube:bendStiffness = 1"), ["warptube:stretchStiffness", "found 1e38", "1e-12 to 1e15 N"]),
+    "huge bend stiffness": (mutate("warptube:damping = 2", "warptube:damping = 2\n        double warptube:stretchStiffness = 30\n"
+                                   "        double warptube:bendStiffness = 1e38"), ["warptube:bendStiffness", "found 1e38", "0 or 1e-30 to 1e15 N m^2"]),
+    "huge gravity": (mutate('warptube:integrator = "auto"', 'warptube:integrator = "auto"\n        float3 warptube:gravity = (0, -1e38, 0)'),
+                     ["/World/Simulation.warptube:gravity", "a magnitude of 1e38 m/s^2", "0 to 1e6 m/s^2"]),
+    "huge double gravity": (mutate('warptube:integrator = "auto"', 'warptube:integrator = "auto"\n        double3 warptube:gravity = (0, -1e300, 1e300)'),
+                            ["warptube:gravity", "a magnitude of 1e300 m/s^2"]),
+    "tiny widths": (mutate("float[] widths = [2]", "float[] widths = [1e-30]"), ["/World/Tube.widths", "a radius of 5e-33 m", "1e-9 to 1000 m"]),
+    "tiny parent scale": (mutate('def Xform "World"\n{', 'def Xform "World"\n{\n    double3 xformOp:scale = (1e-30, 1e-30, 1e-30)\n'
+                                 '    uniform token[] xformOpOrder = ["xformOp:scale"]'), ["/World/Tube.widths", "a radius of 1e-32 m", "1e-9 to 1000 m"]),
+    "huge spoke lengths": (mutate("int warptube:spokes = 16", "int warptube:spokes = 16\n        float[] warptube:spokeLengths = ["
+                                  + ", ".join(["1e30"] * 21 * 16) + "]"), ["warptube:spokeLengths", "a length of 1e28 m", "1e-9 to 1000 m"]),
+    # a far last point makes the first segments short against the tube's extent: said so, with the extent
+    "far last point": (mutate("(19, 0, 0), (20, 0, 0)]", "(19, 0, 0), (2000000, 0, 0)]"),
+                       ["points[0] and points[1] are 0.01 m apart", "shorter than 1e-6 of the tube's extent (2e+04 m)", "longer than 0.02 m"]),
     # the line of the broken `def Xform`, counted in the scene as it is
     "syntax error": (BASE.replace("def Xform", "def Xform {{"),
                      [f"USD syntax error at line {BASE[: BASE.index('def Xform')].count(chr(10)) + 1}", "unexpected end of file"]),
@@ -294,3 +328,16 @@ def test_an_over_without_a_def_is_warned_of_or_named_where_it_was_the_tube(tmp_c
         load_scene("over.usda")
     assert str(err.value).startswith("over.usda: no tube: expected a BasisCurves prim")
     assert str(err.value).endswith("; /World/Tube is an `over` with no `def`: define it")
+
+
+@pytest.mark.parametrize("text, where", [
+    (b'#usda 1.0\ndef Xform "W" (doc = "caf\xe9") {}\n', "byte 35 (0xe9, line 2, column 26)"),
+    (b'#usda 1.0\ndef Xform "W\xe9" {\n}\n', "byte 22 (0xe9, line 2, column 13)"),
+])  # fmt: skip
+def test_a_usda_file_that_is_not_utf8_is_named_with_its_first_bad_byte(text, where, tmp_cwd, capsys):
+    (tmp_cwd / "latin1.usda").write_bytes(text)
+    for command in ("check", "run"):
+        assert main([command, "latin1.usda"]) == 2
+        err = capsys.readouterr().err.strip()
+        assert err == f"warp-tube: latin1.usda: not UTF-8 text at {where}: a USD text file is UTF-8; save it as UTF-8", err
+    assert sorted(p.name for p in tmp_cwd.iterdir()) == ["latin1.usda"]

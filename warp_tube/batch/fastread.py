@@ -21,6 +21,7 @@ from __future__ import annotations
 
 import numpy as np
 
+from ..scene.ranges import RANGES, out_of_range
 from ..scene.spec import Scene
 
 __all__ = ["PlainColumns", "may_be_plain"]
@@ -33,8 +34,8 @@ TUBE_SCALARS = {
     "warptube:springDamping": ("spring_damping", False),
     "warptube:anchorStiffness": ("anchor_stiffness", False),
 }
-#: the reader's physical range (scene.usd): density <= 1e6 kg/m^3, youngsModulus <= 1e13 Pa
-MAX_DENSITY, MAX_YOUNGS, MAX_FORCE = 1e6, 1e13, 1e9
+#: the reader's largest force component (scene.usd); its ranges of the scalars: scene.ranges.RANGES
+MAX_FORCE = 1e9
 SCALAR_TYPES = {"double": np.float64, "float": np.float32}
 VECTOR_TYPES = {"double3": np.float64, "float3": np.float32}
 #: the force attribute taken here: the force's vector
@@ -100,15 +101,11 @@ class PlainColumns:
                     continue
                 v = np.asarray(np.asarray(values, dtype=np.float64), dtype=SCALAR_TYPES[type_name]).astype(np.float64)
                 field, positive = TUBE_SCALARS[attr]
-                good &= np.isfinite(v) & ((v > 0.0) if positive else (v >= 0.0))
+                within = RANGES[attr]
+                good &= np.isfinite(v) & ((v > 0.0) if positive else (v >= 0.0)) & ~out_of_range(v, within)
                 tube_fields.setdefault(self.tube_of[prim], {})[field] = v
             for k, fields in tube_fields.items():
                 t = self.base.tubes[k]
-                density = fields.get("density", t.params.density)
-                good &= np.asarray(density) <= MAX_DENSITY
-                E = fields.get("youngs_modulus", t.params.youngs_modulus)
-                if E is not None:
-                    good &= ~(np.asarray(E) > MAX_YOUNGS)
                 # Warnings the reader gives a row and not the base scene (whose own were given once
                 # when it was read): the rows go through the reader.
                 p = t.params

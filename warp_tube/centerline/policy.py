@@ -58,12 +58,13 @@ def substeps_for(frame_dt: float, dt: float, settings: SimulationSettings, where
     """Substeps a frame of ``frame_dt`` [s] takes at a substep of at most ``dt`` [s]; more than
     :data:`MAX_SUBSTEPS` is refused (a timeStep or stability bound so small that the kernels'
     count would wrap, and nothing move). ``where``: the scene's file, which the message names first."""
-    substeps = max(1, math.ceil(frame_dt / dt - 1e-9))
-    if substeps > MAX_SUBSTEPS:
+    ratio = frame_dt / dt - 1e-9  # (inf where dt is too small for the ratio to be a float)
+    if ratio > MAX_SUBSTEPS:
         given = f"warptube:timeStep {settings.time_step:.3g} s" if settings.time_step is not None else "the stability bound"
-        raise SceneError(f"{where + ': ' if where else ''}{given} makes {substeps:,} substeps a frame of {frame_dt:.3g} s: expected at most {MAX_SUBSTEPS:,} "
+        count = f"{math.ceil(ratio):,}" if ratio < 1e15 else f"{ratio:.3g}" if math.isfinite(ratio) else "more than 1e308"
+        raise SceneError(f"{where + ': ' if where else ''}{given} makes {count} substeps a frame of {frame_dt:.3g} s: expected at most {MAX_SUBSTEPS:,} "
                          f"(a substep of at least {frame_dt / MAX_SUBSTEPS:.3g} s)")  # fmt: skip
-    return substeps
+    return max(1, math.ceil(ratio))
 
 
 def implicit_substeps(frame_dt: float, time_step: float | None = None) -> int:

@@ -11,7 +11,7 @@ from ..runtime.progress import Phase
 from .fidelity import Fidelity
 from .mesh_io import load_mesh
 from .pipeline import ExtractedTube, extract_centerline
-from .tube_check import side_branches, size_warning, summary_line, tube_warnings
+from .tube_check import check_size, side_branches, size_warning, summary_line, tube_warnings
 from .usd import write_scene
 
 __all__ = ["extract_to_scene", "Extraction"]
@@ -60,13 +60,15 @@ def extract_to_scene(mesh_path, output, *, hubs=None, spokes=16, scale=None, dev
         large ``hubs``) are logged and listed in it.
 
     Raises:
-        SceneError: unreadable or unusable mesh (with ``strict``: not tube-like), or an output that cannot be
-            written.
+        SceneError: unreadable or unusable mesh (with ``strict``: not tube-like), ``hubs`` over
+            :data:`~warp_tube.extract.tube_check.MAX_HUBS` or ``hubs x spokes`` beyond the memory
+            available (:func:`~warp_tube.extract.tube_check.check_size`), or an output that cannot be written.
     """
     from ..runtime.warp_setup import init_warp
 
     given = os.fspath(output)
     output = output_path(output, USD_EXTENSIONS, inputs=[mesh_path], what="scene")
+    check_size(hubs, spokes)
     warnings = []
     big = size_warning(hubs, spokes)
     if big:

@@ -70,8 +70,8 @@ def clean_mesh(mesh: trimesh.Trimesh, source: str, scale=(1.0, 1.0, 1.0), max_si
         A new mesh with merged duplicate vertices and without degenerate or duplicate faces.
 
     Raises:
-        SceneError: not a triangle mesh, empty, NaN or infinite coordinates, face indices out of range,
-            or no face with area left.
+        SceneError: not a triangle mesh, empty, vertices without 3 coordinates, NaN or infinite
+            coordinates, face indices out of range, or no face with area left.
     """
     s = _scale3(scale)
     if not isinstance(mesh, trimesh.Trimesh):
@@ -81,6 +81,9 @@ def clean_mesh(mesh: trimesh.Trimesh, source: str, scale=(1.0, 1.0, 1.0), max_si
     if len(v) == 0 or len(f) == 0:
         raise SceneError(f"{source}: empty mesh ({counted(len(v), 'vertex')}, {counted(len(f), 'face')}): "
                          "expected a tube surface")
+    if v.ndim != 2 or v.shape[1] != 3:
+        got = f"{v.shape[1]} coordinates" if v.ndim == 2 else f"vertices of shape {v.shape}"
+        raise SceneError(f"{source}: vertices with {got}: vertices must have 3 coordinates (x, y, z)")
     if f.ndim != 2 or f.shape[1] != 3:
         raise SceneError(f"{source}: faces shape {f.shape}: expected triangles (F, 3)")
     if f.min() < 0 or f.max() >= len(v):
@@ -192,6 +195,22 @@ def _sniff(path: str) -> tuple[str, str] | None:
     return None
 
 
+def _not_a_file(path: str) -> str:
+    """What is at ``path``, which is neither a folder nor a regular file, in words."""
+    import errno
+
+    if os.path.islink(path):
+        try:
+            os.stat(path)
+        except OSError as e:
+            if e.errno == errno.ELOOP:
+                return "a symbolic link loop (the link leads back to itself): expected a mesh file"
+            return f"a symbolic link to {os.readlink(path)}, which does not exist"
+    if os.path.exists(path):
+        return "not a regular file (a device, pipe or socket): expected a mesh file"
+    return "no such file"
+
+
 def load_mesh(path, scale=(1.0, 1.0, 1.0)) -> trimesh.Trimesh:
     """Read a triangle mesh file (STL, PLY, OBJ, ... as trimesh reads them) and clean it.
 
@@ -204,13 +223,14 @@ def load_mesh(path, scale=(1.0, 1.0, 1.0)) -> trimesh.Trimesh:
         A cleaned mesh (see :func:`clean_mesh`).
 
     Raises:
-        SceneError: no such file, unreadable, not a mesh, empty, NaN coordinates, ...
+        SceneError: no such file (or a symbolic link loop, a link to nothing, not a regular file),
+            unreadable, not a mesh, empty, NaN coordinates, ...
     """
     path = os.fspath(path)
     if os.path.isdir(path):
         raise SceneError(f"{path}: is a folder: expected a mesh file")
     if not os.path.isfile(path):
-        raise SceneError(f"{path}: no such file")
+        raise SceneError(f"{path}: {_not_a_file(path)}")
     ext = os.path.splitext(path)[1].lower()
     if ext in (".usd", ".usda", ".usdc", ".usdz"):
         raise SceneError(f"{path}: a USD stage, not a mesh file: extract reads STL, PLY, OBJ, OFF or glTF binary; a USD Mesh prim is "

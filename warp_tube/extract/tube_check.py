@@ -25,7 +25,7 @@ import math
 
 from .wording import counted
 
-__all__ = ["tube_warnings", "summary_line", "size_warning"]
+__all__ = ["tube_warnings", "summary_line", "size_warning", "check_size"]
 
 MAX_HUBS_PER_RADIUS = 10.0
 MISSED_FRACTION = 0.10
@@ -36,6 +36,13 @@ LARGE_HUBS = 20_000
 #: characters per spoke length and per hub written to a .usda scene (measured on written scenes).
 USDA_CHARS_PER_SPOKE = 13
 USDA_CHARS_PER_HUB = 60
+#: ``--hubs`` above this is refused: a million centerline points is far past any tube's needs
+#: (a hub per mean radius is the default) and an extraction of hours.
+MAX_HUBS = 1_000_000
+#: memory an extraction takes per spoke [bytes], at its peak: the spokes' rays, lengths and rest
+#: rings, the scene's text, and the simulation that sizes the push; ``hubs x spokes`` needing more
+#: than the memory available is refused before any work.
+BYTES_PER_SPOKE = 2048
 
 
 def tube_warnings(tube, fidelity=None, automatic_hubs: bool = True, units: str = "m") -> list[str]:
@@ -87,6 +94,25 @@ def tube_warnings(tube, fidelity=None, automatic_hubs: bool = True, units: str =
             "kept across and its simulated surface closed there (recorded in customData warptube:openings)"
         )
     return out
+
+
+def check_size(hubs, spokes) -> None:
+    """Refuse (:class:`~warp_tube.scene.spec.SceneError`) a ``--hubs`` over :data:`MAX_HUBS`, or
+    ``hubs x spokes`` needing more memory (:data:`BYTES_PER_SPOKE`) than is available now: such an
+    extraction would run for hours and end killed by the system."""
+    from ..runtime.memory import available_memory
+    from ..scene.spec import SceneError
+
+    if hubs is None or not isinstance(hubs, int) or not isinstance(spokes, int):
+        return  # (the automatic count, or a value the extraction itself refuses)
+    if hubs > MAX_HUBS:
+        raise SceneError(f"--hubs {hubs:,}: expected at most {MAX_HUBS:,}; without --hubs the hub count follows the tube's "
+                         "length and radius (a hub per mean radius)")  # fmt: skip
+    need, free = hubs * max(spokes, 1) * BYTES_PER_SPOKE, available_memory()
+    if free is not None and need > free:
+        raise SceneError(f"--hubs {hubs:,} x --spokes {spokes}: {hubs * spokes:,} spokes need about {need / 1e9:.1f} GB of "
+                         f"memory to extract, more than the {free / 1e9:.1f} GB available; pass fewer hubs (without --hubs "
+                         "the hub count follows the tube's length and radius)")  # fmt: skip
 
 
 def size_warning(hubs: int, spokes: int) -> str | None:

@@ -34,6 +34,7 @@ from .mesh_io import load_usd_mesh
 from .polyline import arclength
 from .tube_check import side_branches
 from ..scene.spec import FRAME_MODES, SceneError, StageInfo, TubeParams, TubeSpec
+from ..scene.ranges import RADIUS_M, check_attribute, expected, number_text, out_of_range
 
 __all__ = ["write_scene", "tube_from_mesh_prim", "prim_name", "push_force"]
 
@@ -273,6 +274,9 @@ def tube_from_mesh_prim(file: str, prim, info: StageInfo) -> TubeSpec:
         raise SceneError(f"{file}: {e}") from None
     if vals["density"] is None:
         raise SceneError(f"{where}.warptube:density: missing: expected a float or double [kg/m^3] (required)")
+    for k, v in vals.items():
+        if v is not None:
+            check_attribute(where, f"warptube:{k}", float(v))
     if frames is not None and str(frames) not in FRAME_MODES:
         raise SceneError(f"{where}.warptube:frames: found {frames!r}: expected one of {', '.join(FRAME_MODES)}")
     from ..runtime.warp_setup import init_warp
@@ -291,6 +295,10 @@ def tube_from_mesh_prim(file: str, prim, info: StageInfo) -> TubeSpec:
         log.warning("%s: %s", where, w)
     mpu = info.meters_per_unit
     n = tube.hubs
+    for v in (float(section_radius(tube.spoke_lengths).min()) * mpu, float(section_radius(tube.spoke_lengths).max()) * mpu):
+        if out_of_range(v, RADIUS_M):
+            raise SceneError(f"{where}: the extracted tube's radius of {number_text(v)} m (after the transforms and "
+                             f"metersPerUnit): expected {expected(RADIUS_M)}")  # fmt: skip
     k_anchor = float(vals["anchorStiffness"] or 0.0)
     if anchors is None:
         anchors = [0, 1, n - 2, n - 1] if k_anchor > 0.0 else []

@@ -36,7 +36,7 @@ import numpy as np
 
 from ..scene.spec import SceneError
 
-__all__ = ["export", "open_output_stage", "surface_meshes", "surface_frames", "surface_at"]
+__all__ = ["export", "open_output_stage", "surface_meshes", "surface_frames", "surface_at", "check_surfaces", "checked_points"]
 
 FORMATS = ("obj", "glb")
 
@@ -50,7 +50,8 @@ def open_output_stage(usd_path):
 
 
 def surface_meshes(stage, usd_path="") -> list:
-    """The ``Surface`` Mesh prims of a stage, in stage order; SceneError if there is none."""
+    """The ``Surface`` Mesh prims of a stage, in stage order; SceneError if there is none, or if the
+    stage's ``metersPerUnit`` is not a finite positive number."""
     from pxr import Usd, UsdGeom
 
     meshes = [
@@ -61,6 +62,9 @@ def surface_meshes(stage, usd_path="") -> list:
             f"{usd_path}: no Surface mesh (expected a Mesh named 'Surface' under each tube prim, as "
             f"`warp-tube run` writes without --no-surface)"
         )
+    mpu = UsdGeom.GetStageMetersPerUnit(stage)
+    if not (np.isfinite(mpu) and mpu > 0.0):
+        raise SceneError(f"{usd_path}: metersPerUnit {mpu:g}: expected a finite number > 0")
     return meshes
 
 
@@ -85,27 +89,88 @@ def _triangles(counts: np.ndarray, indices: np.ndarray) -> np.ndarray:
     return np.asarray(tris, dtype=np.int64).reshape(-1, 3)
 
 
-def surface_at(mesh, time) -> tuple[np.ndarray, np.ndarray, np.ndarray | None]:
+def _stage_file(prim, usd_path) -> str:
+    """The file to name in a message about ``prim``: ``usd_path`` as given, else its stage's root layer."""
+    return os.fspath(usd_path) if usd_path else prim.GetStage().GetRootLayer().realPath
+
+
+def checked_points(points, prim, time, usd_path=None, what="points") -> np.ndarray:
+    """``points`` of ``prim`` at ``time`` as float64 (P, 3), refused unless there are some and all
+    are finite (SceneError naming the file, the prim and the time)."""
+    where = f"{_stage_file(prim, usd_path)}: {prim.GetPath()} at time {_time_text(time)}"
+    if points is None or len(points) == 0:
+        raise SceneError(f"{where}: no {what}")
+    pts = np.asarray(points, dtype=np.float64).reshape(-1, 3)
+    bad = np.flatnonzero(~np.isfinite(pts).all(axis=1))
+    if len(bad):
+        p = pts[bad[0]]
+        raise SceneError(f"{where}: {len(bad):,} of its {len(pts):,} {what} {'is' if len(bad) == 1 else 'are'} not finite "
+                         f"(point {bad[0]}: {p[0]:g}, {p[1]:g}, {p[2]:g})")  # fmt: skip
+    return pts
+
+
+def _checked_topology(counts, indices, n_points: int, where: str) -> tuple[np.ndarray, np.ndarray]:
+    """faceVertexCounts and faceVertexIndices as int64 arrays, refused unless every face has 3 or more
+    corners, the counts sum to the indices, and every index is a point (0 to ``n_points`` - 1)."""
+    counts, indices = np.asarray(counts, dtype=np.int64).reshape(-1), np.asarray(indices, dtype=np.int64).reshape(-1)
+    if len(counts) == 0:
+        raise SceneError(f"{where}: no faces (faceVertexCounts is empty)")
+    if counts.min() < 3:
+        k = int(np.argmin(counts))
+        raise SceneError(f"{where}: faceVertexCounts[{k}] = {counts[k]}: a face needs at least 3 vertices")
+    if counts.sum() != len(indices):
+        raise SceneError(f"{where}: faceVertexCounts sum to {counts.sum():,}, but faceVertexIndices holds {len(indices):,} indices")
+    outside = np.flatnonzero((indices < 0) | (indices >= n_points))
+    if len(outside):
+        k = outside[0]
+        raise SceneError(f"{where}: faceVertexIndices[{k}] = {indices[k]}: expected 0 to {n_points - 1} "
+                         f"(the mesh has {n_points:,} points; {len(outside):,} {'index' if len(outside) == 1 else 'indices'} outside)")  # fmt: skip
+    return counts, indices
+
+
+def surface_at(mesh, time, usd_path=None) -> tuple[np.ndarray, np.ndarray, np.ndarray | None]:
     """World-space vertices (V, 3) [stage units], triangles (F, 3) and vertex normals (V, 3) or None
-    of one Surface mesh at a time code."""
+    of one Surface mesh at a time code.
+
+    Raises:
+        SceneError: naming the file (``usd_path``, default the stage's), the prim and the time, where
+            the mesh has no points, a point or its transform is not finite, a face has fewer than 3
+            corners, faceVertexCounts do not sum to the indices, or an index is not one of the points.
+    """
     from pxr import UsdGeom
 
-    path = mesh.GetPath()
+    prim = mesh.GetPrim()
+    where = f"{_stage_file(prim, usd_path)}: {prim.GetPath()} at time {_time_text(time)}"
     points = mesh.GetPointsAttr().Get(time)
-    counts = mesh.GetFaceVertexCountsAttr().Get()
-    indices = mesh.GetFaceVertexIndicesAttr().Get()
+    counts = mesh.GetFaceVertexCountsAttr().Get(time)
+    indices = mesh.GetFaceVertexIndicesAttr().Get(time)
     if points is None or counts is None or indices is None:
-        raise SceneError(f"{path}: Surface mesh without points or topology at time {time}")
-    verts = np.asarray(points, dtype=np.float64).reshape(-1, 3)
-    xform = np.asarray(UsdGeom.XformCache(time).GetLocalToWorldTransform(mesh.GetPrim()), dtype=np.float64)
+        raise SceneError(f"{where}: Surface mesh without points or topology")
+    verts = checked_points(points, prim, time, usd_path)
+    counts, indices = _checked_topology(counts, indices, len(verts), where)
+    xform = np.asarray(UsdGeom.XformCache(time).GetLocalToWorldTransform(prim), dtype=np.float64)
     verts = verts @ xform[:3, :3] + xform[3, :3]
+    if not np.isfinite(verts).all():
+        raise SceneError(f"{where}: its transform makes points not finite (a transform of NaN, infinity or overflow)")
     normals = mesh.GetNormalsAttr().Get(time)
-    if normals is not None and len(normals) == len(verts):
+    if normals is not None and len(normals) == len(verts) and np.linalg.det(xform[:3, :3]) != 0.0:
         normals = np.asarray(normals, dtype=np.float64) @ np.linalg.inv(xform[:3, :3]).T
         normals /= np.maximum(np.linalg.norm(normals, axis=1, keepdims=True), 1e-30)
+        if not np.isfinite(normals).all():
+            normals = None  # (normals are optional: viewers compute their own)
     else:
         normals = None
-    return verts, _triangles(np.asarray(counts), np.asarray(indices)), normals
+    return verts, _triangles(counts, indices), normals
+
+
+def check_surfaces(meshes, times, usd_path) -> None:
+    """Every Surface mesh at every time code read and checked (:func:`surface_at`), before a file is written."""
+    for time in times:
+        for mesh in meshes:
+            _read_surface(mesh, time, usd_path)
+
+
+_read_surface = surface_at  # (what check_surfaces reads with)
 
 
 def _time_text(t: float) -> str:
@@ -158,7 +223,8 @@ def export(usd_path, fmt: str = "obj", out=None, frame=None, overwrite: bool = F
         The paths written, in frame order.
 
     Raises:
-        SceneError: missing or unreadable file, no Surface mesh, an unknown format, a frame the
+        SceneError: missing or unreadable file, no Surface mesh, a Surface mesh that is not sound at
+            a frame (see :func:`surface_at`), an unusable ``metersPerUnit``, an empty ``out``, an unknown format, a frame the
             stage has no sample for, an ``out`` naming one file for several frames, files that
             exist (without ``overwrite``), or a folder that cannot be created or a file that cannot
             be written (then nothing of the export is left, see the module's docstring).
@@ -169,6 +235,8 @@ def export(usd_path, fmt: str = "obj", out=None, frame=None, overwrite: bool = F
 
     if fmt not in FORMATS:
         raise SceneError(f"unknown export format {fmt!r}; expected one of {FORMATS}")
+    if out is not None and not os.fspath(out):
+        raise SceneError(f"an empty output name: expected a folder, or one {' or '.join(f'.{f}' for f in FORMATS)} file with --frame")
     usd_path = Path(usd_path)
     stage = open_output_stage(usd_path)
     meshes = surface_meshes(stage, usd_path)
@@ -219,6 +287,7 @@ def export(usd_path, fmt: str = "obj", out=None, frame=None, overwrite: bool = F
             raise SceneError(f"{p}: is a folder: not replaced by the exported file")
     if not paths[0].parent.is_dir() and not paths[0].parent.parent.is_dir():
         raise SceneError(f"{paths[0].parent}: cannot create the folder: {paths[0].parent.parent} does not exist")
+    check_surfaces(meshes, times, usd_path)  # (every frame, before a file is written)
 
     to_gltf = np.eye(3)
     scale = 1.0
@@ -228,7 +297,7 @@ def export(usd_path, fmt: str = "obj", out=None, frame=None, overwrite: bool = F
         scale = mpu
         if z_up:
             to_gltf = np.array([[1.0, 0.0, 0.0], [0.0, 0.0, -1.0], [0.0, 1.0, 0.0]])  # rows: x->x, y->-z, z->y
-        render = partial(_render_glb, meshes, [_open_surface(m) for m in meshes], scale, to_gltf)
+        render = partial(_render_glb, meshes, [_open_surface(m, times[0]) for m in meshes], scale, to_gltf)
     else:
         name = " ".join(usd_path.name.split())  # one comment line, whatever the file's name holds
         render = partial(_render_obj, meshes, name, mpu, "Z" if z_up else "Y")
@@ -257,12 +326,12 @@ def _warn_of_other_frames(paths: list[Path], stem: str, fmt: str) -> None:
         )
 
 
-def _open_surface(mesh) -> bool:
+def _open_surface(mesh, time) -> bool:
     """Whether a Surface is seen from inside: ``doubleSided`` in the stage, or an edge of its
-    triangles that belongs to one face only (an uncapped tube)."""
+    triangles (at ``time``) that belongs to one face only (an uncapped tube)."""
     if mesh.GetDoubleSidedAttr().Get():
         return True
-    counts, indices = mesh.GetFaceVertexCountsAttr().Get(), mesh.GetFaceVertexIndicesAttr().Get()
+    counts, indices = mesh.GetFaceVertexCountsAttr().Get(time), mesh.GetFaceVertexIndicesAttr().Get(time)
     if counts is None or indices is None or not len(indices):
         return False
     tris = _triangles(np.asarray(counts), np.asarray(indices))

@@ -17,7 +17,7 @@ from pathlib import Path
 import numpy as np
 import warp as wp
 
-from .export import open_output_stage, surface_at, surface_frames, surface_meshes
+from .export import checked_points, open_output_stage, surface_at, surface_frames, surface_meshes
 from ..kernels.shading import shade_orthographic_kernel
 from ..scene.spec import SceneError
 
@@ -34,22 +34,39 @@ SHEET_COLUMNS = 8  # tiles per row of the sheet; more frames wrap into further r
 THIN_SHADE = 0.6  # brightness of a centerline drawn where its tube is thinner than a pixel
 
 
-def _centerlines_at(mesh, time) -> list[np.ndarray]:
+def _centerlines_at(mesh, time, usd_path=None) -> list[np.ndarray]:
     """World-space points (P, 3) [stage units] of each curve of the ``Centerline`` beside a
-    Surface mesh at a time code (none where there is no such BasisCurves)."""
+    Surface mesh at a time code (none where there is no such BasisCurves, or it has no points).
+
+    Raises:
+        SceneError: naming the file, the prim and the time, where a point is not finite, or
+            curveVertexCounts hold a count below 1 or do not sum to the points.
+    """
     from pxr import UsdGeom
 
     curves = UsdGeom.BasisCurves(mesh.GetPrim().GetParent().GetChild("Centerline"))
     points = curves.GetPointsAttr().Get(time) if curves else None
     if points is None or len(points) == 0:
         return []
-    counts = curves.GetCurveVertexCountsAttr().Get() or [len(points)]
-    pts = np.asarray(points, dtype=np.float64).reshape(-1, 3)
-    xform = np.asarray(UsdGeom.XformCache(time).GetLocalToWorldTransform(curves.GetPrim()), dtype=np.float64)
+    prim = curves.GetPrim()
+    pts = checked_points(points, prim, time, usd_path)
+    counts = curves.GetCurveVertexCountsAttr().Get(time)
+    counts = np.asarray([len(pts)] if counts is None or len(counts) == 0 else counts, dtype=np.int64)
+    if counts.min() < 1 or counts.sum() != len(pts):
+        raise SceneError(f"{usd_path or prim.GetStage().GetRootLayer().realPath}: {prim.GetPath()} at time "
+                         f"{np.format_float_positional(float(time), trim='-')}: curveVertexCounts {_short(counts)} do not "
+                         f"split its {len(pts):,} points into curves")  # fmt: skip
+    xform = np.asarray(UsdGeom.XformCache(time).GetLocalToWorldTransform(prim), dtype=np.float64)
     pts = pts @ xform[:3, :3] + xform[3, :3]
-    if sum(counts) != len(pts):
-        return [pts]
     return np.split(pts, np.cumsum(counts)[:-1])
+
+
+def _short(values) -> str:
+    """An array in a message: ``[21]``, ``[3, 0, 5]``, ``[7, 7, 7, ... 7] (40 values)``."""
+    values = [int(v) for v in values]
+    if len(values) <= 6:
+        return str(values)
+    return f"[{', '.join(map(str, values[:3]))}, ... {values[-1]}] ({len(values):,} values)"
 
 
 def _line_mask(polylines: list[np.ndarray], size: int) -> np.ndarray:
@@ -89,8 +106,10 @@ def preview(usd_path, png_path, frames: int = 4, size: int = 320, device=None) -
         The PNG path.
 
     Raises:
-        SceneError: missing or unreadable stage, no Surface mesh, frames < 1, or a PNG path that
-            cannot be written.
+        SceneError: missing or unreadable stage, no Surface mesh, a Surface or Centerline that is
+            not sound at a frame shown (no points, points not finite, faces or curves that do not
+            match the points: :func:`~warp_tube.io.export.surface_at`), frames < 1, or a PNG path
+            that cannot be written.
     """
     from PIL import Image
     from pxr import UsdGeom
@@ -114,11 +133,11 @@ def preview(usd_path, png_path, frames: int = 4, size: int = 320, device=None) -
 
     geometry = []
     for time in shown:
-        parts = [surface_at(m, time) for m in meshes]
+        parts = [surface_at(m, time, usd_path) for m in meshes]
         offsets = np.cumsum([0] + [len(v) for v, _, _ in parts])
         verts = np.concatenate([v for v, _, _ in parts])
         faces = np.concatenate([f + o for (_, f, _), o in zip(parts, offsets)])
-        geometry.append((verts, faces, [c for m in meshes for c in _centerlines_at(m, time)]))
+        geometry.append((verts, faces, [c for m in meshes for c in _centerlines_at(m, time, usd_path)]))
     all_points = np.concatenate([v for v, _, _ in geometry])
     if not np.all(np.isfinite(all_points)):
         raise SceneError(f"{usd_path}: Surface points are not finite")

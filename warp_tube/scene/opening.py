@@ -37,7 +37,7 @@ def open_stage(path: str):
         try:
             stage = Usd.Stage.Open(path, Usd.Stage.LoadAll)
         except Tf.ErrorException as e:
-            problem = usd_error_in_user_terms(path, str(e))
+            problem = _not_utf8(e, path) or usd_error_in_user_terms(path, str(e))
     if problem is not None:
         raise SceneError(f"{path}: {problem}")
     if stage is None:
@@ -47,6 +47,36 @@ def open_stage(path: str):
         more = f" (and {len(errors) - 1} more)" if len(errors) > 1 else ""
         raise SceneError(f"{path}: {_composition_error_in_user_terms(errors[0])}{more}")
     return stage
+
+
+def _not_utf8(error, path: str) -> str | None:
+    """None where usd-core's error text reads as UTF-8; else (it quotes a file that is not UTF-8)
+    what is wrong in words: the first byte of ``path`` that is not UTF-8, or usd-core's text with
+    such bytes replaced."""
+    try:
+        str(error)
+        return None
+    except UnicodeDecodeError:
+        pass
+    try:
+        with open(path, "rb") as f:
+            data = f.read()
+        if data.startswith(b"#usda"):  # (a text file: a binary one is not UTF-8 throughout)
+            data.decode("utf-8")
+    except UnicodeDecodeError as e:
+        line = data.count(b"\n", 0, e.start) + 1
+        column = e.start - data.rfind(b"\n", 0, e.start)
+        return (f"not UTF-8 text at byte {e.start} (0x{data[e.start]:02x}, line {line}, column {column}): a USD "
+                "text file is UTF-8; save it as UTF-8")  # fmt: skip
+    except OSError:
+        pass
+    parts = []
+    for arg in error.args:
+        text = getattr(arg, "commentary", None)
+        if isinstance(text, bytes):
+            text = text.decode("utf-8", errors="replace")
+        parts.append(text if isinstance(text, str) else "a message that is not UTF-8 text")
+    return f"cannot be opened: {'; '.join(parts) or 'a message that is not UTF-8 text'}"
 
 
 _TF_MESSAGE = re.compile(r"Error in '[^']*' at line \d+ in file [^:]* : '(.*?)'\s*(?=\n\s*Error in|\Z)", re.S)

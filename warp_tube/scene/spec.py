@@ -303,10 +303,12 @@ class TubeSpec:
         short = inside & (seg <= 1e-6 * scale)
         if short.any():
             i = int(np.argmax(short))
-            raise SceneError(
-                f"{where}: points[{i}] and points[{i + 1}] are {seg[i]:.3g} m apart: expected distinct "
-                f"consecutive points (segments longer than 1e-6 of the tube's extent)"
-            )
+            if seg[i] == 0.0:
+                raise SceneError(f"{where}: points[{i}] and points[{i + 1}] coincide: expected distinct consecutive points "
+                                 f"(each segment longer than 1e-6 of the tube's extent, {scale:.3g} m)")  # fmt: skip
+            raise SceneError(f"{where}: points[{i}] and points[{i + 1}] are {seg[i]:.3g} m apart, a segment shorter than 1e-6 "
+                             f"of the tube's extent ({scale:.3g} m): expected every segment longer than {1e-6 * scale:.3g} m "
+                             "(a point far from the others, or points nearly on top of each other?)")  # fmt: skip
 
     @property
     def curve_starts(self) -> np.ndarray:

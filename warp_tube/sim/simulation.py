@@ -365,10 +365,10 @@ class Simulation(RunBudget):
             out.append((pts / mpu, nrm, ext / mpu))
         return out
 
-    def max_displacement(self) -> float:
+    def max_displacement(self, q: np.ndarray | None = None) -> float:
         """Largest distance of a centerline point from its rest position [m] (not stage units),
-        over every world."""
-        q = self.state.node_q.numpy()
+        over every world (``q``: the state's positions already on the host, (world, node, 3) [m])."""
+        q = self.state.node_q.numpy() if q is None else q
         return float(np.linalg.norm(q - self.model.host.node_rest_q[None], axis=-1).max())
 
     # -- whole runs ------------------------------------------------------------------------------
@@ -553,7 +553,7 @@ class Simulation(RunBudget):
         summary.frames_simulated += 1
         summary.substeps_simulated += substeps
         q = self.state.node_q.numpy()
-        summary.max_displacement = max(summary.max_displacement, float(np.linalg.norm(q - self.model.host.node_rest_q[None], axis=-1).max()))
+        summary.max_displacement = max(summary.max_displacement, self.max_displacement(q))
         strained = None if self._strain_said else strained_segment(q[0], np.atleast_2d(self.model.host.seg_rest_length)[0])
         if strained is not None:
             self._strain_said = True
