@@ -135,3 +135,36 @@ def test_a_batchs_max_stretch_is_its_last_frames_own(tmp_path):
     expected = np.maximum(ratio, 1.0 / ratio).max(axis=1)
     np.testing.assert_allclose(got, expected, rtol=1e-5)  # (float32 positions: ~1e-7 of a length)
     assert got[0] < 1.5 < 1.8 < got[1]  # 10% strain, about 100%
+
+
+def test_stepping_warns_of_a_strained_segment_too():
+    """A grasper's jerk through step(): the default tube's clamped end moved 40 cm (its length is
+    20 cm) in one frame. The blow-up check is off once pins move (their work is not measured), so
+    the frame stands; its segments are stretched far past 1.5x, which step() warns of once."""
+    scene = load_scene(str(SCENES / "default.usda"))
+    sim = Simulation(scene, device="cpu", surface=False)
+    pins = sim.centerline_points()[0][[0, 1]].copy()
+    sim.set_pin_targets(0, pins + [0.0, 40.0, 0.0])  # stage units: cm
+    for _ in range(3):
+        sim.step()
+    said = [w for w in sim.warnings if "its rest length: the springs are linear" in w]
+    assert len(said) == 1 and said[0].startswith("frame 1: ")
+
+
+def test_a_frame_that_fails_leaves_the_integrator_as_it_was():
+    """A pin target 1e7 stage units away: the frame fails even after auto's retries and its switch
+    to implicit Euler, and is not kept; nor is the switch (the next frames ran implicit before)."""
+    from warp_tube import NumericalError
+
+    scene = load_scene(str(SCENES / "default.usda"))
+    sim = Simulation(scene, device="cpu", surface=False)
+    before = (sim.integrator, sim.substeps, sim.dt, sim.reason)
+    pins = sim.centerline_points()[0][[0, 1]].copy()
+    sim.set_pin_targets(0, pins + 1e7)
+    with pytest.raises(NumericalError):
+        sim.step()
+    assert (sim.integrator, sim.substeps, sim.dt, sim.reason) == before and sim.frame == 0
+    assert not [w for w in sim.warnings if "switched to implicit Euler" in w]
+    sim.set_pin_targets(0, pins)
+    sim.step()
+    assert sim.frame == 1 and sim.integrator == before[0]

@@ -8,13 +8,37 @@ import os
 import numpy as np
 
 from .attributes import TARGET
-from .spec import Scene
+from .files import USD_EXTENSIONS, output_path, write_atomically
+from .spec import Scene, SceneError
 
 __all__ = ["save_scene"]
 
 
 def save_scene(scene: Scene, path: str) -> None:
-    """Write ``scene`` as a USD stage following the scene contract (points in stage units)."""
+    """Write ``scene`` as a USD stage following the scene contract (points in stage units).
+
+    ``path`` is ``.usda`` (text), ``.usdc`` or ``.usd`` (binary) in an existing folder, and not the
+    scene's own file; an existing file there is replaced only by the complete stage.
+
+    Raises:
+        SceneError: a path that cannot be written (named with the reason).
+    """
+    inputs = [scene.source] if scene.source and os.path.exists(scene.source) else []
+    target = output_path(path, USD_EXTENSIONS, inputs=inputs, what="scene")
+
+    def write(tmp: str) -> None:
+        try:
+            _write(scene, tmp)
+        except SceneError:
+            raise
+        except Exception as e:  # (usd-core's own errors carry C++ locations: their first line only)
+            why = str(e).strip().splitlines()[-1] if str(e).strip() else type(e).__name__
+            raise SceneError(f"{target}: cannot write the scene ({why})") from None
+
+    write_atomically(target, write)
+
+
+def _write(scene: Scene, path: str) -> None:
     from pxr import Gf, Sdf, Usd, UsdGeom, Vt
 
     info = scene.stage
@@ -80,13 +104,14 @@ def save_scene(scene: Scene, path: str) -> None:
         prim.CreateRelationship(TARGET).SetTargets([scene.tubes[f.tube].path])
         prim.CreateAttribute("warptube:point", Sdf.ValueTypeNames.Int).Set(int(f.point))
         prim.CreateAttribute("warptube:assistantLine", Sdf.ValueTypeNames.Bool).Set(bool(f.assistant_line))
-        a = prim.CreateAttribute("warptube:force", Sdf.ValueTypeNames.Float3)
+        a = prim.CreateAttribute("warptube:force", Sdf.ValueTypeNames.Double3)  # (as given: no rounding)
         if len(f.times) == 1:
-            a.Set(Gf.Vec3f(*f.values[0]))
+            a.Set(Gf.Vec3d(*f.values[0]))
         for tm, v in zip(f.times, f.values):
             if len(f.times) > 1:
-                a.Set(Gf.Vec3f(*v), info.start_time_code + tm * info.time_codes_per_second)
-    stage.GetRootLayer().Save()
+                a.Set(Gf.Vec3d(*v), info.start_time_code + tm * info.time_codes_per_second)
+    if not stage.GetRootLayer().Save():
+        raise SceneError(f"{path}: usd-core could not save the stage")
 
 
 def _free_path(path: str, taken: set) -> str:

@@ -77,3 +77,13 @@ def stretch(q: np.ndarray, seg_rest_length: np.ndarray) -> np.ndarray:
     ratio = np.where(inside, length / np.where(inside, rest, 1.0), 1.0)
     off = np.maximum(ratio, 1.0 / np.maximum(ratio, 1e-300))
     return off.max(axis=1) if off.shape[1] else np.ones(q.shape[0])
+
+
+def strain_message(q: np.ndarray, seg_rest_length: np.ndarray, frame: int, node_name) -> str | None:
+    """The run warning for world 0's positions ``q`` (world, node, 3) [m] at ``frame``, where a
+    segment is strained beyond :data:`STRAIN_FACTOR` (``node_name(i)`` names node ``i``), or None."""
+    strained = strained_segment(q[0], np.atleast_2d(seg_rest_length)[0])
+    if strained is None:
+        return None
+    return (f"frame {frame}: the segment from {node_name(strained[0])} is {strained[1]:.3g}x its rest length: the springs "
+            "are linear, which holds for small strains (results beyond about 50% are not physical)")

@@ -36,11 +36,11 @@ from .checks import FrameChecks
 from .control import FrameControl
 from .output import frame_range, open_writer, unwritten_frames
 from .proximity import ContactMonitor
-from .notes import model_notes, strained_segment
+from .arguments import checked_output, checked_scene
+from .notes import model_notes, strain_message
 from .summary import RunSummary
 
 log = logging.getLogger(__name__)
-
 __all__ = ["Simulation", "NumericalError", "RunSummary", "resolve_device"]
 
 #: the largest substep multiplier ``auto`` tries for a frame that blew up.
@@ -115,7 +115,7 @@ class Simulation(RunBudget):
             self._build(scene, device, world_count, surface)
 
     def _build(self, scene, device, world_count, surface):
-        self.scene = scene
+        self.scene = checked_scene(scene)
         self.device = resolve_device(device)
         self._lock = SIM_LOCK  # step and run: one thread at a time, of all simulations and batches
         self.model = build_model(scene, world_count=check_world_count(world_count), device=self.device)
@@ -144,7 +144,8 @@ class Simulation(RunBudget):
         self._world_q = None  # one world's positions for the surface builders, (1, node_count)
         self._contacts = ContactMonitor(m.host.node_rest_q, m.host.node_radius, m.host.tube_node_start, device=self.device)
         self._contact_reported = False
-        self._strain_said = False  # (a segment strained beyond notes.STRAIN_FACTOR is warned of once a run)
+        self._strain_said = False  # (a segment strained beyond notes.STRAIN_FACTOR is warned of once)
+        self._host_q = None  # (frame, positions) copied to the host by the last step, or None
         self.contact_frame: int | None = None
         self._retry = self.scene.settings.integrator == "auto"
         extent = max(float(np.ptp(t.points, axis=0).max()) for t in scene.tubes)
@@ -205,22 +206,31 @@ class Simulation(RunBudget):
         """Advance one output frame (``substeps`` substeps).
 
         The frame is checked for a non-finite state, a point running away, and a kinetic energy
-        above what the forces and gravity can have put in (a blow-up; not checked while pinned
-        points move, whose work is not measured). With ``auto`` a failed frame is redone from its
+        above what the forces and gravity can have put in (a blow-up; not checked once pinned points
+        have moved, whose work is not measured: a segment strained past 1.5x is warned of). With ``auto`` a failed frame is redone from its
         start with 2x, 4x, ... up to :data:`MAX_RETRY_FACTOR` x the substeps, then, if
         semi-implicit Euler still fails, with implicit Euler for the rest of the run.
 
         Raises:
-            NumericalError: the frame still fails; :attr:`state` keeps the last good frame, and the
-                pinned points stay where that frame left them.
+            NumericalError: the frame still fails; :attr:`state` keeps the last good frame, the
+                pinned points stay where that frame left them, and the integrator as it was.
         """
         with self._lock:
             self.controls.update(self.frame, self.state)
+            kept = (self.solver, self.integrator, self.reason, self.substeps, self.dt, len(self.warnings))
             try:
                 self._advance()
             except NumericalError:
                 self.controls.undo_pins()  # the next frame starts its pins from the last good one
+                # nor was auto's switch to implicit Euler kept, made for the frame that failed
+                self.solver, self.integrator, self.reason, self.substeps, self.dt, n = kept
+                del self.warnings[n:]
                 raise
+            self._host_q = None if self._strain_said else (self.frame, self.state.node_q.numpy())  # (kept for run)
+            said = self._host_q and strain_message(self._host_q[1], self.model.host.seg_rest_length, self.frame, self._node_name)
+            if said:
+                self._strain_said = True
+                self._warn(said)
 
     def _advance(self) -> None:
         """The frame of :meth:`step` whose control is written."""
@@ -414,7 +424,7 @@ class Simulation(RunBudget):
         """
 
         with self._lock:
-            return self._run(frames, output, progress, whole_number("every", every), setup_time)
+            return self._run(frames, checked_output(output), progress, whole_number("every", every), setup_time)
 
     def _run(self, frames, output, progress, every: int, setup_time: float) -> RunSummary:
         from ..runtime.interrupts import stopped_by
@@ -461,9 +471,9 @@ class Simulation(RunBudget):
             scene=self.scene.source, device=self.device, frames=0, substeps=self.substeps, dt=self.dt,
             integrator=self.integrator, reason=self.reason, wall_time=0.0, max_displacement=0.0,
             stage_defaults=[f"{k} {v:g}" if isinstance(v, float) else f"{k} {v}" for k, v in (
-                ("metersPerUnit", info.meters_per_unit), ("upAxis", info.up_axis),
-                ("timeCodesPerSecond", info.time_codes_per_second), ("framesPerSecond", info.frames_per_second),
-                ("startTimeCode", info.start_time_code), ("endTimeCode", info.end_time_code)) if k not in info.authored],
+                ("metersPerUnit", info.meters_per_unit), ("upAxis", info.up_axis), ("timeCodesPerSecond", info.time_codes_per_second),
+                ("framesPerSecond", info.frames_per_second), ("startTimeCode", info.start_time_code), ("endTimeCode", info.end_time_code))
+                if k not in info.authored and self.scene.source != "<python>"],
             first_frame=first_written if written_count else first, setup_time=setup_time + setup,
             notes=model_notes(self.scene, self.model.features, self.integrator),
         )  # fmt: skip
@@ -552,13 +562,9 @@ class Simulation(RunBudget):
         """Count the frame just simulated in ``summary`` (frame 1's end closes the start-up)."""
         summary.frames_simulated += 1
         summary.substeps_simulated += substeps
-        q = self.state.node_q.numpy()
+        held = self._host_q
+        q = held[1] if held is not None and held[0] == self.frame else self.state.node_q.numpy()
         summary.max_displacement = max(summary.max_displacement, self.max_displacement(q))
-        strained = None if self._strain_said else strained_segment(q[0], np.atleast_2d(self.model.host.seg_rest_length)[0])
-        if strained is not None:
-            self._strain_said = True
-            self._warn(f"frame {self.frame}: the segment from {self._node_name(strained[0])} is {strained[1]:.3g}x its rest length: "
-                       "the springs are linear, which holds for small strains (results beyond about 50% are not physical)")  # fmt: skip
         if summary.frames_simulated == 1:
             summary.startup_time = time.perf_counter() - t0
             summary.startup_substeps = summary.substeps_simulated

@@ -1,0 +1,34 @@
+"""What a :class:`~warp_tube.sim.simulation.Simulation` is given, checked before it builds or
+runs: the scene (a Scene, not a path; one built in Python gets the rest-shape warnings a USD
+stage gets when read) and a run's output name."""
+
+from __future__ import annotations
+
+import os
+
+from ..scene.shape_notes import warn_about_shape
+from ..scene.spec import Scene, SceneError
+
+__all__ = ["checked_scene", "checked_output"]
+
+
+def checked_scene(scene) -> Scene:
+    """``scene`` itself; TypeError where it is not a :class:`Scene` (a path: ``load_scene`` reads
+    one). A scene built in Python (``source`` ``"<python>"``) is warned of as the USD reader warns
+    of a stage's tubes (:func:`warp_tube.scene.shape_notes.warn_about_shape`)."""
+    if not isinstance(scene, Scene):
+        hint = " (a scene file: warp_tube.load_scene(path) reads it)" if isinstance(scene, (str, os.PathLike)) else ""
+        raise TypeError(f"scene: a {type(scene).__name__}: expected a warp_tube.Scene{hint}")
+    if scene.source == "<python>":
+        mpu = scene.stage.meters_per_unit
+        for t in scene.tubes:
+            warn_about_shape(f"{t.path}.points", t.points / mpu, t.points, t.curve_counts, t.radius, t.pinned, t.anchors,
+                             f"{t.path}.anchorPoints")  # fmt: skip
+    return scene
+
+
+def checked_output(output):
+    """A run's ``output``: None (no file) or a non-empty path; SceneError for an empty name."""
+    if output is not None and os.fspath(output) == "":
+        raise SceneError("output '': an empty file name: expected a .usdc, .usda or .usd path, or None for no file")
+    return output
