@@ -12,6 +12,8 @@ from warp_tube.io.preview import preview
 from warp_tube.scene.spec import SceneError
 from warp_tube.surface.builder import SurfaceBuilder
 
+from .conftest import SCENES
+
 N, S, RADIUS = 8, 10, 1.0  # stage units (cm)
 FRAMES = (0, 1, 2)
 
@@ -121,6 +123,18 @@ def test_preview_of_more_frames_than_the_stage_has_says_so(stage_path, tmp_path,
     with caplog.at_level("WARNING"):
         preview(stage_path, tmp_path / "sheet.png", frames=200, size=32, device="cpu")
     assert any("200 frames asked for: the stage has" in r.getMessage() for r in caplog.records)
+
+
+def test_preview_of_a_short_stage_without_frames_asked_says_nothing(tmp_path, caplog):
+    """The default of four tiles on a stage of three frames: nothing was asked for, nothing to say."""
+    from warp_tube.cli import main as cli
+
+    stage = tmp_path / "short.usdc"
+    assert cli(["run", str(SCENES / "default.usda"), "-o", str(stage), "--frames", "3", "--quiet", "--device", "cpu"]) == 0
+    caplog.clear()
+    with caplog.at_level("WARNING"):
+        preview(stage, tmp_path / "sheet.png", size=32, device="cpu")
+    assert not [r for r in caplog.records if "frames asked for" in r.getMessage()]
 
 
 def test_preview_contact_sheet(stage_path, tmp_path):

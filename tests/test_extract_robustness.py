@@ -372,3 +372,21 @@ def test_hubs_beyond_what_memory_allows_are_refused_before_any_work(hubs, spokes
     err = capsys.readouterr().err.strip()
     assert err.startswith(f"warp-tube: {words}") and len(err.splitlines()) == 1, err
     assert sorted(p.name for p in tmp_cwd.iterdir()) == ["m.ply"]
+
+
+def test_coordinates_beyond_float32_are_named_without_numpys_warning(tmp_path):
+    """An ASCII PLY of float properties holding 3e38 and 1e39: trimesh's cast to float32 overflows
+    (inf, with NumPy's RuntimeWarning); the infinite vertex is named, and no warning escapes."""
+    import warnings
+
+    from warp_tube.extract.mesh_io import load_mesh
+    from warp_tube.scene.spec import SceneError
+
+    path = tmp_path / "big.ply"
+    path.write_text("ply\nformat ascii 1.0\nelement vertex 4\nproperty float x\nproperty float y\nproperty float z\n"
+                    "element face 4\nproperty list uchar int vertex_indices\nend_header\n"
+                    "0 0 0\n1e39 0 0\n0 1 0\n0 0 1\n3 0 1 2\n3 0 1 3\n3 0 2 3\n3 1 2 3\n")  # fmt: skip
+    with warnings.catch_warnings():
+        warnings.simplefilter("error")  # (a RuntimeWarning would raise here)
+        with pytest.raises(SceneError, match="1 vertex with NaN or infinite coordinates"):
+            load_mesh(str(path))

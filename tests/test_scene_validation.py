@@ -341,3 +341,12 @@ def test_a_usda_file_that_is_not_utf8_is_named_with_its_first_bad_byte(text, whe
         err = capsys.readouterr().err.strip()
         assert err == f"warp-tube: latin1.usda: not UTF-8 text at {where}: a USD text file is UTF-8; save it as UTF-8", err
     assert sorted(p.name for p in tmp_cwd.iterdir()) == ["latin1.usda"]
+
+
+def test_a_composition_cycle_is_one_line_without_addresses(tmp_cwd, capsys):
+    """A tube that inherits from itself: usd-core's error is four lines naming its session layer by
+    its address in memory; the message is one line without it."""
+    (tmp_cwd / "cycle.usda").write_text(mutate('def BasisCurves "Tube"', 'def BasisCurves "Tube" (\n        inherits = </World/Tube>\n    )'))
+    assert main(["check", "cycle.usda"]) == 2
+    err = capsys.readouterr().err.strip()
+    assert "cannot be composed: Cycle detected" in err and "anon:0x" not in err and "\n" not in err, err

@@ -61,7 +61,7 @@ def test_check_warns_of_a_time_step_beyond_the_stability_bound(tmp_path, capsys,
     with caplog.at_level("WARNING"):
         assert main(["check", str(_forced(tmp_path, 0.01))]) == 0
     said = " ".join(r.getMessage() for r in caplog.records)
-    assert "timeStep 0.01 s exceeds the semi-implicit Euler stability bound" in said
+    assert "forced.usda: warptube:timeStep 0.01 s exceeds the semi-implicit Euler stability bound" in said
     caplog.clear()
     with caplog.at_level("WARNING"):
         assert main(["check", str(_forced(tmp_path, 1e-5))]) == 0  # within the bound: nothing

@@ -88,7 +88,7 @@ def _parser() -> argparse.ArgumentParser:
                        "light grey behind, so the motion shows.")
     v.add_argument("stage", help="output stage written by run or batch (.usdc, .usda)")
     v.add_argument("-o", "--output", required=True, help="PNG to write")
-    v.add_argument("--frames", type=int, default=4, help="frames on the sheet, the first and last included (default 4)")
+    v.add_argument("--frames", type=int, help="frames on the sheet, the first and last included (default 4)")
 
     x = sub.add_parser("export", allow_abbrev=False, help="export an output stage's Surface as OBJ or glTF binary",
                        description="Write the Surface meshes of an output stage, one file per frame, for tools "
@@ -298,9 +298,9 @@ def _cmd_preview(a) -> int:
 
     from .runtime.progress import Phase
 
-    if a.frames < 1:
+    if a.frames is not None and a.frames < 1:
         raise SceneError(f"--frames {a.frames}: expected at least 1")
-    with Phase(f"drawing {a.frames} frame(s) of {os.path.basename(a.stage)}"):  # (a status line on a terminal, after 1 s)
+    with Phase(f"drawing {a.frames or 'the'} frame(s) of {os.path.basename(a.stage)}"):  # (a status line on a terminal, after 1 s)
         sheet = preview(a.stage, a.output, frames=a.frames)
     print(sheet)
     return EXIT_OK

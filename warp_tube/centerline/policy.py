@@ -139,7 +139,7 @@ def explain_integrator(settings: SimulationSettings, critical_dt: float, frame_d
 
 
 def choose_integrator(settings: SimulationSettings, critical_dt: float, frame_dt: float,
-                      implicit_cost: float = IMPLICIT_COST_RATIO) -> IntegratorChoice:  # fmt: skip
+                      implicit_cost: float = IMPLICIT_COST_RATIO, where: str = "") -> IntegratorChoice:  # fmt: skip
     """The integrator and substep for a scene, and why (a warning where a forced substep exceeds
     the stability bound).
 
@@ -149,9 +149,10 @@ def choose_integrator(settings: SimulationSettings, critical_dt: float, frame_dt
         frame_dt: the output frame's duration [s].
         implicit_cost: an implicit substep's cost over a semi-implicit one
             (:func:`implicit_cost_ratio` of the model).
+        where: the scene's file, named in the warning.
     """
     integrator, dt = decide_integrator(settings, critical_dt, frame_dt, implicit_cost)
     if is_forced(settings, critical_dt, frame_dt):
-        log.warning("timeStep %.3g s exceeds the semi-implicit Euler stability bound %.3g s: expect a blow-up", dt, critical_dt,
-                    extra=RUN_WARNING)  # fmt: skip
+        log.warning("%swarptube:timeStep %.3g s exceeds the semi-implicit Euler stability bound %.3g s: expect a blow-up",
+                    f"{where}: " if where else "", dt, critical_dt, extra=RUN_WARNING)  # fmt: skip
     return IntegratorChoice(integrator, explain_integrator(settings, critical_dt, frame_dt, implicit_cost), dt)

@@ -10,6 +10,7 @@ from __future__ import annotations
 
 import logging
 import os
+import warnings
 from dataclasses import dataclass
 
 import numpy as np
@@ -239,7 +240,9 @@ def load_mesh(path, scale=(1.0, 1.0, 1.0)) -> trimesh.Trimesh:
     if os.path.getsize(path) == 0:  # (the same words for every format: some readers fail on it, some read nothing)
         raise SceneError(f"{path}: an empty file: expected a surface mesh")
     try:
-        mesh = trimesh.load(path, force="mesh", process=False)
+        with warnings.catch_warnings():  # (values beyond float32 become inf: named below, not as NumPy's warning)
+            warnings.simplefilter("ignore", RuntimeWarning)
+            mesh = trimesh.load(path, force="mesh", process=False)
     except Exception as e:  # trimesh raises many kinds (ValueError, KeyError, IndexError, UnicodeDecodeError, ...)
         log.debug("%s: trimesh: %s: %s", path, type(e).__name__, e)
         kind = _FORMATS.get(file_type, file_type.upper())

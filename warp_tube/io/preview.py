@@ -31,6 +31,8 @@ LABEL_MIN_TILE = 96  # tiles smaller than this [pixels] get no label
 log = logging.getLogger(__name__)
 
 SHEET_COLUMNS = 8  # tiles per row of the sheet; more frames wrap into further rows
+#: tiles on a sheet when none are asked for
+DEFAULT_FRAMES = 4
 THIN_SHADE = 0.6  # brightness of a centerline drawn where its tube is thinner than a pixel
 
 
@@ -89,7 +91,7 @@ def _pick_frames(times: list[float], count: int) -> list[float]:
     return [times[i] for i in picks]
 
 
-def preview(usd_path, png_path, frames: int = 4, size: int = 320, device=None) -> Path:
+def preview(usd_path, png_path, frames: int | None = None, size: int = 320, device=None) -> Path:
     """Render ``frames`` evenly spaced frames of the Surface meshes side by side into a PNG
     (:data:`SHEET_COLUMNS` to a row, further rows below), the first and last frames included; each
     tile after the first shows the first frame's silhouette in light grey (:data:`GHOST`) behind.
@@ -98,7 +100,8 @@ def preview(usd_path, png_path, frames: int = 4, size: int = 320, device=None) -
         usd_path: output stage written by ``warp-tube run``.
         png_path: the PNG to write (``.png``, in an existing folder); an existing file is replaced
             only by a complete image, and never the stage itself.
-        frames: tiles (frames shown), >= 1; fewer if the stage has fewer samples.
+        frames: tiles (frames shown), >= 1; fewer if the stage has fewer samples (a warning says so
+            where they were asked for); None: :data:`DEFAULT_FRAMES`.
         size: tile width and height [pixels].
         device: Warp device for the ray caster (default: Warp's default).
 
@@ -117,6 +120,7 @@ def preview(usd_path, png_path, frames: int = 4, size: int = 320, device=None) -
     from ..runtime.warp_setup import init_warp
     from ..scene.files import output_path, write_atomically
 
+    asked, frames = frames is not None, DEFAULT_FRAMES if frames is None else frames
     if frames < 1:
         raise SceneError(f"preview needs at least one frame, got {frames}")
     if not 1 <= size <= 8192:
@@ -127,7 +131,7 @@ def preview(usd_path, png_path, frames: int = 4, size: int = 320, device=None) -
     stage = open_output_stage(usd_path)
     meshes = surface_meshes(stage, usd_path)
     times = surface_frames(meshes) or [stage.GetStartTimeCode()]
-    if frames > len(times):
+    if frames > len(times) and asked:  # (the default asks for no more than the stage has)
         log.warning("%s: %d frames asked for: the stage has %d, all shown", usd_path, frames, len(times))
     shown = _pick_frames(times, frames)
 

@@ -141,7 +141,9 @@ def _composition_error_in_user_terms(message: str) -> str:
     """A composition error (missing sublayer, reference or payload) as a short sentence."""
     hit = re.search(r"Could not (?:open|load) (?:asset|sublayer) @([^@]*)@", message)
     if not hit:
-        return f"cannot be composed: {message}"
+        # one line, without the session layer usd-core names by its address (@anon:0x...@)
+        text = re.sub(r",?@anon:0x[0-9a-f]+:[^@]*@", "", message)
+        return "cannot be composed: " + re.sub(r"\s*\n\s*", " ", text).strip()
     what = "sublayer" if "sublayer" in message else "payload" if "payload" in message else "reference"
     where = re.search(r"@[^@]*@<([^>]*)>", message)
     at = f" (at {where.group(1)})" if where else ""

@@ -123,7 +123,7 @@ class Simulation(RunBudget):
         self.frame_dt = scene.stage.frame_dt
         spring_damping = max((t.params.spring_damping for t in scene.tubes), default=0.0)
         self.critical_dt = critical_time_step(m.host, m.features.assistant_line, spring_damping)
-        choice = choose_integrator(scene.settings, self.critical_dt, self.frame_dt, implicit_cost_ratio(m))
+        choice = choose_integrator(scene.settings, self.critical_dt, self.frame_dt, implicit_cost_ratio(m), scene.source)
         self.integrator, self.reason = choice.integrator, choice.reason
         self.substeps = substeps_for(self.frame_dt, choice.dt, scene.settings, scene.source)
         self.dt = self.frame_dt / self.substeps
