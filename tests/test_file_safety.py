@@ -289,3 +289,16 @@ def test_run_after_step_continues_from_the_current_frame(tmp_cwd):
     assert fresh.frame == 5
     with pytest.raises(SceneError, match="already at frame 5"):
         fresh.run(frames=5)
+
+
+def test_run_does_not_write_over_a_file_an_asset_attribute_names(tmp_path, capsys):
+    """A scene whose tube carries an asset-valued attribute (a file it links, as a DCC tool writes a
+    texture's): run -o onto that file is refused as onto the scene's own layers, the file untouched."""
+    text = (SCENES / "default.usda").read_text().replace(
+        "double warptube:density = 1050", 'double warptube:density = 1050\n        asset info:linked = @linked.usda@')
+    (tmp_path / "s.usda").write_text(text)
+    linked = tmp_path / "linked.usda"
+    linked.write_text("#usda 1.0\n")
+    assert main(["run", str(tmp_path / "s.usda"), "-o", str(linked), "--frames", "2", "--quiet", "--device", "cpu"]) == 2
+    assert "refusing to write over an input" in capsys.readouterr().err
+    assert linked.read_text() == "#usda 1.0\n"

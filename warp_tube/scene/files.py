@@ -148,12 +148,24 @@ def default_run_output(scene_path: str | None) -> str:
 
 
 def usd_layer_files(stage) -> list[str]:
-    """Every local file an open USD stage reads: root layer, sublayers, references, payloads."""
+    """Every local file an open USD stage reads or names: root layer, sublayers, references,
+    payloads, and the files of asset-valued attributes (a texture, a linked file)."""
+    from pxr import Sdf
+
     files = []
     for layer in stage.GetUsedLayers():
         real = layer.realPath
         if real and os.path.exists(real):
             files.append(real)
+    assets = (Sdf.ValueTypeNames.Asset, Sdf.ValueTypeNames.AssetArray)
+    for prim in stage.TraverseAll():
+        for attr in prim.GetAuthoredAttributes():
+            if attr.GetTypeName() in assets:
+                value = attr.Get()
+                for a in ([value] if isinstance(value, Sdf.AssetPath) else list(value or [])):
+                    real = a.resolvedPath
+                    if real and os.path.exists(real):
+                        files.append(real)
     return files
 
 
