@@ -1152,6 +1152,7 @@ def test_batch_records_the_frame_distant_parts_first_touch(tmp_path, monkeypatch
 
 def test_cpu_workers_beyond_the_cores_are_capped_with_a_warning(monkeypatch, caplog):
     """Each CPU worker runs one thread: more workers than cores only compete for them."""
+    import warp_tube.batch.result as result
     import warp_tube.batch.run as run
 
     monkeypatch.setattr(run.os, "sched_getaffinity", lambda pid: {0, 1}, raising=False)
@@ -1160,7 +1161,7 @@ def test_cpu_workers_beyond_the_cores_are_capped_with_a_warning(monkeypatch, cap
     assert devices == ["cpu", "cpu"]
     assert "--workers 64: this host gives this process 2 CPU core(s); running 2 worker(s)" in caplog.text
     assert run._devices("cpu", 2, None) == ["cpu", "cpu"] and run._devices("cpu", None, None) == ["cpu"]
-    assert run._device_list(devices) == "cpu x 2" and run._device_list(["cuda:0", "cuda:1"]) == "cuda:0, cuda:1"
+    assert result._device_list(devices) == "cpu x 2" and result._device_list(["cuda:0", "cuda:1"]) == "cuda:0, cuda:1"
 
 
 def test_points_of_another_count_name_their_column(tmp_path, capsys):

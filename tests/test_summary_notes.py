@@ -168,3 +168,17 @@ def test_a_frame_that_fails_leaves_the_integrator_as_it_was():
     sim.set_pin_targets(0, pins)
     sim.step()
     assert sim.frame == 1 and sim.integrator == before[0]
+
+
+def test_a_batch_says_which_variants_ended_strained(tmp_path):
+    """The batch's summary says how many variants ended with a segment past 1.5x, naming the first
+    (the 31.4 N pull: about 2x), as run warns; the 3 N one is not named."""
+    from warp_tube.batch import run_batch
+
+    from .test_batch import DEFAULT, FORCE, write_table
+
+    table = write_table(tmp_path / "t.csv", [FORCE, "/World/Push.warptube:point", "/World/Push.warptube:assistantLine"],
+                        [("(3, 0, 0)", "20", "false"), ("(31.4, 0, 0)", "20", "false")])  # fmt: skip
+    result = run_batch(str(DEFAULT), str(tmp_path / "out"), str(table), layout="arrays", frames=48, device="cpu", writers=0)
+    assert [name for name, _ in result.strained] == ["variant_00001"] and result.strained[0][1] > 1.8
+    assert "strain       1 variant(s) ended with a segment beyond 1.5x its rest length (first variant_00001" in result.text()

@@ -34,7 +34,7 @@ PROCESS_VARIANTS = 4096
 
 #: the summary fields a journal record keeps as lists (what the batch reads back: its tally, the
 #: outputs kept when resuming); the others are in its summary lines (``summary``)
-KEPT_FIELDS = ("index", "status", "reason", "contact_frame", "output")
+KEPT_FIELDS = ("index", "status", "reason", "contact_frame", "output", "max_stretch")
 
 
 def csv_records(text: str) -> list[str]:

@@ -30,7 +30,6 @@ import os
 import signal
 import time
 from concurrent.futures.process import BrokenProcessPool
-from dataclasses import dataclass, field
 
 from ..runtime.collector import collector_paused, thaw
 from ..runtime.interrupts import (Terminated, deferred_interrupts, interrupt_for, interrupt_received, kept_interrupts,
@@ -40,7 +39,8 @@ from ..scene.spec import SceneError
 from ..scene.usd import MAX_FRAMES
 from ..sim.budget import whole_number
 from ..sim.output import unwritten_frames
-from .engine import TIMERS, output_frames
+from .engine import output_frames
+from .result import BatchResult, _strained
 from .bookkeeping import PROCESS_VARIANTS, Bookkeeper
 from .recorder import Recorder
 from .cluster import SchedulerLost, check_dask, check_scheduler_address, dask_client, run_dask
@@ -79,72 +79,6 @@ class BatchInterrupted(KeyboardInterrupt):
         super().__init__("interrupted")
         self.result = result
         self.signum = int(signum)
-
-
-@dataclass
-class BatchResult:
-    """What a batch did.
-
-    Attributes:
-        out_dir: the batch folder.
-        variants: variants in the batch.
-        ok, failed: variants finished in this run (or before, when resuming), by status.
-        resumed: variants finished by an earlier run and skipped.
-        pending: variants not finished (an interrupted batch).
-        groups, chunks: how the variants were run.
-        devices: where the chunks ran ("dask" for a cluster).
-        wall_s: the whole command [s]; prepare_s: reading and checking the variants and planning;
-        simulate_s: simulating (wall, in this process; the sum over workers otherwise);
-        write_s: the writer tasks' time, summed over writers; write_wait_s: waiting for writers
-            (and for frames to be copied back from the device for them);
-        books_s: recording the finished chunks (journal records, summary lines);
-        frames: frames written per variant (with ``every``: every K-th of those simulated);
-        timings: the simulation's own split (build, kernels, launch, readback, control, checks, copy, rerun), summed.
-        failures: (variant name, reason) of the failed variants.
-        contacts: (variant name, frame) of the variants where distant parts of their tubes came
-            closer than the sum of their radii, at the first such frame (contact is not modelled).
-    """
-
-    out_dir: str
-    variants: int = 0
-    ok: int = 0
-    failed: int = 0
-    resumed: int = 0
-    pending: int = 0
-    groups: int = 0
-    chunks: int = 0
-    devices: list = field(default_factory=list)
-    wall_s: float = 0.0
-    prepare_s: float = 0.0
-    simulate_s: float = 0.0
-    write_s: float = 0.0
-    write_wait_s: float = 0.0
-    books_s: float = 0.0
-    frames: int = 0
-    timings: dict = field(default_factory=lambda: dict.fromkeys(TIMERS, 0.0))
-    failures: list = field(default_factory=list)
-    contacts: list = field(default_factory=list)
-
-    def text(self) -> str:
-        t = self.timings
-        lines = [
-            f"variants     {self.variants} in {self.groups} group(s), {self.chunks} chunk(s) on {_device_list(self.devices)}",
-            f"finished     {self.ok} ok, {self.failed} failed" + (f" ({self.resumed} from before)" if self.resumed else ""),
-            f"frames       {self.frames} per variant",
-            f"wall time    {self.wall_s:.2f} s: reading {self.prepare_s:.2f} s, simulating {self.simulate_s:.2f} s "
-            f"(kernels {t['kernels_s']:.2f} s, checks {t['checks_s']:.2f} s), waiting for writers {self.write_wait_s:.2f} s",
-            f"output       {self.out_dir}",
-        ]  # fmt: skip
-        if self.pending:
-            lines.append(f"unfinished   {self.pending} variant(s): warp-tube batch ... --resume goes on")
-        lines += [f"failed       {name}: {reason}" for name, reason in self.failures[:10]]
-        if len(self.failures) > 10:
-            lines.append(f"failed       ... and {len(self.failures) - 10} more (summary.csv)")
-        if self.contacts:
-            name, frame = self.contacts[0]
-            lines.append(f"contact      {len(self.contacts)} variant(s): distant parts of their tubes touched (first {name} at "
-                         f"frame {frame}); contact is not modelled, they pass through each other (summary.csv: contact_frame)")  # fmt: skip
-        return "\n".join(lines)
 
 
 def _devices(device, workers, scheduler, cpu_default: int = 1) -> list[str]:
@@ -203,13 +137,6 @@ def _default_cpu_workers(layout: str, tab) -> int:
     if layout != "arrays" or tab is None:
         return 1
     return max(1, len(tab.rows) // CPU_WORKER_ROWS)
-
-
-def _device_list(devices: list[str]) -> str:
-    """``cuda:0, cuda:1`` or, for workers sharing a device, ``cpu x 4``."""
-    if len(devices) > 1 and len(set(devices)) == 1:
-        return f"{devices[0]} x {len(devices)}"
-    return ", ".join(devices) or "-"
 
 
 @holding(SIM_LOCK)  # (a simulation or another batch in another thread waits)
@@ -538,13 +465,15 @@ def _finished(out_dir: str, result: BatchResult, t_start: float) -> BatchResult:
     result.failed = len(rows) - result.ok
     result.failures = [(r["name"], r["reason"]) for r in rows if r["status"] != "ok"]
     result.contacts = [(r["name"], int(r["contact_frame"])) for r in rows if r.get("contact_frame", "") != ""]
+    result.strained = _strained([r["name"] for r in rows], [r["status"] for r in rows], [r.get("max_stretch", "") for r in rows])
     result.wall_s = time.perf_counter() - t_start
     return result
 
 
 def _tally(result: BatchResult, records: dict, variants) -> None:
-    index, cols = batch_columns(records.values(), ("status", "reason", "contact_frame"))
+    index, cols = batch_columns(records.values(), ("status", "reason", "contact_frame", "max_stretch"))
     vs = variants.variants
+    result.strained = _strained([vs[i].name for i in index], cols["status"], cols["max_stretch"])
     result.ok = cols["status"].count("ok")
     result.failed = len(index) - result.ok
     result.failures = [(vs[i].name, r) for i, s, r in zip(index, cols["status"], cols["reason"]) if s != "ok"]
