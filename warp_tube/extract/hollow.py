@@ -106,10 +106,13 @@ def _sampled(points: np.ndarray) -> np.ndarray:
     return points[:: max(1, len(points) // _SAMPLES)]
 
 
-def _inside_share(outer: trimesh.Trimesh, points: np.ndarray) -> float:
-    """Fraction of ``points`` inside ``outer`` with its boundary loops capped (ray parity)."""
+def _inside(outer: trimesh.Trimesh, points: np.ndarray) -> np.ndarray:
+    """Whether each of ``points`` (n, 3) lies inside ``outer`` with its boundary loops capped (ray
+    parity), bool (n,)."""
     from ..kernels import raycast
 
+    if len(points) == 0:
+        return np.zeros(0, dtype=bool)
     v, f = cap_loops(outer, boundary_loops(outer))
     centre = 0.5 * (v.min(axis=0) + v.max(axis=0))  # float32 queries: near the origin
     device = wp.get_device()
@@ -120,7 +123,7 @@ def _inside_share(outer: trimesh.Trimesh, points: np.ndarray) -> float:
     out = wp.zeros(len(points), dtype=wp.int32, device=device)
     reach = 2.0 * float(np.linalg.norm(np.ptp(v, axis=0)))
     wp.launch(raycast.inside_by_parity, dim=len(points), inputs=[mesh.id, p, reach], outputs=[out], device=device)
-    return float(out.numpy().mean()) if len(points) else 0.0
+    return out.numpy() != 0
 
 
 def outer_wall(mesh: trimesh.Trimesh, source: str) -> tuple[trimesh.Trimesh, Bore | None]:
@@ -151,16 +154,20 @@ def outer_wall(mesh: trimesh.Trimesh, source: str) -> tuple[trimesh.Trimesh, Bor
     inner = int(order[1])
     if area[inner] < BORE_AREA * area[order[0]]:
         return mesh, None
+    # Each other piece's sampled face centres, tested in one launch: the inner wall must lie inside
+    # the outer one; every other piece inside it goes with the bore, pieces outside stay for the caller.
     centres = np.asarray(mesh.triangles_center)
-    if _inside_share(outer, _sampled(centres[label == inner])) < _INSIDE:
+    pieces = [int(k) for k in order[1:]]
+    by_piece = np.argsort(label, kind="stable")  # faces grouped by piece (-1, the rims, first)
+    bounds = np.searchsorted(label[by_piece], np.arange(label.max() + 2))
+    samples = [_sampled(centres[by_piece[bounds[k]:bounds[k + 1]]]) for k in pieces]
+    flags = np.split(_inside(outer, np.concatenate(samples)), np.cumsum([len(x) for x in samples])[:-1])
+    share = {k: float(fl.mean()) if len(fl) else 0.0 for k, fl in zip(pieces, flags)}
+    if share[inner] < _INSIDE:
         return mesh, None
-    # Every other piece inside the outer wall goes with the bore; pieces outside stay for the caller.
-    keep = label != inner
+    keep = ~np.isin(label, [k for k in pieces if share[k] >= _INSIDE])
     if rims.any():
         keep &= ~rims
-    for k in order[2:]:
-        if _inside_share(outer, _sampled(centres[label == k])) >= _INSIDE:
-            keep &= label != k
     out = trimesh.Trimesh(mesh.vertices, mesh.faces[keep], process=False)
     out.remove_unreferenced_vertices()
     ratio = float(area[inner] / area[order[0]])
