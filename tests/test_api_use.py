@@ -49,6 +49,7 @@ def _rest_pins(scene):
     ((1e40, 0.0, 0.0), "at most 1e9 N"),  # finite in float64, infinite in the model's float32
     ((0.0, 2e9, 0.0), "at most 1e9 N"),  # a scene's warptube:force is refused beyond 1e9 N too
     ([True, False, True], "expected three numbers"),
+    ((True, 0, 0), "expected three numbers"),  # a bool among numbers: an int array to NumPy (was 1 N)
 ])  # fmt: skip
 def test_set_force_refuses_what_a_scene_refuses(sim, vector, words):
     with pytest.raises(ValueError, match=words):

@@ -175,6 +175,8 @@ def _numbers(value, message: str) -> np.ndarray:
         raw = np.asarray(value)
         if raw.dtype.kind in "bcSUV" or (raw.dtype.kind == "O" and any(isinstance(x, (bool, np.bool_)) for x in raw.flat)):
             raise TypeError
+        if isinstance(value, (list, tuple)) and any(isinstance(x, (bool, np.bool_)) for x in np.asarray(value, dtype=object).flat):
+            raise TypeError  # ((True, 0, 0) is an int array to NumPy)
         return np.asarray(value, dtype=np.float64)
     except (TypeError, ValueError):
         raise ValueError(message) from None
