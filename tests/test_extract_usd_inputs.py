@@ -12,22 +12,30 @@ from warp_tube.extract.usd import prim_name
 from .test_extract_robustness import straight_tube
 
 
+def mesh_tube_stage(path, vertices, faces):
+    """A new stage at ``path`` holding ``/World/Tube``: a Mesh of ``vertices`` (V, 3) and triangles
+    ``faces`` (F, 3) with ``warptube:extract`` and a Young's modulus of 1e5 Pa (no density: the
+    caller sets it). Returns ``(stage, prim)``; the caller saves the stage."""
+    stage = Usd.Stage.CreateNew(str(path))
+    UsdGeom.Xform.Define(stage, "/World")
+    mesh = UsdGeom.Mesh.Define(stage, "/World/Tube")
+    mesh.CreatePointsAttr(Vt.Vec3fArray([Gf.Vec3f(*p) for p in np.asarray(vertices, dtype=float)]))
+    mesh.CreateFaceVertexCountsAttr(Vt.IntArray([3] * len(faces)))
+    mesh.CreateFaceVertexIndicesAttr(Vt.IntArray(np.asarray(faces).reshape(-1).tolist()))
+    prim = mesh.GetPrim()
+    prim.CreateAttribute("warptube:extract", Sdf.ValueTypeNames.Bool).Set(True)
+    prim.CreateAttribute("warptube:youngsModulus", Sdf.ValueTypeNames.Double).Set(1e5)
+    return stage, prim
+
+
 def test_time_sampled_parameters_of_an_extracted_mesh_are_read_at_the_first_frame(tmp_path, caplog):
     """A Mesh with ``warptube:extract`` whose density is authored only as time samples (as DCC
     tools often write attributes) is read at the start frame, with a warning that the samples
     differ, instead of being reported missing."""
     v, f = straight_tube(length=10.0, radius=1.0)
-    stage = Usd.Stage.CreateNew(str(tmp_path / "s.usda"))
+    stage, prim = mesh_tube_stage(tmp_path / "s.usda", v, f)
     stage.SetStartTimeCode(1.0)
     stage.SetEndTimeCode(3.0)
-    UsdGeom.Xform.Define(stage, "/World")
-    mesh = UsdGeom.Mesh.Define(stage, "/World/Tube")
-    mesh.CreatePointsAttr(Vt.Vec3fArray([Gf.Vec3f(*p) for p in v.astype(float)]))
-    mesh.CreateFaceVertexCountsAttr(Vt.IntArray([3] * len(f)))
-    mesh.CreateFaceVertexIndicesAttr(Vt.IntArray(f.reshape(-1).tolist()))
-    prim = mesh.GetPrim()
-    prim.CreateAttribute("warptube:extract", Sdf.ValueTypeNames.Bool).Set(True)
-    prim.CreateAttribute("warptube:youngsModulus", Sdf.ValueTypeNames.Double).Set(1e5)
     density = prim.CreateAttribute("warptube:density", Sdf.ValueTypeNames.Double)
     density.Set(900.0, 1.0)
     density.Set(1200.0, 3.0)
@@ -58,15 +66,7 @@ def test_a_plain_cylinder_given_in_a_scene_is_measured_as_extract_measures_it(tm
     with no vertex away from the ends, and warned "could not be measured"."""
     cyl = trimesh.creation.cylinder(radius=1.0, height=20.0, sections=32)
     assert len(np.unique(np.round(cyl.vertices[:, 2], 6))) <= 3  # (its end rings, and the caps' centres)
-    stage = Usd.Stage.CreateNew(str(tmp_path / "s.usda"))
-    UsdGeom.Xform.Define(stage, "/World")
-    mesh = UsdGeom.Mesh.Define(stage, "/World/Tube")
-    mesh.CreatePointsAttr(Vt.Vec3fArray([Gf.Vec3f(*p) for p in cyl.vertices.astype(float)]))
-    mesh.CreateFaceVertexCountsAttr(Vt.IntArray([3] * len(cyl.faces)))
-    mesh.CreateFaceVertexIndicesAttr(Vt.IntArray(cyl.faces.reshape(-1).tolist()))
-    prim = mesh.GetPrim()
-    prim.CreateAttribute("warptube:extract", Sdf.ValueTypeNames.Bool).Set(True)
-    prim.CreateAttribute("warptube:youngsModulus", Sdf.ValueTypeNames.Double).Set(1e5)
+    stage, prim = mesh_tube_stage(tmp_path / "s.usda", cyl.vertices, cyl.faces)
     prim.CreateAttribute("warptube:density", Sdf.ValueTypeNames.Double).Set(1000.0)
     stage.GetRootLayer().Save()
     with caplog.at_level("WARNING"):

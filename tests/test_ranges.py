@@ -102,22 +102,15 @@ def test_no_numpy_warning_reaches_stderr(old, new, tmp_cwd):
     ("warptube:density", 1e12, ["/World/Tube.warptube:density: found 1e12", "0.01 to 1e6 kg/m^3"]),
 ])  # fmt: skip
 def test_a_mesh_tube_s_attributes_have_the_same_ranges(name, value, words, tmp_path):
-    from pxr import Gf, Sdf, Usd, UsdGeom, Vt
+    from pxr import Sdf
 
     from warp_tube import load_scene as load_with_extraction
 
     from .test_extract_robustness import straight_tube
+    from .test_extract_usd_inputs import mesh_tube_stage
 
     v, f = straight_tube(length=10.0, radius=1.0)
-    stage = Usd.Stage.CreateNew(str(tmp_path / "s.usda"))
-    UsdGeom.Xform.Define(stage, "/World")
-    mesh = UsdGeom.Mesh.Define(stage, "/World/Tube")
-    mesh.CreatePointsAttr(Vt.Vec3fArray([Gf.Vec3f(*p) for p in v.astype(float)]))
-    mesh.CreateFaceVertexCountsAttr(Vt.IntArray([3] * len(f)))
-    mesh.CreateFaceVertexIndicesAttr(Vt.IntArray(f.reshape(-1).tolist()))
-    prim = mesh.GetPrim()
-    prim.CreateAttribute("warptube:extract", Sdf.ValueTypeNames.Bool).Set(True)
-    prim.CreateAttribute("warptube:youngsModulus", Sdf.ValueTypeNames.Double).Set(1e5)
+    stage, prim = mesh_tube_stage(tmp_path / "s.usda", v, f)
     prim.CreateAttribute("warptube:density", Sdf.ValueTypeNames.Double).Set(1000.0)
     prim.CreateAttribute(name, Sdf.ValueTypeNames.Double).Set(value)
     stage.GetRootLayer().Save()
