@@ -28,6 +28,7 @@ import numpy as np
 from scipy.ndimage import gaussian_filter1d
 
 from ..model.frames import hub_tangents, initial_normal, rotation_minimizing_frames, spoke_directions
+from ..scene.shape_notes import turning_angles
 from .polyline import resample_spline, smooth, tangents
 from .queries import MeshQueries
 
@@ -147,20 +148,13 @@ def _safe_moves(q: MeshQueries, p: np.ndarray, offset: np.ndarray, movable: np.n
     back = np.einsum("ij,ij->i", e0, e1) <= 0.0
     keep[1:] &= ~back
     keep[:-1] &= ~back
-    before = _turns(p)
+    before = turning_angles(p)
     for _ in range(3):  # moves that kink the line (a turn over MAX_TURN that was not there) stay
-        sharp = np.flatnonzero((_turns(np.where(keep[:, None], moved, p)) > MAX_TURN) & (before <= MAX_TURN)) + 1
+        sharp = np.flatnonzero((turning_angles(np.where(keep[:, None], moved, p)) > MAX_TURN) & (before <= MAX_TURN)) + 1
         if len(sharp) == 0:
             break
         keep[np.clip(np.concatenate([sharp - 1, sharp, sharp + 1]), 0, len(p) - 1)] = False
     return np.where(keep[:, None], offset, 0.0)
-
-
-def _turns(p: np.ndarray) -> np.ndarray:
-    """Turning angle [rad] at each interior point of a polyline, shape (n - 2,)."""
-    e = np.diff(p, axis=0)
-    e = e / np.maximum(np.linalg.norm(e, axis=1, keepdims=True), 1e-300)
-    return np.arccos(np.clip(np.einsum("ij,ij->i", e[1:], e[:-1]), -1.0, 1.0))
 
 
 def recentre(q: MeshQueries, line: np.ndarray, diag: float, *, iterations: int = 4, tangent_sigma: float = 1.0,

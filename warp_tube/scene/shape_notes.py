@@ -18,7 +18,7 @@ import logging
 
 import numpy as np
 
-__all__ = ["warn_about_shape", "SHARP_TURN_DEG", "FLOAT32_SHARE"]
+__all__ = ["warn_about_shape", "turning_angles", "SHARP_TURN_DEG", "FLOAT32_SHARE"]
 
 log = logging.getLogger("warp_tube.scene.usd")
 
@@ -28,16 +28,19 @@ SHARP_TURN_DEG = 155.0
 FLOAT32_SHARE = 1e-3
 
 
+def turning_angles(p: np.ndarray) -> np.ndarray:
+    """Turning angle [rad] at each interior point of a polyline ``p`` (n, 3), shape (n - 2,)."""
+    e = np.diff(p, axis=0)
+    e = e / np.maximum(np.linalg.norm(e, axis=1, keepdims=True), 1e-300)
+    return np.arccos(np.clip(np.einsum("ij,ij->i", e[1:], e[:-1]), -1.0, 1.0))
+
+
 def _turns(pts: np.ndarray, starts: np.ndarray, ends: np.ndarray) -> np.ndarray:
     """Turning angle at each point [degrees], 0 at curve ends, shape (n,)."""
-    n = len(pts)
-    a = np.zeros(n)
-    if n < 3:
+    a = np.zeros(len(pts))
+    if len(pts) < 3:
         return a
-    e = np.diff(pts, axis=0)
-    e /= np.maximum(np.linalg.norm(e, axis=1), 1e-300)[:, None]
-    cos = np.clip(np.einsum("ij,ij->i", e[:-1], e[1:]), -1.0, 1.0)
-    a[1:-1] = np.degrees(np.arccos(cos))
+    a[1:-1] = np.degrees(turning_angles(pts))
     a[starts] = 0.0
     a[ends] = 0.0
     return a

@@ -36,6 +36,23 @@ def model_notes(scene, features, integrator: str) -> list[str]:
 STRAIN_FACTOR = 1.5
 
 
+def _ratios(q: np.ndarray, seg_rest_length: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """Each segment's length over its rest length and how far that departs from 1 either way
+    (``max(l / l0, l0 / l)``), both (world, node - 1), 1 where there is no segment.
+
+    Args:
+        q: positions [m], (world, node, 3).
+        seg_rest_length: rest length of segment ``i`` (node ``i`` to ``i + 1``) [m], (world or 1,
+            node), 0 where no segment (a tube's last node).
+    """
+    q = np.asarray(q, dtype=np.float64)
+    rest = np.broadcast_to(np.atleast_2d(seg_rest_length)[:, : q.shape[1] - 1], q.shape[:2] - np.array([0, 1]))
+    length = np.linalg.norm(np.diff(q, axis=1), axis=-1)
+    inside = rest > 0.0
+    ratio = np.where(inside, length / np.where(inside, rest, 1.0), 1.0)
+    return ratio, np.maximum(ratio, 1.0 / np.maximum(ratio, 1e-300))
+
+
 def strained_segment(q: np.ndarray, seg_rest_length: np.ndarray) -> tuple[int, float] | None:
     """The segment whose length is farthest beyond :data:`STRAIN_FACTOR` of its rest length, stretched
     or compressed, or None.
@@ -48,15 +65,11 @@ def strained_segment(q: np.ndarray, seg_rest_length: np.ndarray) -> tuple[int, f
     Returns:
         ``(i, length / rest length)`` or None.
     """
-    rest = np.asarray(seg_rest_length, dtype=np.float64).reshape(-1)[: len(q) - 1]
-    if len(rest) == 0:
+    ratio, off = _ratios(np.asarray(q)[None], np.reshape(seg_rest_length, (1, -1)))
+    if off.shape[1] == 0:
         return None
-    ratio = np.ones(len(rest))
-    inside = rest > 0.0
-    ratio[inside] = np.linalg.norm(np.diff(q, axis=0)[inside], axis=1) / rest[inside]
-    off = np.maximum(ratio, 1.0 / np.maximum(ratio, 1e-300))
-    i = int(np.argmax(off))
-    return (i, float(ratio[i])) if off[i] > STRAIN_FACTOR else None
+    i = int(np.argmax(off[0]))
+    return (i, float(ratio[0, i])) if off[0, i] > STRAIN_FACTOR else None
 
 
 def stretch(q: np.ndarray, seg_rest_length: np.ndarray) -> np.ndarray:
@@ -70,13 +83,8 @@ def stretch(q: np.ndarray, seg_rest_length: np.ndarray) -> np.ndarray:
     Returns:
         (world,) float64.
     """
-    q = np.asarray(q, dtype=np.float64)
-    rest = np.broadcast_to(np.atleast_2d(seg_rest_length)[:, : q.shape[1] - 1], q.shape[:2] - np.array([0, 1]))
-    length = np.linalg.norm(np.diff(q, axis=1), axis=-1)
-    inside = rest > 0.0
-    ratio = np.where(inside, length / np.where(inside, rest, 1.0), 1.0)
-    off = np.maximum(ratio, 1.0 / np.maximum(ratio, 1e-300))
-    return off.max(axis=1) if off.shape[1] else np.ones(q.shape[0])
+    _, off = _ratios(q, seg_rest_length)
+    return off.max(axis=1) if off.shape[1] else np.ones(np.shape(q)[0])
 
 
 def strain_message(q: np.ndarray, seg_rest_length: np.ndarray, frame: int, node_name) -> str | None:
