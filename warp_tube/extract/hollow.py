@@ -126,8 +126,9 @@ def _inside(outer: trimesh.Trimesh, points: np.ndarray) -> np.ndarray:
     return out.numpy() != 0
 
 
-def outer_wall(mesh: trimesh.Trimesh, source: str) -> tuple[trimesh.Trimesh, Bore | None]:
-    """``mesh`` (welded, without degenerate faces) as its outer wall where it is a hollow tube.
+def outer_wall(mesh: trimesh.Trimesh, source: str, labels: np.ndarray | None = None) -> tuple[trimesh.Trimesh, Bore | None]:
+    """``mesh`` (welded, without degenerate faces) as its outer wall where it is a hollow tube;
+    ``labels``: its faces' connected pieces where the caller has them (F,) int.
 
     Returns:
         ``(mesh, None)`` where it is not a hollow tube (the same object); else the outer wall's faces
@@ -135,9 +136,8 @@ def outer_wall(mesh: trimesh.Trimesh, source: str) -> tuple[trimesh.Trimesh, Bor
     """
     if len(mesh.faces) < 16:
         return mesh, None
-    everything = np.ones(len(mesh.faces), dtype=bool)
     rims = np.zeros(len(mesh.faces), dtype=bool)
-    label = _components(mesh, everything)
+    label = _components(mesh, ~rims) if labels is None else np.asarray(labels)
     if label.max() == 0:  # one piece: walls joined by flat rims? (closed, with a hole through it at least)
         if not mesh.is_watertight or mesh.euler_number > 0:
             return mesh, None

@@ -110,8 +110,11 @@ def clean_mesh(mesh: trimesh.Trimesh, source: str, scale=(1.0, 1.0, 1.0), max_si
     out.remove_unreferenced_vertices()
     if len(out.faces) == 0:
         raise SceneError(f"{source}: every face has zero area: expected a tube surface")
-    out, _ = outer_wall(out, source)
     labels = trimesh.graph.connected_component_labels(out.face_adjacency, node_count=len(out.faces))
+    wall, _ = outer_wall(out, source, labels)
+    if wall is not out:  # (a hollow tube's outer wall: its own pieces)
+        out = wall
+        labels = trimesh.graph.connected_component_labels(out.face_adjacency, node_count=len(out.faces))
     if labels.max() > 0:
         keep = largest_component(out, labels, source)
         out.update_faces(labels == keep)
