@@ -164,10 +164,10 @@ def test_an_interrupted_export_leaves_nothing(stage, monkeypatch, capsys):
 
     real_surface_at = export_module.surface_at
 
-    def surface_at(mesh, time):
+    def surface_at(mesh, time, *args):
         if time == 1:
             raise KeyboardInterrupt
-        return real_surface_at(mesh, time)
+        return real_surface_at(mesh, time, *args)
 
     monkeypatch.setattr(export_module, "surface_at", surface_at)
     assert main(["export", "out.usda", "-o", "frames"]) == 130

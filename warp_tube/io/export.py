@@ -36,7 +36,7 @@ import numpy as np
 
 from ..scene.spec import SceneError
 
-__all__ = ["export", "open_output_stage", "surface_meshes", "surface_frames", "surface_at", "check_surfaces", "checked_points"]
+__all__ = ["export", "open_output_stage", "surface_meshes", "surface_frames", "surface_at", "checked_points"]
 
 FORMATS = ("obj", "glb")
 
@@ -163,15 +163,6 @@ def surface_at(mesh, time, usd_path=None) -> tuple[np.ndarray, np.ndarray, np.nd
     return verts, _triangles(counts, indices), normals
 
 
-def check_surfaces(meshes, times, usd_path) -> None:
-    """Every Surface mesh at every time code read and checked (:func:`surface_at`), before a file is written."""
-    for time in times:
-        for mesh in meshes:
-            _read_surface(mesh, time, usd_path)
-
-
-_read_surface = surface_at  # (what check_surfaces reads with)
-
 
 def _time_text(t: float) -> str:
     """A time code as written in a message: ``3``, ``12.5``, ``1000000`` (no exponent)."""
@@ -287,7 +278,6 @@ def export(usd_path, fmt: str = "obj", out=None, frame=None, overwrite: bool = F
             raise SceneError(f"{p}: is a folder: not replaced by the exported file")
     if not paths[0].parent.is_dir() and not paths[0].parent.parent.is_dir():
         raise SceneError(f"{paths[0].parent}: cannot create the folder: {paths[0].parent.parent} does not exist")
-    check_surfaces(meshes, times, usd_path)  # (every frame, before a file is written)
 
     to_gltf = np.eye(3)
     scale = 1.0
@@ -297,11 +287,13 @@ def export(usd_path, fmt: str = "obj", out=None, frame=None, overwrite: bool = F
         scale = mpu
         if z_up:
             to_gltf = np.array([[1.0, 0.0, 0.0], [0.0, 0.0, -1.0], [0.0, 1.0, 0.0]])  # rows: x->x, y->-z, z->y
-        render = partial(_render_glb, meshes, [_open_surface(m, times[0]) for m in meshes], scale, to_gltf)
+        render = partial(_render_glb, meshes, usd_path, [_open_surface(m, times[0]) for m in meshes], scale, to_gltf)
     else:
         name = " ".join(usd_path.name.split())  # one comment line, whatever the file's name holds
-        render = partial(_render_obj, meshes, name, mpu, "Z" if z_up else "Y")
+        render = partial(_render_obj, meshes, usd_path, name, mpu, "Z" if z_up else "Y")
 
+    # (each frame's meshes are checked as they are read: a frame that is not sound stops the export,
+    # and _write_all leaves nothing of it)
     _write_all(paths[0].parent, [(path, partial(render, t)) for t, path in zip(times, paths)])
     return paths
 
@@ -339,14 +331,14 @@ def _open_surface(mesh, time) -> bool:
     return bool((np.unique(edges, axis=0, return_counts=True)[1] == 1).any())
 
 
-def _render_glb(meshes, open_surfaces, scale: float, to_gltf: np.ndarray, time) -> bytes:
+def _render_glb(meshes, usd_path, open_surfaces, scale: float, to_gltf: np.ndarray, time) -> bytes:
     """The bytes of one GLB file: every Surface mesh at a time code, one node each."""
     import trimesh
     from trimesh.visual.material import PBRMaterial
 
     scene = trimesh.Scene()
     for mesh, two_sided in zip(meshes, open_surfaces):
-        verts, faces, normals = surface_at(mesh, time)
+        verts, faces, normals = surface_at(mesh, time, usd_path)
         verts = scale * verts @ to_gltf
         normals = None if normals is None else normals @ to_gltf
         m = trimesh.Trimesh(verts, faces, vertex_normals=normals, process=False)
@@ -359,7 +351,7 @@ def _render_glb(meshes, open_surfaces, scale: float, to_gltf: np.ndarray, time) 
     return scene.export(file_type="glb")
 
 
-def _render_obj(meshes, stage_name: str, mpu: float, up: str, time) -> bytes:
+def _render_obj(meshes, usd_path, stage_name: str, mpu: float, up: str, time) -> bytes:
     """The bytes of one OBJ file: every Surface mesh at a time code, one object each (``o`` for
     Blender, ``g`` for Houdini and Maya), in stage units and axes, which a comment names."""
     out = [
@@ -368,7 +360,7 @@ def _render_obj(meshes, stage_name: str, mpu: float, up: str, time) -> bytes:
     ]
     v_base = n_base = 0
     for mesh in meshes:
-        verts, faces, normals = surface_at(mesh, time)
+        verts, faces, normals = surface_at(mesh, time, usd_path)
         name = str(mesh.GetPath())
         out.append(f"o {name}\ng {name}\n")
         out.append(("v %.9g %.9g %.9g\n" * len(verts)) % tuple(verts.ravel().tolist()))
