@@ -34,7 +34,7 @@ from .mesh_io import load_usd_mesh
 from .polyline import arclength
 from .tube_check import side_branches
 from ..scene.spec import FRAME_MODES, SceneError, StageInfo, TubeParams, TubeSpec
-from ..scene.ranges import RADIUS_M, check_attribute, expected, number_text, out_of_range
+from ..scene.ranges import RADIUS_M, check_attribute, expected, lengths_outside
 
 __all__ = ["write_scene", "tube_from_mesh_prim", "prim_name", "push_force"]
 
@@ -295,10 +295,9 @@ def tube_from_mesh_prim(file: str, prim, info: StageInfo) -> TubeSpec:
         log.warning("%s: %s", where, w)
     mpu = info.meters_per_unit
     n = tube.hubs
-    for v in (float(section_radius(tube.spoke_lengths).min()) * mpu, float(section_radius(tube.spoke_lengths).max()) * mpu):
-        if out_of_range(v, RADIUS_M):
-            raise SceneError(f"{where}: the extracted tube's radius of {number_text(v)} m (after the transforms and "
-                             f"metersPerUnit): expected {expected(RADIUS_M)}")  # fmt: skip
+    outside = lengths_outside(section_radius(tube.spoke_lengths) * mpu, "the extracted tube's radius")
+    if outside:
+        raise SceneError(f"{where}: {outside}: expected {expected(RADIUS_M)}")
     k_anchor = float(vals["anchorStiffness"] or 0.0)
     if anchors is None:
         anchors = [0, 1, n - 2, n - 1] if k_anchor > 0.0 else []

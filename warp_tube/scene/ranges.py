@@ -12,8 +12,10 @@ from __future__ import annotations
 
 from typing import NamedTuple
 
+import numpy as np
+
 __all__ = ["Range", "RANGES", "METERS_PER_UNIT", "RADIUS_M", "GRAVITY", "TIME_STEP", "out_of_range", "expected", "number_text",
-           "check_attribute"]
+           "check_attribute", "lengths_outside"]
 
 
 class Range(NamedTuple):
@@ -87,3 +89,14 @@ def check_attribute(where: str, name: str, v: float) -> None:
 
     if name in RANGES and out_of_range(v, RANGES[name]):
         raise SceneError(f"{where}.{name}: found {number_text(v)}: expected {expected(RANGES[name])}")
+
+
+def lengths_outside(values_m, what: str) -> str | None:
+    """What a message names where the least or the largest of ``values_m`` (radii or spoke lengths
+    [m], after the transforms and metersPerUnit) lies outside :data:`RADIUS_M`: ``"{what} of 1e-12
+    m (after ...)"``; None where both lie inside."""
+    a = np.asarray(values_m, dtype=np.float64)
+    for v in (float(a.min()), float(a.max())):
+        if out_of_range(v, RADIUS_M):
+            return f"{what} of {number_text(v)} m (after the transforms and metersPerUnit)"
+    return None

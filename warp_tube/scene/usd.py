@@ -19,7 +19,7 @@ import numpy as np
 from .curves import BEYOND_WORLD, MAX_WORLD_M, check_curve_type, check_points_type, curve_counts, curve_widths, moving_pin_track
 from .attributes import (KNOWN_ATTRS, TARGET, check_names, check_relationships, kind_of, not_defined, not_simulated, samples_differ,
                          undefined)  # fmt: skip
-from .ranges import GRAVITY, METERS_PER_UNIT, RADIUS_M, RANGES, TIME_STEP, expected, number_text, out_of_range
+from .ranges import GRAVITY, METERS_PER_UNIT, RADIUS_M, RANGES, TIME_STEP, expected, lengths_outside, number_text, out_of_range
 from .spec import (
     FRAME_MODES,
     INTEGRATORS,
@@ -221,10 +221,9 @@ def _read_tube(file: str, prim, info: StageInfo, frame_times, varying: dict | No
     if max(coordinate, largest_radius) > MAX_WORLD_M:
         name, what = ("points", "coordinate") if coordinate >= largest_radius else ("widths", "radius")
         r.fail(name, f"a {what} of {max(coordinate, largest_radius):.3g} m (after the transforms and metersPerUnit)", BEYOND_WORLD)
-    for v in (float(radius.min()), largest_radius):
-        if out_of_range(v, RADIUS_M):
-            r.fail("widths", f"a radius of {number_text(v)} m (after the transforms and metersPerUnit)",
-                   expected(RADIUS_M))  # fmt: skip
+    outside = lengths_outside(radius, "a radius")
+    if outside:
+        r.fail("widths", outside, expected(RADIUS_M))
     warn_about_transforms(prim, matrix, curves.GetPointsAttr().GetNumTimeSamples() > 1, r.where("points"), varying)
     warn_about_layer_units(prim, pattr, matrix, mpu, info.up_axis, r.where("points"))
     E = r.real("warptube:youngsModulus", positive=True)
@@ -289,9 +288,9 @@ def _read_tube(file: str, prim, info: StageInfo, frame_times, varying: dict | No
             i = int(np.argmax(sl <= 0))
             r.fail("warptube:spokeLengths", f"{sl[i]} at index {i}", "positive lengths")
         sl = sl.reshape(n, spokes) * scale * mpu
-        for v in (float(sl.min()), float(sl.max())):
-            if out_of_range(v, RADIUS_M):
-                r.fail("warptube:spokeLengths", f"a length of {number_text(v)} m (after the transforms and metersPerUnit)", expected(RADIUS_M))
+        outside = lengths_outside(sl, "a length")
+        if outside:
+            r.fail("warptube:spokeLengths", outside, expected(RADIUS_M))
         if mirrored:  # spoke j at angle 2 pi j / S in the prim's space lies at -2 pi j / S in the world's
             sl = sl[:, (-np.arange(spokes)) % spokes]
     pin_track = None
