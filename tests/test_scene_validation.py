@@ -1,5 +1,6 @@
 """Bad input: a clear message naming file, prim and attribute; exit status 2; no output file."""
 
+import os
 import subprocess
 import sys
 
@@ -350,3 +351,14 @@ def test_a_composition_cycle_is_one_line_without_addresses(tmp_cwd, capsys):
     assert main(["check", "cycle.usda"]) == 2
     err = capsys.readouterr().err.strip()
     assert "cannot be composed: Cycle detected" in err and "anon:0x" not in err and "\n" not in err, err
+
+
+def test_a_scene_that_is_a_broken_link_is_named_so(tmp_cwd, capsys):
+    """A scene given as a symbolic link loop, or a link to nothing, is named so (was "no such file"),
+    as extract names a mesh that is one."""
+    os.symlink("loop.usda", tmp_cwd / "loop.usda")
+    os.symlink("gone.usda", tmp_cwd / "dangling.usda")
+    assert main(["check", "loop.usda"]) == 2
+    assert "loop.usda: a symbolic link loop (the link leads back to itself): expected a USD file" in capsys.readouterr().err
+    assert main(["check", "dangling.usda"]) == 2
+    assert "dangling.usda: a symbolic link to gone.usda, which does not exist" in capsys.readouterr().err

@@ -18,6 +18,7 @@ import scipy.sparse as sp
 import trimesh
 from scipy.sparse.csgraph import connected_components
 
+from ..scene.files import not_a_file
 from ..scene.spec import SceneError
 from .components import largest_component, weld
 from .hollow import outer_wall
@@ -199,22 +200,6 @@ def _sniff(path: str) -> tuple[str, str] | None:
     return None
 
 
-def _not_a_file(path: str) -> str:
-    """What is at ``path``, which is neither a folder nor a regular file, in words."""
-    import errno
-
-    if os.path.islink(path):
-        try:
-            os.stat(path)
-        except OSError as e:
-            if e.errno == errno.ELOOP:
-                return "a symbolic link loop (the link leads back to itself): expected a mesh file"
-            return f"a symbolic link to {os.readlink(path)}, which does not exist"
-    if os.path.exists(path):
-        return "not a regular file (a device, pipe or socket): expected a mesh file"
-    return "no such file"
-
-
 def load_mesh(path, scale=(1.0, 1.0, 1.0)) -> trimesh.Trimesh:
     """Read a triangle mesh file (STL, PLY, OBJ, ... as trimesh reads them) and clean it.
 
@@ -234,7 +219,7 @@ def load_mesh(path, scale=(1.0, 1.0, 1.0)) -> trimesh.Trimesh:
     if os.path.isdir(path):
         raise SceneError(f"{path}: is a folder: expected a mesh file")
     if not os.path.isfile(path):
-        raise SceneError(f"{path}: {_not_a_file(path)}")
+        raise SceneError(f"{path}: {not_a_file(path, 'a mesh file')}")
     ext = os.path.splitext(path)[1].lower()
     if ext in (".usd", ".usda", ".usdc", ".usdz"):
         raise SceneError(f"{path}: a USD stage, not a mesh file: extract reads STL, PLY, OBJ, OFF or glTF binary; a USD Mesh prim is "

@@ -32,6 +32,7 @@ __all__ = [
     "same_file",
     "temp_path",
     "usd_layer_files",
+    "not_a_file",
     "write_atomically",
 ]
 
@@ -145,6 +146,24 @@ def default_run_output(scene_path: str | None) -> str:
         return "tube.usdc"
     stem = os.path.splitext(os.path.basename(os.fspath(scene_path)))[0] or "scene"
     return f"{stem}.out.usdc"
+
+
+def not_a_file(path: str, expected: str) -> str:
+    """What is at ``path``, which is neither a folder nor a regular file, in words (``expected``:
+    what it should be, e.g. "a mesh file"): a symbolic link loop, a link to nothing, a device, pipe or
+    socket, or nothing."""
+    import errno
+
+    if os.path.islink(path):
+        try:
+            os.stat(path)
+        except OSError as e:
+            if e.errno == errno.ELOOP:
+                return f"a symbolic link loop (the link leads back to itself): expected {expected}"
+            return f"a symbolic link to {os.readlink(path)}, which does not exist"
+    if os.path.exists(path):
+        return f"not a regular file (a device, pipe or socket): expected {expected}"
+    return "no such file"
 
 
 def usd_layer_files(stage) -> list[str]:

@@ -7,6 +7,7 @@ from __future__ import annotations
 import os
 import re
 
+from .files import not_a_file
 from .spec import SceneError
 
 __all__ = ["open_stage", "usd_error_in_user_terms"]
@@ -26,7 +27,7 @@ def open_stage(path: str):
 
     path = os.fspath(path)
     if not os.path.exists(path):
-        raise SceneError(f"{path}: no such file")
+        raise SceneError(f"{path}: {not_a_file(path, 'a USD file')}")
     if os.path.isdir(path):
         raise SceneError(f"{path}: is a folder, expected a USD file (.usda, .usdc, .usd)")
     if not os.access(path, os.R_OK):
