@@ -13,12 +13,17 @@ per (world, group), into ``sums[w, g]``:
   ``sum (f_ext + m_free g) . (x_after - x_before)`` [J] (forces are held over a frame, so this is
   exact for them);
 
-and into ``far_out[w, g]`` the largest distance of a finite node from its rest position [m].
+into ``far_out[w, g]`` the largest distance of a finite node from its rest position [m], and
+into ``strain_out[w, g]`` the largest factor by which a segment's length departs from its rest
+length, stretched or compressed (``max(l / l0, l0 / l)``, segments between finite nodes; 0 where
+the group has none).
 
 Shapes: positions and velocities (world, node) vec3 [m, m/s]; ``rest_q`` (rows, node) vec3 [m] and
 ``node_free_mass`` (rows, node) [kg] (0 for pinned nodes), world ``w`` reading row ``w % rows``
-(one row shared by every world, or one per world); ``node_group`` (node,) int; ``sums`` (world,
-group) vec3 and ``far_out`` (world, group) float, zeroed by the host before the launch.
+(one row shared by every world, or one per world); ``seg_rest_length`` (rows, node) [m] the rest
+length of the segment from each node to the next (0 at a tube's last node), read the same way;
+``node_group`` (node,) int; ``sums`` (world, group) vec3, ``far_out`` and ``strain_out`` (world,
+group) float, zeroed by the host before the launch.
 """
 
 from __future__ import annotations
@@ -33,12 +38,14 @@ def frame_sums_kernel(
     qd_after: wp.array2d[wp.vec3],
     f_ext: wp.array2d[wp.vec3],
     rest_q: wp.array2d[wp.vec3],
+    seg_rest_length: wp.array2d[float],
     node_group: wp.array[int],
     node_free_mass: wp.array2d[float],
     gravity: wp.vec3,
     limit: float,
     sums: wp.array2d[wp.vec3],
     far_out: wp.array2d[float],
+    strain_out: wp.array2d[float],
 ):
     w, n = wp.tid()
     g = node_group[n]
@@ -53,6 +60,11 @@ def frame_sums_kernel(
         wp.atomic_add(sums, w, g, wp.vec3(1.0, 0.0, 0.0))
         return
     wp.atomic_max(far_out, w, g, wp.sqrt(far))
+    l0 = seg_rest_length[w % seg_rest_length.shape[0], n]
+    if l0 > 0.0:
+        r = wp.length(q_after[w, n + 1] - x) / l0
+        if r >= 0.0 and r < 1.0e30:  # (not a NaN or an infinity: the next node's own test fails the frame)
+            wp.atomic_max(strain_out, w, g, wp.max(r, 1.0 / wp.max(r, 1.0e-30)))
     m = node_free_mass[row, n]
     f = f_ext[w, n] + m * gravity
     wp.atomic_add(sums, w, g, wp.vec3(0.0, 0.5 * m * wp.dot(v, v), wp.dot(f, x - q_before[w, n])))

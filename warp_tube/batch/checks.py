@@ -5,7 +5,7 @@ A world fails a frame when a position or velocity is not finite, a free point is
 ``RUNAWAY_LENGTHS`` tube lengths from its rest position, or its kinetic energy exceeds ten times
 the work its forces and gravity did plus a round-off floor (moving pins: no energy check), as in
 ``Simulation``. The sums run on the device (:class:`warp_tube.sim.checks.FrameChecks`, with each
-world's own rest shape, masses, runaway distance and energy floor): the host reads four numbers
+world's own rest shape, masses, runaway distance and energy floor): the host reads five numbers
 per world a frame, and whole arrays only to name the point of a world that failed.
 """
 
@@ -57,6 +57,11 @@ class WorldChecks:
         """Largest distance of a point from its rest position in the frame in host slot ``slot``
         [m], (W,)."""
         return self.device_checks.distance(slot)[:, 0]
+
+    def stretch(self, slot: int) -> np.ndarray:
+        """The largest factor by which a segment's length departs from its rest length in the frame
+        in host slot ``slot`` (``max(l / l0, l0 / l)``) [1], (W,)."""
+        return self.device_checks.stretch(slot)[:, 0]
 
     def launch(self, before, after, control, slot: int) -> None:
         """Queue the sums of the frame from state ``before`` to ``after`` and their copy back into

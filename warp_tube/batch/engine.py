@@ -138,6 +138,7 @@ def simulate_chunk(scenes: list[Scene], choice: RunChoice, device: str, frames: 
     frames_simulated = np.zeros(W, dtype=np.int64)
     frames_written = np.zeros(W, dtype=np.int64)
     max_disp = np.zeros(W)
+    max_stretch = np.ones(W)
     n, dt = choice.substeps, frame_dt / choice.substeps
 
     def launch(k: int, state, nxt, f_out: int) -> tuple:
@@ -197,6 +198,7 @@ def simulate_chunk(scenes: list[Scene], choice: RunChoice, device: str, frames: 
             _reset_worlds(state, checks.rest32, worlds.rest_q(), ~alive)
         contacts.check(k, after.node_q, alive, slot=k % 2)
         max_disp = np.where(alive, np.maximum(max_disp, checks.distance(k % 2)), max_disp)
+        max_stretch = np.where(alive, np.maximum(max_stretch, checks.stretch(k % 2)), max_stretch)
         frames_simulated[alive] += 1
         frames_written[alive] += stored
         timings["sync_s"] += t1 - t
@@ -220,7 +222,7 @@ def simulate_chunk(scenes: list[Scene], choice: RunChoice, device: str, frames: 
                      integrator=[choice.integrator] * W, substeps=[choice.substeps] * W, rerun=[False] * W,
                      max_displacement_m=max_disp.tolist(), tip=tips, kinetic_energy_J=np.asarray(ke, dtype=np.float64).tolist(),
                      work_J=np.asarray(checks.work, dtype=np.float64).tolist(), contact_frame=touched,
-                     max_stretch=stretch(q, m.host.seg_rest_length).tolist()))  # fmt: skip
+                     max_stretch=max_stretch.tolist()))  # fmt: skip
     timings["readback_s"] += time.perf_counter() - t
     t = time.perf_counter()
     if failed:
@@ -284,7 +286,7 @@ def _run_alone(scene: Scene, w: int, device: str, frames: int, every: int, surfa
     h = sim.model.host
     mpu = scene.stage.meters_per_unit
     free_mass = (h.node_mass * (h.node_inv_mass > 0))[None]
-    max_disp, simulated, written, reason = 0.0, 0, 0, ""
+    max_disp, max_stretch, simulated, written, reason = 0.0, 1.0, 0, 0, ""
     q = sim.state.node_q.numpy()
     f_out = 0
     for k in range(frames):
@@ -298,6 +300,7 @@ def _run_alone(scene: Scene, w: int, device: str, frames: int, every: int, surfa
             q = sim.state.node_q.numpy()
             simulated += 1
             max_disp = max(max_disp, sim.max_displacement())
+            max_stretch = max(max_stretch, float(stretch(q, h.seg_rest_length)[0]))
         if k % every == 0:
             arrays["centerline"][f_out, w] = np.concatenate(sim.centerline_points())
             if surface:
@@ -316,7 +319,7 @@ def _run_alone(scene: Scene, w: int, device: str, frames: int, every: int, surfa
         note += "; " + "; ".join(sim.warnings)
     # work_J: what Simulation's own checks counted over the frames it kept
     results = dict(max_displacement_m=float(max_disp), tip=(q[0, tip] / mpu).astype(np.float64).tolist(), kinetic_energy_J=ke,
-                   work_J=float(sim.checks.work.sum()), max_stretch=float(stretch(q, h.seg_rest_length)[0]))  # fmt: skip
+                   work_J=float(sim.checks.work.sum()), max_stretch=max_stretch)  # fmt: skip
     if reason:  # no result: NaN, not the last finished frame's values (at rest, where frame 1 failed), which read as one
         results = dict(max_displacement_m=math.nan, tip=[math.nan] * 3, kinetic_energy_J=math.nan, work_J=math.nan,
                        max_stretch=math.nan)  # fmt: skip

@@ -33,8 +33,8 @@ class BatchResult:
         failures: (variant name, reason) of the failed variants.
         contacts: (variant name, frame) of the variants where distant parts of their tubes came
             closer than the sum of their radii, at the first such frame (contact is not modelled).
-        strained: (variant name, max_stretch) of the variants that ended with a segment strained
-            beyond :data:`~warp_tube.sim.notes.STRAIN_FACTOR` (the springs are linear).
+        strained: (variant name, max_stretch) of the variants that had a segment strained, at some
+            frame, beyond :data:`~warp_tube.sim.notes.STRAIN_FACTOR` (the springs are linear).
     """
 
     out_dir: str
@@ -78,7 +78,7 @@ class BatchResult:
             lines.append(f"contact      {len(self.contacts)} variant(s): distant parts of their tubes touched (first {name} at "
                          f"frame {frame}); contact is not modelled, they pass through each other (summary.csv: contact_frame)")  # fmt: skip
         if self.strained:
-            lines.append(f"strain       {len(self.strained)} variant(s) ended with a segment beyond {STRAIN_FACTOR:g}x its rest "
+            lines.append(f"strain       {len(self.strained)} variant(s) had a segment beyond {STRAIN_FACTOR:g}x its rest "
                          f"length (first {self.strained[0][0]}: {self.strained[0][1]:.3g}x); the springs are linear, such strains "
                          "are not physical (summary.csv: max_stretch)")  # fmt: skip
         return "\n".join(lines)

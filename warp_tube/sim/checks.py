@@ -95,11 +95,13 @@ class FrameChecks:
         self._rest = wp.array(self.rest_q, dtype=wp.vec3, device=d)
         self._sums = wp.zeros((W, G), dtype=wp.vec3, device=d)
         self._far = wp.zeros((W, G), dtype=float, device=d)
+        self._strain = wp.zeros((W, G), dtype=float, device=d)
         # their copies on the host, page-locked on a GPU (copied back without waiting: see launch),
         # in HOST_SLOTS slots: frames in flight one after another each have their own
         pinned = wp.get_device(d).is_cuda
         self._sums_host = [wp.zeros((W, G), dtype=wp.vec3, device="cpu", pinned=pinned) for _ in range(HOST_SLOTS)]
         self._far_host = [wp.zeros((W, G), dtype=float, device="cpu", pinned=pinned) for _ in range(HOST_SLOTS)]
+        self._strain_host = [wp.zeros((W, G), dtype=float, device="cpu", pinned=pinned) for _ in range(HOST_SLOTS)]
         self._launches = {}
         #: work of the forces and gravity so far [J], per (world, group), float64
         self.work = np.zeros((W, G))
@@ -127,16 +129,19 @@ class FrameChecks:
             W, N = self.model.world_count, self.model.node_count
             launch = wp.launch(
                 frame_sums_kernel, dim=(W, N), device=self.device,
-                inputs=[before.node_q, after.node_q, after.node_qd, control.node_f_ext, self._rest, self._group,
-                        self._free_mass, wp.vec3(*self.gravity), float(self.limits.min())],
-                outputs=[self._sums, self._far], record_cmd=True,
+                inputs=[before.node_q, after.node_q, after.node_qd, control.node_f_ext, self._rest,
+                        self.model.seg_rest_length, self._group, self._free_mass, wp.vec3(*self.gravity),
+                        float(self.limits.min())],
+                outputs=[self._sums, self._far, self._strain], record_cmd=True,
             )  # fmt: skip
             self._launches[key] = launch
         self._sums.zero_()
         self._far.zero_()
+        self._strain.zero_()
         launch.launch()
         wp.copy(self._sums_host[slot], self._sums)
         wp.copy(self._far_host[slot], self._far)
+        wp.copy(self._strain_host[slot], self._strain)
 
     def measured(self, slot: int = IMMEDIATE):
         """:meth:`measure`'s result for the frame launched into host slot ``slot``
@@ -148,6 +153,12 @@ class FrameChecks:
         """Largest distance of a finite node from rest in the frame measured into host slot
         ``slot`` [m], (W, G) (zero before the first frame), once the device's stream has reached it."""
         return self._far_host[slot].numpy().astype(np.float64)
+
+    def stretch(self, slot: int = IMMEDIATE) -> np.ndarray:
+        """The largest factor by which a segment's length departs from its rest length in the frame
+        measured into host slot ``slot``, stretched or compressed (``max(l / l0, l0 / l)``, 1 at
+        rest, and where a group has no segment) [1], (W, G), once the device's stream has reached it."""
+        return np.maximum(self._strain_host[slot].numpy().astype(np.float64), 1.0)
 
     def check(self, before, after, control) -> tuple[list[Failure], np.ndarray]:
         """Failures of the frame from ``before`` to ``after`` (empty when it is good), and its
