@@ -188,3 +188,38 @@ def test_preview_of_many_frames_wraps_into_rows(stage_path, tmp_path):
     if n % columns:
         empty = img[(rows - 1) * size :, (n % columns) * size :]
         assert (empty == module.BACKGROUND.astype(np.uint8)).all()
+
+
+def test_export_winds_faces_outwards_under_a_mirror_and_a_left_handed_mesh(stage_path, tmp_path):
+    """A USD renderer turns a mesh's front faces where its transform mirrors (a negative
+    determinant) or it is authored leftHanded; OBJ and glTF know only counter-clockwise fronts, so
+    export reverses the triangles there. The capped tube's signed volume (exact for a closed mesh:
+    the divergence theorem) is then positive, its faces wound as its normals point."""
+    mirror = tmp_path / "mirror.usda"
+    stage = Usd.Stage.CreateNew(str(mirror))
+    UsdGeom.SetStageUpAxis(stage, UsdGeom.Tokens.z)
+    UsdGeom.SetStageMetersPerUnit(stage, 0.01)
+    shot = UsdGeom.Xform.Define(stage, "/Shot")
+    stage.SetDefaultPrim(shot.GetPrim())
+    m = UsdGeom.Xform.Define(stage, "/Shot/M")
+    m.GetPrim().GetReferences().AddReference(str(stage_path))
+    m.AddScaleOp().Set(Gf.Vec3d(-1.0, 2.0, 1.0))
+    stage.GetRootLayer().Save()
+
+    left = Usd.Stage.Open(str(stage_path))  # the same tube, its faces listed the other way round
+    surface = UsdGeom.Mesh(left.GetPrimAtPath("/World/Tube/Surface"))
+    idx = np.asarray(surface.GetFaceVertexIndicesAttr().Get()).reshape(-1, 3)[:, ::-1]
+    surface.GetFaceVertexIndicesAttr().Set(Vt.IntArray(idx.ravel().tolist()))
+    surface.GetOrientationAttr().Set(UsdGeom.Tokens.leftHanded)
+    left.GetRootLayer().Export(str(tmp_path / "left.usda"))
+
+    for path, scale in ((mirror, 2.0), (tmp_path / "left.usda", 1.0)):
+        [p] = export(path, "obj", out=tmp_path / f"{path.stem}.obj", frame=1)
+        mesh = trimesh.load(p, process=False)
+        tris = mesh.vertices[mesh.faces]
+        volume = np.einsum("ij,ij->i", tris[:, 0], np.cross(tris[:, 1], tris[:, 2])).sum() / 6.0
+        assert mesh.is_watertight
+        # pi r^2 L within 5%: the 10-gon's section is 6% smaller than the circle, the caps add back
+        assert volume == pytest.approx(scale * np.pi * RADIUS**2 * 20.0, rel=0.05), path
+        face_normals = np.cross(tris[:, 1] - tris[:, 0], tris[:, 2] - tris[:, 0])
+        assert (np.einsum("ij,ij->i", face_normals, mesh.vertex_normals[mesh.faces].mean(axis=1)) > 0).all()

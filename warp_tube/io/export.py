@@ -130,7 +130,9 @@ def _checked_topology(counts, indices, n_points: int, where: str) -> tuple[np.nd
 
 def surface_at(mesh, time, usd_path=None) -> tuple[np.ndarray, np.ndarray, np.ndarray | None]:
     """World-space vertices (V, 3) [stage units], triangles (F, 3) and vertex normals (V, 3) or None
-    of one Surface mesh at a time code.
+    of one Surface mesh at a time code. The triangles are wound counter-clockwise seen from their
+    front (glTF's and OBJ's rule, USD's ``rightHanded``): reversed where the mesh is ``leftHanded``
+    or its transform mirrors (a negative determinant), as a USD renderer turns them.
 
     Raises:
         SceneError: naming the file (``usd_path``, default the stage's), the prim and the time, where
@@ -160,7 +162,11 @@ def surface_at(mesh, time, usd_path=None) -> tuple[np.ndarray, np.ndarray, np.nd
             normals = None  # (normals are optional: viewers compute their own)
     else:
         normals = None
-    return verts, _triangles(counts, indices), normals
+    triangles = _triangles(counts, indices)
+    left_handed = mesh.GetOrientationAttr().Get(time) == UsdGeom.Tokens.leftHanded
+    if left_handed != (np.linalg.det(xform[:3, :3]) < 0.0):
+        triangles = triangles[:, ::-1]
+    return verts, triangles, normals
 
 
 
