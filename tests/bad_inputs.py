@@ -295,6 +295,7 @@ def cases() -> list[Case]:
     bad("diameter 1e-30 (a radius below 1 nm)", scene(("float[] widths = [2]", "float[] widths = [1e-30]")))
     bad("gravity 1e38", scene(('warptube:integrator = "auto"', 'warptube:integrator = "auto"\n        float3 warptube:gravity = (0, -1e38, 0)')))
     bad("the last point far from the others", scene(("(19, 0, 0), (20, 0, 0)]", "(19, 0, 0), (2000000, 0, 0)]")))
+    bad("an attribute in the namespace warpTube: (not warptube:)", scene(("double warptube:youngsModulus", "double warpTube:youngsModulus")))
     run("forced time step that blows up, over an existing output", [BAD, "-o", "keep.usdc"], 3, files={BAD: FORCED_BLOWUP}, creates=("keep.partial.usdc",))
     # -- run: the output and the flags
     run("-o the scene itself", ["scene.usda", "-o", "scene.usda"])

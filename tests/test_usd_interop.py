@@ -536,3 +536,23 @@ def test_gravity_across_the_stages_up_axis_is_warned_of(tmp_path, caplog):
         with caplog.at_level("WARNING"):
             load_scene(str(scene))
         assert ("warptube:gravity (0, -9.81, 0) is not down the stage's upAxis Z (down is (0, 0, -1))" in caplog.text) == warned, caplog.text
+
+
+def test_a_namespace_spelled_otherwise_is_named(tmp_path, capsys):
+    """warpTube:, WarpTube:, warp_tube: (also under primvars:) read as warptube: to a person, not
+    to USD: a second tube written so was left out with exit 0 (before), a tube's only such
+    attribute reported "missing". Named, with the spelling to use, exit 2, no output."""
+    for written in ("warpTube:youngsModulus", "WarpTube:youngsModulus", "warp_tube:youngsModulus",
+                    "primvars:warpTube:youngsModulus", "warptube:youngsModulus"):  # fmt: skip
+        body = BODY.replace("double warptube:youngsModulus", f"double {written}")
+        scene = tmp_path / "ns.usda"
+        scene.write_text(HEADER + world(tube(body)))
+        out = tmp_path / "out.usdc"
+        status, err = run([scene, "-o", out], capsys)
+        if written == "warptube:youngsModulus":  # (the spelling itself)
+            assert status == 0
+            out.unlink()
+            continue
+        assert status == 2 and not out.exists(), written
+        assert f"/World/Tube.{written}: the namespace is spelled warptube (all lower case, one word): author it as " \
+               "warptube:youngsModulus" in err, err

@@ -97,6 +97,20 @@ def check_relationships(path: str, prim) -> None:
                              "(a force's tube: rel warptube:target = </PATH/TO/TUBE>)?")  # fmt: skip
 
 
+def check_namespace(path: str, prim, names) -> None:
+    """An attribute in a namespace that reads as ``warptube`` but is spelled otherwise
+    (``warpTube:``, ``WarpTube:``, ``warp_tube:``, ``warp-tube:``, also under ``primvars:``) is
+    meant for the simulation, which would not see it (a tube left out, or its defaults taken,
+    without a word): an error naming it, with the spelling to use."""
+    for name in names:
+        parts = name.split(":")
+        k = 1 if parts[0] == "primvars" and len(parts) > 2 else 0
+        space = parts[k]
+        if len(parts) > k + 1 and space != "warptube" and space.lower().replace("_", "").replace("-", "") == "warptube":
+            raise SceneError(f"{path}: {prim.GetPath()}.{name}: the namespace is spelled warptube (all lower case, "
+                             f"one word): author it as warptube:{':'.join(parts[k + 1:])}")  # fmt: skip
+
+
 def not_simulated(path: str, prim, names: list) -> None:
     """``prim`` carries known ``warptube:`` attributes (``names``) but is no tube, force or
     settings prim: a force's attributes without its target are an error (the force would be left

@@ -17,7 +17,7 @@ import os
 import numpy as np
 
 from .curves import BEYOND_WORLD, MAX_WORLD_M, check_curve_type, check_points_type, curve_counts, curve_widths, moving_pin_track
-from .attributes import (KNOWN_ATTRS, TARGET, check_names, check_relationships, kind_of, not_defined, not_simulated, samples_differ,
+from .attributes import (KNOWN_ATTRS, TARGET, check_names, check_namespace, check_relationships, kind_of, not_defined, not_simulated, samples_differ,
                          undefined)  # fmt: skip
 from .ranges import GRAVITY, METERS_PER_UNIT, RADIUS_M, RANGES, TIME_STEP, expected, lengths_outside, number_text, out_of_range
 from .spec import (
@@ -454,7 +454,9 @@ class SceneReader:
         # Into instances too: a tube under an instanceable prim is a tube (at its instance's path);
         # and into undefined prims (`over`s alone), whose warptube: attributes are ignored, said so.
         for prim in stage.Traverse(Usd.TraverseInstanceProxies(Usd.PrimIsActive & Usd.PrimIsLoaded & ~Usd.PrimIsAbstract)):
-            names = [a.GetName() for a in prim.GetAttributes() if a.GetName().startswith(("warptube:", "primvars:warptube:"))]
+            every = prim.GetPropertyNames()
+            check_namespace(path, prim, every)
+            names = [n for n in every if n.startswith(("warptube:", "primvars:warptube:")) and prim.GetAttribute(n)]
             if not prim.IsDefined():
                 if names:
                     not_defined(path, prim, names)
