@@ -149,6 +149,32 @@ def test_units_and_transforms_are_honoured(tmp_cwd):
     np.testing.assert_allclose(t.radius, 0.02, rtol=1e-6)  # width 2 cm, scaled by 2: radius 2 cm
 
 
+def test_an_uneven_scale_keeps_the_area_of_the_section(tmp_cwd):
+    """A scale along the tube (x) lengthens it and leaves its section as it was; a scale across it
+    (z) makes the round section an ellipse of 3x its area, taken as the circle of that area. Exact
+    geometry: a slab across the tube keeps |det M| / |M t| times its section's area. (Before: both
+    radii scaled by the geometric mean, 2^(1/3) and 3^(1/3).)"""
+    for scale, radius in (((2, 1, 1), 0.01), ((1, 1, 3), 0.01 * np.sqrt(3.0)), ((2, 2, 2), 0.02)):
+        op = f'def Xform "World"\n{{\n    double3 xformOp:scale = {scale}\n    uniform token[] xformOpOrder = ["xformOp:scale"]'
+        (tmp_cwd / "s.usda").write_text(mutate('def Xform "World"\n{', op))
+        t = load_scene(str(tmp_cwd / "s.usda")).tubes[0]
+        np.testing.assert_allclose(t.radius, radius, rtol=1e-12)  # width 2 cm, stage in cm
+        np.testing.assert_allclose(t.points[10], [0.1 * scale[0], 0.0, 0.0], atol=1e-12)
+    # A quarter circle of radius R under scale (1, 2, 1) about its centre: at angle a from +x the
+    # tangent (-sin a, cos a, 0) becomes (-sin a, 2 cos a, 0), det 2: radius r sqrt(2 / |M t|).
+    from warp_tube.scene.transforms import section_scale
+
+    a = np.linspace(0.0, 0.5 * np.pi, 9)
+    pts = np.stack([np.cos(a), np.sin(a), 0 * a], 1)
+    got = section_scale(pts, np.array([9]), np.diag([1.0, 2.0, 1.0, 1.0]))
+    mid = 0.5 * (a[1:] + a[:-1])  # a chord's direction is the tangent at its middle; a point's: the bisector
+    t = np.stack([-np.sin(mid), np.cos(mid)], 1)
+    bis = np.concatenate([t[:1], t[:-1] + t[1:], t[-1:]])
+    bis /= np.linalg.norm(bis, axis=1, keepdims=True)
+    np.testing.assert_allclose(got, np.sqrt(2.0 / np.hypot(bis[:, 0], 2.0 * bis[:, 1])), rtol=1e-12)
+    assert section_scale(pts, np.array([9]), np.diag([3.0, 3.0, 3.0, 1.0])) is None  # even: the one scale
+
+
 def test_unauthored_metadata_takes_usd_fallbacks(tmp_cwd):
     text = BASE
     for line in ("    metersPerUnit = 0.01\n", '    upAxis = "Y"\n', "    timeCodesPerSecond = 24\n"):
@@ -160,9 +186,9 @@ def test_unauthored_metadata_takes_usd_fallbacks(tmp_cwd):
 
 
 @pytest.mark.parametrize("edit, words", [
-    # a scale that differs along the axes: widths take its geometric mean
+    # a scale that differs along the axes: a section of the same area
     (('def Xform "World"\n{', 'def Xform "World"\n{\n    double3 xformOp:scale = (2, 1, 1)\n    uniform token[] xformOpOrder = ["xformOp:scale"]'),
-     ["scales unevenly", "geometric mean 1.26"]),
+     ["scales unevenly", "taken as the circle of its area"]),
     # a tube's attribute on a prim that is no tube: ignored, said with a hint
     (('def Scope "Push"', 'def Scope "Stray"\n    {\n        double warptube:density = 5\n    }\n\n    def Scope "Push"'),
      ["/World/Stray (a Scope prim) carries warptube:density but is not a tube", "ignored"]),

@@ -489,10 +489,16 @@ def test_a_section_turns_mirrors_and_scales_with_its_prim(tmp_path, op):
     centre = load_scene(str(plain)).tubes[0].points / 0.01  # (stage units)
     # The spokes of a hub of the plain tube, carried by the transform's linear part: the moved
     # tube's spokes (as sets per ring, so that a mirror's reversed order compares) but for the
-    # section's size, which an uneven scale takes as its mean (the radii are lengths, not vectors)
+    # section's size, which an uneven scale takes as the circle of the section's area (the radii
+    # are lengths, not vectors: scene.transforms.section_scale, checked against exact geometry
+    # in tests/test_scene_validation.py)
+    from warp_tube.scene.transforms import section_scale
+
+    across = section_scale(centre, np.array([len(centre)]), m)
+    factor = np.full((len(centre), 1), scale) if across is None else across[:, None]
     expected = surfaces[0].reshape(5, 4, 3) - centre[:, None]
     expected = expected @ m[:3, :3]
-    expected *= (scale * np.linalg.norm(surfaces[0].reshape(5, 4, 3) - centre[:, None], axis=2)
+    expected *= (factor * np.linalg.norm(surfaces[0].reshape(5, 4, 3) - centre[:, None], axis=2)
                  / np.linalg.norm(expected, axis=2))[..., None]  # fmt: skip
     got = surfaces[1].reshape(5, 4, 3) - (centre @ m[:3, :3] + m[3, :3])[:, None]
     for ring in range(5):

@@ -9,12 +9,13 @@ import numpy as np
 
 log = logging.getLogger("warp_tube.scene.usd")
 
-__all__ = ["to_world", "warn_about_layer_units", "warn_about_transforms"]
+__all__ = ["to_world", "section_scale", "uneven", "warn_about_layer_units", "warn_about_transforms"]
 
 
 def warn_about_transforms(prim, matrix: np.ndarray, pattr_sampled: bool, where: str, varying: dict | None = None) -> None:
     """Warn where a tube's transforms do what the scene cannot follow: a scale that is not the
-    same along every axis (widths take its geometric mean: a round section stays round), and an
+    same along every axis (a round section becomes an ellipse: taken as the circle of its area,
+    :func:`section_scale`), and an
     animated transform on a tube whose points are not time-sampled (the rest shape and pins are
     taken at the first frame; only time-sampled points move pins, through the transform).
 
@@ -29,12 +30,11 @@ def warn_about_transforms(prim, matrix: np.ndarray, pattr_sampled: bool, where: 
     from pxr import UsdGeom
 
     m = np.asarray(matrix, dtype=np.float64)[:3, :3]
-    g = m @ m.T  # a uniform scale s (with any rotation): s^2 I
-    d = np.diag(g)
-    if d.min() > 0.0 and (d.max() > d.min() * (1.0 + 2e-6) or np.abs(g - np.diag(d)).max() > 1e-6 * d.max()):
+    if uneven(m):
         sv = np.linalg.svd(m, compute_uv=False)
-        log.warning("%s: its transform scales unevenly (by %s along its principal axes): widths are scaled by the "
-                    "geometric mean %.4g", where, ", ".join(f"{x:.4g}" for x in sv), float(np.prod(sv)) ** (1.0 / 3.0))  # fmt: skip
+        log.warning("%s: its transform scales unevenly (by %s along its principal axes): a round section becomes an "
+                    "ellipse, taken as the circle of its area (each point's radius scaled by sqrt(det / the scale "
+                    "along the tube there))", where, ", ".join(f"{x:.4g}" for x in sv))  # fmt: skip
     if pattr_sampled:
         return
     varying = {} if varying is None else varying
@@ -50,6 +50,45 @@ def warn_about_transforms(prim, matrix: np.ndarray, pattr_sampled: bool, where: 
                         "at the first frame); time-sample the points of the pinned points to move them", where, p.GetPath())  # fmt: skip
             return
         p = p.GetParent()
+
+
+def uneven(m: np.ndarray) -> bool:
+    """Whether the linear part ``m`` (3, 3) of a transform scales unevenly (not a rotation, with or
+    without a mirror, times one scale), beyond round-off."""
+    g = m @ m.T  # a uniform scale s (with any rotation): s^2 I
+    d = np.diag(g)
+    return bool(d.min() > 0.0 and (d.max() > d.min() * (1.0 + 2e-6) or np.abs(g - np.diag(d)).max() > 1e-6 * d.max()))
+
+
+def section_scale(pts: np.ndarray, counts: np.ndarray, matrix: np.ndarray) -> np.ndarray | None:
+    """Per point, the factor by which an uneven transform scales a round section's radius, or None
+    where the transform scales evenly (every radius takes the one scale, :func:`to_world`).
+
+    The transform takes a thin slab of the tube across its tangent ``t`` (prim space) to one of
+    ``|det M|`` times its volume and ``|M t|`` times its length, so its section across the new
+    axis has ``|det M| / |M t|`` times the area: the circle of that area has ``sqrt(|det M| / |M
+    t|)`` times the radius (mass and stretching follow the area exactly; bending takes the
+    ellipse as that circle). ``t`` is the bisector of a point's two edges (its edge at a curve's ends).
+
+    Args:
+        pts: points in the prim's space (P, 3).
+        counts: points per curve (C,).
+        matrix: the local-to-world transform (4, 4), row vectors (:func:`to_world`).
+    """
+    m = np.asarray(matrix, dtype=np.float64)[:3, :3]
+    if not uneven(m):
+        return None
+    edge = np.diff(pts, axis=0)
+    edge /= np.maximum(np.linalg.norm(edge, axis=1, keepdims=True), 1e-300)
+    last = np.cumsum(counts) - 1  # a curve's last point: no edge to the next curve
+    inside = np.ones(len(pts) - 1, dtype=bool)
+    inside[last[:-1]] = False
+    edge[~inside] = 0.0
+    t = np.zeros_like(pts)
+    t[:-1] += edge
+    t[1:] += edge
+    t /= np.maximum(np.linalg.norm(t, axis=1, keepdims=True), 1e-300)
+    return np.sqrt(abs(np.linalg.det(m)) / np.maximum(np.linalg.norm(t @ m, axis=1), 1e-300))
 
 
 def to_world(prim, pts: np.ndarray, time, file: str = "") -> tuple[np.ndarray, float, np.ndarray]:

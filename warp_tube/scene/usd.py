@@ -34,7 +34,7 @@ from .spec import (
 )
 from ..runtime.log_filters import same_for_many
 from .opening import open_stage, usd_error_in_user_terms
-from .transforms import to_world, warn_about_layer_units, warn_about_transforms
+from .transforms import section_scale, to_world, warn_about_layer_units, warn_about_transforms
 from .shape_notes import warn_about_shape
 from .save import save_scene
 
@@ -216,7 +216,8 @@ def _read_tube(file: str, prim, info: StageInfo, frame_times, varying: dict | No
     world, scale, matrix = to_world(prim, pts, start_tc, file)
     mpu = info.meters_per_unit
     widths = curve_widths(r, curves, counts, start_tc)
-    radius = 0.5 * widths * scale * mpu
+    across = section_scale(pts, counts, matrix)  # (an uneven scale: per point; None: the one scale)
+    radius = 0.5 * widths * (scale if across is None else across) * mpu
     coordinate, largest_radius = float(np.abs(world).max()) * mpu, float(radius.max())
     if max(coordinate, largest_radius) > MAX_WORLD_M:
         name, what = ("points", "coordinate") if coordinate >= largest_radius else ("widths", "radius")
@@ -287,7 +288,7 @@ def _read_tube(file: str, prim, info: StageInfo, frame_times, varying: dict | No
         if (sl <= 0).any():
             i = int(np.argmax(sl <= 0))
             r.fail("warptube:spokeLengths", f"{sl[i]} at index {i}", "positive lengths")
-        sl = sl.reshape(n, spokes) * scale * mpu
+        sl = sl.reshape(n, spokes) * (scale if across is None else across[:, None]) * mpu
         outside = lengths_outside(sl, "a length")
         if outside:
             r.fail("warptube:spokeLengths", outside, expected(RADIUS_M))
