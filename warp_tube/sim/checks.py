@@ -3,7 +3,7 @@
 Each frame end is checked for non-finite positions, a point running away (farther than
 :data:`RUNAWAY_LENGTHS` tube lengths from rest), and a kinetic energy above what the point forces
 and gravity can have put in (a blow-up). The sums run on the device
-(:func:`warp_tube.kernels.checks.frame_sums_kernel`); the host reads three numbers per (world,
+(:func:`warp_tube.kernels.checks.frame_sums_kernel`); the host reads five numbers per (world,
 group) a frame and looks at whole arrays only to name the point of a frame that failed.
 """
 
@@ -14,7 +14,7 @@ from dataclasses import dataclass
 import numpy as np
 import warp as wp
 
-from ..kernels.checks import frame_sums_kernel
+from ..kernels.checks import SUMS, frame_sums_kernel
 
 __all__ = ["FrameChecks", "Failure", "RUNAWAY_LENGTHS", "ENERGY_MARGIN", "HOST_SLOTS", "IMMEDIATE", "wait_for_stream"]
 
@@ -93,15 +93,11 @@ class FrameChecks:
         self._group = wp.array(group, dtype=int, device=d)
         self._free_mass = wp.array(self.free_mass, dtype=float, device=d)
         self._rest = wp.array(self.rest_q, dtype=wp.vec3, device=d)
-        self._sums = wp.zeros((W, G), dtype=wp.vec3, device=d)
-        self._far = wp.zeros((W, G), dtype=float, device=d)
-        self._strain = wp.zeros((W, G), dtype=float, device=d)
+        self._sums = wp.zeros((W, G, SUMS), dtype=float, device=d)
         # their copies on the host, page-locked on a GPU (copied back without waiting: see launch),
         # in HOST_SLOTS slots: frames in flight one after another each have their own
         pinned = wp.get_device(d).is_cuda
-        self._sums_host = [wp.zeros((W, G), dtype=wp.vec3, device="cpu", pinned=pinned) for _ in range(HOST_SLOTS)]
-        self._far_host = [wp.zeros((W, G), dtype=float, device="cpu", pinned=pinned) for _ in range(HOST_SLOTS)]
-        self._strain_host = [wp.zeros((W, G), dtype=float, device="cpu", pinned=pinned) for _ in range(HOST_SLOTS)]
+        self._sums_host = [wp.zeros((W, G, SUMS), dtype=float, device="cpu", pinned=pinned) for _ in range(HOST_SLOTS)]
         self._launches = {}
         #: work of the forces and gravity so far [J], per (world, group), float64
         self.work = np.zeros((W, G))
@@ -132,33 +128,29 @@ class FrameChecks:
                 inputs=[before.node_q, after.node_q, after.node_qd, control.node_f_ext, self._rest,
                         self.model.seg_rest_length, self._group, self._free_mass, wp.vec3(*self.gravity),
                         float(self.limits.min())],
-                outputs=[self._sums, self._far, self._strain], record_cmd=True,
+                outputs=[self._sums], record_cmd=True,
             )  # fmt: skip
             self._launches[key] = launch
         self._sums.zero_()
-        self._far.zero_()
-        self._strain.zero_()
         launch.launch()
         wp.copy(self._sums_host[slot], self._sums)
-        wp.copy(self._far_host[slot], self._far)
-        wp.copy(self._strain_host[slot], self._strain)
 
     def measured(self, slot: int = IMMEDIATE):
         """:meth:`measure`'s result for the frame launched into host slot ``slot``
         (:meth:`launch`), once the device's stream has reached it."""
-        s = self._sums_host[slot].numpy().astype(np.float64)
+        s = self._sums_host[slot].numpy()[..., :3].astype(np.float64)
         return s[..., 0], s[..., 1], s[..., 2]
 
     def distance(self, slot: int = IMMEDIATE) -> np.ndarray:
         """Largest distance of a finite node from rest in the frame measured into host slot
         ``slot`` [m], (W, G) (zero before the first frame), once the device's stream has reached it."""
-        return self._far_host[slot].numpy().astype(np.float64)
+        return self._sums_host[slot].numpy()[..., 3].astype(np.float64)
 
     def stretch(self, slot: int = IMMEDIATE) -> np.ndarray:
         """The largest factor by which a segment's length departs from its rest length in the frame
         measured into host slot ``slot``, stretched or compressed (``max(l / l0, l0 / l)``, 1 at
         rest, and where a group has no segment) [1], (W, G), once the device's stream has reached it."""
-        return np.maximum(self._strain_host[slot].numpy().astype(np.float64), 1.0)
+        return np.maximum(self._sums_host[slot].numpy()[..., 4].astype(np.float64), 1.0)
 
     def check(self, before, after, control) -> tuple[list[Failure], np.ndarray]:
         """Failures of the frame from ``before`` to ``after`` (empty when it is good), and its
