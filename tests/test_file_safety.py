@@ -71,6 +71,17 @@ def test_run_refuses_to_write_over_a_layer_the_scene_references(tmp_cwd, capsys)
     assert "is the input" in capsys.readouterr().err and (tmp_cwd / "tube.usda").read_bytes() == before
 
 
+def test_run_onto_a_link_replaces_the_link_and_keeps_the_file_it_named(tmp_cwd):
+    """A pipeline's ``latest.usdc -> v001.usdc``: the result replaces the link (made atomically
+    under a temporary name), and v001.usdc is left byte for byte as it was (README)."""
+    assert main(["run", "--frames", "2", "-o", "v001.usdc", "--quiet"]) == 0
+    before = (tmp_cwd / "v001.usdc").read_bytes()
+    os.symlink("v001.usdc", tmp_cwd / "latest.usdc")
+    assert main(["run", "--frames", "3", "-o", "latest.usdc", "--quiet"]) == 0
+    assert not (tmp_cwd / "latest.usdc").is_symlink() and (tmp_cwd / "v001.usdc").read_bytes() == before
+    assert samples(tmp_cwd / "latest.usdc")[0] == [0.0, 1.0, 2.0] and samples(tmp_cwd / "v001.usdc")[0] == [0.0, 1.0]
+
+
 def test_api_run_refuses_the_scene_as_output(tmp_cwd):
     (tmp_cwd / "scene.usda").write_text(scene())
     before = (tmp_cwd / "scene.usda").read_bytes()
