@@ -12,6 +12,9 @@ failed) get no forces, so their state stays finite while the others go on.
 
 from __future__ import annotations
 
+from itertools import repeat
+from operator import attrgetter, is_
+
 import numpy as np
 
 from ..sim.assistant_lines import AssistantLines
@@ -62,6 +65,10 @@ class WorldControl:
         self._forces = []
         for a, k in enumerate(order):
             fs = [s.forces[k] for s in worlds.scenes]
+            times_of = list(map(attrgetter("times"), fs))
+            if all(map(is_, times_of, repeat(times_of[0]))):  # (one array: variants made from one scene)
+                self._forces.append([(times_of[0], np.arange(W), np.stack(list(map(attrgetter("values"), fs))))])
+                continue
             by_array: dict = {}
             for w, f in enumerate(fs):
                 by_array.setdefault(id(f.times), []).append(w)

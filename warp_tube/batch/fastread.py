@@ -19,6 +19,8 @@ still comes from the reader.
 
 from __future__ import annotations
 
+from itertools import repeat
+
 import numpy as np
 
 from ..scene.ranges import RANGES, out_of_range
@@ -117,38 +119,52 @@ class PlainColumns:
                 elif "anchor_stiffness" in fields:
                     good &= (anchor_k == 0.0) | (p.anchor_stiffness > 0.0)  # a stiffness with no anchors
         out: list = [None] * rows
-        base_tubes, base_forces = list(self.base.tubes), list(self.base.forces)
-        # per column its values as Python floats (a list indexes faster than an array)
-        tube_items = [(k, base_tubes[k], [(f, a.tolist()) for f, a in fields.items()]) for k, fields in tube_fields.items()]
-        # each variant's force: one constant sample, a row of one (rows, 1, 3) array (read only)
-        force_items = [(k, v.reshape(rows, 1, 3)) for k, v in force_values.items()]
-        for _, v in force_items:
-            v.flags.writeable = False
+        taken = np.flatnonzero(good)
+        every = len(taken) == rows
+        # Per tube prim and force, its spec in each row taken (copies made as replace_checked makes
+        # them, the values checked above, per column): the base's where the table does not set it.
+        tubes: list = [repeat(t) for t in self.base.tubes]
+        for k, fields in tube_fields.items():
+            t = self.base.tubes[k]
+            params = _copies(t.params, {f: (a if every else a[taken]).tolist() for f, a in fields.items()})
+            tubes[k] = _copies(t, {"params": params})
+        forces: list = [repeat(f) for f in self.base.forces]
         times = np.zeros(1)
         times.flags.writeable = False  # shared by every variant's constant forces
-        # Copies of the frozen specs made as replace_checked makes them (the values checked above,
-        # per column), from each spec's fields taken once, not keyword dictionaries per row.
-        new = object.__new__
-        tube_items = [(k, type(t), dict(t.__dict__), type(t.params), dict(t.params.__dict__), fields) for k, t, fields in tube_items]
-        force_items = [(k, type(base_forces[k]), dict(base_forces[k].__dict__, times=times), v) for k, v in force_items]
-        scene_type, scene_fields = type(self.base), self.base.__dict__
-        for r in np.flatnonzero(good).tolist():
-            tubes = base_tubes.copy()
-            for k, tube_type, tube_fields, params_type, params_fields, fields in tube_items:
-                params = new(params_type)
-                params.__dict__.update(params_fields)
-                for f, a in fields:
-                    params.__dict__[f] = a[r]
-                tube = tubes[k] = new(tube_type)
-                tube.__dict__.update(tube_fields)
-                tube.__dict__["params"] = params
-            forces = base_forces.copy()
-            for k, force_type, force_fields, v in force_items:
-                force = forces[k] = new(force_type)
-                force.__dict__.update(force_fields)
-                force.__dict__["values"] = v[r]
+        for k, v in force_values.items():
+            # each variant's force: one constant sample, a row of one (rows, 1, 3) array (read only)
+            v = (v if every else v[taken]).reshape(-1, 1, 3)
+            v.flags.writeable = False
+            forces[k] = _copies(self.base.forces[k], {"times": repeat(times, len(v)), "values": list(v)})
+        new, scene_type, scene_fields = object.__new__, type(self.base), self.base.__dict__
+        for r, tubes_r, forces_r in zip(taken.tolist(), zip(*tubes), zip(*forces) if forces else repeat(())):
             scene = out[r] = new(scene_type)
-            scene.__dict__.update(scene_fields)
-            scene.__dict__["tubes"] = tuple(tubes)
-            scene.__dict__["forces"] = tuple(forces)
+            d = scene.__dict__
+            d.update(scene_fields)
+            d["tubes"] = tubes_r
+            d["forces"] = forces_r
         return out
+
+
+def _copies(spec, changes: dict) -> list:
+    """Copies of frozen ``spec`` as :func:`~warp_tube.scene.spec.replace_checked` makes them, the
+    i-th with each field of ``changes`` (field -> values) set to its i-th value."""
+    new, cls, fields = object.__new__, type(spec), spec.__dict__
+    out = []
+    if len(changes) == 1:
+        (name, values), = changes.items()
+        for value in values:
+            c = new(cls)
+            d = c.__dict__
+            d.update(fields)
+            d[name] = value
+            out.append(c)
+        return out
+    names = tuple(changes)
+    for values in zip(*changes.values()):
+        c = new(cls)
+        d = c.__dict__
+        d.update(fields)
+        d.update(zip(names, values))
+        out.append(c)
+    return out

@@ -18,6 +18,7 @@ import os
 import re
 import shutil
 import tempfile
+from operator import itemgetter
 
 from ..scene.spec import SceneError
 from .journal import Journal, file_digest
@@ -88,8 +89,10 @@ def named_paths(tab) -> dict[str, str]:
     """The files the table's cells name (``@`` columns, ``@FILE`` cells): name as written -> path."""
     names = set()
     for j, col in enumerate(tab.columns if tab is not None else ()):
-        for cells in tab.rows:
-            cell = cells[j]
+        column = list(map(itemgetter(j), tab.rows))
+        if not col.files and "@" not in "".join(column):  # (no cell names a file)
+            continue
+        for cell in column:
             if col.files or cell.startswith("@"):
                 names.add(cell[1:].strip() if cell.startswith("@") else cell)
     return {name: name if os.path.isabs(name) else os.path.join(tab.folder, name) for name in sorted(names)}

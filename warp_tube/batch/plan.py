@@ -19,6 +19,8 @@ most ``chunk`` variants in batch order; chunks are the unit of work of a worker 
 from __future__ import annotations
 
 from dataclasses import dataclass
+from itertools import repeat
+from operator import attrgetter, eq, is_, itemgetter
 from types import SimpleNamespace
 from typing import NamedTuple
 
@@ -153,21 +155,39 @@ def _topology(scene: Scene):
 def _choices_of(scenes: list[Scene], one, indices, keep) -> list[RunChoice]:
     """run_choices for scenes of one layout (``one``: :func:`_topology` of one of them),
     discretised in one build (kept in ``keep`` as those of ``indices``, unless None)."""
-    from ..centerline.policy import decide_integrator, implicit_cost_ratio, substeps_for
+    from ..centerline.policy import decide_integrator, decide_integrators, implicit_cost_ratio, substeps_for
     from ..centerline.stability import critical_time_steps
     from ..model.tube import node_parameters
     from .worlds import combined_tubes
 
-    per_node, _ = node_parameters(combined_tubes(scenes))  # every scene's nodes, scene after scene
+    combined = combined_tubes(scenes)
+    per_node, _ = node_parameters(combined)  # every scene's nodes, scene after scene
     if keep is not None:
         keep.add(indices, per_node)
     h = SimpleNamespace(**per_node, tube_al_force=one.host.tube_al_force)
-    damping = np.array([max([t.params.spring_damping for t in s.tubes], default=0.0) for s in scenes])
+    tubes = len(scenes[0].tubes)
+    if len(combined.tubes) == tubes * len(scenes) and all(map(eq, map(len, map(attrgetter("tubes"), scenes)), repeat(tubes))):
+        # (each scene's largest: of its row of tubes)
+        damping = np.fromiter(map(attrgetter("params.spring_damping"), combined.tubes), np.float64, len(combined.tubes))
+        damping = damping.reshape(len(scenes), tubes).max(axis=1)
+    else:
+        damping = np.array([max([t.params.spring_damping for t in s.tubes], default=0.0) for s in scenes])
     bounds = critical_time_steps(h, len(scenes), one.features.assistant_line, damping)
     seg = np.asarray(h.seg_rest_length).reshape(len(scenes), -1)
     seg_min = np.where(seg > 0, seg, np.inf).min(axis=1)
     cost = implicit_cost_ratio(one)
     seg_min = np.where(np.isfinite(seg_min), seg_min, 0.0).tolist()
+    settings, stage = scenes[0].settings, scenes[0].stage
+    frame_dt = stage.frame_dt
+    shared = (all(map(is_, map(attrgetter("settings"), scenes), repeat(settings)))
+              or all(s.settings == settings for s in scenes)) \
+        and (all(map(is_, map(attrgetter("stage"), scenes), repeat(stage))) or all(s.stage.frame_dt == frame_dt for s in scenes))  # fmt: skip
+    decided = decide_integrators(settings, bounds, frame_dt, cost) if shared else None
+    if decided is not None:  # (every scene's choice at once: made as RunChoice._make makes it)
+        implicit, substeps, dt = decided
+        names = map(("semiImplicitEuler", "implicitEuler").__getitem__, implicit.tolist())
+        why = zip(map(attrgetter("settings"), scenes), bounds.tolist(), repeat(frame_dt), repeat(cost))
+        return list(map(tuple.__new__, repeat(RunChoice), zip(names, substeps.tolist(), dt.tolist(), seg_min, why)))
     out = []
     for scene, hc, seg in zip(scenes, bounds.tolist(), seg_min):
         settings, frame_dt = scene.settings, scene.stage.frame_dt
@@ -206,23 +226,27 @@ def plain_group_keys(first: Scene, choices: list[RunChoice], memo: dict | None =
     first of them: they differ only in tube materials and force vectors, which no key holds, so a
     key follows from the run choice's integrator, substeps and shortest segment, worked out once
     for each."""
-    by_choice: dict = {}
-    out = []
+    ks = list(map(itemgetter(0, 1, 3), choices))  # (integrator, substeps, min_segment)
+    by_choice = dict.fromkeys(ks)
     for c in choices:
         k = (c.integrator, c.substeps, c.min_segment)
-        key = by_choice.get(k)
-        if key is None:
-            key = by_choice[k] = group_key(first, c, memo)
-        out.append(key)
-    return out
+        if by_choice[k] is None:
+            by_choice[k] = group_key(first, c, memo)
+            if None not in by_choice.values():
+                break
+    return list(map(by_choice.__getitem__, ks))
 
 
 def plan_chunks(keys: list, chunk: int) -> list[Chunk]:
     """Chunks of at most ``chunk`` variants with equal keys, in batch order (groups ordered by
     their first variant); deterministic for given keys and ``chunk``."""
     groups: dict = {}
+    of_object: dict = {}  # a key object's id -> its group's members (variants mostly share a few keys)
     for i, k in enumerate(keys):
-        groups.setdefault(k, []).append(i)
+        members = of_object.get(id(k))
+        if members is None:
+            members = of_object[id(k)] = groups.setdefault(k, [])
+        members.append(i)
     out = []
     for g, members in enumerate(groups.values()):
         for s in range(0, len(members), chunk):

@@ -13,6 +13,7 @@ import concurrent.futures as cf
 import logging
 import os
 from concurrent.futures.process import BrokenProcessPool
+from operator import attrgetter, itemgetter
 
 import numpy as np
 
@@ -151,6 +152,9 @@ def _prepare_batch(scene, table, variant_sets, bar, pool, pool_size, keep_nodes)
 def warn_forced(variants, choices) -> None:
     """One warning for the variants whose forced timeStep exceeds their stability bound (the
     policy would give one per variant), naming how many and the first of them."""
+    settings = {id(s): s for s in map(itemgetter(0), map(attrgetter("why"), choices))}.values()
+    if not any(s.integrator == "semiImplicitEuler" and s.time_step is not None for s in settings):
+        return  # (no variant's settings force a substep)
     forced = [(v, c) for v, c in zip(variants.variants, choices) if c.forced]
     if forced:
         v, c = forced[0]

@@ -22,6 +22,8 @@ import io
 import os
 import re
 from dataclasses import dataclass
+from itertools import repeat
+from operator import eq, itemgetter
 
 from ..scene.spec import SceneError
 
@@ -189,6 +191,29 @@ def _blank(line: str, separator: str) -> bool:
     return not line.strip(" \r\n" if separator == "\t" else " \t\r\n")
 
 
+def _records(path: str, text: str, separator: str) -> list:
+    """Each CSV record of ``text``: (the line where it starts, its cells)."""
+    if csv.field_size_limit() < _CELL_LIMIT:  # (131,072 characters by default: an inline array of 5,000 points)
+        csv.field_size_limit(_CELL_LIMIT)
+    reader = csv.reader(io.StringIO(text, newline=""), delimiter=separator, skipinitialspace=True)
+    try:
+        rows = list(reader)
+    except csv.Error:
+        rows = None  # (read again below, to name the record's line)
+    if rows is not None and reader.line_num == len(rows):  # (a line a record: no cell runs over lines)
+        return list(zip(range(1, len(rows) + 1), rows))
+    records = []
+    try:
+        reader = csv.reader(io.StringIO(text, newline=""), delimiter=separator, skipinitialspace=True)
+        start = 1
+        for row in reader:
+            records.append((start, row))
+            start = reader.line_num + 1
+    except csv.Error as e:
+        raise SceneError(f"{path}: line {start}: not readable as CSV ({e})") from None
+    return records
+
+
 def read_table(path: str) -> Table:
     """Read and check the table's structure (not its values: they need the scene's types).
 
@@ -208,17 +233,7 @@ def read_table(path: str) -> Table:
         raise SceneError(f"{path}: no such file (the variants table)")
     text = _text(path)
     separator = _separator(text)
-    records = []  # (line where the record starts, cells)
-    if csv.field_size_limit() < _CELL_LIMIT:  # (131,072 characters by default: an inline array of 5,000 points)
-        csv.field_size_limit(_CELL_LIMIT)
-    try:
-        reader = csv.reader(io.StringIO(text, newline=""), delimiter=separator, skipinitialspace=True)
-        start = 1
-        for row in reader:
-            records.append((start, row))
-            start = reader.line_num + 1
-    except csv.Error as e:
-        raise SceneError(f"{path}: line {start}: not readable as CSV ({e})") from None
+    records = _records(path, text, separator)  # (line where the record starts, cells)
     raw = None  # the file's lines as the csv module split them, where needed
     if records and '"' in text:
         raw = io.StringIO(text, newline="").readlines()
@@ -227,7 +242,8 @@ def read_table(path: str) -> Table:
             raise SceneError(f"{path}: line {opened}: a quote (\") opens a cell there and is never closed (the rest of "
                              "the file would be read as that cell): close it, and write a quote inside a quoted cell "
                              "as two (\"\")")  # fmt: skip
-    empty = [k for k, (_, row) in enumerate(records) if not "".join(row).strip()]
+    joined = list(map("".join, map(itemgetter(1), records)))
+    empty = [k for k, j in enumerate(joined) if not j.strip()] if "" in joined or any(map(str.isspace, joined)) else []
     if empty:
         raw = raw if raw is not None else io.StringIO(text, newline="").readlines()
         held = [k for k in range(len(records)) if "".join(records[k][1]).strip()]
@@ -250,20 +266,24 @@ def read_table(path: str) -> Table:
     rows, lines = [], []
     n_columns = len(columns)
     strip = str.strip
-    for line, row in records[1:]:
-        if len(row) == n_columns:  # (most rows: a cell per column)
-            rows.append(tuple(map(strip, row)))
+    cells = list(map(itemgetter(1), records[1:]))
+    if all(map(eq, map(len, cells), repeat(n_columns))):  # (every row a cell per column: all at once)
+        rows, lines = list(map(tuple, map(map, repeat(strip), cells))), list(map(itemgetter(0), records[1:]))
+    else:
+        for line, row in records[1:]:
+            if len(row) == n_columns:  # (most rows: a cell per column)
+                rows.append(tuple(map(strip, row)))
+                lines.append(line)
+                continue
+            r = len(rows)
+            extra = [k for k in range(len(columns), len(row)) if row[k].strip()]
+            if len(row) < len(columns) or (extra and extra[-1] >= len(header)):
+                hint = _hint(row, len(columns), separator) if len(row) > len(columns) else ""
+                raise SceneError(f"{path}: row {r} (line {line}): {len(row)} cells for {len(columns)} columns{hint}")
+            if extra:
+                raise SceneError(f"{path}: row {r} (line {line}), column {extra[0] + 1}: a value under an empty header cell")
+            rows.append(tuple(cell.strip() for cell in row[: len(columns)]))
             lines.append(line)
-            continue
-        r = len(rows)
-        extra = [k for k in range(len(columns), len(row)) if row[k].strip()]
-        if len(row) < len(columns) or (extra and extra[-1] >= len(header)):
-            hint = _hint(row, len(columns), separator) if len(row) > len(columns) else ""
-            raise SceneError(f"{path}: row {r} (line {line}): {len(row)} cells for {len(columns)} columns{hint}")
-        if extra:
-            raise SceneError(f"{path}: row {r} (line {line}), column {extra[0] + 1}: a value under an empty header cell")
-        rows.append(tuple(cell.strip() for cell in row[: len(columns)]))
-        lines.append(line)
     if not rows:
         raise SceneError(f"{path}: no rows: expected one row per variant under the header")
     return Table(path=path, columns=columns, rows=tuple(rows), lines=tuple(lines), separator=separator)

@@ -20,6 +20,7 @@ from __future__ import annotations
 import itertools
 import logging
 from dataclasses import dataclass, replace
+from itertools import repeat
 from typing import NamedTuple
 
 import numpy as np
@@ -30,7 +31,7 @@ from .fastread import PlainColumns, may_be_plain
 from .kinds import check_kinds
 from .warned import HeldWarnings, merged_warnings, say_warnings, warned_where
 from .table import Table
-from .values import CONTRACT_TYPES, parse_plain, parse_plain_column, parse_value
+from .values import CONTRACT_TYPES, parse_plain, parse_plain_array, parse_value
 
 log = logging.getLogger(__name__)
 
@@ -349,8 +350,8 @@ def _plain_scenes(plain: PlainColumns, table: Table, columns) -> list:
     the reader would refuse or warn about: that path parses it again and names the problem)."""
     parsed, whole = [], 0
     for j, (col, (_, type_name, _)) in enumerate(zip(table.columns, columns)):
-        values = None if col.files else parse_plain_column([cells[j] for cells in table.rows], type_name)
-        if values is not None:  # (every cell plain: read as one column)
+        values = None if col.files else parse_plain_array([cells[j] for cells in table.rows], type_name)
+        if values is not None:  # (every cell plain: read as one column, an array)
             parsed.append(values)
             whole += 1
             continue
@@ -369,11 +370,36 @@ def _plain_scenes(plain: PlainColumns, table: Table, columns) -> list:
         rows = [r for r in range(len(table.rows)) if all(col[r] is not None for col in parsed)]
     if not rows:
         return [None] * len(table.rows)
-    made = plain.scenes(parsed if len(rows) == len(table.rows) else [[col[r] for r in rows] for col in parsed])
+    if len(rows) < len(table.rows):
+        parsed = [col[rows] if isinstance(col, np.ndarray) else [col[r] for r in rows] for col in parsed]
+    made = plain.scenes(parsed)
     out: list = [None] * len(table.rows)
     for r, scene in zip(rows, made):
         out[r] = scene
     return out
+
+
+def _made_variants(out: list, made: list, table: Table, combo: tuple, c: int, combos: int, width: int, done: int,
+                   progress) -> int:  # fmt: skip
+    """The variants of variant selection ``combo`` (the ``c``-th of ``combos``) into ``out`` where
+    every row of ``table`` was made from the base scene (``made``, per row): what the row-by-row
+    loop of :func:`_collect` gives them (a row equal to an earlier one: the earlier one's scene), in
+    one pass. Returns, and says to ``progress`` as that loop does, the variants done."""
+    rows = table.rows
+    n = len(rows)
+    first = dict(zip(reversed(rows), range(n - 1, -1, -1)))  # a row's cells -> the first row with them
+    firsts = list(map(first.__getitem__, rows))
+    numbers = range(table.first_row, table.first_row + n)
+    indices = range(table.first_row * combos + c, (table.first_row + n) * combos + c, combos)
+    names = map(f"variant_%0{width}d".__mod__, indices)
+    # (each a Variant made as Variant._make makes it)
+    out[c::combos] = map(tuple.__new__, repeat(Variant),
+                         zip(indices, names, numbers, rows, repeat(combo), map(made.__getitem__, firsts)))  # fmt: skip
+    if progress is not None:
+        for i in range(1023 - done % 1024, n, 1024):  # (a row equal to an earlier one is not said)
+            if firsts[i] == i:
+                progress(done + i + 1)
+    return done + n
 
 
 def _collect(scene_path, table, variant_sets, extract, progress, held):
@@ -437,6 +463,9 @@ def _collect(scene_path, table, variant_sets, extract, progress, held):
             if inside:
                 problems += [(-1, f"{msg} ({context})") for msg in inside]
                 continue
+        if made is not None and all(m is not None for m in made):  # every row made from the base scene
+            done = _made_variants(out, made, table, combo, c, len(combos), width, done, progress)
+            continue
         seen_rows: dict = {}
         row_warnings: dict = {}  # a row's cells -> what reading its variant warned of
         folder = table.folder

@@ -13,6 +13,8 @@ from __future__ import annotations
 
 import dataclasses
 from dataclasses import dataclass
+from itertools import chain
+from operator import attrgetter
 
 import numpy as np
 import warp as wp
@@ -45,7 +47,7 @@ class WorldArrays:
 def combined_tubes(scenes: list[Scene]) -> Scene:
     """One scene holding every scene's tubes, scene after scene, and no forces: what the per-node
     parameters (:func:`~warp_tube.model.tube.node_parameters`) of them all are made from."""
-    tubes = tuple(t for s in scenes for t in s.tubes)
+    tubes = tuple(chain.from_iterable(map(attrgetter("tubes"), scenes)))
     return replace_checked(scenes[0], tubes=tubes, forces=())  # (the scenes' prims repeat: not one scene's)
 
 
@@ -96,7 +98,7 @@ def build_worlds(scenes: list[Scene], device: str, surface: bool, per_node: dict
     :func:`~warp_tube.model.tube.node_parameters` of their tubes gives them (planning kept them:
     :mod:`warp_tube.batch.nodes`), or None to work them out here."""
     W = len(scenes)
-    one = build_model(scenes[0], world_count=W, device=device)  # the topology every world shares
+    one = _topology(scenes[0], device)  # the topology every world shares
     N = one.node_count
     if per_node is None:
         per_node, _ = node_parameters(combined_tubes(scenes))  # every world's nodes, world after world
@@ -113,8 +115,12 @@ def build_worlds(scenes: list[Scene], device: str, surface: bool, per_node: dict
         value = getattr(one, f.name)
         if isinstance(value, wp.array) and value.ndim == 2 and value.shape == (1, N):
             per_world[f.name] = wp.array(getattr(host, f.name), dtype=value.dtype, device=device)
-    features = model_features(per_node, curved, scenes[0].settings.gravity, one.features.external, one.features.assistant_line)
-    model = dataclasses.replace(one, features=features, **per_world)
+    g = scenes[0].settings.gravity
+    features = model_features(per_node, curved, g, one.features.external, one.features.assistant_line)
+    # (the host copies of world 0's parameters: what build_model of its scene holds, the same numbers)
+    world0 = dataclasses.replace(one.host, **{f.name: getattr(host, f.name)[0] for f in dataclasses.fields(WorldArrays)})
+    model = dataclasses.replace(one, world_count=W, features=features, host=world0,
+                                gravity=wp.vec3(*(g if g is not None else (0.0, 0.0, 0.0))), **per_world)  # fmt: skip
     prim_start = np.append(one.host.prim_node_start, N)
     surfaces = vertex_start = None
     if surface:
@@ -122,6 +128,28 @@ def build_worlds(scenes: list[Scene], device: str, surface: bool, per_node: dict
         vertex_start = np.concatenate([[0], np.cumsum([b.vertex_count for b in surfaces])])
     return Worlds(scenes=list(scenes), model=model, host=host, prim_start=prim_start, surfaces=surfaces,
                   vertex_start=vertex_start)  # fmt: skip
+
+
+#: the topologies build_worlds used last (:func:`_topology`), by device and layout
+_TOPOLOGIES: dict = {}
+#: topologies kept at most
+TOPOLOGIES_KEPT = 4
+
+
+def _topology(scene: Scene, device: str) -> TubeModel:
+    """``build_model(scene)`` on ``device``, for what every world of a group shares: the layout
+    (tubes' curve point counts; forces' tubes, points and lines) and the index arrays made from it.
+    Built once for the chunks of a layout (its parameter arrays and host copies are another
+    scene's: the caller replaces them, and its world count and gravity)."""
+    device = str(wp.get_device(device))
+    key = (device, tuple(tuple(t.curve_counts.tolist()) for t in scene.tubes),
+           tuple((f.tube, f.point, bool(f.assistant_line)) for f in scene.forces))  # fmt: skip
+    one = _TOPOLOGIES.get(key)
+    if one is None:
+        while len(_TOPOLOGIES) >= TOPOLOGIES_KEPT:
+            del _TOPOLOGIES[next(iter(_TOPOLOGIES))]
+        one = _TOPOLOGIES[key] = build_model(scene, world_count=1, device=device)
+    return one
 
 
 def _surface_builders(scenes, prim_start, device):
@@ -159,12 +187,4 @@ def initial_state(worlds: Worlds):
     """``(state, next_state, control)`` at rest: each world at its own rest shape, pins there."""
     m = worlds.model
     q = worlds.rest_q()
-    hi = q.astype(np.float32)
-    state, next_state, control = m.state(), m.state(), m.control()
-    # As TubeModel.state: the low-order part is the rounding of the rest positions.
-    for s in (state, next_state):
-        s.node_q.assign(hi)
-        s.node_q_lo.assign((q - hi).astype(np.float32))
-    control.pin_q_start.assign(q.astype(np.float32))
-    control.pin_q_end.assign(q.astype(np.float32))
-    return state, next_state, control
+    return m.state(q), m.state(q), m.control(q)

@@ -13,9 +13,11 @@ import logging
 import math
 from typing import NamedTuple
 
+import numpy as np
+
 from ..scene.spec import SceneError, SimulationSettings
 
-__all__ = ["IntegratorChoice", "choose_integrator", "decide_integrator", "explain_integrator", "is_forced", "implicit_cost_ratio",
+__all__ = ["IntegratorChoice", "choose_integrator", "decide_integrator", "decide_integrators", "explain_integrator", "is_forced", "implicit_cost_ratio",
            "implicit_substeps", "substeps_for", "SAFETY", "IMPLICIT_DT", "IMPLICIT_COST_RATIO", "IMPLICIT_AL_COST",
            "MAX_SUBSTEPS", "RUN_WARNING"]
 
@@ -93,6 +95,37 @@ def decide_integrator(settings: SimulationSettings, critical_dt: float, frame_dt
     if math.ceil(frame_dt / impl_dt - 1e-9) * implicit_cost < math.ceil(frame_dt / (SAFETY * hc) - 1e-9):
         return "implicitEuler", impl_dt
     return "semiImplicitEuler", SAFETY * hc
+
+
+def decide_integrators(settings: SimulationSettings, critical_dts: np.ndarray, frame_dt: float,
+                       implicit_cost: float = IMPLICIT_COST_RATIO) -> tuple[np.ndarray, np.ndarray, np.ndarray] | None:  # fmt: skip
+    """:func:`decide_integrator` and :func:`substeps_for` of scenes that share ``settings`` and
+    ``frame_dt`` [s], one per stability bound of ``critical_dts`` [s] (shape (n,)), at once: per
+    scene whether implicit Euler is chosen (bool), its substeps a frame (int64) and the substep
+    [s] (``frame_dt / substeps``), the same numbers as the functions give scene by scene (the same
+    float64 operations). None where one of them would raise (a substep the kernels cannot count,
+    or a bound so small that its ratio to the frame is no number): call them one by one."""
+    s, hc = settings, np.asarray(critical_dts, dtype=np.float64)
+    finite = np.isfinite(hc)
+    with np.errstate(divide="ignore", over="ignore", invalid="ignore"):
+        if s.integrator == "implicitEuler":
+            implicit, dt = np.ones(len(hc), dtype=bool), np.full(len(hc), min(s.time_step or IMPLICIT_DT, frame_dt))
+        elif s.integrator == "semiImplicitEuler":
+            implicit = np.zeros(len(hc), dtype=bool)
+            dt = np.full(len(hc), min(s.time_step, frame_dt)) if s.time_step is not None else np.where(finite, SAFETY * hc, frame_dt)
+        else:  # auto
+            impl_dt = min(s.time_step or IMPLICIT_DT, frame_dt)
+            semi_steps = np.ceil(frame_dt / (SAFETY * hc) - 1e-9)
+            within = finite & (s.time_step <= hc) if s.time_step is not None else np.zeros(len(hc), dtype=bool)
+            if not np.isfinite(semi_steps[finite & ~within]).all():
+                return None
+            implicit = finite & ~within & (math.ceil(frame_dt / impl_dt - 1e-9) * implicit_cost < semi_steps)
+            dt = np.where(finite, np.where(within, s.time_step, np.where(implicit, impl_dt, SAFETY * hc)), frame_dt)
+        ratio = frame_dt / dt - 1e-9
+    if not (ratio <= MAX_SUBSTEPS).all():
+        return None
+    substeps = np.maximum(1.0, np.ceil(ratio)).astype(np.int64)
+    return implicit, substeps, frame_dt / substeps
 
 
 def is_forced(settings: SimulationSettings, critical_dt: float, frame_dt: float) -> bool:

@@ -39,7 +39,9 @@ def _row_sums(host: HostArrays, assistant_line: bool) -> np.ndarray:
         lines = max(1, int((host.tube_al_force >= 0).sum(axis=1).max()))
     fields = StabilityArrays()
     for name in StabilityArrays.vars:
-        setattr(fields, name, wp.array(np.asarray(getattr(host, name), dtype=np.float64), dtype=wp.float64, device="cpu"))
+        # (read only: the host's own memory where it is contiguous float64)
+        setattr(fields, name, wp.array(np.ascontiguousarray(getattr(host, name), dtype=np.float64), dtype=wp.float64,
+                                       device="cpu", copy=False))  # fmt: skip
     rows = wp.zeros(len(host.seg_ke), dtype=wp.float64, device="cpu")
     wp.launch(stability_rows_kernel, len(start) - 1, device="cpu", inputs=[lines, wp.array(start, dtype=int, device="cpu"), fields], outputs=[rows])
     return rows.numpy()

@@ -215,9 +215,10 @@ class TubeModel:
     features: Features  # which force terms the scene uses
     host: HostArrays  # NumPy (float64) copies of the above, for host-side code
 
-    def state(self) -> TubeState:
-        """A new state at rest."""
-        q = np.repeat(self.host.node_rest_q[None], self.world_count, axis=0)
+    def state(self, rest_q: np.ndarray | None = None) -> TubeState:
+        """A new state at rest: at ``rest_q`` [m] (world_count, node_count, 3), each world at its
+        own rest positions, or by default at the model's in every world."""
+        q = np.repeat(self.host.node_rest_q[None], self.world_count, axis=0) if rest_q is None else rest_q
         hi = q.astype(np.float32)
         shape_al = (self.world_count, max(self.al_slots, 1))
         # The low-order part starts at the rounding of the rest positions, so the compensated
@@ -231,9 +232,10 @@ class TubeModel:
             al_qd=wp.zeros(shape_al, dtype=wp.vec3, device=self.device),
         )
 
-    def control(self) -> TubeControl:
-        """A new control: no forces, pins at rest, no assistant line."""
-        q = np.repeat(self.host.node_rest_q[None], self.world_count, axis=0)
+    def control(self, rest_q: np.ndarray | None = None) -> TubeControl:
+        """A new control: no forces, pins at rest (at ``rest_q`` [m] as :meth:`state` takes it), no
+        assistant line."""
+        q = np.repeat(self.host.node_rest_q[None], self.world_count, axis=0) if rest_q is None else rest_q.astype(np.float32)
         shape_al = (self.world_count, max(self.al_slots, 1))
         z = lambda: wp.zeros(shape_al, dtype=float, device=self.device)  # noqa: E731
         return TubeControl(
@@ -250,6 +252,8 @@ class TubeModel:
 
 #: a tube prim's geometry arrays (TubeSpec fields): prims holding the same objects share them
 _GEOMETRY = ("points", "radius", "curve_counts", "pinned", "anchors")
+#: the TubeParams fields node_parameters reads, each prim's in one pass
+_MATERIALS = ("density", "youngs_modulus", "stretch_stiffness", "bend_stiffness", "damping", "spring_damping", "anchor_stiffness")
 
 
 def node_parameters(scene: Scene) -> tuple[dict, bool]:
@@ -297,7 +301,7 @@ def node_parameters(scene: Scene) -> tuple[dict, bool]:
     def material(name: str):
         """Parameter ``name`` of each prim [its unit] (NaN for None): a scalar where every prim has
         the same value, else per row (rows, 1) where the rows are prims, or (1, nodes) over one row."""
-        v = np.array(list(map(attrgetter(name), params)), dtype=np.float64)  # (None as NaN)
+        v = materials[:, _MATERIALS.index(name)]
         if np.all((v == v[0]) | (np.isnan(v) & np.isnan(v[0]))):
             return v[0]
         return v[:, None] if shared else np.repeat(v, sizes)[None]
@@ -323,6 +327,7 @@ def node_parameters(scene: Scene) -> tuple[dict, bool]:
         return out.reshape(-1)
 
     params = [s.params for s in specs]
+    materials = np.array(list(map(attrgetter(*_MATERIALS), params)), dtype=np.float64).reshape(P, -1)  # (None as NaN)
     density = material("density")
     youngs = material("youngs_modulus")
     stretch = material("stretch_stiffness")
