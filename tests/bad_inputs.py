@@ -42,6 +42,13 @@ POINT_CLOUD = (b"ply\nformat ascii 1.0\nelement vertex 3\nproperty float x\nprop
                b"end_header\n0 0 0\n1 0 0\n0 1 0\n")
 
 
+#: a tube's density, for a scene that references it
+ASSET = '#usda 1.0\ndef BasisCurves "Tube"\n{\n    double warptube:density = -1\n}\n'
+#: a tube's Young's modulus in the variants of the variantSet "stiffness"
+VARIANTS = ('        variantSet "stiffness" = {\n            "soft" {\n                double warptube:youngsModulus = 100000\n'
+            '            }\n            "stiff" {\n                double warptube:youngsModulus = 100000000\n            }\n        }\n')
+
+
 def scene(*edits: tuple[str, str]) -> str:
     """The default scene (two frames) with text replacements; each ``old`` must occur."""
     text = DEFAULT_SCENE.replace("endTimeCode = 96", "endTimeCode = 2")
@@ -296,6 +303,16 @@ def cases() -> list[Case]:
     bad("gravity 1e38", scene(('warptube:integrator = "auto"', 'warptube:integrator = "auto"\n        float3 warptube:gravity = (0, -1e38, 0)')))
     bad("the last point far from the others", scene(("(19, 0, 0), (20, 0, 0)]", "(19, 0, 0), (2000000, 0, 0)]")))
     bad("an attribute in the namespace warpTube: (not warptube:)", scene(("double warptube:youngsModulus", "double warpTube:youngsModulus")))
+    run("density -1 in a referenced file", [BAD, "-o", "o.usdc"], files={"asset.usda": ASSET, BAD: scene(
+        ('def BasisCurves "Tube"', 'def BasisCurves "Tube" (\n        references = @asset.usda@</Tube>\n    )'),
+        ("        double warptube:density = 1050\n", ""))})  # fmt: skip
+    bad("Young's modulus only in the variants of a variantSet with no selection", scene(
+        ('def BasisCurves "Tube"', 'def BasisCurves "Tube" (\n        prepend variantSets = "stiffness"\n    )'),
+        ("        double warptube:youngsModulus = 100000\n", ""), ("bool warptube:caps = true\n", "bool warptube:caps = true\n" + VARIANTS)))
+    bad("one width per curve, no interpolation authored", scene(("curveVertexCounts = [21]", "curveVertexCounts = [10, 11]"),
+                                                                ('widths = [2] (interpolation = "constant")', "widths = [2, 3]")))  # fmt: skip
+    run("startTimeCode 0.25, endTimeCode 0.75: less than a frame (warning)", [BAD, "-o", "o.usdc", "--quiet"], 0, creates=("o.usdc",),
+        files={BAD: scene(("startTimeCode = 0\n", "startTimeCode = 0.25\n"), ("endTimeCode = 2", "endTimeCode = 0.75"))})  # fmt: skip
     run("forced time step that blows up, over an existing output", [BAD, "-o", "keep.usdc"], 3, files={BAD: FORCED_BLOWUP}, creates=("keep.partial.usdc",))
     # -- run: the output and the flags
     run("-o the scene itself", ["scene.usda", "-o", "scene.usda"])

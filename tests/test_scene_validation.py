@@ -295,6 +295,20 @@ def test_an_unauthored_end_or_start_time_code_is_taken_as_the_authored_one(autho
     assert (stage.GetStartTimeCode(), stage.GetEndTimeCode()) == (time, time + 2)
 
 
+@pytest.mark.parametrize("start, end, said", [
+    (0.25, 0.75, "startTimeCode 0.25 and endTimeCode 0.75 are less than one frame (1 time code) apart"),
+    (5, 5, "startTimeCode and endTimeCode are both 5"),
+])  # fmt: skip
+def test_an_authored_time_range_shorter_than_a_frame_is_warned_of(start, end, said, tmp_cwd, capsys):
+    """A range of less than one frame ran one frame, simulated none, and said nothing."""
+    (tmp_cwd / "s.usda").write_text(mutate("startTimeCode = 0\n    endTimeCode = 96\n", f"startTimeCode = {start}\n    endTimeCode = {end}\n"))
+    assert main(["run", "s.usda", "-o", "one.usdc", "--no-surface", "--quiet"]) == 0
+    assert (f"warp-tube: warning: s.usda: {said}, which gives one frame and nothing to simulate; author an endTimeCode of "
+            f"at least {start + 1:g} or pass --frames N") in capsys.readouterr().err  # fmt: skip
+    assert main(["run", "s.usda", "-o", "three.usdc", "--frames", "3", "--no-surface", "--quiet"]) == 0
+    assert "nothing to simulate" not in capsys.readouterr().err
+
+
 @pytest.mark.parametrize("old, new, words", [
     ("startTimeCode = 0\n    endTimeCode = 96", "startTimeCode = 5\n    endTimeCode = 2", "startTimeCode 5.0, endTimeCode 2.0: expected end >= start"),
     ("endTimeCode = 96", "endTimeCode = inf", "endTimeCode inf: expected a finite time code"),

@@ -227,6 +227,12 @@ def test_widths_in_every_interpolation_and_as_primvars(tmp_path, line, expected)
          ["/World/Tube.widths", "3 values", "2 (uniform: one per curve)", "5 (one per point)"]),
         (BODY.replace('float[] widths = [0.5] (interpolation = "constant")', ""),
          ["/World/Tube.widths", "missing", "primvars:widths"]),
+        (_two_curves("float[] widths = [0.5, 0.8]"),
+         ["/World/Tube.widths: found 2 values with no interpolation authored (USD's fallback 'vertex': one per point): "
+          'expected 5 (one per point), or author interpolation = "uniform" on widths for 2, one per curve']),
+        (_two_curves('float[] primvars:widths = [0.5, 0.8] (interpolation = "vertex")'),
+         ["/World/Tube.primvars:widths: found 2 values (interpolation 'vertex': one per point): expected 5 (one per point), "
+          'or author interpolation = "uniform" on primvars:widths for 2, one per curve']),
         (BODY.replace('float[] widths = [0.5] (interpolation = "constant")', 'float[] primvars:widths = [0.5, -1, 1, 1, 1]'),
          ["/World/Tube.primvars:widths", "-1.0 at index 1", "positive"]),
         (BODY + '        uniform token wrap = "periodic"\n', ["/World/Tube.wrap", "'periodic'", "'nonperiodic'"]),
@@ -235,7 +241,8 @@ def test_widths_in_every_interpolation_and_as_primvars(tmp_path, line, expected)
 )  # fmt: skip
 def test_curves_the_simulator_cannot_follow_are_named(tmp_path, capsys, body, words):
     """A closed (periodic) curve was simulated as an open one without a word; an unauthored type
-    was reported as if 'cubic' had been written; primvars:widths was reported missing."""
+    was reported as if 'cubic' had been written; primvars:widths was reported missing; one width per
+    curve without interpolation "uniform" was refused with one per curve among the counts expected."""
     scene = tmp_path / "curves.usda"
     scene.write_text(HEADER + world(tube(body)))
     status, err = run([scene, "-o", tmp_path / "out.usdc"], capsys)

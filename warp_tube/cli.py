@@ -156,6 +156,12 @@ def _cmd_run(a) -> int:
         log.warning("%s: %s not authored: taken as the %s (%g), which gives one frame and nothing to simulate; "
                     "author %s or pass --frames N", scene_path or "the scene", unauthored[0],
                     "start" if unauthored[0] == "endTimeCode" else "end", info.end_time_code, unauthored[0])  # fmt: skip
+    elif a.frames is None and info.frame_count == 1:
+        start, end = info.start_time_code, info.end_time_code
+        span = (f"startTimeCode and endTimeCode are both {start:g}" if end == start else
+                f"startTimeCode {start:g} and endTimeCode {end:g} are less than one frame (1 time code) apart")  # fmt: skip
+        log.warning("%s: %s, which gives one frame and nothing to simulate; author an "
+                    "endTimeCode of at least %g or pass --frames N", scene_path or "the scene", span, start + 1)  # fmt: skip
     # Run warnings go into the summary; with --quiet (no summary unless the run stops) they are
     # printed as they happen instead.
     _RUN_WARNINGS.summary_prints_them = not a.quiet

@@ -26,7 +26,7 @@ import re
 
 import numpy as np
 
-from ..scene.attributes import samples_differ
+from ..scene.attributes import missing, samples_differ, where as attribute_where
 from ..scene.files import USD_EXTENSIONS, output_path, write_atomically
 from .pipeline import ExtractedTube, extract_centerline
 from ..model.frames import rotation_minimizing_frames
@@ -224,7 +224,7 @@ def write_scene(
     return str(curves.GetPath())
 
 
-def _attr_value(prim, name, types, start: float):
+def _attr_value(file: str, prim, name, types, start: float):
     """The attribute's value at the first frame (time code ``start``), or None where unauthored; a
     value authored as time samples, as DCC tools often write them, is read there (with a warning
     where the samples may differ: parameters are not animated)."""
@@ -234,10 +234,10 @@ def _attr_value(prim, name, types, start: float):
     if not a or not a.HasAuthoredValue():
         return None
     if str(a.GetTypeName()) not in types:
-        raise SceneError(f"{prim.GetPath()}.{name}: found type {a.GetTypeName()}: expected {' or '.join(types)}")
+        raise SceneError(f"{attribute_where(file, prim, name)}: found type {a.GetTypeName()}: expected {' or '.join(types)}")
     v = a.Get(Usd.TimeCode(start))
     if v is None:
-        raise SceneError(f"{prim.GetPath()}.{name}: no value at the first frame: expected a value (a default or time samples)")
+        raise SceneError(f"{attribute_where(file, prim, name)}: no value at the first frame: expected a value (a default or time samples)")
     if samples_differ(a):
         log.warning("%s.%s: time-sampled: its value at the first frame (%s) is used for the whole run", prim.GetPath(), name, v)
     return v
@@ -259,26 +259,24 @@ def tube_from_mesh_prim(file: str, prim, info: StageInfo) -> TubeSpec:
     where = f"{file}: {prim.GetPath()}"
     real = ("float", "double")
     t0 = info.start_time_code
-    try:
-        hubs = _attr_value(prim, "warptube:hubs", ("int", "int64", "uint"), t0)
-        spokes = _attr_value(prim, "warptube:spokes", ("int", "int64", "uint"), t0)
-        spokes = 16 if spokes is None else int(spokes)
-        vals = {k: _attr_value(prim, f"warptube:{k}", real, t0) for k in (
-            "density", "youngsModulus", "stretchStiffness", "bendStiffness", "damping", "springDamping",
-            "anchorStiffness")}  # fmt: skip
-        frames = _attr_value(prim, "warptube:frames", ("token", "string"), t0)
-        caps = _attr_value(prim, "warptube:caps", ("bool",), t0)
-        pinned = _attr_value(prim, "warptube:pinnedPoints", ("int[]", "int64[]"), t0)
-        anchors = _attr_value(prim, "warptube:anchorPoints", ("int[]", "int64[]"), t0)
-    except SceneError as e:
-        raise SceneError(f"{file}: {e}") from None
+    hubs = _attr_value(file, prim, "warptube:hubs", ("int", "int64", "uint"), t0)
+    spokes = _attr_value(file, prim, "warptube:spokes", ("int", "int64", "uint"), t0)
+    spokes = 16 if spokes is None else int(spokes)
+    vals = {k: _attr_value(file, prim, f"warptube:{k}", real, t0) for k in (
+        "density", "youngsModulus", "stretchStiffness", "bendStiffness", "damping", "springDamping",
+        "anchorStiffness")}  # fmt: skip
+    frames = _attr_value(file, prim, "warptube:frames", ("token", "string"), t0)
+    caps = _attr_value(file, prim, "warptube:caps", ("bool",), t0)
+    pinned = _attr_value(file, prim, "warptube:pinnedPoints", ("int[]", "int64[]"), t0)
+    anchors = _attr_value(file, prim, "warptube:anchorPoints", ("int[]", "int64[]"), t0)
     if vals["density"] is None:
-        raise SceneError(f"{where}.warptube:density: missing: expected a float or double [kg/m^3] (required)")
+        raise SceneError(f"{where}.warptube:density: {missing(prim, ('warptube:density',))}: expected a float or double "
+                         "[kg/m^3] (required)")  # fmt: skip
     for k, v in vals.items():
         if v is not None:
-            check_attribute(where, f"warptube:{k}", float(v))
+            check_attribute(attribute_where(file, prim, f"warptube:{k}"), f"warptube:{k}", float(v))
     if frames is not None and str(frames) not in FRAME_MODES:
-        raise SceneError(f"{where}.warptube:frames: found {frames!r}: expected one of {', '.join(FRAME_MODES)}")
+        raise SceneError(f"{attribute_where(file, prim, 'warptube:frames')}: found {frames!r}: expected one of {', '.join(FRAME_MODES)}")
     from ..runtime.warp_setup import init_warp
     from .fidelity import surface_fidelity
     from .tube_check import tube_warnings

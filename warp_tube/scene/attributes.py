@@ -5,12 +5,13 @@ from __future__ import annotations
 
 import difflib
 import logging
+import os
 
 from .spec import SceneError
 
 __all__ = ["SETTINGS_ATTRS", "TUBE_ATTRS", "FORCE_ATTRS", "MESH_ATTRS", "KNOWN_ATTRS", "TARGET", "check_names",
            "check_relationships", "not_simulated", "not_defined", "undefined", "attributes_of", "samples_differ", "kind_of",
-           "taken", "ignored_hint"]
+           "taken", "ignored_hint", "where", "missing"]
 
 log = logging.getLogger("warp_tube.scene.usd")
 
@@ -72,6 +73,78 @@ def _home(name: str) -> str:
     return "a Mesh with warptube:extract = true"
 
 
+def where(file: str, prim, name: str) -> str:
+    """``file: /prim.name``, the head of a message about ``prim``'s property ``name``, with where its
+    value is authored where that is not ``file``'s own layer at that path (a referenced file, a
+    payload, a sublayer, a variant): ``(authored in asset.usda at /Asset/Tube.warptube:density)``."""
+    head = f"{file}: {prim.GetPath()}.{name}"
+    spec = _strongest_spec(prim, name)
+    if spec is None:
+        return head
+    root = spec.layer == prim.GetStage().GetRootLayer()
+    same = spec.path == prim.GetPath().AppendProperty(name)
+    if (root and same) or (spec.layer.anonymous and not root):  # (an anonymous layer: values a program set)
+        return head
+    at = "" if same else f" at {spec.path}"
+    return f"{head} (authored{at})" if root else f"{head} (authored in {_layer_name(spec.layer, file)}{at})"
+
+
+def _strongest_spec(prim, name):
+    """The spec whose value ``prim``'s property ``name`` takes (the strongest with a default or time
+    samples; a relationship's strongest), or None where there is none."""
+    prop = prim.GetProperty(name)
+    if not prop:
+        return None
+    is_attribute = prim.HasAttribute(name)
+    for spec in prop.GetPropertyStack():
+        if not is_attribute or spec.HasDefaultValue() or spec.layer.GetNumTimeSamplesForPath(spec.path):
+            return spec
+    return None
+
+
+def _layer_name(layer, file: str) -> str:
+    """A layer's file for a message: relative to the folder of the scene ``file`` where it can be."""
+    if not layer.realPath:
+        return layer.identifier
+    try:
+        return os.path.relpath(layer.realPath, os.path.dirname(os.path.abspath(file)))
+    except ValueError:  # (another drive)
+        return layer.realPath
+
+
+def missing(prim, names) -> str:
+    """``missing`` for an unauthored attribute of ``prim`` (one of ``names``, which may each take its
+    place), with why where a variantSet on ``prim`` or an ancestor has no selection while some of its
+    variants author one of them: ``missing (variantSet "stiffness" on /World/Tube has no selection;
+    its variants soft, stiff author it: select one)``."""
+    p = prim
+    while p and not p.IsPseudoRoot():
+        sets = p.GetVariantSets()
+        for vset in sets.GetNames():
+            if sets.GetVariantSelection(vset):
+                continue
+            authors = [v for v in sets.GetVariantSet(vset).GetVariantNames() if _variant_authors(p, vset, v, prim, names)]
+            if authors:
+                its = f"its variants {', '.join(authors)} author it" if len(authors) > 1 else f"its variant {authors[0]} authors it"
+                return f'missing (variantSet "{vset}" on {p.GetPath()} has no selection; {its}: select one)'
+        p = p.GetParent()
+    return "missing"
+
+
+def _variant_authors(holder, vset: str, variant: str, prim, names) -> bool:
+    """Whether the variant ``variant`` of ``holder``'s variantSet ``vset`` authors a value of one of
+    ``prim``'s attributes ``names`` (``prim`` is ``holder`` or below it)."""
+    below = prim.GetPath().MakeRelativePath(holder.GetPath())
+    for spec in holder.GetPrimStack():
+        at = spec.path.AppendVariantSelection(vset, variant)
+        at = at if below.pathString == "." else at.AppendPath(below)
+        for name in names:
+            a = spec.layer.GetAttributeAtPath(at.AppendProperty(name))
+            if a and (a.HasDefaultValue() or spec.layer.GetNumTimeSamplesForPath(a.path)):
+                return True
+    return False
+
+
 def check_names(path: str, prim, names: list, known: set, kind: str) -> None:
     """A ``warptube:`` attribute of ``prim`` that is not one of ``known`` (a ``kind`` prim's) is a
     mistake (a misspelling, or an attribute of another kind of prim): an error naming it, with the
@@ -80,11 +153,11 @@ def check_names(path: str, prim, names: list, known: set, kind: str) -> None:
         if name in known:
             continue
         if name in KNOWN_ATTRS:
-            raise SceneError(f"{path}: {prim.GetPath()}.{name}: not an attribute of a {kind} prim: it belongs on "
+            raise SceneError(f"{where(path, prim, name)}: not an attribute of a {kind} prim: it belongs on "
                              f"{_home(name)}")  # fmt: skip
         near = difflib.get_close_matches(name, sorted(known), n=1)
         what = "unknown attribute" + (f": did you mean {near[0]}?" if near else "")
-        raise SceneError(f"{path}: {prim.GetPath()}.{name}: {what} (a {kind} prim takes {taken(known)})")
+        raise SceneError(f"{where(path, prim, name)}: {what} (a {kind} prim takes {taken(known)})")
 
 
 def check_relationships(path: str, prim) -> None:
@@ -93,7 +166,7 @@ def check_relationships(path: str, prim) -> None:
     for rel in prim.GetRelationships():
         name = rel.GetName()
         if name.startswith("warptube:") and name != TARGET:
-            raise SceneError(f"{path}: {prim.GetPath()}.{name}: unknown relationship: did you mean {TARGET} "
+            raise SceneError(f"{where(path, prim, name)}: unknown relationship: did you mean {TARGET} "
                              "(a force's tube: rel warptube:target = </PATH/TO/TUBE>)?")  # fmt: skip
 
 
@@ -107,8 +180,8 @@ def check_namespace(path: str, prim, names) -> None:
         k = 1 if parts[0] == "primvars" and len(parts) > 2 else 0
         space = parts[k]
         if len(parts) > k + 1 and space != "warptube" and space.lower().replace("_", "").replace("-", "") == "warptube":
-            raise SceneError(f"{path}: {prim.GetPath()}.{name}: the namespace is spelled warptube (all lower case, "
-                             f"one word): author it as warptube:{':'.join(parts[k + 1:])}")  # fmt: skip
+            raise SceneError(f"{where(path, prim, name)}: the namespace is spelled warptube (all lower case, one "
+                             f"word): author it as warptube:{':'.join(parts[k + 1:])}")  # fmt: skip
 
 
 def not_simulated(path: str, prim, names: list) -> None:

@@ -8,7 +8,7 @@ import logging
 
 import numpy as np
 
-from .attributes import samples_differ
+from .attributes import missing, samples_differ
 from .spec import SceneError
 from .transforms import to_world
 
@@ -59,7 +59,7 @@ def curve_widths(r, curves, counts: np.ndarray, time) -> np.ndarray:
     n_points = int(counts.sum())
     primvar = UsdGeom.PrimvarsAPI(curves.GetPrim()).GetPrimvar("widths")
     if primvar and primvar.HasAuthoredValue():
-        name, interpolation = "primvars:widths", primvar.GetInterpolation()
+        name, interpolation, authored = "primvars:widths", primvar.GetInterpolation(), primvar.HasAuthoredInterpolation()
         _check_array_type(r, name, primvar.GetAttr())
         values = primvar.Get(time)
         indices = primvar.GetIndices(time) if primvar.IsIndexed() else None
@@ -77,11 +77,12 @@ def curve_widths(r, curves, counts: np.ndarray, time) -> np.ndarray:
                         "ignored", r.where("primvars:widths"))  # fmt: skip
     elif curves.GetWidthsAttr().HasAuthoredValue():
         name, interpolation = "widths", curves.GetWidthsInterpolation()
+        authored = curves.GetWidthsAttr().HasAuthoredMetadata("interpolation")
         _check_array_type(r, name, curves.GetWidthsAttr())
         values = curves.GetWidthsAttr().Get(time)
     else:
-        raise SceneError(f"{r.where('widths')}: missing: expected float[] diameters (one, one per curve with "
-                         "interpolation \"uniform\", or one per point), as widths or primvars:widths")  # fmt: skip
+        raise SceneError(f"{r.where('widths')}: {missing(r.prim, ('widths', 'primvars:widths'))}: expected float[] diameters "
+                         "(one, one per curve with interpolation \"uniform\", or one per point), as widths or primvars:widths")  # fmt: skip
     attr = primvar.GetAttr() if name == "primvars:widths" else curves.GetWidthsAttr()
     if samples_differ(attr):
         log.warning("%s: time-sampled: the diameters at the first frame are used for the whole run (a tube's "
@@ -93,6 +94,11 @@ def curve_widths(r, curves, counts: np.ndarray, time) -> np.ndarray:
         widths = np.full(n_points, widths[0])
     elif interpolation == "uniform" and len(widths) == len(counts):
         widths = np.repeat(widths, counts)
+    elif len(widths) == len(counts) and len(widths) != n_points:  # (one per curve, but not said to be)
+        takes = f"{interpolation!r}: " + ("one value" if interpolation == "constant" else "one per point")
+        how = f" (interpolation {takes})" if authored else f" with no interpolation authored (USD's fallback {takes})"
+        r.fail(name, f"{len(widths)} values{how}", f'{n_points} (one per point), or author interpolation = "uniform" on '
+               f"{name} for {len(widths)}, one per curve")  # fmt: skip
     elif len(widths) != n_points:
         per_curve = f", {len(counts)} (uniform: one per curve)" if len(counts) > 1 else ""
         r.fail(name, f"{len(widths)} values (interpolation {interpolation!r})", f"1 (constant){per_curve} or {n_points} (one per point)")

@@ -83,12 +83,12 @@ def expected(r: Range) -> str:
 
 
 def check_attribute(where: str, name: str, v: float) -> None:
-    """A SceneError naming ``where`` (file and prim) and the attribute ``name`` where the value
-    ``v`` of one of :data:`RANGES` lies outside its range."""
+    """A SceneError naming ``where`` (file, prim and attribute, as :func:`.attributes.where` has
+    them) where the value ``v`` of the attribute ``name``, one of :data:`RANGES`, lies outside its range."""
     from .spec import SceneError
 
     if name in RANGES and out_of_range(v, RANGES[name]):
-        raise SceneError(f"{where}.{name}: found {number_text(v)}: expected {expected(RANGES[name])}")
+        raise SceneError(f"{where}: found {number_text(v)}: expected {expected(RANGES[name])}")
 
 
 def lengths_outside(values_m, what: str) -> str | None:

@@ -169,6 +169,7 @@ def _raise_for_transform(prim, time, file: str):
 
     from pxr import Tf, UsdGeom
 
+    from .attributes import where
     from .spec import SceneError
 
     p, what = prim, "cannot be computed"
@@ -194,7 +195,7 @@ def _raise_for_transform(prim, time, file: str):
         p = p.GetParent()
     else:
         p = prim
-    raise SceneError(f"{file}: {p.GetPath()}.xformOpOrder: its transform {what} (it places the tube {prim.GetPath()}): "
+    raise SceneError(f"{where(file, p, 'xformOpOrder')}: its transform {what} (it places the tube {prim.GetPath()}): "
                      "expected finite, affine xformOps of their own types, with a non-zero scale")  # fmt: skip
 
 

@@ -17,8 +17,8 @@ import os
 import numpy as np
 
 from .curves import BEYOND_WORLD, MAX_WORLD_M, check_curve_type, check_points_type, curve_counts, curve_widths, moving_pin_track
-from .attributes import (KNOWN_ATTRS, TARGET, check_names, check_namespace, check_relationships, kind_of, not_defined, not_simulated, samples_differ,
-                         undefined)  # fmt: skip
+from .attributes import (KNOWN_ATTRS, TARGET, check_names, check_namespace, check_relationships, kind_of, missing, not_defined, not_simulated,
+                         samples_differ, undefined, where)  # fmt: skip
 from .ranges import GRAVITY, METERS_PER_UNIT, RADIUS_M, RANGES, TIME_STEP, expected, lengths_outside, number_text, out_of_range
 from .spec import (
     FRAME_MODES,
@@ -58,7 +58,11 @@ class _Reader:
         self.start = start  # the stage's startTimeCode: where time-sampled values are read
 
     def where(self, name: str) -> str:
-        return f"{self.file}: {self.prim.GetPath()}.{name}"
+        return where(self.file, self.prim, name)
+
+    def missing(self, name: str, expected: str, instead=()):
+        """An error: ``name`` (nor any of ``instead``, which may take its place) is not authored."""
+        raise SceneError(f"{self.where(name)}: {missing(self.prim, (name, *instead))}: expected {expected}")
 
     def fail(self, name: str, found, expected: str):
         raise SceneError(f"{self.where(name)}: found {found}: expected {expected}")
@@ -93,7 +97,7 @@ class _Reader:
         a, v = self._typed(name, REAL, "a float or double")
         if a is None:
             if required:
-                raise SceneError(f"{self.where(name)}: missing: expected a float or double (required)")
+                self.missing(name, "a float or double (required)")
             return default
         v = float(v)
         if not math.isfinite(v):
@@ -111,7 +115,7 @@ class _Reader:
         a, v = self._typed(name, ("int", "int64", "uint", "uchar"), "an int")
         if a is None:
             if required:
-                raise SceneError(f"{self.where(name)}: missing: expected an int (required)")
+                self.missing(name, "an int (required)")
             return default
         v = int(v)
         if (lo is not None and v < lo) or (hi is not None and v > hi):
@@ -231,10 +235,8 @@ def _read_tube(file: str, prim, info: StageInfo, frame_times, varying: dict | No
     EA = r.real("warptube:stretchStiffness", minimum=0.0)
     EI = r.real("warptube:bendStiffness", minimum=0.0)
     if E is None and (EA is None or EI is None):
-        raise SceneError(
-            f"{r.where('warptube:youngsModulus')}: missing: expected youngsModulus [Pa], or both "
-            "warptube:stretchStiffness [N] and warptube:bendStiffness [N m^2]"
-        )
+        r.missing("warptube:youngsModulus", "youngsModulus [Pa], or both warptube:stretchStiffness [N] and "
+                  "warptube:bendStiffness [N m^2]", ("warptube:stretchStiffness", "warptube:bendStiffness"))
     if EA is not None and EA == 0.0:
         r.fail("warptube:stretchStiffness", 0.0, "a positive axial stiffness [N]")
     if E is not None and EA is not None and EI is not None:
@@ -338,7 +340,7 @@ def _read_force(file: str, prim, tubes_by_path: dict, tube_specs, info: StageInf
         r.fail("warptube:point", point, f"an index 0..{n - 1} into {tpath}.points")
     a = r.attr("warptube:force")
     if a is None:
-        raise SceneError(f"{r.where('warptube:force')}: missing: expected a float3 force [N] (may be time-sampled)")
+        r.missing("warptube:force", "a float3 force [N] (may be time-sampled)")
     if str(a.GetTypeName()) not in REAL3:
         r.fail("warptube:force", f"type {a.GetTypeName()}", "a float3 or double3")
     samples = a.GetTimeSamples()
@@ -465,7 +467,7 @@ class SceneReader:
                 continue
             primvars = [n for n in names if n.startswith("primvars:")]
             if primvars:  # (as a DCC tool exports custom attributes)
-                raise SceneError(f"{path}: {prim.GetPath()}.{primvars[0]}: warptube: attributes are plain attributes, not "
+                raise SceneError(f"{where(path, prim, primvars[0])}: warptube: attributes are plain attributes, not "
                                  f"primvars: author it as {primvars[0].removeprefix('primvars:')}")  # fmt: skip
             check_relationships(path, prim)
             kind = kind_of(prim, names)
