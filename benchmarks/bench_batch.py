@@ -29,7 +29,7 @@ Reported per layout, from one ``run_batch`` call (seconds):
   frames to be copied back to the host for them (``flush_wait_s``, also reported: the device
   memory those frames hold);
 - ``floor_s``: usd-core's own time to write the same samples from one process: for ``files``,
-  per variant a new layer with the Centerline points and the Surface points, normals and extent
+  per variant a new layer with the Centerline points and extent and the Surface points, normals and extent
   of every frame (``Vt.Vec3fArray.FromNumpy`` + ``Sdf.Layer.SetTimeSample``, then ``Save``),
   measured on ``--floor-variants`` variants and scaled to all of them; for ``arrays``, NumPy
   writing the same arrays to one ``.npy`` file per output;
@@ -133,19 +133,20 @@ def usd_floor(n_variants: int, frames: int, points: int, vertices: int, measure:
     pts = rng.normal(size=(frames, vertices, 3)).astype(np.float32)
     nrm = rng.normal(size=(frames, vertices, 3)).astype(np.float32)
     ext = np.stack([pts.min(axis=1), pts.max(axis=1)], 1)
+    cl_ext = np.stack([cl.min(axis=1), cl.max(axis=1)], 1)
     measure = min(measure, n_variants)
     t0 = time.perf_counter()
     for k in range(measure):
         layer = Sdf.Layer.CreateNew(os.path.join(folder, f"floor_{k}.usdc"))
         paths = []
-        for prim, attr in (("/W/T/Centerline", "points"), ("/W/T/Surface", "points"), ("/W/T/Surface", "normals"),
-                           ("/W/T/Surface", "extent")):  # fmt: skip
+        for prim, attr in (("/W/T/Centerline", "points"), ("/W/T/Centerline", "extent"), ("/W/T/Surface", "points"),
+                           ("/W/T/Surface", "normals"), ("/W/T/Surface", "extent")):  # fmt: skip
             spec = layer.GetPrimAtPath(prim) or Sdf.CreatePrimInLayer(layer, prim)
             spec.specifier = Sdf.SpecifierDef
             a = spec.attributes.get(attr) or Sdf.AttributeSpec(spec, attr, Sdf.ValueTypeNames.Point3fArray)
             paths.append(a.path)
         for f in range(frames):
-            for path, values in zip(paths, (cl[f], pts[f], nrm[f], ext[f])):
+            for path, values in zip(paths, (cl[f], cl_ext[f], pts[f], nrm[f], ext[f])):
                 layer.SetTimeSample(path, float(f), Vt.Vec3fArray.FromNumpy(values))
         layer.Save()
         del layer

@@ -2,8 +2,8 @@
 
     python benchmarks/bench_usd_write.py [--frames 200]
 
-For a tube whose Surface has V vertices: ``StageWriter.write_frame`` (Centerline points, Surface
-points, normals and extent) against usd-core writing only the bare
+For a tube whose Surface has V vertices: ``StageWriter.write_frame`` (Centerline points and extent,
+Surface points, normals and extent) against usd-core writing only the bare
 Surface points of the same size (``Vt.Vec3fArray.FromNumpy`` + ``Sdf.Layer.SetTimeSample``, into a
 layer that no stage has open: usd-core's cheapest way, the one the writer takes), medians over
 ``--frames`` frames, measured side by side in one run. ``bare_points_stage_us``: the same bare

@@ -87,7 +87,7 @@ def test_batch_variant_equals_the_variant_run_alone(sweep, tmp_path):
         alone = tmp_path / f"alone{k}.usdc"
         assert cli(["run", str(scene), "-o", str(alone), "--frames", str(FRAMES), "--quiet"]) == 0
         a, b = stage_samples(alone), stage_samples(out / f"variant_{k:05d}.usdc")
-        assert a.keys() == b.keys() and len(a) == 4  # Centerline points, Surface points, normals, extent
+        assert a.keys() == b.keys() and len(a) == 5  # Centerline points, extent, Surface points, normals, extent
         for name in a:
             assert a[name][0] == b[name][0]
             # Each world runs the same kernels on the same float32 inputs as the run alone (the

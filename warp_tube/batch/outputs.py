@@ -213,6 +213,17 @@ def _frame_parts(ranges, arrays: dict, f: int, p: int, surface: bool):
     return cl, [(arrays["points"][f, p, v], arrays["normals"][f, p, v], arrays["extent"][f, p, k]) for k, (_, v) in enumerate(ranges)]
 
 
+def _centerline_extents(ranges, arrays: dict, frames: int, p: int, halves) -> np.ndarray:
+    """The Centerline extents of one variant's prims in its first ``frames`` frames, each prim's
+    over all of them at once: (frames, prims, 2, 3); ``halves``: the prims' half widths."""
+    from ..scene.curves import curves_extent
+
+    out = np.empty((frames, len(ranges), 2, 3), dtype=np.float32)
+    for k, (c, _) in enumerate(ranges):
+        out[:, k] = curves_extent(arrays["centerline"][:frames, p, c], halves[k])
+    return out
+
+
 def _write_files(task: WriteTask, arrays: dict) -> list[str]:
     from ..io.writer import StageWriter
 
@@ -223,9 +234,10 @@ def _write_files(task: WriteTask, arrays: dict) -> list[str]:
         w = StageWriter(os.path.join(spec.out_dir, rel), scene, topo)
         try:
             ranges = _ranges(scene, spec.surface)
+            extents = _centerline_extents(ranges, arrays, row["frames"], p, w.half_widths)
             for f in range(row["frames"]):
                 cl, parts = _frame_parts(ranges, arrays, f, p, spec.surface)
-                w.write_frame(spec.time_codes[f], cl, parts)
+                w.write_frame(spec.time_codes[f], cl, parts, centerline_extents=extents[f])
             w.close()
         except BaseException:
             w.abort()
@@ -398,18 +410,21 @@ def _write_grid(task: WriteTask, arrays: dict) -> list[str]:
                 info = {"partial": True, "framesWritten": int(row["frames"]), "maxDisplacement": moved}
                 w.layer.GetPrimAtPath(f"/Grid/{name}").SetInfo("customData", {"warptube": info})
         ranges = [_ranges(scene, spec.surface) for (_, _, scene), _, _ in keep]
+        extents = [_centerline_extents(r, arrays, row["frames"], p, w.half_widths[own])
+                   for (_, p, row), r, own in zip(keep, ranges, prims)]  # fmt: skip
         for f in range(len(spec.time_codes)):
-            cls, parts, held = [], [] if spec.surface else None, []
-            for ((index, name, scene), p, row), r, own in zip(keep, ranges, prims):
+            cls, parts, held, ext = [], [] if spec.surface else None, [], []
+            for ((index, name, scene), p, row), r, own, e in zip(keep, ranges, prims, extents):
                 if f >= row["frames"]:
                     continue  # past a failed variant's last finished frame
                 c, s = _frame_parts(r, arrays, f, p, spec.surface)
                 cls += c
                 held += own
+                ext.append(e[f])
                 if spec.surface:
                     parts += s
             if held:
-                w.write_frame(spec.time_codes[f], cls, parts, prims=held)
+                w.write_frame(spec.time_codes[f], cls, parts, prims=held, centerline_extents=np.concatenate(ext))
         w.close()
     except BaseException:
         w.abort()

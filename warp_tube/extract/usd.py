@@ -27,6 +27,7 @@ import re
 import numpy as np
 
 from ..scene.attributes import missing, samples_differ, where as attribute_where
+from ..scene.curves import curves_extent, half_width
 from ..scene.files import USD_EXTENSIONS, output_path, write_atomically
 from .pipeline import ExtractedTube, extract_centerline
 from ..model.frames import rotation_minimizing_frames
@@ -174,12 +175,15 @@ def write_scene(
 
     curves = UsdGeom.BasisCurves.Define(stage, f"/World/{tube_name}")
     curves.CreateTypeAttr(UsdGeom.Tokens.linear)
-    curves.CreatePointsAttr(Vt.Vec3fArray.FromNumpy(extracted.points.astype(np.float32)))
+    points = extracted.points.astype(np.float32)
+    widths = (2.0 * section_radius(extracted.spoke_lengths)).astype(np.float32)
+    curves.CreatePointsAttr(Vt.Vec3fArray.FromNumpy(points))
     curves.CreateCurveVertexCountsAttr(Vt.IntArray([n]))
-    curves.CreateWidthsAttr(Vt.FloatArray.FromNumpy((2.0 * section_radius(extracted.spoke_lengths)).astype(np.float32)))
+    curves.CreateWidthsAttr(Vt.FloatArray.FromNumpy(widths))
     curves.SetWidthsInterpolation(UsdGeom.Tokens.vertex)
-    lo, hi = extracted.rings().reshape(-1, 3).min(axis=0), extracted.rings().reshape(-1, 3).max(axis=0)
-    curves.CreateExtentAttr(Vt.Vec3fArray([Gf.Vec3f(*lo.astype(float)), Gf.Vec3f(*hi.astype(float))]))
+    # the prim's own bounds as usd-core finds them (its points padded by half the largest width),
+    # which viewports cull by: not the mesh's, which the points and widths need not lie within
+    curves.CreateExtentAttr(Vt.Vec3fArray.FromNumpy(curves_extent(points, half_width(widths))))
     prim = curves.GetPrim()
     D = Sdf.ValueTypeNames.Double
     prim.CreateAttribute("warptube:density", D).Set(float(density))

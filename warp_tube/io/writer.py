@@ -1,7 +1,8 @@
 """Time-sampled USD output (the output contract in the README).
 
 For each tube prim at path P the stage holds an ``Xform`` at P with ``P/Centerline`` (BasisCurves,
-``points`` time-sampled; ``purpose = "guide"`` where a Surface is written) and, unless disabled,
+``points`` and ``extent`` time-sampled, the extent by usd-core's rule for curves: the points padded
+by half the largest width; ``purpose = "guide"`` where a Surface is written) and, unless disabled,
 ``P/Surface`` (Mesh: static triangle topology and ``primvars:st``, ``doubleSided`` where the tube
 has no caps; ``points``, ``normals`` and ``extent`` time-sampled). Samples are written straight
 into the layer, which no stage has open after the prims are defined (``Sdf.Layer.SetTimeSample`` of
@@ -20,6 +21,7 @@ import os
 
 import numpy as np
 
+from ..scene.curves import curves_extent, half_width
 from ..scene.spec import Scene
 from ..scene.files import USD_EXTENSIONS, free_partial_path, output_path, partial_path, temp_path
 
@@ -148,7 +150,7 @@ class StageWriter:
         layer.pseudoRoot.SetInfo(UsdGeom.Tokens.upAxis, UsdGeom.Tokens.z if info.up_axis.upper() == "Z" else UsdGeom.Tokens.y)
         T = Sdf.ValueTypeNames
         surfaces = surfaces or [None] * len(scene.tubes)
-        self.tubes = []
+        self.tubes, halves = [], []
         with Sdf.ChangeBlock():
             for spec, surf in zip(scene.tubes, surfaces):
                 path_p = Sdf.Path(spec.path)
@@ -158,9 +160,12 @@ class StageWriter:
                 cl = _define(layer, path_p.AppendChild("Centerline"), "BasisCurves")
                 _attr(cl, "type", T.Token, UsdGeom.Tokens.linear, uniform=True)
                 _attr(cl, "curveVertexCounts", T.IntArray, Vt.IntArray([int(c) for c in spec.curve_counts]))
-                widths = _attr(cl, "widths", T.FloatArray, Vt.FloatArray.FromNumpy((2.0 * spec.radius / self.mpu).astype(np.float32)))
+                diameters = (2.0 * spec.radius / self.mpu).astype(np.float32)
+                widths = _attr(cl, "widths", T.FloatArray, Vt.FloatArray.FromNumpy(diameters))
                 widths.SetInfo(UsdGeom.Tokens.interpolation, UsdGeom.Tokens.vertex)
-                entry = {"centerline": _attr(cl, "points", T.Point3fArray).path, "surface": None}
+                entry = {"centerline": _attr(cl, "points", T.Point3fArray).path, "extent": _attr(cl, "extent", T.Float3Array).path,
+                         "surface": None}  # fmt: skip
+                halves.append(half_width(diameters))
                 if surf is not None:
                     # beside its Surface the curve is a guide: renderers (Karma, Cycles) would draw
                     # it as a second, round tube of the same diameter through the mesh's flat faces
@@ -186,11 +191,12 @@ class StageWriter:
                     entry["surface"] = (points.path, normals.path, extent.path)
                 self.tubes.append(entry)
         layer.defaultPrim = Sdf.Path(scene.tubes[0].path).GetPrefixes()[0].name
+        self.half_widths = np.array(halves, dtype=np.float32)
         self.frames_written = 0
         self.first_time = None
         self.last_time = start
 
-    def write_frame(self, time_code: float, centerlines, surfaces=None, prims=None):
+    def write_frame(self, time_code: float, centerlines, surfaces=None, prims=None, centerline_extents=None):
         """Add one frame.
 
         Args:
@@ -202,12 +208,18 @@ class StageWriter:
             prims: the indices of the tube prims this frame holds, ``centerlines`` and ``surfaces``
                 given for these only (default: all); a prim left out has no sample at this time
                 (a grid's failed variant, whose frames end before the others').
+            centerline_extents: per tube prim (of ``prims``), its Centerline's extent (2, 3),
+                :func:`~warp_tube.scene.curves.curves_extent` of its points and
+                :attr:`half_widths`; found here when not given.
         """
         put = self.layer.SetTimeSample  # no stage listens to the layer: nothing to batch notices for
         t = float(time_code)
         entries = self.tubes if prims is None else [self.tubes[i] for i in prims]
+        if centerline_extents is None:
+            centerline_extents = self._centerline_extents(centerlines, prims)
         for k, entry in enumerate(entries):
             put(entry["centerline"], t, vec3f_array(centerlines[k]))
+            put(entry["extent"], t, vec3f_array(centerline_extents[k]))
             if entry["surface"] is not None and surfaces is not None and surfaces[k] is not None:
                 p_path, n_path, e_path = entry["surface"]
                 sp, sn, *ext = surfaces[k]
@@ -220,6 +232,19 @@ class StageWriter:
         if self.first_time is None:
             self.first_time = time_code
         self.last_time = time_code
+
+    def _centerline_extents(self, centerlines, prims=None) -> np.ndarray:
+        """The Centerlines' extents (prims, 2, 3) of one frame, the prims' points reduced together."""
+        halves = self.half_widths if prims is None else self.half_widths[list(prims)]
+        if len(centerlines) == 1:
+            return curves_extent(centerlines[0], halves[0])[None]
+        points = [np.asarray(c, dtype=np.float32) for c in centerlines]
+        starts = np.cumsum([0] + [len(c) for c in points[:-1]])
+        joined = np.concatenate(points)
+        out = np.empty((len(points), 2, 3), dtype=np.float32)
+        np.subtract(np.minimum.reduceat(joined, starts), halves[:, None], out=out[:, 0])
+        np.add(np.maximum.reduceat(joined, starts), halves[:, None], out=out[:, 1])
+        return out
 
     def close(self) -> str:
         """Finish the stage: endTimeCode = last frame written, save, rename over the target.

@@ -15,7 +15,7 @@ from .transforms import to_world
 log = logging.getLogger("warp_tube.scene.usd")
 
 __all__ = ["check_curve_type", "check_points_type", "curve_counts", "curve_widths", "moving_pin_track", "MAX_WORLD_M",
-           "BEYOND_WORLD"]  # fmt: skip
+           "BEYOND_WORLD", "curves_extent", "half_width"]  # fmt: skip
 
 #: the array types a tube's points may be authored as
 POINT_ARRAYS = ("point3f[]", "point3d[]", "float3[]", "double3[]", "vector3f[]", "vector3d[]", "half3[]", "point3h[]")
@@ -23,6 +23,32 @@ POINT_ARRAYS = ("point3f[]", "point3d[]", "float3[]", "double3[]", "vector3f[]",
 MAX_WORLD_M = 1e6
 #: what is expected of a coordinate or radius beyond :data:`MAX_WORLD_M`
 BEYOND_WORLD = f"at most {MAX_WORLD_M:g} m (past any tube: a transform or metersPerUnit is likely wrong)"
+
+
+def half_width(widths) -> np.float32:
+    """Half the largest of a curves prim's ``widths`` as usd-core pads its points with them (0 for
+    none), in float32."""
+    widths = np.asarray(widths, dtype=np.float32)
+    return np.float32(widths.max() if widths.size else 0.0) * np.float32(0.5)
+
+
+def curves_extent(points, half: np.float32) -> np.ndarray:
+    """A curves prim's ``extent`` by usd-core's rule (``UsdGeomCurves::ComputeExtent``, which
+    ``UsdGeom.Boundable.ComputeExtentFromPlugins`` applies): the float32 bounds of its points, each
+    side padded by half the largest width (``half``, :func:`half_width`) in float32 arithmetic.
+
+    Args:
+        points: shape (..., n, 3), n >= 1 (e.g. (frames, n, 3) for every frame at once).
+        half: half the largest width.
+
+    Returns:
+        float32, shape (..., 2, 3): ``[min - half, max + half]``.
+    """
+    points = np.asarray(points, dtype=np.float32)
+    out = np.empty((*points.shape[:-2], 2, 3), dtype=np.float32)
+    np.subtract(points.min(axis=-2), half, out=out[..., 0, :])
+    np.add(points.max(axis=-2), half, out=out[..., 1, :])
+    return out
 
 
 def check_curve_type(r, curves) -> None:

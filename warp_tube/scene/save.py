@@ -8,6 +8,7 @@ import os
 import numpy as np
 
 from .attributes import TARGET
+from .curves import curves_extent, half_width
 from .files import USD_EXTENSIONS, output_path, write_atomically
 from .spec import Scene, SceneError
 
@@ -68,14 +69,21 @@ def _write(scene: Scene, path: str) -> None:
     for t in scene.tubes:
         c = UsdGeom.BasisCurves.Define(stage, t.path)
         c.CreateTypeAttr("linear")
-        points = c.CreatePointsAttr(Vt.Vec3fArray.FromNumpy((t.points / mpu).astype(np.float32)))
-        if t.pin_track is not None:  # moving pins: the points time-sampled, one sample a frame
+        widths = (2.0 * t.radius / mpu).astype(np.float32)
+        half = half_width(widths)
+        rest = (t.points / mpu).astype(np.float32)
+        points = c.CreatePointsAttr(Vt.Vec3fArray.FromNumpy(rest))
+        extent = c.CreateExtentAttr(Vt.Vec3fArray.FromNumpy(curves_extent(rest, half)))  # (usd-core's rule for curves)
+        if t.pin_track is not None:  # moving pins: the points (and their extent) time-sampled, one sample a frame
             for k, pins in enumerate(t.pin_track):
                 frame = t.points.copy()
                 frame[t.pinned] = pins
-                points.Set(Vt.Vec3fArray.FromNumpy((frame / mpu).astype(np.float32)), Usd.TimeCode(scene.stage.start_time_code + k))
+                frame = (frame / mpu).astype(np.float32)
+                time = Usd.TimeCode(scene.stage.start_time_code + k)
+                points.Set(Vt.Vec3fArray.FromNumpy(frame), time)
+                extent.Set(Vt.Vec3fArray.FromNumpy(curves_extent(frame, half)), time)
         c.CreateCurveVertexCountsAttr(Vt.IntArray([int(v) for v in t.curve_counts]))
-        c.CreateWidthsAttr(Vt.FloatArray.FromNumpy((2.0 * t.radius / mpu).astype(np.float32)))
+        c.CreateWidthsAttr(Vt.FloatArray.FromNumpy(widths))
         c.SetWidthsInterpolation(UsdGeom.Tokens.vertex)
         p, prim = t.params, c.GetPrim()
         D = Sdf.ValueTypeNames.Double

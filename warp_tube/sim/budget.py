@@ -109,19 +109,19 @@ class RunBudget:
         """An upper bound of the output file's size [bytes]: ``(fixed, per_frame)``, the part
         written once (metadata, prim specs, widths, curve counts, the Surfaces' topology and
         texture coordinates) and what each frame adds (:meth:`output_bytes_per_frame`, each
-        Surface's extent and every sample's bookkeeping), for a text stage when ``output`` ends in
-        ``.usda``."""
+        Centerline's and Surface's extent and every sample's bookkeeping), for a text stage when
+        ``output`` ends in ``.usda``."""
         tubes, surfaces = self.scene.tubes, self.surfaces or ()
         arrays = sum(4 * (len(t.points) + len(t.curve_counts)) for t in tubes)  # float32 widths, int32 counts
         for s in surfaces:
             st_indices = getattr(s, "st_indices", None)
             arrays += 4 * (len(s.face_vertex_counts) + len(s.face_vertex_indices)) + 8 * len(s.st)
             arrays += 4 * len(st_indices) if st_indices is not None else 0
-        samples = self.output_bytes_per_frame() + 24 * len(surfaces)  # (and each Surface's extent)
+        samples = self.output_bytes_per_frame() + 24 * (len(tubes) + len(surfaces))  # (and each Centerline's and Surface's extent)
         if output is not None and os.fspath(output).lower().endswith(".usda"):
             arrays, samples = int(arrays * TEXT_OUTPUT_FACTOR), int(samples * TEXT_OUTPUT_FACTOR)
         fixed = OUTPUT_FIXED_BYTES + len(tubes) * OUTPUT_PRIM_BYTES + arrays
-        return fixed, samples + (len(tubes) + 3 * len(surfaces)) * OUTPUT_SAMPLE_BYTES
+        return fixed, samples + (2 * len(tubes) + 3 * len(surfaces)) * OUTPUT_SAMPLE_BYTES
 
     def _check_output_fits(self, frames: int, output=None) -> None:
         """Refuse, before anything is written, an output larger than the memory available now
