@@ -14,48 +14,12 @@ from warp_tube.cli import main
 from .test_api_checks import tube
 from .test_batch import DEFAULT, E, WIDTHS, write_table
 from .test_extract import tube_mesh
+from .test_output_dcc import SCENE as DCC_SCENE
 
-SCENE = """#usda 1.0
-(
-    defaultPrim = "Root"
-    metersPerUnit = 0.001
-    upAxis = "Z"
-    startTimeCode = 1001
-    endTimeCode = 1100
-)
-def Xform "Root"
-{
-    def Scope "Simulation"
-    {
-        float3 warptube:gravity = (0, 0, -9.81)
-    }
-    def BasisCurves "Tapered"
-    {
-        uniform token type = "linear"
-        int[] curveVertexCounts = [6]
-        point3f[] points = [(0, 0, 0), (20, 0, 0), (40, 0, 0), (60, 0, 0), (80, 0, 0), (100, 0, 0)]
-        float[] widths = [4, 6, 8, 10, 12, 14] (interpolation = "vertex")
-        double warptube:youngsModulus = 100000
-        double warptube:density = 1050
-        double warptube:damping = 2
-        int[] warptube:pinnedPoints = [0, 1]
-        int warptube:spokes = 8
-        bool warptube:caps = true
-    }
-    def BasisCurves "Pair"
-    {
-        uniform token type = "linear"
-        int[] curveVertexCounts = [5, 4]
-        point3f[] points = [(0, 30, 0), (20, 30, 0), (40, 30, 0), (60, 30, 0), (80, 30, 0), (0, 60, 0), (20, 60, 0), (40, 60, 0), (60, 60, 0)]
-        float[] widths = [8] (interpolation = "constant")
-        double warptube:youngsModulus = 100000
-        double warptube:density = 1050
-        double warptube:damping = 2
-        int[] warptube:pinnedPoints = [0, 1, 5, 6]
-        int warptube:spokes = 6
-    }
-}
-"""
+#: the DCC test's two tubes, the capped one tapering (widths 4 to 14 mm, one per point: the extent
+#: takes half the largest)
+SCENE = DCC_SCENE.replace('float[] widths = [10] (interpolation = "constant")',
+                          'float[] widths = [4, 6, 8, 10, 12, 14] (interpolation = "vertex")')
 
 
 def curves_extents(path, name=None):
@@ -145,7 +109,7 @@ def test_a_partial_output_and_a_frame_of_some_prims_have_usds_extent(tmp_path):
     assert partial is not None and not (tmp_path / "out.usdc").exists()
     assert_extents_as_usd_computes_them(partial, "Centerline", prims=2)
     times = {p: len(s) for p, s in curves_extents(partial, "Centerline").items()}
-    assert times == {"/Root/Tapered/Centerline": 1, "/Root/Pair/Centerline": 2}
+    assert times == {"/Root/Group/Capped/Centerline": 1, "/Root/Open/Centerline": 2}
 
 
 def test_batch_files_and_grid_centerlines_have_usds_extent_at_every_frame(tmp_path):
