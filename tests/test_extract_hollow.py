@@ -82,3 +82,31 @@ def test_a_speck_inside_a_tube_is_no_bore(caplog):
         tube = extract_centerline(m, hubs=21)
     assert not [rec for rec in caplog.records if "a hollow tube" in rec.getMessage()]
     assert abs(np.asarray(tube.radius).mean() / OUTER - 1.0) < 0.03
+
+
+def test_a_finely_meshed_torus_has_no_flat_rims():
+    """A torus cut into 840 sections round the ring: faces beside each other along it are within 1
+    degree and their planes a hair apart, so the bands at its top and bottom read as flat rings
+    face by face (before: "a hollow tube joined by flat rims", a 4 mm tube across the ring, or a
+    crash). A rim is flat as a whole: these bands turn right round the ring, so it is no hollow tube."""
+    from warp_tube.extract.hollow import outer_wall
+
+    torus = trimesh.creation.torus(major_radius=0.035, minor_radius=0.005, major_sections=840, minor_sections=32)
+    assert torus.is_watertight and torus.euler_number == 0
+    mesh, bore = outer_wall(torus, "torus")
+    assert bore is None and mesh is torus
+
+
+def test_recentring_hubs_nearly_on_top_of_each_other_keeps_a_finite_smoothing():
+    """Hubs far closer together than the smoothing length gave a Gaussian wider than memory allows
+    (ValueError: Maximum allowed size exceeded): the width is capped at the number of hubs."""
+    from warp_tube.extract.loops import boundary_loops, cap_loops
+    from warp_tube.extract.queries import MeshQueries
+    from warp_tube.extract.sections import recentre_hubs
+
+    m = _hose("solid")
+    v, f = cap_loops(m, boundary_loops(m))
+    q = MeshQueries(v, f, v, f, "cpu")
+    hubs = np.stack([np.zeros(12), np.zeros(12), np.linspace(0.0, 1e-12, 12)], axis=1)  # 1e-13 m apart
+    out = recentre_hubs(q, hubs, diag=float(np.linalg.norm(np.ptp(m.vertices, axis=0))), scale=0.5 * OUTER)
+    assert out.shape == hubs.shape and np.isfinite(out).all()

@@ -98,7 +98,25 @@ def _rims(mesh: trimesh.Trimesh) -> np.ndarray:
     _, piece = connected_components(g, directed=False)
     first = np.unique(piece, return_index=True)[1]
     loops = np.bincount(nodes[first] // nv, minlength=patch.max() + 1)  # boundary loops per patch
-    return loops[patch] >= 2
+    # A rim is flat as a whole, not only face to face: a band of a finely meshed torus, its
+    # neighbouring faces within 1 degree and their planes apart by less than the tolerance, turns
+    # round the ring (every normal within 1 degree of the patch's mean, every centre in its plane).
+    ring = loops[patch] >= 2
+    if not ring.any():
+        return ring
+    k = patch[ring]
+    w = np.asarray(mesh.area_faces, dtype=np.float64)[ring]
+    mean = np.stack([np.bincount(k, weights=w * n[ring, j], minlength=len(loops)) for j in range(3)], axis=1)
+    mean /= np.maximum(np.linalg.norm(mean, axis=1, keepdims=True), 1e-300)
+    level = np.einsum("ij,ij->i", mean[k], c[ring])
+    lo = np.full(len(loops), np.inf)
+    hi = np.full(len(loops), -np.inf)
+    np.minimum.at(lo, k, level)
+    np.maximum.at(hi, k, level)
+    turn = np.ones(len(loops))
+    np.minimum.at(turn, k, np.einsum("ij,ij->i", mean[k], n[ring]))
+    flat = (turn > _FLAT_COS) & (hi - lo < 1e-6 * scale)
+    return ring & flat[patch]
 
 
 def _sampled(points: np.ndarray) -> np.ndarray:

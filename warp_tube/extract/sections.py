@@ -306,7 +306,7 @@ def recentre_hubs(q: MeshQueries, points: np.ndarray, diag: float, scale: float,
     move = np.ones(len(p), dtype=bool)
     move[[0, -1]] = False
     spacing = float(np.mean(np.linalg.norm(np.diff(p, axis=0), axis=1)))
-    sigma = scale / max(spacing, 1e-300)
+    sigma = min(scale / max(spacing, 1e-300), float(len(p)))  # (wider than the tube: about a plain mean; its size kept finite)
     for _ in range(iterations):
         offset, ok, _, _ = section_offsets(q, p, hub_tangents(p), diag, rays)
         offset[~(move & ok)] = 0.0
