@@ -480,9 +480,17 @@ def _open_or_cut(path: np.ndarray, d: np.ndarray, loop, h: float, rough: bool):
 def _openings(loops, spoke_len, hub_tree, src) -> list[Opening]:
     """Report the open loops that are not ends: in the tube's wall, or closing a side branch."""
     out = []
+    hubs = np.asarray(hub_tree.data, dtype=np.float64)
     for lp in loops:
         dist, hub = hub_tree.query(lp.centroid)
         wall = float(np.median(spoke_len[hub]))
+        if len(hubs) > 1:  # from the centerline between the hubs: an opening between two is as far from it as the wall
+            ab = np.diff(hubs, axis=0)
+            t = np.clip(np.einsum("ij,ij->i", lp.centroid - hubs[:-1], ab) / np.maximum(np.einsum("ij,ij->i", ab, ab), 1e-300), 0.0, 1.0)
+            gap = np.linalg.norm(hubs[:-1] + t[:, None] * ab - lp.centroid, axis=1)
+            k = int(np.argmin(gap))
+            dist = float(gap[k])
+            wall = (1.0 - t[k]) * float(np.median(spoke_len[k])) + t[k] * float(np.median(spoke_len[k + 1]))
         kind = "wall" if dist <= wall else "branch"
         out.append(Opening(int(hub), float(lp.radius), len(lp.vertices), float(dist), kind))
         where = "an opening in the tube's wall" if kind == "wall" else "closing a side branch left out"
