@@ -390,3 +390,30 @@ def test_coordinates_beyond_float32_are_named_without_numpys_warning(tmp_path):
         warnings.simplefilter("error")  # (a RuntimeWarning would raise here)
         with pytest.raises(SceneError, match="1 vertex with NaN or infinite coordinates"):
             load_mesh(str(path))
+
+
+def test_obj_relative_indices_count_back_from_the_vertices_read_so_far(tmp_path):
+    """OBJ's negative indices count back from the vertices (texture coordinates, normals) read so
+    far: a file writing each triangle's vertices and then ``f -3 -2 -1`` (or ``-3/-3/-3``) is the
+    same mesh as one with absolute indices (before: trimesh counted back from the file's last
+    vertex, leaving one face)."""
+    from warp_tube.extract.mesh_io import load_mesh
+
+    from .test_extract import tube_mesh
+
+    mesh, _, _ = tube_mesh(stations=40, ring=16)
+    tri = mesh.vertices[mesh.faces]
+    plain = "".join(f"v {x:.17g} {y:.17g} {z:.17g}\n" for x, y, z in mesh.vertices)
+    plain += "".join(f"f {a + 1} {b + 1} {c + 1}\n" for a, b, c in mesh.faces)
+    interleaved = "".join("".join(f"v {x:.17g} {y:.17g} {z:.17g}\n" for x, y, z in t) + "f -3 -2 -1\n" for t in tri)
+    full = "".join("".join(f"v {x:.17g} {y:.17g} {z:.17g}\nvt 0.5 0.5\nvn 0 0 1\n" for x, y, z in t) + "f -3/-3/-3 -2/-2/-2 -1/-1/-1\n"
+                   for t in tri)  # fmt: skip
+    loaded = {}
+    for name, text in (("plain", plain), ("interleaved", interleaved), ("full", full)):
+        (tmp_path / f"{name}.obj").write_text(text)
+        loaded[name] = load_mesh(str(tmp_path / f"{name}.obj"))
+    for name in ("interleaved", "full"):  # the same surface: the same triangles, welded alike
+        assert len(loaded[name].faces) == len(mesh.faces), name
+        got = np.sort(loaded[name].vertices[loaded[name].faces].reshape(len(mesh.faces), -1), axis=0)
+        want = np.sort(loaded["plain"].vertices[loaded["plain"].faces].reshape(len(mesh.faces), -1), axis=0)
+        np.testing.assert_allclose(got, want, atol=1e-12)

@@ -8,8 +8,10 @@ a :class:`~warp_tube.scene.spec.SceneError` naming the source and what was found
 
 from __future__ import annotations
 
+import io
 import logging
 import os
+import re
 import warnings
 from dataclasses import dataclass
 
@@ -200,6 +202,35 @@ def _sniff(path: str) -> tuple[str, str] | None:
     return None
 
 
+def _obj_made_absolute(path: str) -> bytes | None:
+    """An OBJ file's text with its relative (negative) indices made absolute, or None where it has
+    none. A negative index counts back from the vertices (texture coordinates, normals) read so
+    far, which an OBJ may interleave with its faces (``v v v f -3 -2 -1`` over and over); trimesh
+    counts it back from the file's last vertex instead."""
+    with open(path, "rb") as f:
+        data = f.read()
+    if not re.search(rb"(?m)^[ \t]*[fl][ \t].*?[ \t/]-\d", data):
+        return None
+    seen = {b"v": 0, b"vt": 0, b"vn": 0}
+    kinds = (b"v", b"vt", b"vn")
+    out = []
+    for line in data.splitlines():
+        words = line.split()
+        if words and words[0] in seen:
+            seen[words[0]] += 1
+        elif words and words[0] in (b"f", b"l"):
+            refs = []
+            for ref in words[1:]:
+                parts = ref.split(b"/")
+                for k, part in enumerate(parts[:3]):
+                    if part.startswith(b"-") and part[1:].isdigit():
+                        parts[k] = str(seen[kinds[k]] + int(part) + 1).encode()
+                refs.append(b"/".join(parts))
+            line = b" ".join([words[0], *refs])
+        out.append(line)
+    return b"\n".join(out) + b"\n"
+
+
 def load_mesh(path, scale=(1.0, 1.0, 1.0)) -> trimesh.Trimesh:
     """Read a triangle mesh file (STL, PLY, OBJ, ... as trimesh reads them) and clean it.
 
@@ -230,7 +261,11 @@ def load_mesh(path, scale=(1.0, 1.0, 1.0)) -> trimesh.Trimesh:
     try:
         with warnings.catch_warnings():  # (values beyond float32 become inf: named below, not as NumPy's warning)
             warnings.simplefilter("ignore", RuntimeWarning)
-            mesh = trimesh.load(path, force="mesh", process=False)
+            relative = _obj_made_absolute(path) if file_type == "obj" else None
+            if relative is None:
+                mesh = trimesh.load(path, force="mesh", process=False)
+            else:
+                mesh = trimesh.load(io.BytesIO(relative), file_type="obj", force="mesh", process=False)
     except Exception as e:  # trimesh raises many kinds (ValueError, KeyError, IndexError, UnicodeDecodeError, ...)
         log.debug("%s: trimesh: %s: %s", path, type(e).__name__, e)
         kind = _FORMATS.get(file_type, file_type.upper())
