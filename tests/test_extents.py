@@ -128,3 +128,28 @@ def test_batch_files_and_grid_centerlines_have_usds_extent_at_every_frame(tmp_pa
     assert_extents_as_usd_computes_them(grid / "grid.usda", "Centerline", prims=3)
     samples = {p: len(s) for p, s in curves_extents(grid / "grid.usda", "Centerline").items()}
     assert samples["/Grid/variant_00000/World/Tube/Centerline"] == 6 and 0 < samples["/Grid/variant_00001/World/Tube/Centerline"] < 6
+
+
+def test_an_extracted_tube_far_from_the_origin_is_placed_by_a_translate(tmp_path, caplog):
+    """A mesh 500 m from its origin (a scan in scanner coordinates): float32 points there step by
+    6e-5 m, 0.8% of its 8 mm segments, which the scene's own check warns of. The scene holds the points
+    about their middle and a double-precision translate: no warning, and the tube reads back in
+    world space as extracted (float32 of coordinates within 4 cm of the middle: 4e-9 m)."""
+    from warp_tube.extract.pipeline import extract_centerline
+    from warp_tube.extract.usd import write_scene
+    from warp_tube.scene.usd import load_scene
+
+    mesh, _, _ = tube_mesh(stations=80, ring=24)
+    mesh.apply_scale(0.01)  # a helix 7 cm across, segments of about 8 mm
+    mesh.apply_translation([500.0, 0.0, 0.0])
+    tube = extract_centerline(mesh, hubs=24)
+    path = tmp_path / "far.usda"
+    write_scene(tube, path, meters_per_unit=1.0, name="Far", push=False)
+    stage = Usd.Stage.Open(str(path))
+    ops = UsdGeom.Xformable(stage.GetPrimAtPath("/World/Far")).GetOrderedXformOps()
+    assert [op.GetOpName() for op in ops] == ["xformOp:translate"] and ops[0].GetPrecision() == UsdGeom.XformOp.PrecisionDouble
+    with caplog.at_level("WARNING"):
+        read = load_scene(str(path)).tubes[0]
+    assert not [r for r in caplog.records if "float32" in r.getMessage()], caplog.text
+    np.testing.assert_allclose(read.points, tube.points, rtol=0, atol=1e-8)
+    assert_extents_as_usd_computes_them(path, None, prims=1)  # (the extent in the prim's own space)

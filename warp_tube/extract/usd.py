@@ -36,6 +36,7 @@ from .polyline import arclength
 from .tube_check import side_branches
 from ..scene.spec import FRAME_MODES, SceneError, StageInfo, TubeParams, TubeSpec
 from ..scene.ranges import RADIUS_M, check_attribute, expected, lengths_outside
+from ..scene.shape_notes import FLOAT32_SHARE
 
 __all__ = ["write_scene", "tube_from_mesh_prim", "prim_name", "push_force"]
 
@@ -92,6 +93,19 @@ def _anchor_stiffness(tube: ExtractedTube, meters_per_unit: float, youngs_modulu
     r = float(section_radius(tube.spoke_lengths).mean()) * meters_per_unit
     seg = max(tube.length * meters_per_unit / max(tube.hubs - 1, 1), 1e-12)
     return 0.1 * youngs_modulus * math.pi * r**2 / seg
+
+
+def _float32_origin(points: np.ndarray) -> np.ndarray | None:
+    """Where to put a tube's points' origin [mesh units] so that float32 (``point3f``) keeps their
+    segments to a tenth of the precision the scene's check asks (:data:`~warp_tube.scene.shape_notes.FLOAT32_SHARE`),
+    or None where the points as they are do: the middle of their bounds, for a tube far from the
+    mesh's origin (a scan in scanner coordinates, a part of a large assembly)."""
+    p = np.asarray(points, dtype=np.float64)
+    seg = np.linalg.norm(np.diff(p, axis=0), axis=1)
+    shortest = float(seg[seg > 0].min()) if (seg > 0).any() else 0.0
+    if shortest == 0.0 or float(np.abs(p).max()) * 2.0**-23 <= 0.1 * FLOAT32_SHARE * shortest:
+        return None
+    return 0.5 * (p.min(axis=0) + p.max(axis=0))
 
 
 def write_scene(
@@ -176,6 +190,10 @@ def write_scene(
     curves = UsdGeom.BasisCurves.Define(stage, f"/World/{tube_name}")
     curves.CreateTypeAttr(UsdGeom.Tokens.linear)
     points = extracted.points.astype(np.float32)
+    origin = _float32_origin(extracted.points)
+    if origin is not None:  # (float32 points near the origin, placed by a double-precision translate)
+        points = (extracted.points - origin).astype(np.float32)
+        curves.AddTranslateOp(UsdGeom.XformOp.PrecisionDouble).Set(Gf.Vec3d(*origin.tolist()))
     widths = (2.0 * section_radius(extracted.spoke_lengths)).astype(np.float32)
     curves.CreatePointsAttr(Vt.Vec3fArray.FromNumpy(points))
     curves.CreateCurveVertexCountsAttr(Vt.IntArray([n]))
