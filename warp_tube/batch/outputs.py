@@ -350,7 +350,11 @@ def surface_faces(scenes) -> tuple[np.ndarray, list[int], list[int]]:
     memo: dict = {}  # the prims' topologies by identity (a batch's variants share them) -> row
     rows: dict = {}  # a triangulation's bytes -> row
     tables, topology = [], []
+    last = None  # (the scene before and its row: a batch of plain variants repeats one scene)
     for scene in scenes:
+        if last is not None and scene is last[0]:
+            topology.append(last[1])
+            continue
         topos = tuple(surface_topology(t) for t in scene.tubes)
         key = tuple(map(id, topos))
         hit = memo.get(key)
@@ -362,6 +366,7 @@ def surface_faces(scenes) -> tuple[np.ndarray, list[int], list[int]]:
                 tables.append(tri)
             hit = memo[key] = (topos, row)  # (the topologies kept: their ids stay theirs)
         topology.append(hit[1])
+        last = (scene, hit[1])
     counts = [len(t) for t in tables]
     faces = np.full((len(tables), max(counts, default=0), 3), -1, dtype=np.int32)
     for k, t in enumerate(tables):
