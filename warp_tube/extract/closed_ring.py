@@ -3,10 +3,16 @@
 A mesh is a closed ring when it is watertight (every edge shared by two faces) and its Euler
 characteristic ``V - E + F`` is 0 (genus 1: one loop through it). An open-ended tube also has
 ``V - E + F = 0`` but has boundary edges; a capped tube has 2. The simulator's tubes have two
-ends, so extraction cuts a ring open between two ends it picks, and the tube leaves the rest of
-the ring out. The ring is confirmed on the result: the mesh's faces away from the tube's rest
-surface form one piece joining its two ends (a tiny handle in a straight tube's wall leaves the
-ends apart).
+ends, so extraction cuts a ring open (:func:`open_ring`): at the widest point of its inside, the
+inside voxels across the tube within :data:`CUT_GAP` / 2 of the tube's radius there on either side
+of the plane normal to the tube are taken out, and the tube runs the other way round the ring, from
+one side of that gap to the other. Its two ends are cut ends (:mod:`warp_tube.extract.ends`) sealed
+by the gap's two planes: their end rings are complete sections of the ring's wall normal to the axis,
+their hubs on it, and the tube leaves out only the surface between its two end rings (about
+:data:`CUT_GAP` radii of the ring's length, :func:`ring_cut`). The ring is confirmed on the inside:
+without the gap its two sides are still joined, by a path that stays of the tube's width (a tiny
+handle in a straight tube's wall is no ring: the gap parts the tube, or the path runs through the
+thin handle).
 
 Lengths are in the mesh's units.
 """
@@ -18,17 +24,23 @@ from dataclasses import dataclass
 import numpy as np
 import scipy.sparse as sp
 import trimesh
-from scipy.sparse.csgraph import connected_components
+from scipy.sparse.csgraph import dijkstra
 from scipy.spatial import cKDTree
 
-from .fidelity import mesh_distances, plain_surface
+from . import distance_map as dmap
+from .ends import EndChoice
+from .mesh_io import FlatCut
 
-__all__ = ["RingCut", "euler_characteristic", "is_closed_ring", "ring_cut", "LEFT_OUT_DISTANCE"]
+__all__ = ["RingCut", "RingOpening", "euler_characteristic", "is_closed_ring", "open_ring", "ring_cut", "CUT_GAP"]
 
-LEFT_OUT_DISTANCE = 0.5
-"""A face is left out of the tube when its centre lies farther than this x the mean radius from the
-tube's rest rings (joined by strips, no caps)."""
-_TIP_REACH = 2.0  # faces within this x the end radius of a tip belong to that end
+CUT_GAP = 1.0
+"""A closed ring is cut open across a gap of this x the tube's radius at the cut, along its axis
+(between the planes that seal its two ends)."""
+_NEAR = 3.0  # the cut takes out inside voxels within this x the radius (along the inside) of its centre
+_TANGENT_REACH = 2.5  # the axis's direction at the cut: principal axis of the inside within this x the radius
+_THIN = 0.3  # a ring's path round from one side of the gap to the other is this x the radius at the cut
+_THIN_SHARE = 0.1  # ... wide or wider, but for at most this share of its length
+_WIDTH = 1.5  # ... and reaches this x the radius from the cut at least (a ring's loop spans its diameter)
 
 
 @dataclass(frozen=True)
@@ -37,13 +49,24 @@ class RingCut:
 
     Attributes:
         cuts: where the tube ends, its two tips [mesh units], shape (2, 3).
-        left_out: fraction of the ring's surface area the tube leaves out (0 to 1).
-        rest: indices, among the side branches found, of those that are the rest of the ring.
+        left_out: fraction of the ring's surface area the tube leaves out (0 to 1): the faces
+            between its two end rings.
+        rest: indices, among the side branches found, of those in the surface left out.
     """
 
     cuts: np.ndarray
     left_out: float
     rest: tuple[int, ...] = ()
+
+
+@dataclass(frozen=True)
+class RingOpening:
+    """Where a closed ring is cut open: the ends as :func:`~warp_tube.extract.ends.choose_ends`
+    gives them (the gap's two planes as the cuts that seal them) and the centred voxel graph without
+    the gap, along which the tube runs round the ring."""
+
+    choice: EndChoice
+    graph: sp.csr_matrix
 
 
 def euler_characteristic(mesh: trimesh.Trimesh) -> int:
@@ -57,29 +80,53 @@ def is_closed_ring(mesh: trimesh.Trimesh) -> bool:
     return bool(mesh.is_watertight) and euler_characteristic(mesh) == 0
 
 
-def _left_out_faces(mesh: trimesh.Trimesh, points, spoke_lengths, reference_normal, device) -> np.ndarray:
-    """Faces whose centre lies farther than :data:`LEFT_OUT_DISTANCE` mean radii from the tube's
-    rings, bool (F,). ``points``: hubs (N, 3) and ``spoke_lengths`` (N, S) [mesh units]."""
-    radius = float(np.mean(spoke_lengths))
-    d = mesh_distances(mesh.triangles_center, *plain_surface(points, spoke_lengths, reference_normal), device)
-    return d > LEFT_OUT_DISTANCE * radius
+def _side_voxel(dm: dmap.DistanceMap, near: np.ndarray, along: np.ndarray, lo: float) -> int | None:
+    """The most centred voxel of ``near`` whose position ``along`` the axis lies in the slice of
+    two voxels beyond ``lo`` [mesh units]; None when there is none."""
+    cand = near[(along[near] > lo) & (along[near] <= lo + 2.0 * dm.voxel_size)]
+    return None if len(cand) == 0 else int(cand[np.argmax(dm.dfb[cand])])
 
 
-def _joining_piece(mesh: trimesh.Trimesh, far: np.ndarray, tips: np.ndarray, reach: np.ndarray) -> np.ndarray | None:
-    """The connected piece of the ``far`` faces that comes within ``reach`` (2,) of both ``tips``
-    (2, 3) [mesh units], bool (F,); None when no piece joins the two ends."""
-    adj = np.asarray(mesh.face_adjacency)
-    both = adj[far[adj[:, 0]] & far[adj[:, 1]]]
-    n = len(far)
-    graph = sp.coo_matrix((np.ones(len(both)), (both[:, 0], both[:, 1])), shape=(n, n))
-    _, label = connected_components(graph, directed=False)
-    centres = np.asarray(mesh.triangles_center)
-    near = [far & (np.linalg.norm(centres - tips[k], axis=1) <= reach[k]) for k in (0, 1)]
-    common = np.intersect1d(label[near[0]], label[near[1]])
-    if len(common) == 0:
+def open_ring(dm: dmap.DistanceMap) -> RingOpening | None:
+    """Cut the inside of a closed ring open (see the module), or None where it is not a ring: the
+    gap parts the inside, or the path round the ring is thin (:data:`_THIN`) for more than
+    :data:`_THIN_SHARE` of its length or stays within :data:`_WIDTH` radii of the cut.
+
+    The cut's centre is the inside voxel farthest from the wall, at radius ``r``; the axis there
+    is the principal axis of the inside voxels within :data:`_TANGENT_REACH` ``r`` of it (along the
+    inside), and the voxels within :data:`_NEAR` ``r`` of it whose position along the axis lies within
+    ``CUT_GAP r / 2`` of it are the gap. Each end starts at the most centred voxel just beyond the gap.
+    """
+    centre = int(np.argmax(dm.dfb))
+    r = float(dm.dfb[centre])
+    reach = dijkstra(dm.length_graph, directed=False, indices=centre, limit=(_NEAR + CUT_GAP) * r)
+    local = dm.points[reach <= _TANGENT_REACH * r]
+    if len(local) < 4:
         return None
-    sizes = [np.asarray(mesh.area_faces)[label == c].sum() for c in common]
-    return label == common[int(np.argmax(sizes))]
+    tangent = np.linalg.svd(local - local.mean(axis=0), full_matrices=False)[2][0]
+    along = (dm.points - dm.points[centre]) @ tangent
+    near = np.flatnonzero(np.isfinite(reach))
+    half = 0.5 * CUT_GAP * r
+    gap = near[np.abs(along[near]) <= half]
+    a, b = _side_voxel(dm, near, along, half), _side_voxel(dm, near, -along, half)
+    if a is None or b is None:
+        return None
+    keep = np.ones(dm.count)
+    keep[gap] = 0.0
+    graph = (sp.diags(keep) @ dm.centred_graph @ sp.diags(keep)).tocsr()
+    graph.eliminate_zeros()
+    dist, pred, _ = dmap.shortest_tree(graph, a)
+    if not np.isfinite(dist[b]):
+        return None  # the gap parts the inside: a tube, not a ring
+    path = dmap.trace_path(pred, b)
+    steps = np.r_[np.linalg.norm(np.diff(dm.points[path], axis=0), axis=1), 0.0]
+    thin = steps[dm.dfb[path] < _THIN * r].sum() / max(steps.sum(), 1e-300)
+    width = float(np.linalg.norm(dm.points[path] - dm.points[centre], axis=1).max())
+    if thin > _THIN_SHARE or width < _WIDTH * r:
+        return None  # a small handle, not the loop of a ring
+    point = dm.points[centre]
+    cuts = [FlatCut(point + sign * half * tangent, sign * tangent, np.pi * r**2, r) for sign in (1.0, -1.0)]
+    return RingOpening(EndChoice(a, b, cuts[0], cuts[1], [], []), graph)
 
 
 def _rest_branches(mesh: trimesh.Trimesh, piece: np.ndarray, branch_paths) -> tuple[int, ...]:
@@ -94,25 +141,29 @@ def _rest_branches(mesh: trimesh.Trimesh, piece: np.ndarray, branch_paths) -> tu
     return tuple(rest)
 
 
-def ring_cut(mesh: trimesh.Trimesh, points, spoke_lengths, reference_normal, tips, branch_paths=(), device=None
-             ) -> RingCut | None:  # fmt: skip
-    """How the extracted tube cut ``mesh`` open, or None when it is not a closed ring.
+def ring_cut(mesh: trimesh.Trimesh, points, spoke_lengths, tips, branch_paths=()) -> RingCut:
+    """How the extracted tube cut the closed ring ``mesh`` open.
+
+    The surface left out is that of the faces between the tube's two end rings: beyond the planes of
+    both (each normal to its end hub's edge, as the simulator builds it) and within two end radii of
+    the gap (more: half the tips' distance apart).
 
     Args:
         mesh: the cleaned mesh the tube was extracted from [mesh units].
-        points: the tube's hubs, shape (N, 3); spoke_lengths: shape (N, S); reference_normal: (3,).
+        points: the tube's hubs, shape (N, 3); spoke_lengths: shape (N, S).
         tips: where the tube ends, shape (2, 3).
         branch_paths: the side branches' paths found, each (k, 3).
-        device: Warp device for the distance queries.
     """
-    if not is_closed_ring(mesh):
-        return None
-    lengths = np.asarray(spoke_lengths, dtype=np.float64)
+    pts = np.asarray(points, dtype=np.float64)
     tips = np.asarray(tips, dtype=np.float64)
-    far = _left_out_faces(mesh, points, lengths, reference_normal, device)
-    reach = _TIP_REACH * lengths.mean(axis=1)[[0, -1]]
-    piece = _joining_piece(mesh, far, tips, reach)
-    if piece is None:
-        return None
+    radius = np.asarray(spoke_lengths, dtype=np.float64).mean(axis=1)[[0, -1]]
+    centres = np.asarray(mesh.triangles_center)
+    beyond = np.ones(len(centres), dtype=bool)
+    for hub, nxt in ((pts[0], pts[1]), (pts[-1], pts[-2])):
+        out = (hub - nxt) / max(float(np.linalg.norm(hub - nxt)), 1e-300)
+        beyond &= (centres - hub) @ out > 0.0
+    mid = 0.5 * (tips[0] + tips[1])
+    reach = 2.0 * radius.max() + 0.5 * float(np.linalg.norm(tips[0] - tips[1]))
+    piece = beyond & (np.linalg.norm(centres - mid, axis=1) <= reach)
     area = np.asarray(mesh.area_faces)
     return RingCut(tips.copy(), float(area[piece].sum() / area.sum()), _rest_branches(mesh, piece, branch_paths))

@@ -363,7 +363,8 @@ def _extend(q: MeshQueries, line: np.ndarray, r_end: float, diag: float, cut: Fl
     return np.concatenate([tip[None], line]), tip
 
 
-def fit_closed_end(q: MeshQueries, line: np.ndarray, diag: float, spokes: int, cut: FlatCut | None = None):
+def fit_closed_end(q: MeshQueries, line: np.ndarray, diag: float, spokes: int, cut: FlatCut | None = None,
+                   own: bool = False):
     """End the tube at the closed end of ``line`` (its start): capped at a round tip, trimmed at a cut.
 
     The line is continued beyond its start along the quadratic through its first four points to the
@@ -388,6 +389,9 @@ def fit_closed_end(q: MeshQueries, line: np.ndarray, diag: float, spokes: int, c
     positions stopped short of a hemisphere's centre and its tolerance shrank by as much: it was
     left open (5 of 8 ends at noise of 0.1 radii, most at 0.2).
 
+    ``own``: ``cut`` is known to close this end (a closed ring's gap, whose line runs round to the
+    plane's far side): it is kept wherever the line ends.
+
     Returns:
         ``(line (k, 3) starting at the end hub, tip (3,), kind, seal)``: ``kind`` "closed" or "cut",
         ``seal`` the cut's ``(point, outward unit normal, radius)`` or None; the line unchanged when no
@@ -399,7 +403,8 @@ def fit_closed_end(q: MeshQueries, line: np.ndarray, diag: float, spokes: int, c
     if rough:  # the nearest point of a rough wall is the tip of its deepest inward spike
         r_end = max(r_end, r_wall)
         line = straight_start(line, 1.5 * r_wall)
-    if cut is not None and np.dot(line[0] - cut.centroid, cut.normal) * np.dot(line[-1] - cut.centroid, cut.normal) <= 0:
+    if cut is not None and not own and \
+            np.dot(line[0] - cut.centroid, cut.normal) * np.dot(line[-1] - cut.centroid, cut.normal) <= 0:
         cut = None  # the line starts on the far side of the cut's plane: it does not close this end
     ext, tip = _extend(q, line, r_end, diag, cut)
     if tip is None:

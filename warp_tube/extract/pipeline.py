@@ -31,9 +31,9 @@ rings made so that the simulator rebuilds the input at rest:
 Side branches (e.g. of a coronary artery) are the parts of the inside farther than their own
 diameter beyond the main tube's surface; each is reported with its junction hub and length. The
 tube-likeness check (:mod:`warp_tube.extract.tubelike`) warns about inputs that are not tubes. A
-closed ring (a torus: watertight, ``V - E + F = 0``) has no ends: it is cut open at the two ends
-found as for any closed mesh, and the tube records where and how much of the ring it leaves out
-(:mod:`warp_tube.extract.closed_ring`). Lengths are in the mesh's units after ``scale``.
+closed ring (a torus: watertight, ``V - E + F = 0``) has no ends: it is cut open across a gap of
+about one tube radius at its widest point, its two ends cut ends sealed by the gap's planes, and the
+tube records where and how much of the ring it leaves out (:mod:`warp_tube.extract.closed_ring`). Lengths are in the mesh's units after ``scale``.
 """
 
 from __future__ import annotations
@@ -52,7 +52,7 @@ from . import distance_map as dmap, wording
 from ..model.frames import hub_tangents, initial_normal, rotation_minimizing_frames, spoke_directions
 from ..scene.spec import SceneError
 from .branches import find_branches
-from .closed_ring import RingCut, ring_cut
+from .closed_ring import RingCut, is_closed_ring, open_ring, ring_cut
 from .ends import choose_ends, cut_closed_tail, fit_closed_end, settle_end, trim_open_end
 from .fidelity import Distances, Fidelity, fidelity_of, measured_vertices, mesh_distances, plain_surface
 from .mesh_io import BoundaryLoop, boundary_loops, cap_loops, clean_mesh, flat_cuts
@@ -322,11 +322,14 @@ def extract_centerline(
     timings["distance_map"] = time.perf_counter() - t0
 
     t0 = time.perf_counter()
-    cuts = flat_cuts(m, _CUT_AREA * np.pi * r_med**2)
-    choice = choose_ends(dm, end_size, cuts)
+    opened = open_ring(dm) if is_closed_ring(m) else None  # a closed ring: cut open across a small gap
+    if opened is not None:
+        choice, graph = opened.choice, opened.graph
+    else:
+        choice, graph = choose_ends(dm, end_size, flat_cuts(m, _CUT_AREA * np.pi * r_med**2)), dm.centred_graph
     if choice.others:  # openings that are not ends are part of the tube's wall: closed, like holes
         q = MeshQueries(*cap_loops(m, holes + choice.others), closed_v, closed_f, device, raw=(m.vertices, m.faces))
-    cdist, pred, _ = dmap.shortest_tree(dm.centred_graph, choice.a)
+    cdist, pred, _ = dmap.shortest_tree(graph, choice.a)
     if not np.isfinite(cdist[choice.b]):
         raise SceneError(f"{src}: its ends are not connected inside the mesh: expected one tube")
     voxel_path = dmap.trace_path(pred, choice.b)
@@ -357,7 +360,7 @@ def extract_centerline(
             line, _ = trim_open_end(q, line, diag, 1.5 * end.radius)
             kind = "open"
         else:
-            line, tip, kind, seal = fit_closed_end(q, line, diag, spokes, end)
+            line, tip, kind, seal = fit_closed_end(q, line, diag, spokes, end, own=opened is not None)
         dense = line[::-1] if at_end else line
         ends.append((kind, tip, seal))
     dense = recentre(q, resample_spline(dense, max(8, len(dense))), diag, iterations=2)
@@ -410,7 +413,7 @@ def extract_centerline(
     points, spoke_len, ref, valid = kept.points, kept.lengths, kept.reference_normal, kept.valid
     fid = fidelity_of(points, spoke_len, ref, caps, m.vertices, m.faces, tips=tips, branch_paths=branch_paths,
                       seals=seals, device=device, wall=cap_loops(m, choice.others))  # fmt: skip
-    ring = ring_cut(m, points, spoke_len, ref, tips, branch_paths, device)
+    ring = None if opened is None else ring_cut(m, points, spoke_len, tips, branch_paths)
     timings["hubs"] = time.perf_counter() - t0
 
     hub_tree = cKDTree(points)
