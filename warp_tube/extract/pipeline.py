@@ -20,7 +20,8 @@ rings made so that the simulator rebuilds the input at rest:
    its own ring plane (the simulator's, normal to the bisector tangent); spoke lengths by rays along
    the simulator's spoke directions (:func:`warp_tube.model.frames.rotation_minimizing_frames`,
    :func:`warp_tube.model.frames.spoke_directions`, reference normal
-   :func:`warp_tube.model.frames.initial_normal` of the first tangent), fitted to rays between
+   :func:`warp_tube.model.frames.initial_normal` of the first tangent, turned onto the sections' long
+   axis where they are flat, :mod:`warp_tube.extract.flat`), fitted to rays between
    them too (:func:`warp_tube.extract.sections.fit_polygon`). By default the hub count
    grows until the measured rings cover the mesh to :data:`AUTO_FIDELITY`.
 6. Rest surface: where the simulator's inner-bend guard would cut a ring at rest, the axis is
@@ -53,6 +54,7 @@ from ..model.frames import hub_tangents, initial_normal, rotation_minimizing_fra
 from ..scene.spec import SceneError
 from .branches import find_branches
 from .closed_ring import RingCut, is_closed_ring, open_ring, ring_cut
+from .flat import ALIGN_ASPECT, long_axis_turn, section_aspect, turned_normal
 from .ends import choose_ends, cut_closed_tail, fit_closed_end, settle_end, trim_open_end
 from .fidelity import Distances, Fidelity, fidelity_of, measured_vertices, mesh_distances, plain_surface
 from .mesh_io import BoundaryLoop, boundary_loops, cap_loops, clean_mesh, flat_cuts
@@ -184,6 +186,7 @@ class ExtractedTube:
         source: where the mesh came from (file or prim), for messages and metadata.
         ring: for a closed ring (a mesh with no ends), where it was cut open and how much the tube
             leaves out (:class:`~warp_tube.extract.closed_ring.RingCut`, cuts in mesh units); else None.
+        aspect: the cross-sections' median aspect, long over short axis (:mod:`warp_tube.extract.flat`).
     """
 
     points: np.ndarray
@@ -201,6 +204,7 @@ class ExtractedTube:
     warnings: list[str] = field(default_factory=list)
     source: str = "<mesh>"
     ring: RingCut | None = None
+    aspect: float = 1.0
 
     @property
     def hubs(self) -> int:
@@ -347,6 +351,7 @@ def extract_centerline(
     r_path = float(np.median(d))
     count = max(8, int(np.ceil(length / (_DENSE_SPACING * r_path))) + 1)
     dense = smooth(resample(path, count), 1.0)
+    q.flat = section_aspect(q, dense, diag) > ALIGN_ASPECT  # (a local flat spot, a merged hairpin's apex, is not)
     move = np.ones(len(dense), dtype=bool)
     open_a, open_b = (isinstance(e, BoundaryLoop) for e in (choice.end_a, choice.end_b))
     move[[0, -1]] = [not open_a, not open_b]  # a loop's centre stays; closed ends centre
@@ -394,22 +399,26 @@ def extract_centerline(
                 line = settle_end(q, line[::-1], n, diag, spokes, seal)[::-1] if k else \
                     settle_end(q, line, n, diag, spokes, seal)  # fmt: skip
         points = recentre_hubs(q, resample_spline(line, n), diag, r_path)
-        ref = initial_normal(hub_tangents(points)[0])
-        lengths, _ = measure_spokes(q, points, ref, spokes, diag)
+        tangent0 = hub_tangents(points)[0]
+        lengths, _ = measure_spokes(q, points, initial_normal(tangent0), spokes, diag)
+        turn = long_axis_turn(lengths)  # (0 but for flat sections: spokes onto their long axes)
+        ref = turned_normal(tangent0, turn)
+        if turn:
+            lengths, _ = measure_spokes(q, points, ref, spokes, diag)
         cover = Distances.of(mesh_distances(verts[counted], *plain_surface(points, lengths, ref), device),
                              float(lengths.mean()))  # fmt: skip
         score = max(cover.mean / AUTO_FIDELITY[0], cover.p99 / AUTO_FIDELITY[1], cover.max / AUTO_FIDELITY[2],
                     _end_excess(lengths))  # fmt: skip
-        tried.append((score, n, points))
+        tried.append((score, n, points, turn))
         log.debug("hubs %d: coverage %.4f %.4f %.4f score %.4f", n, cover.mean, cover.p99, cover.max, score)
         if hubs is not None or score <= 1.0 or n >= max_hubs:
             break
         if len(tried) > 1 and score > _HELPS * tried[-2][0]:
             break  # more hubs stopped helping: what is left, more do not change (a rough wall's noise)
         n = min(int(np.ceil(1.5 * n)), max_hubs)
-    _, n, points = min(tried, key=lambda x: x[:2])
-    kept = rings.keep_guard_clear(q, rings.rest_rings(q, points, spokes, caps, diag, device), caps, diag,
-                                  verts[counted], device)  # fmt: skip
+    _, n, points, turn = min(tried, key=lambda x: x[:2])
+    kept = rings.keep_guard_clear(q, rings.rest_rings(q, points, spokes, caps, diag, device, turn), caps, diag,
+                                  verts[counted], device, turn)  # fmt: skip
     points, spoke_len, ref, valid = kept.points, kept.lengths, kept.reference_normal, kept.valid
     fid = fidelity_of(points, spoke_len, ref, caps, m.vertices, m.faces, tips=tips, branch_paths=branch_paths,
                       seals=seals, device=device, wall=cap_loops(m, choice.others))  # fmt: skip
@@ -448,6 +457,7 @@ def extract_centerline(
         fidelity=fid,
         source=src,
         ring=None if ring is None else dataclasses.replace(ring, cuts=ring.cuts + shift),
+        aspect=section_aspect(q, points, diag),
     )
     volume = dm.count * dm.voxel_size**3  # (the enclosed volume, as the inside voxels measure it)
     tube.warnings = tubelike.check(tube, open_rays(q, points, diag), hubs_given=hubs is not None, mesh_volume=volume)

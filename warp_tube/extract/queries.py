@@ -37,6 +37,9 @@ class MeshQueries:
         self.wall = self._mesh(wall_v, wall_f)
         self.closed = self._mesh(closed_v, closed_f)
         self.raw = self._mesh(*raw) if raw is not None else self.wall
+        #: whether the tube's sections are flat (:mod:`warp_tube.extract.flat`): ray hits on their long
+        #: sides belong to them (:func:`warp_tube.extract.sections.ring_hits`)
+        self.flat = False
 
     def _mesh(self, v, f):
         pts = wp.array(np.asarray(v, dtype=np.float32), dtype=wp.vec3, device=self.device)

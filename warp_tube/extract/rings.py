@@ -38,7 +38,8 @@ import numpy as np
 from scipy.ndimage import maximum_filter1d, uniform_filter1d
 from scipy.spatial import cKDTree
 
-from ..model.frames import hub_tangents, initial_normal
+from ..model.frames import hub_tangents
+from .flat import turned_normal
 from .fidelity import mesh_distances, rest_surface
 from .polyline import smooth
 from .queries import MeshQueries
@@ -90,10 +91,12 @@ class Rings:
     surface: tuple[np.ndarray, np.ndarray]
 
 
-def rest_rings(q: MeshQueries, points: np.ndarray, spokes: int, caps: bool, diag: float, device=None) -> Rings:
-    """Measure the spokes of ``points`` and rebuild their rest surface with the simulator's builder."""
+def rest_rings(q: MeshQueries, points: np.ndarray, spokes: int, caps: bool, diag: float, device=None,
+               turn: float = 0.0) -> Rings:  # fmt: skip
+    """Measure the spokes of ``points`` and rebuild their rest surface with the simulator's builder;
+    the reference normal turned by ``turn`` (:func:`~warp_tube.extract.flat.turned_normal`)."""
     p = np.asarray(points, dtype=np.float64)
-    ref = initial_normal(hub_tangents(p)[0])
+    ref = turned_normal(hub_tangents(p)[0], turn)
     lengths, valid = measure_spokes(q, p, ref, spokes, diag)
     surf = rest_surface(p, lengths, ref, caps, device, unguarded=False)
     n = len(p)
@@ -161,7 +164,7 @@ def _around(values: np.ndarray, margin: int) -> np.ndarray:
 
 
 def keep_guard_clear(q: MeshQueries, rings: Rings, caps: bool, diag: float, vertices: np.ndarray,
-                     device=None) -> Rings:  # fmt: skip
+                     device=None, turn: float = 0.0) -> Rings:  # fmt: skip
     """Smooth the axis or push its hubs out of the bend where the guard would cut the rest rings
     (see the module).
 
@@ -179,7 +182,8 @@ def keep_guard_clear(q: MeshQueries, rings: Rings, caps: bool, diag: float, vert
     Args:
         q: the mesh's queries; rings: the hubs as measured (:func:`rest_rings`); caps: the scene's
         caps; diag: the mesh's bounding-box diagonal; vertices: the mesh's vertices that the
-        fidelity counts (V, 3) (side branches and the ends left out).
+        fidelity counts (V, 3) (side branches and the ends left out); turn: the reference normal's
+        turn (:func:`rest_rings`).
 
     Returns:
         The rings kept, unchanged where the guard leaves them alone.
@@ -236,7 +240,7 @@ def keep_guard_clear(q: MeshQueries, rings: Rings, caps: bool, diag: float, vert
                     p = _blend(p, target, w, taper)
             else:
                 p = best.points + (amount * radius * reach)[:, None] * outward
-            trial = rest_rings(q, p, spokes, caps, diag, device)
+            trial = rest_rings(q, p, spokes, caps, diag, device, turn)
             m_trial = miss(trial)
             scores.append(score(trial, m_trial))
             points.append(p)
@@ -251,7 +255,7 @@ def keep_guard_clear(q: MeshQueries, rings: Rings, caps: bool, diag: float, vert
         p[n - FIXED_ENDS :] = best.points[n - FIXED_ENDS :]
         if np.abs(p - best.points).max() <= 1e-9 * radius:
             break  # the hubs that chose a trial are ones it left in place: every further round would be this one
-        current = rest_rings(q, p, spokes, caps, diag, device)
+        current = rest_rings(q, p, spokes, caps, diag, device, turn)
         # The hubs' choices, each made on its own neighbourhood, may do worse blended than apart, and
         # the next round may undo what this one did: the rounds go on from where they are, and the
         # rings kept are those with the least largest plus mean miss seen.

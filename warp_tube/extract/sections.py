@@ -5,8 +5,12 @@ to the line there. A hit *belongs to the tube's cross-section* when the ray stay
 to it (the closed mesh, open loops capped, has no nearer hit: the ray did not leave through an open
 end or a wall opening), it lies within 6 times the point's distance from the wall (a ray that leaves
 through an open loop may hit far parts) and within :data:`OUTLIER_RATIO` times the median of its
-ring's valid hits (a ray that runs into a side branch's mouth or out of a bulge). Elliptic sections
-of aspect up to about 3 pass the last test.
+ring's valid hits (a ray that runs into a side branch's mouth or out of a bulge). A flat section's
+long sides fail the last two (an ellipse of aspect 4 reaches 2.9 times its median hit): on a tube
+whose sections are flat (``q.flat``, :mod:`warp_tube.extract.flat`), a hit is kept all the same
+where the ray opposite reaches about as far (:data:`ACROSS`, within
+:data:`FLAT_REACH` times the distance from the wall), as a branch's mouth or a bulge, on one side of
+the axis, does not (:mod:`warp_tube.extract.flat`).
 
 Centres: the centroid of the section's polygon (the ray hits, with the rays that do not belong to the
 tube filled in by interpolating the lengths of their valid neighbours around the ring, so that a
@@ -36,7 +40,14 @@ __all__ = ["OUTLIER_RATIO", "ring_hits", "open_rays", "fill_around", "section_of
            "plane_basis", "recentre_hubs", "fit_polygon", "FIT_RAYS"]
 
 OUTLIER_RATIO = 2.5
-"""A hit longer than this times the median of its ring's valid hits does not belong to the section."""
+"""A hit longer than this times the median of its ring's valid hits does not belong to the section,
+unless the tube's sections are flat and the ray opposite reaches as far (their long sides, :data:`ACROSS`)."""
+ACROSS = 0.5
+"""A long hit belongs to a flat section when the opposite ray's hit is at least this fraction of it: on
+an ellipse, a point off its centre by up to a third of the long semi-axis along it."""
+FLAT_REACH = 10.0
+"""Longest hit of a flat section's long sides, in the point's distances from the wall (an ellipse of
+aspect 6 has 6 at its centre, more off it)."""
 RAYS = 32
 """Rays per cross-section when centring."""
 FIT_RAYS = 4
@@ -65,12 +76,32 @@ def ring_hits(q: MeshQueries, points: np.ndarray, dirs: np.ndarray, diag: float)
     t = q.rays(q.wall, origins, dirs, diag)
     tc = q.rays(q.closed, origins, dirs, diag)
     dfb = q.distance(points, diag)
-    valid = (t > 0.0) & (tc >= t - 1e-5 * diag) & (t < 6.0 * np.maximum(dfb, 1e-12)[:, None])
+    wall = (t > 0.0) & (tc >= t - 1e-5 * diag)
+    valid = wall & (t < 6.0 * np.maximum(dfb, 1e-12)[:, None])
     with warnings.catch_warnings():  # rings with no valid hit: an all-NaN row has no median
         warnings.simplefilter("ignore", RuntimeWarning)
         med = np.nanmedian(np.where(valid, t, np.nan), axis=1) if valid.size else np.zeros(len(t))
     valid &= t <= OUTLIER_RATIO * np.where(np.isnan(med), np.inf, med)[:, None]
+    if getattr(q, "flat", False):
+        valid |= wall & _across(t, wall, dfb)
     return t, valid, dfb
+
+
+def _across(t: np.ndarray, wall: np.ndarray, dfb: np.ndarray) -> np.ndarray:
+    """Which hits lie on a flat section's long sides: the ray opposite (the nearer of the two nearest
+    it, for an odd count) meets the wall too, at least :data:`ACROSS` times as far, and both lie within
+    :data:`FLAT_REACH` times the point's distance from the wall. A side branch's mouth or a bulge opens
+    on one side of the axis, where the opposite ray meets the near wall; a flattened tube is as wide on
+    both sides. Shape of ``t`` (n, R), rays evenly spaced around each ring."""
+    rays = t.shape[1]
+    if rays < 2:
+        return np.zeros_like(wall)
+    ok = wall & (t < FLAT_REACH * np.maximum(dfb, 1e-12)[:, None])
+    reach = np.where(ok, t, 0.0)
+    opposite = np.roll(reach, -(rays // 2), axis=1)
+    if rays % 2:
+        opposite = np.minimum(opposite, np.roll(reach, -(rays // 2) - 1, axis=1))
+    return ok & (opposite >= ACROSS * t)
 
 
 def open_rays(q: MeshQueries, points: np.ndarray, diag: float, rays: int = RAYS) -> np.ndarray:

@@ -10,7 +10,8 @@ the result and say what is suspicious and what to do:
   vertices are its two end rings), so the automatic hub count could not converge;
 - *over-resolved*: the automatic hub count went past :data:`MAX_HUBS_PER_RADIUS` hubs per mean
   radius (it stops at its limit when the surface cannot be matched);
-- *missed spokes*: more than :data:`MISSED_FRACTION` of the spoke rays hit nothing;
+- *missed spokes*: more than :data:`MISSED_FRACTION` of the spoke rays hit nothing (unless the
+  sections are too flat, :mod:`warp_tube.extract.flat`, which the extraction's own warning says);
 - *a large side branch*: a branch left out is at least :data:`LARGE_BRANCH` of the tube's length
   (a Y or a tree: the tube follows the longest route between the mesh's ends, which may not be
   the one wanted);
@@ -23,6 +24,7 @@ from __future__ import annotations
 
 import math
 
+from .flat import flat_warning
 from .wording import counted
 
 __all__ = ["tube_warnings", "summary_line", "size_warning", "check_size"]
@@ -71,7 +73,8 @@ def tube_warnings(tube, fidelity=None, automatic_hubs: bool = True, units: str =
             f"{max(8, round(length / r) + 1)}"
         )
     rays = tube.hubs * tube.spokes
-    if rays and tube.missed_spokes > MISSED_FRACTION * rays:
+    too_flat = flat_warning(getattr(tube, "aspect", 1.0)) is not None  # (the tube's own warning says so)
+    if rays and tube.missed_spokes > MISSED_FRACTION * rays and not too_flat:
         out.append(
             f"{tube.missed_spokes} of {rays} spoke rays ({tube.missed_spokes / rays:.0%}) hit no wall and were "
             "filled in from neighbouring hubs: the mesh has large openings or is not a tube"

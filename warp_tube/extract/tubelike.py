@@ -18,7 +18,8 @@ Three checks on the mesh (their warnings start with :data:`NOT_A_TUBE`, and ``wa
   measured against the rings (a plain capsule's lie at its ends, and so do a thin plate's), the tube
   must hold at least :data:`MIN_VOLUME_HELD` of the volume the mesh encloses instead.
 
-One check on the result: the rest surface the simulator builds (:mod:`warp_tube.extract.fidelity`)
+Sections flatter than :data:`~warp_tube.extract.flat.MAX_ASPECT` are warned of as too flat, with
+their measured aspect. One check on the result: the rest surface the simulator builds (:mod:`warp_tube.extract.fidelity`)
 must lie within :data:`~warp_tube.extract.fidelity.FIDELITY_BOUNDS` of the mesh both ways; if not,
 the warning names the figures, and with a given hub count the hub spacing it used.
 """
@@ -30,6 +31,7 @@ from typing import TYPE_CHECKING
 import numpy as np
 
 from .fidelity import FIDELITY_BOUNDS
+from .flat import ALIGN_ASPECT, flat_warning
 from .wording import counted
 
 if TYPE_CHECKING:
@@ -91,6 +93,9 @@ def check(tube: ExtractedTube, open_rays: np.ndarray, *, hubs_given: bool, mesh_
                 f"{NOT_A_TUBE}: the tube holds {100.0 * held:.2g}% of the volume the mesh encloses; a tube holds most "
                 "of it (a sheet or a plate gives a thin tube across it)"
             )
+    flat = flat_warning(getattr(tube, "aspect", 1.0))
+    if flat:
+        out.append(flat)
     out += _end_warnings(tube, radius)
     if fid is not None and not fid.within(*FIDELITY_BOUNDS):
         bounds = " / ".join(f"{100 * b:g}" for b in FIDELITY_BOUNDS)
@@ -98,6 +103,9 @@ def check(tube: ExtractedTube, open_rays: np.ndarray, *, hubs_given: bool, mesh_
             f"the rest surface misses the mesh: mesh to surface {_figures(fid.to_surface)}, surface to mesh "
             f"{_figures(fid.to_input)} of the mean radius (mean / 99th percentile / largest; bounds {bounds} %)"
         )
+        aspect = getattr(tube, "aspect", 1.0)
+        if aspect > ALIGN_ASPECT and tube.spokes < 32:
+            text += f"; flat sections (aspect {aspect:.1f}:1) are followed closer by more spokes: --spokes 32"
         if hubs_given:
             spacing = tube.length / max(tube.hubs - 1, 1) / radius
             text += (
