@@ -117,7 +117,9 @@ def test_strict_refuses_a_closed_ring_in_one_line_and_writes_nothing(tmp_path, m
     err = capsys.readouterr().err.strip()
     assert len(err.splitlines()) == 1, err
     assert err.startswith("warp-tube: ring.stl: not tube-like: a closed ring with no ends"), err
-    assert "cut open at" in err and "of the ring's surface out" in err and err.endswith("(--strict)"), err
+    # (said as what the tube would do: nothing is cut open, nothing written)
+    assert "the tube would be cut open at" in err and "and leave " in err and "of the ring's surface out" in err, err
+    assert err.endswith("(--strict)"), err
     assert not (tmp_path / "ring.usda").exists()
 
 

@@ -466,7 +466,10 @@ def extract_centerline(
         if not refused or w != refused[0]:  # the refusal itself is the error message, not a warning too
             log.warning("%s: %s", src, w)
     if refused:
-        raise SceneError(f"{src}: {refused[0]} (--strict)")
+        said = refused[0]
+        if tube.ring is not None and said == tubelike.ring_warning(tube.ring):  # (nothing is cut open: said as what would be)
+            said = tubelike.ring_warning(tube.ring, refused=True)
+        raise SceneError(f"{src}: {said} (--strict)")
     timings["total"] = time.perf_counter() - t_start
     return tube
 

@@ -157,14 +157,16 @@ def _figures(d) -> str:
     return f"{100 * d.mean:.1f} / {100 * d.p99:.1f} / {100 * d.max:.1f} %"
 
 
-def ring_warning(ring) -> str:
+def ring_warning(ring, refused: bool = False) -> str:
     """The warning for a closed ring (:class:`~warp_tube.extract.closed_ring.RingCut`): where the
     tube cuts it open [mesh units, to 1/1000 of the cuts' distance apart] and how much of its
-    surface the tube leaves out: the gap between its two end rings."""
+    surface the tube leaves out: the gap between its two end rings. ``refused``: as ``--strict``
+    refuses it (what the tube would do: nothing is written)."""
     cuts = np.asarray(ring.cuts, dtype=np.float64)
     step = 10.0 ** (np.floor(np.log10(max(float(np.linalg.norm(cuts[0] - cuts[1])), 1e-300))) - 3)
     a, b = (", ".join(f"{x:.4g}" for x in np.round(c / step) * step + 0.0) for c in cuts)
+    cut, leaves = ("would be cut open", "leave") if refused else ("is cut open", "leaves")
     return (
-        f"{NOT_A_TUBE}: a closed ring with no ends (watertight, V - E + F = 0): the tube is cut open at "
-        f"({a}) and ({b}) and leaves {ring.left_out:.0%} of the ring's surface out (between its two end rings)"
+        f"{NOT_A_TUBE}: a closed ring with no ends (watertight, V - E + F = 0): the tube {cut} at "
+        f"({a}) and ({b}) and {leaves} {ring.left_out:.0%} of the ring's surface out (between its two end rings)"
     )
