@@ -78,7 +78,7 @@ def _parser() -> argparse.ArgumentParser:
     e.add_argument("mesh", help="tube surface mesh: .stl, .ply, .obj, .off or .glb")
     e.add_argument("-o", "--output", required=True, help="scene to write: .usda (text), .usdc or .usd (binary)")
     e.add_argument("--hubs", type=int, help="centerline points (default: from length and radius)")
-    e.add_argument("--spokes", type=int, default=16, help="spokes per hub (default 16)")
+    e.add_argument("--spokes", type=int, help="spokes per hub (default 16; 32 for sections flatter than 3.5:1)")
     e.add_argument("--scale", type=float, nargs="+", metavar="F", help="F, or FX FY FZ: metres per mesh unit (default 1: the mesh is in metres)")
     e.add_argument("--strict", action="store_true", help="refuse a mesh that is not tube-like instead of warning")
 

@@ -10,6 +10,7 @@ from ..scene.files import USD_EXTENSIONS, output_path
 from ..runtime.progress import Phase
 from .fidelity import Fidelity
 from .mesh_io import load_mesh
+from .flat import FLAT_SPOKES, SPOKES
 from .pipeline import ExtractedTube, extract_centerline
 from .tube_check import check_size, side_branches, size_warning, summary_line, tube_warnings
 from .usd import write_scene
@@ -34,7 +35,7 @@ class Extraction:
         return summary_line(self.tube, self.fidelity, self.name or self.output)
 
 
-def extract_to_scene(mesh_path, output, *, hubs=None, spokes=16, scale=None, device=None, progress=None,
+def extract_to_scene(mesh_path, output, *, hubs=None, spokes=None, scale=None, device=None, progress=None,
                      strict=False, staging=None) -> Extraction:  # fmt: skip
     """Extract the tube in a mesh file and write a simulation scene for it.
 
@@ -43,7 +44,7 @@ def extract_to_scene(mesh_path, output, *, hubs=None, spokes=16, scale=None, dev
         output: scene to write, ``.usda`` (text), ``.usdc`` or ``.usd`` (binary); never the mesh
             itself; replaced only by a complete scene (see :func:`warp_tube.extract.usd.write_scene`).
         hubs: hubs N (default automatic, see :func:`warp_tube.extract.pipeline.extract_centerline`).
-        spokes: spokes per hub S.
+        spokes: spokes per hub S; None: 16, or 32 where the sections are flat.
         scale: None, one factor or (fx, fy, fz): metres per mesh unit along each axis (e.g.
             0.000832031 0.000832031 0.001 for CT voxel indices of 0.83 x 0.83 x 1 mm). Without it
             the mesh is taken to be in metres. The scene is written in metres (metersPerUnit 1).
@@ -68,9 +69,9 @@ def extract_to_scene(mesh_path, output, *, hubs=None, spokes=16, scale=None, dev
 
     given = os.fspath(output)
     output = output_path(output, USD_EXTENSIONS, inputs=[mesh_path], what="scene")
-    check_size(hubs, spokes)
+    check_size(hubs, FLAT_SPOKES if spokes is None else spokes)  # (at most what the sections get)
     warnings = []
-    big = size_warning(hubs, spokes)
+    big = size_warning(hubs, SPOKES if spokes is None else spokes)
     if big:
         log.warning(big)
         warnings.append(big)

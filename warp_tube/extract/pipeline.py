@@ -54,7 +54,7 @@ from ..model.frames import hub_tangents, initial_normal, rotation_minimizing_fra
 from ..scene.spec import SceneError
 from .branches import find_branches
 from .closed_ring import RingCut, is_closed_ring, open_ring, ring_cut
-from .flat import ALIGN_ASPECT, long_axis_turn, section_aspect, turned_normal
+from .flat import ALIGN_ASPECT, SPOKES, default_spokes, long_axis_turn, section_aspect, turned_normal
 from .ends import choose_ends, cut_closed_tail, fit_closed_end, settle_end, trim_open_end
 from .fidelity import Distances, Fidelity, fidelity_of, measured_vertices, mesh_distances, plain_surface
 from .mesh_io import BoundaryLoop, boundary_loops, cap_loops, clean_mesh, flat_cuts
@@ -249,7 +249,7 @@ def default_hub_count(length: float, mean_radius: float) -> int:
 def extract_centerline(
     mesh: trimesh.Trimesh,
     hubs: int | None = None,
-    spokes: int = 16,
+    spokes: int | None = None,
     scale=(1.0, 1.0, 1.0),
     device=None,
     *,
@@ -264,7 +264,8 @@ def extract_centerline(
             up, 1.5 times more each try, until the simulator's rest surface meets
             :data:`AUTO_FIDELITY` both ways (at most :data:`MAX_AUTO_HUBS`). With a given count
             that misses the bounds of the README (4 % / 15 % / 40 %), a warning names the figures.
-        spokes: spokes per hub S >= 3.
+        spokes: spokes per hub S >= 3; None: 16, or 32 where the sections are flat
+            (:func:`~warp_tube.extract.flat.default_spokes`).
         scale: one factor or (fx, fy, fz) applied to the vertices first (e.g. CT voxel sizes).
         device: Warp device (default: Warp's default device).
         source: name of the mesh for messages (default: ``mesh.metadata["file_name"]`` or "<mesh>").
@@ -284,9 +285,9 @@ def extract_centerline(
     src = source or str(getattr(mesh, "metadata", {}).get("file_name", "<mesh>"))
     if hubs is not None and int(hubs) < 2:
         raise SceneError(f"hubs {hubs}: expected an integer >= 2")
-    if not 3 <= int(spokes) <= 1024:
+    if spokes is not None and not 3 <= int(spokes) <= 1024:
         raise SceneError(f"spokes {spokes}: expected an integer from 3 to 1024")
-    spokes = int(spokes)
+    spokes = None if spokes is None else int(spokes)
     device = wp.get_device(device)
     m = clean_mesh(mesh, src, scale)
     shift = 0.5 * (m.bounds[0] + m.bounds[1])  # work near the origin: float32 queries keep precision
@@ -351,7 +352,12 @@ def extract_centerline(
     r_path = float(np.median(d))
     count = max(8, int(np.ceil(length / (_DENSE_SPACING * r_path))) + 1)
     dense = smooth(resample(path, count), 1.0)
-    q.flat = section_aspect(q, dense, diag) > ALIGN_ASPECT  # (a local flat spot, a merged hairpin's apex, is not)
+    aspect = section_aspect(q, dense, diag)
+    q.flat = aspect > ALIGN_ASPECT  # (a local flat spot, a merged hairpin's apex, is not)
+    if spokes is None:
+        spokes = default_spokes(aspect)
+        if spokes != SPOKES:
+            log.info("%s: flat sections (aspect %.1f:1): %d spokes a hub", src, aspect, spokes)
     move = np.ones(len(dense), dtype=bool)
     open_a, open_b = (isinstance(e, BoundaryLoop) for e in (choice.end_a, choice.end_b))
     move[[0, -1]] = [not open_a, not open_b]  # a loop's centre stays; closed ends centre
