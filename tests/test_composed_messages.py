@@ -99,3 +99,13 @@ def test_a_required_attribute_only_in_unselected_variants_is_said_to_be_so(where
     assert load_scene("scene.usda").tubes[0].params.youngs_modulus == 1e8
     (tmp_cwd / "scene.usda").write_text(_variants(where, selection="none"))  # selected: missing, as before
     assert _error("scene.usda").startswith("scene.usda: /World/Tube.warptube:youngsModulus: missing: expected")
+
+
+def test_a_variant_selection_that_names_no_variant_is_said_to_be_so(tmp_cwd):
+    """A selection misspelled ("stif"): USD composes no variant, and the modulus only the variants
+    author was reported missing with nothing to find the typo by."""
+    (tmp_cwd / "scene.usda").write_text(_variants("Tube", selection="stif"))
+    assert _error("scene.usda") == (
+        'scene.usda: /World/Tube.warptube:youngsModulus: missing (variantSet "stiffness" on /World/Tube selects "stif", '
+        "which it does not have; its variants soft, stiff author it: select one): expected youngsModulus [Pa], or both "
+        "warptube:stretchStiffness [N] and warptube:bendStiffness [N m^2]")  # fmt: skip

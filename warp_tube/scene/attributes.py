@@ -114,19 +114,22 @@ def _layer_name(layer, file: str) -> str:
 
 def missing(prim, names) -> str:
     """``missing`` for an unauthored attribute of ``prim`` (one of ``names``, which may each take its
-    place), with why where a variantSet on ``prim`` or an ancestor has no selection while some of its
-    variants author one of them: ``missing (variantSet "stiffness" on /World/Tube has no selection;
+    place), with why where a variantSet on ``prim`` or an ancestor has no selection (or selects a
+    variant it does not have) while some of its variants author one of them: ``missing (variantSet "stiffness" on /World/Tube has no selection;
     its variants soft, stiff author it: select one)``."""
     p = prim
     while p and not p.IsPseudoRoot():
         sets = p.GetVariantSets()
         for vset in sets.GetNames():
-            if sets.GetVariantSelection(vset):
+            variants = sets.GetVariantSet(vset).GetVariantNames()
+            chosen = sets.GetVariantSelection(vset)
+            if chosen in variants:
                 continue
-            authors = [v for v in sets.GetVariantSet(vset).GetVariantNames() if _variant_authors(p, vset, v, prim, names)]
+            authors = [v for v in variants if _variant_authors(p, vset, v, prim, names)]
             if authors:
                 its = f"its variants {', '.join(authors)} author it" if len(authors) > 1 else f"its variant {authors[0]} authors it"
-                return f'missing (variantSet "{vset}" on {p.GetPath()} has no selection; {its}: select one)'
+                which = f'selects "{chosen}", which it does not have' if chosen else "has no selection"
+                return f'missing (variantSet "{vset}" on {p.GetPath()} {which}; {its}: select one)'
         p = p.GetParent()
     return "missing"
 
