@@ -215,6 +215,9 @@ def test_glb_export_is_in_metres_y_up_with_a_double_sided_material_for_the_open_
     out = tmp_path / "f.glb"
     assert main(["export", str(stage_path), "--format", "glb", "-o", str(out), "--frame", "1002"]) == 0
     gltf, accessor = read_glb(out)
+    from warp_tube import __version__
+
+    assert gltf["asset"] == {"version": "2.0", "generator": f"warp_tube {__version__}"}  # (it named trimesh)
     st = Usd.Stage.Open(str(stage_path))
     nodes = {node["name"]: gltf["meshes"][node["mesh"]] for node in gltf["nodes"]}
     assert list(nodes) == [CAPPED + "/Surface", OPEN + "/Surface"]

@@ -354,7 +354,14 @@ def _render_glb(meshes, usd_path, open_surfaces, scale: float, to_gltf: np.ndarr
         m.visual = trimesh.visual.TextureVisuals(material=material)
         name = str(mesh.GetPath())
         scene.add_geometry(m, node_name=name, geom_name=name)
-    return scene.export(file_type="glb")
+    return scene.export(file_type="glb", tree_postprocessor=_generator)
+
+
+def _generator(tree: dict) -> None:
+    """Name warp_tube as the glTF file's generator (``asset.generator``)."""
+    from ..version import __version__
+
+    tree.setdefault("asset", {})["generator"] = f"warp_tube {__version__}"
 
 
 def _render_obj(meshes, usd_path, stage_name: str, mpu: float, up: str, time) -> bytes:
