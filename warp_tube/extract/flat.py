@@ -111,13 +111,10 @@ def section_aspect(q: MeshQueries, points: np.ndarray, diag: float, rays: int = 
     by ``rays`` rays in each ring plane (normal to the bisector tangent) to the wall, with no bound on
     their length (:func:`~warp_tube.extract.sections.ring_hits` bounds it): a ray that leaves the
     tube through an open loop takes its ring's mean."""
-    from .sections import fill_around, plane_basis
+    from .sections import fill_around, plane_basis, wall_hits
 
     r, s = plane_basis(hub_tangents(points))
-    dirs = spoke_directions(r, s, rays)
-    origins = np.repeat(np.asarray(points, dtype=np.float64)[:, None, :], rays, axis=1)
-    t = q.rays(q.wall, origins, dirs, diag)
-    valid = (t > 0.0) & (q.rays(q.closed, origins, dirs, diag) >= t - 1e-5 * diag)
+    t, valid = wall_hits(q, points, spoke_directions(r, s, rays), diag)
     fallback = np.array([t[i, v].mean() if v.any() else 0.0 for i, v in enumerate(valid)])
     aspect, _ = polygon_axes(fill_around(t, valid, fallback))
     inner = aspect[1:-1] if len(aspect) > 2 else aspect

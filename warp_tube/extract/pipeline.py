@@ -58,7 +58,7 @@ from .flat import ALIGN_ASPECT, SPOKES, default_spokes, long_axis_turn, section_
 from .ends import choose_ends, cut_closed_tail, fit_closed_end, settle_end, trim_open_end
 from .fidelity import Distances, Fidelity, fidelity_of, measured_vertices, mesh_distances, plain_surface
 from .mesh_io import BoundaryLoop, boundary_loops, cap_loops, clean_mesh, flat_cuts
-from .polyline import arclength, resample, resample_spline, smooth
+from .polyline import arclength, project_points, resample, resample_spline, smooth
 from .queries import MeshQueries
 from .scale import rough_scale, tube_scale
 from .sections import measure_spokes, open_rays, recentre, recentre_hubs
@@ -466,16 +466,14 @@ def extract_centerline(
         aspect=section_aspect(q, points, diag),
     )
     volume = dm.count * dm.voxel_size**3  # (the enclosed volume, as the inside voxels measure it)
-    tube.warnings = tubelike.check(tube, open_rays(q, points, diag), hubs_given=hubs is not None, mesh_volume=volume)
+    tube.warnings = tubelike.check(tube, open_rays(q, points, diag), hubs_given=hubs is not None, mesh_volume=volume,
+                                   strict=strict)  # fmt: skip
     refused = [w for w in tube.warnings if w.startswith(tubelike.NOT_A_TUBE)] if strict else []
     for w in tube.warnings:
         if not refused or w != refused[0]:  # the refusal itself is the error message, not a warning too
             log.warning("%s: %s", src, w)
     if refused:
-        said = refused[0]
-        if tube.ring is not None and said == tubelike.ring_warning(tube.ring):  # (nothing is cut open: said as what would be)
-            said = tubelike.ring_warning(tube.ring, refused=True)
-        raise SceneError(f"{src}: {said} (--strict)")
+        raise SceneError(f"{src}: {refused[0]} (--strict)")
     timings["total"] = time.perf_counter() - t_start
     return tube
 
@@ -503,16 +501,13 @@ def _openings(loops, spoke_len, hub_tree, src) -> list[Opening]:
     """Report the open loops that are not ends: in the tube's wall, or closing a side branch."""
     out = []
     hubs = np.asarray(hub_tree.data, dtype=np.float64)
+    radii = np.median(spoke_len, axis=1)
     for lp in loops:
         dist, hub = hub_tree.query(lp.centroid)
-        wall = float(np.median(spoke_len[hub]))
+        wall = float(radii[hub])
         if len(hubs) > 1:  # from the centerline between the hubs: an opening between two is as far from it as the wall
-            ab = np.diff(hubs, axis=0)
-            t = np.clip(np.einsum("ij,ij->i", lp.centroid - hubs[:-1], ab) / np.maximum(np.einsum("ij,ij->i", ab, ab), 1e-300), 0.0, 1.0)
-            gap = np.linalg.norm(hubs[:-1] + t[:, None] * ab - lp.centroid, axis=1)
-            k = int(np.argmin(gap))
-            dist = float(gap[k])
-            wall = (1.0 - t[k]) * float(np.median(spoke_len[k])) + t[k] * float(np.median(spoke_len[k + 1]))
+            (dist,), (arc,) = project_points(lp.centroid[None], hubs)
+            wall = float(np.interp(arc, arclength(hubs), radii))
         kind = "wall" if dist <= wall else "branch"
         out.append(Opening(int(hub), float(lp.radius), len(lp.vertices), float(dist), kind))
         where = "an opening in the tube's wall" if kind == "wall" else "closing a side branch left out"

@@ -36,7 +36,7 @@ from ..scene.shape_notes import turning_angles
 from .polyline import resample_spline, smooth, tangents
 from .queries import MeshQueries
 
-__all__ = ["OUTLIER_RATIO", "ring_hits", "open_rays", "fill_around", "section_offsets", "recentre", "measure_spokes",
+__all__ = ["OUTLIER_RATIO", "wall_hits", "ring_hits", "open_rays", "fill_around", "section_offsets", "recentre", "measure_spokes",
            "plane_basis", "recentre_hubs", "fit_polygon", "FIT_RAYS"]
 
 OUTLIER_RATIO = 2.5
@@ -61,6 +61,24 @@ MAX_TURN = np.radians(60.0)
 make: sharper is tighter than the tube's own radius, a fold of the line, not of the tube."""
 
 
+def wall_hits(q: MeshQueries, points: np.ndarray, dirs: np.ndarray, diag: float):
+    """Wall hit distances of rays from each point, and which of them stay inside the tube (the
+    closed mesh, its open loops capped, has no nearer hit: the ray did not leave through an open end
+    or a wall opening).
+
+    Args:
+        points: ray origins, shape (n, 3); dirs: unit directions, shape (n, R, 3).
+        diag: the mesh's bounding-box diagonal (longest ray).
+
+    Returns:
+        ``(t (n, R), wall (n, R) bool)``: hit distances (-1: none) and which are inside hits.
+    """
+    origins = np.repeat(np.asarray(points, dtype=np.float64)[:, None, :], dirs.shape[1], axis=1)
+    t = q.rays(q.wall, origins, dirs, diag)
+    tc = q.rays(q.closed, origins, dirs, diag)
+    return t, (t > 0.0) & (tc >= t - 1e-5 * diag)
+
+
 def ring_hits(q: MeshQueries, points: np.ndarray, dirs: np.ndarray, diag: float):
     """Wall hit distances of rays from each point and which of them belong to the tube's section.
 
@@ -72,11 +90,8 @@ def ring_hits(q: MeshQueries, points: np.ndarray, dirs: np.ndarray, diag: float)
         ``(t (n, R), valid (n, R) bool, dfb (n,))``: hit distances (-1: none), validity, and each
         point's distance from the wall.
     """
-    origins = np.repeat(points[:, None, :], dirs.shape[1], axis=1)
-    t = q.rays(q.wall, origins, dirs, diag)
-    tc = q.rays(q.closed, origins, dirs, diag)
+    t, wall = wall_hits(q, points, dirs, diag)
     dfb = q.distance(points, diag)
-    wall = (t > 0.0) & (tc >= t - 1e-5 * diag)
     valid = wall & (t < 6.0 * np.maximum(dfb, 1e-12)[:, None])
     with warnings.catch_warnings():  # rings with no valid hit: an all-NaN row has no median
         warnings.simplefilter("ignore", RuntimeWarning)

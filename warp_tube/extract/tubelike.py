@@ -48,7 +48,8 @@ MAX_LEFT_OUT = 0.9
 """Largest fraction of the mesh's vertices off the tube's rings (beyond its ends, in side branches)."""
 
 
-def check(tube: ExtractedTube, open_rays: np.ndarray, *, hubs_given: bool, mesh_volume: float = 0.0) -> list[str]:
+def check(tube: ExtractedTube, open_rays: np.ndarray, *, hubs_given: bool, mesh_volume: float = 0.0,
+          strict: bool = False) -> list[str]:
     """Warnings about ``tube`` (see the module); empty when it passes.
 
     Args:
@@ -57,8 +58,9 @@ def check(tube: ExtractedTube, open_rays: np.ndarray, *, hubs_given: bool, mesh_
         hubs_given: whether the hub count came from the caller (``--hubs``).
         mesh_volume: the volume the mesh encloses (its openings closed; its inside voxels') [mesh units^3],
             or 0 if unknown.
+        strict: the warnings refuse the mesh (``--strict``): a ring is said as what the tube would do.
     """
-    out = [] if tube.ring is None else [ring_warning(tube.ring)]
+    out = [] if tube.ring is None else [ring_warning(tube.ring, refused=strict)]
     radius = float(tube.spoke_lengths.mean())
     reach = tube.tip_to_tip
     if reach < MIN_LENGTH_RADII * radius:
