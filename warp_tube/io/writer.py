@@ -236,15 +236,11 @@ class StageWriter:
     def _centerline_extents(self, centerlines, prims=None) -> np.ndarray:
         """The Centerlines' extents (prims, 2, 3) of one frame, the prims' points reduced together."""
         halves = self.half_widths if prims is None else self.half_widths[list(prims)]
-        if len(centerlines) == 1:
-            return curves_extent(centerlines[0], halves[0])[None]
         points = [np.asarray(c, dtype=np.float32) for c in centerlines]
         starts = np.cumsum([0] + [len(c) for c in points[:-1]])
         joined = np.concatenate(points)
-        out = np.empty((len(points), 2, 3), dtype=np.float32)
-        np.subtract(np.minimum.reduceat(joined, starts), halves[:, None], out=out[:, 0])
-        np.add(np.maximum.reduceat(joined, starts), halves[:, None], out=out[:, 1])
-        return out
+        bounds = np.stack([np.minimum.reduceat(joined, starts), np.maximum.reduceat(joined, starts)], axis=1)
+        return curves_extent(bounds, halves[:, None])  # (each prim's bounds: the same as its points')
 
     def close(self) -> str:
         """Finish the stage: endTimeCode = last frame written, save, rename over the target.
