@@ -97,9 +97,14 @@ def _strongest_spec(prim, name):
         return None
     is_attribute = prim.HasAttribute(name)
     for spec in prop.GetPropertyStack():
-        if not is_attribute or spec.HasDefaultValue() or spec.layer.GetNumTimeSamplesForPath(spec.path):
+        if not is_attribute or _has_value(spec):
             return spec
     return None
+
+
+def _has_value(spec) -> bool:
+    """Whether an attribute spec holds a value: a default or time samples in its layer."""
+    return bool(spec.HasDefaultValue() or spec.layer.GetNumTimeSamplesForPath(spec.path))
 
 
 def _layer_name(layer, file: str) -> str:
@@ -143,7 +148,7 @@ def _variant_authors(holder, vset: str, variant: str, prim, names) -> bool:
         at = at if below.pathString == "." else at.AppendPath(below)
         for name in names:
             a = spec.layer.GetAttributeAtPath(at.AppendProperty(name))
-            if a and (a.HasDefaultValue() or spec.layer.GetNumTimeSamplesForPath(a.path)):
+            if a and _has_value(a):
                 return True
     return False
 
