@@ -54,23 +54,36 @@ def al_springs(i: int, k: int, start: int, end: int) -> wp.vec4i:
 
 
 @wp.func
-def al_point_forces(springs: wp.vec4i, d: Mat43, dv: Mat43, rest_length: wp.vec4, ke: float, ke_prev: float, kd: float, kd_prev: float):
-    """Forces of one line point's springs (:func:`al_springs`): ``d[s]`` and ``dv[s]`` are neighbour
-    ``s``'s position [m] and velocity [m/s] minus the point's; ``ke``, ``kd`` the stiffness [N/m]
-    and damping [N s/m] of segment ``i``, ``ke_prev``, ``kd_prev`` of segment ``i - 1``. Returns
-    the force on the point [N] and, row ``s``, the force on neighbour ``s`` (zero where there is
-    no spring)."""
-    r = d * type(d[0, 0])(0.0)
+def al_spring_params(springs: wp.vec4i, this: float, prev: float) -> wp.vec4:
+    """A parameter of each of a line point's springs (:func:`al_springs`) from that of segment
+    ``i`` (``this``) and ``i - 1`` (``prev``): stiffness [N/m] or damping [N s/m], zero where
+    there is no spring."""
+    return wp.vec4(al_segment(springs[0], this, prev), al_segment(springs[1], this, prev), al_segment(springs[2], this, prev), al_segment(springs[3], this, prev))
+
+
+@wp.func
+def al_point_forces_with(d: Mat43, dv: Mat43, rest_length: wp.vec4, ke: wp.vec4, kd: wp.vec4):
+    """Forces of one line point's springs: ``d[s]`` and ``dv[s]`` are neighbour ``s``'s position
+    [m] and velocity [m/s] minus the point's, ``ke[s]``, ``kd[s]`` the spring's stiffness [N/m] and
+    damping [N s/m] (:func:`al_spring_params`). Returns the force on the point [N] and, row ``s``,
+    the force on neighbour ``s`` (zero where there is no spring)."""
+    r = type(d)()
     f = r[0]
     for s in range(AL_SPRINGS):
-        if springs[s] != 0:
-            fs = spring_force(
-                d[s], dv[s], type(d[0, 0])(rest_length[s]),
-                type(d[0, 0])(al_segment(springs[s], ke, ke_prev)), type(d[0, 0])(al_segment(springs[s], kd, kd_prev)),
-            )  # fmt: skip
-            f = f + fs
-            r[s] = -fs
+        # Every spring evaluated (no branch a warp would split on): one that is not there has no
+        # stiffness and no damping, so no force.
+        fs = spring_force(d[s], dv[s], type(d[0, 0])(rest_length[s]), type(d[0, 0])(ke[s]), type(d[0, 0])(kd[s]))
+        f = f + fs
+        r[s] = -fs
     return f, r
+
+
+@wp.func
+def al_point_forces(springs: wp.vec4i, d: Mat43, dv: Mat43, rest_length: wp.vec4, ke: float, ke_prev: float, kd: float, kd_prev: float):
+    """Forces of one line point's springs (:func:`al_springs`, :func:`al_point_forces_with`);
+    ``ke``, ``kd`` the stiffness [N/m] and damping [N s/m] of segment ``i``, ``ke_prev``,
+    ``kd_prev`` of segment ``i - 1``."""
+    return al_point_forces_with(d, dv, rest_length, al_spring_params(springs, ke, ke_prev), al_spring_params(springs, kd, kd_prev))
 
 
 @wp.func
@@ -101,7 +114,10 @@ def al_point_energy(springs: wp.vec4i, d: Mat43, d0: Mat43, rest_length: wp.vec4
 
 @wp.func
 def al_segment(code: int, this: float, prev: float) -> float:
-    """The parameter of segment ``i`` (code 1) or ``i - 1`` (code 2) (:func:`al_springs`)."""
+    """The parameter of segment ``i`` (code 1) or ``i - 1`` (code 2) (:func:`al_springs`); zero
+    where there is no spring (code 0)."""
     if code == 2:
         return prev
+    if code == 0:
+        return type(this)(0.0)
     return this

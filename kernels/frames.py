@@ -94,7 +94,7 @@ def rotate_minimal(a: wp.vec3, b: wp.vec3, x: wp.vec3) -> wp.vec3:
     :data:`ANTIPARALLEL_EPS` (a half turn, where the least rotation is not unique) the half turn
     about :func:`least_aligned_normal` of ``a`` is taken, as the NumPy reference does. The one
     least rotation of the kernels: surface frames, guard planes and the bending springs' Bishop
-    frames (:mod:`warp_tube.kernels.springs`).
+    frames (:mod:`warp_tube.kernels.springs`, :mod:`warp_tube.kernels.onchip`).
     """
     c = wp.dot(a, b)
     if c < -1.0 + ANTIPARALLEL_EPS:
@@ -106,17 +106,57 @@ def rotate_minimal(a: wp.vec3, b: wp.vec3, x: wp.vec3) -> wp.vec3:
 
 
 @wp.func(inline=True)
-def transport(a: wp.vec3, b: wp.vec3) -> wp.quat:
-    """The rotation of :func:`rotate_minimal` from unit vector ``a`` to unit vector ``b`` as a unit
-    quaternion, for composing transports along a tube: ``(a x b, 1 + a.b)`` normalised, or the half
-    turn about :func:`least_aligned_normal` of ``a`` where ``1 + a.b`` is below
-    :data:`ANTIPARALLEL_EPS`."""
+def edge_normal(t: wp.vec3) -> wp.vec3:
+    """A unit normal of unit vector ``t``, a smooth function of ``t`` except where ``t[2]`` changes
+    sign, without a square root or a branch (Duff et al., "Building an orthonormal basis,
+    revisited", JCGT 6(1), 2017): the reference an edge's Bishop normal is measured from by
+    :func:`carried_twist`; ``(1, 0, 0)`` for a zero ``t``."""
+    sign = wp.sign(t[2])
+    a = -1.0 / (sign + t[2])
+    return wp.vec3(1.0 + sign * t[0] * t[0] * a, sign * t[0] * t[1] * a, -sign * t[0])
+
+
+@wp.func(inline=True)
+def carried_twist(a: wp.vec3, x: wp.vec3, b: wp.vec3, n: wp.vec3) -> wp.vec2:
+    """The turn about unit tangent ``b`` from its unit normal ``n`` to ``p``, the normal ``x`` of
+    unit tangent ``a`` carried onto ``b`` by :func:`rotate_minimal`, as the unit complex number
+    ``(cos, sin)``: ``p = cos n + sin (b x n)``. Turns compose by complex product
+    (:func:`turn_product`), so a tube's Bishop normals are its edges' :func:`edge_normal` turned by
+    a scan of products: a pair of scalars where the frames' rotations would be quaternions.
+
+    The least rotation written as ``x - (b.x / (1 + a.b)) (a + b) + 2 (a.x) b`` and only its
+    components along ``n`` and ``b x n`` formed (the last term has none); the half turn of
+    :func:`rotate_minimal` where ``1 + a.b`` is below :data:`ANTIPARALLEL_EPS`."""
     c = wp.dot(a, b)
+    m = wp.cross(b, n)
     if c < -1.0 + ANTIPARALLEL_EPS:
         k = least_aligned_normal(a)
-        return wp.quat(k[0], k[1], k[2], 0.0)
-    v = wp.cross(a, b)
-    return wp.normalize(wp.quat(v[0], v[1], v[2], 1.0 + c))
+        kx2 = 2.0 * wp.dot(k, x)
+        return wp.vec2(kx2 * wp.dot(n, k) - wp.dot(n, x), kx2 * wp.dot(m, k) - wp.dot(m, x))
+    q = wp.dot(b, x) / (1.0 + c)
+    return wp.vec2(wp.dot(n, x) - q * wp.dot(n, a), wp.dot(m, x) - q * wp.dot(m, a))
+
+
+@wp.func(inline=True)
+def turn_product(a: wp.vec2, b: wp.vec2) -> wp.vec2:
+    """The turn ``a`` followed by ``b`` (:func:`carried_twist`; their complex product)."""
+    return wp.vec2(a[0] * b[0] - a[1] * b[1], a[0] * b[1] + a[1] * b[0])
+
+
+@wp.func(inline=True)
+def turned(t: wp.vec3, n: wp.vec3, z: wp.vec2):
+    """Normal ``n`` of unit tangent ``t`` turned about it by ``z`` (:func:`carried_twist`), ``z``
+    normalised first (a product of many turns drifts from unit length by round-off). Returns the
+    turned normal ``u`` and ``t x u``."""
+    zz = wp.dot(z, z)
+    c = z[0]
+    s = z[1]
+    if zz > 0.0:
+        inv = 1.0 / wp.sqrt(zz)
+        c = c * inv
+        s = s * inv
+    m = wp.cross(t, n)
+    return n * c + m * s, m * c - n * s
 
 
 @wp.func

@@ -8,15 +8,21 @@ state and parameters into registers once, then for every substep
 
 1. writes its compensated position ``(q, q_lo)`` (with spring damping also its velocity; with
    assistant lines also theirs) into a shared-memory tile, and reads its neighbours';
-2. with a curved rest shape, finds the Bishop frame of its edge by a parallel prefix product of
-   the edge-to-edge transports along its tube (:func:`~.springs.transport`, a Hillis-Steele scan
-   of quaternions, ``ceil(log2(tube length))`` rounds), and after its stencil, the suffix sums of
-   the stencils' holonomy weights ``mu`` the same way (:func:`~.springs.frame_forces` is the
-   sequential form of both);
-3. evaluates the terms it owns, each once, with the functions of :mod:`.springs`: structural
-   spring ``i``, the bending stencil at ``i`` (with its frame terms), its node terms, and the
-   springs of its line points (:func:`~.springs.al_point_forces`); it writes what they put on its
-   two neighbours into a second tile and reads back what its neighbours' terms put on it;
+2. evaluates the terms it owns, each once, with the functions of :mod:`.springs`: structural
+   spring ``i`` and the springs of its line points first (:func:`~.assistant_line.al_point_forces_with`;
+   every spring of a point evaluated, one that is not there with no stiffness, so that no
+   branch splits a warp), while its neighbours' values are at hand, then
+3. with a curved rest shape, the Bishop normal of edge ``i - 1`` by a parallel prefix product
+   along its tube (a Hillis-Steele scan, ``ceil(log2(tube length))`` rounds) of turns about the
+   edges, unit complex numbers (:func:`~.frames.carried_twist`): each edge's turn from a normal
+   of its own (:func:`~.frames.edge_normal`) to the one the previous edge's normal carries onto
+   it (the rest normal at a tube's first edge), so that the product up to an edge turns its
+   normal into its Bishop normal: two numbers a round where a scan of the transports themselves
+   would carry quaternions. Then the bending stencil at ``i``, its frame terms (after the
+   stencil, the suffix sums of the stencils' holonomy weights ``mu`` the same way;
+   :func:`~.springs.curvature_targets` and :func:`~.springs.frame_forces` are the sequential
+   form of both) and its node terms; it writes what its terms put on its two neighbours into a
+   second tile and reads back what its neighbours' terms put on it;
 4. advances its node (pinned nodes follow their targets, lerped from ``pin_q_start`` to
    ``pin_q_end`` over the frame) and its line points in registers;
 
@@ -53,10 +59,10 @@ import functools
 
 import warp as wp
 
-from .frames import twist_terms, twisted
+from .frames import carried_twist, edge_normal, turn_product, turned, twist_terms, twisted
 from .options import CUDA_OPTIONS
-from .warp_shuffle import shfl_down, shfl_down3, shfl_up, shfl_up3, shfl_up_quat
-from .assistant_line import al_point_forces, al_springs
+from .warp_shuffle import shfl_down, shfl_down3, shfl_up, shfl_up2, shfl_up3, warp_prefix_turns, warp_suffix_sum, warp_suffix_sum2
+from .assistant_line import al_point_forces_with, al_spring_params, al_springs
 from .springs import (
     ControlArrays,
     Features,
@@ -67,14 +73,12 @@ from .springs import (
     curvature_binormal,
     first_edge_free,
     first_edge_normal,
-    first_frame_gradient,
     holonomy_stencil,
     kappa_target,
     make_node_terms,
     pin_step,
     spring_force,
     stencil_forces,
-    transport,
     twist_gradients,
 )
 
@@ -122,9 +126,11 @@ def make_onchip_kernel(features: Features, block_dim: int, al_lines: int = 0, ma
     con_t = wp.types.vector(length=CON, dtype=wp.float32)
     lines3 = wp.types.matrix((KL, 3), dtype=wp.float32)
     lines4 = wp.types.matrix((KL, 4), dtype=wp.float32)
-    lines4i = wp.types.matrix((KL, 4), dtype=wp.int32)
     lines_i = wp.types.vector(length=KL, dtype=wp.int32)
     mat43 = wp.types.matrix((4, 3), dtype=wp.float32)
+    # Rounds of a scan within a block (Hillis-Steele, unrolled; shared memory; a round runs only
+    # while its stride is below the tube slot).
+    BLOCK_ROUNDS = max(1, (B - 1).bit_length())
     load_node, node_force, _, _, _, advance = make_node_terms(features)
 
     @wp.func
@@ -184,7 +190,8 @@ def make_onchip_kernel(features: Features, block_dim: int, al_lines: int = 0, ma
         al_lo = lines3()
         al_v = lines3()
         al_rest = lines4()
-        al_spr = lines4i()
+        al_ke = lines4()
+        al_kd = lines4()
         al_slot = lines_i(-1)
         if active:
             pw = w % model.node_mass.shape[0]
@@ -229,24 +236,34 @@ def make_onchip_kernel(features: Features, block_dim: int, al_lines: int = 0, ma
                             al_lo[m] = state_in.al_q_lo[w, p]
                             al_v[m] = state_in.al_qd[w, p]
                             al_rest[m] = wp.vec4(control.al_link_length[w, p], control.al_chord_length[w, p], control.al_fwd_length[w, p], control.al_bwd_length[w, p])
-                            al_spr[m] = al_springs(i, model.force_node[a], start, end)
+                            springs = al_springs(i, model.force_node[a], start, end)
+                            al_ke[m] = al_spring_params(springs, ke, ke_prev)
+                            al_kd[m] = al_spring_params(springs, kd, kd_prev)
 
         has_prev = active and i > start
         has_next = active and i < end - 1
-        span = int(slot)  # rounds of the scans: 2 ** rounds >= the longest tube (or a warp)
+        span = int(slot)  # the scans' rounds run while 2 ** round < the longest tube (or a warp)
         wl = lane % 32  # lane in its warp
-        if wp.static(SCAN_SHUFFLE):
-            span = wp.min(slot, 32)
+        # How far a scan may reach back (to the tube's first node) and forward (to its last) from
+        # this lane; -1 on an idle lane. Through shuffles also no further than the warp's ends.
+        back = int(-1)
+        fwd = int(-1)
+        if active:
+            back = i - start
+            fwd = end - 1 - i
+        if wp.static(MIXED):
+            back = wp.min(back, wl)
+            fwd = wp.min(fwd, 31 - wl)
         if wp.static(not SHUFFLE):
             pos_buf = wp.tile_zeros(shape=(B,), dtype=pos_t, storage="shared")
             con_buf = wp.tile_zeros(shape=(B,), dtype=con_t, storage="shared")
         if wp.static(CURVED and not SCAN_SHUFFLE):
-            frames = wp.tile_zeros(shape=(2, B), dtype=wp.quat, storage="shared")
+            turns = wp.tile_zeros(shape=(2, B), dtype=wp.vec2, storage="shared")
             weights = wp.tile_zeros(shape=(2, B), dtype=float, storage="shared")
         if wp.static(FREE and not SHUFFLE):
             sums = wp.tile_zeros(shape=(2, B), dtype=wp.vec2, storage="shared")
         if wp.static(CURVED and MIXED):
-            carry_q = wp.tile_zeros(shape=(B,), dtype=wp.quat, storage="shared")
+            carry_z = wp.tile_zeros(shape=(B,), dtype=wp.vec2, storage="shared")
             carry_m = wp.tile_zeros(shape=(B,), dtype=float, storage="shared")
         for step in range(substep_count):
             # 1. Positions (and velocities) out, neighbours' in: the previous node's (px, plo, pv)
@@ -340,98 +357,135 @@ def make_onchip_kernel(features: Features, block_dim: int, al_lines: int = 0, ma
                 fs = spring_force(e, nv - v, rest_len, ke, kd)
                 f += fs
                 to_next -= fs
+            # The line springs next, while the neighbours' values are at hand (they are not kept
+            # through the frames and the bending stencil).
+            al_f = lines3()
+            al_next = lines3()
+            if wp.static(K > 0):
+                for m in range(K):
+                    if al_slot[m] >= 0:
+                        xm = al_x[m]
+                        lm = al_lo[m]
+                        d_rows = mat43()
+                        dv_rows = mat43()
+                        d_rows[0] = (x - xm) + (lo - lm)
+                        dv_rows[0] = v - al_v[m]
+                        if has_next:
+                            d_rows[1] = (nal_x[m] - xm) + (nal_lo[m] - lm)
+                            dv_rows[1] = nal_v[m] - al_v[m]
+                            d_rows[2] = (nx - xm) + (nlo - lm)
+                            dv_rows[2] = nv - al_v[m]
+                        if has_prev:
+                            d_rows[3] = (px - xm) + (plo - lm)
+                            dv_rows[3] = pv - al_v[m]
+                        fm, rows = al_point_forces_with(d_rows, dv_rows, al_rest[m], al_ke[m], al_kd[m])
+                        al_f[m] = fm
+                        al_next[m] = rows[1]
+                        f += rows[0]
+                        to_next += rows[2]
+                        to_prev += rows[3]
 
-            # 2. Curved rest shapes: the Bishop frame of edge i - 1, by a scan of transports.
+            # 2. Curved rest shapes: the Bishop frame of edge i - 1, by a scan of turns. Each
+            # edge has a normal of its own (edge_normal); z is the turn about edge i from its
+            # normal to the one edge i - 1's normal carries onto it (at a tube's first edge, the
+            # rest normal's); the product of the turns up to edge i turns edge i's normal into its
+            # Bishop normal.
             target = zero
             if wp.static(CURVED):
                 t_e = wp.normalize(e)
-                r = wp.quat_identity()
+                n_e = edge_normal(t_e)
+                if wp.static(SHUFFLE):  # edge i - 1's, from the lane before (the same bits)
+                    t_p = shfl_up3(t_e, 1)
+                    n_p = shfl_up3(n_e, 1)
+                else:
+                    t_p = wp.normalize(e_prev)
+                    n_p = edge_normal(t_p)
+                z = wp.vec2(1.0, 0.0)
                 if active and i < end - 1:
-                    if i == start:
-                        r = transport(t_rest, t_e)
-                    else:
-                        r = transport(wp.normalize(e_prev), t_e)
-                r_prev = r
+                    t_from = t_rest
+                    n_from = u_rest
+                    if i > start:
+                        t_from = t_p
+                        n_from = n_p
+                    z = carried_twist(t_from, n_from, t_e, n_e)
+                z_prev = z
                 if wp.static(SCAN_SHUFFLE):
-                    d = int(1)
-                    while d < span:
-                        r_from = shfl_up_quat(r, d)
-                        if active and i - d >= start and wl >= d:
-                            r = r * r_from
-                        d = d * 2
-                    carried = wp.quat_identity()
+                    z = warp_prefix_turns(z, back)
+                    carried = wp.vec2(1.0, 0.0)
                     if wp.static(MIXED):
-                        # Each warp's prefix from its first lane (or the tube's start) to lane
+                        # Each warp's product from its first lane (or the tube's start) to lane
                         # 31; a lane multiplies in those of the earlier warps its tube spans.
-                        carry_q[lane] = r
+                        carry_z[lane] = z
                         if active:
                             first_warp = (lane - (i - start)) // 32
                             j = lane // 32 - 1
                             while j >= first_warp:
-                                carried = carried * carry_q[32 * j + 31]
+                                carried = turn_product(carry_z[32 * j + 31], carried)
                                 j = j - 1
-                        r = r * carried
-                    r_prev = shfl_up_quat(r, 1)
+                        z = turn_product(carried, z)
+                    z_prev = shfl_up2(z, 1)
                     if wl == 0:
-                        r_prev = carried  # the product up to the last lane of the warp before
+                        z_prev = carried  # the product up to the last lane of the warp before
                 else:
-                    frames[0, lane] = r
+                    turns[0, lane] = z
                     rd = int(0)
-                    d = int(1)
-                    while d < span:
-                        if active and i - d >= start:
-                            r = r * frames[rd, lane - d]
-                        rd = 1 - rd
-                        frames[rd, lane] = r
-                        d = d * 2
+                    for r in range(wp.static(BLOCK_ROUNDS)):
+                        d = 1 << r
+                        if d < span:  # (the same on every thread: each meets the barrier)
+                            if back >= d:
+                                z = turn_product(turns[rd, lane - d], z)
+                            rd = 1 - rd
+                            turns[rd, lane] = z
                     if has_prev and kb != 0.0:
-                        r_prev = frames[rd, lane - 1]
+                        z_prev = turns[rd, lane - 1]
                 if has_prev and kb != 0.0:
-                    u = wp.quat_rotate(wp.normalize(r_prev), u_rest)
-                    target = kappa_target(wp.normalize(e_prev), u, kappa_rest)
+                    u, v_frame = turned(t_p, n_p, z_prev)
+                    target = kappa_target(t_p, u, v_frame, kappa_rest)
                 if wp.static(FREE):
                     # A tube whose first edge may turn: every target twisted by the angle that
                     # minimises its bending energy, the stencils' (A, B) summed over the tube by a
                     # suffix scan and read at its first node (springs.curvature_targets).
                     ab = wp.vec2(0.0)
                     if has_prev and kb != 0.0 and free_tube:
-                        ab = twist_terms(wp.normalize(e_prev), target, curvature_binormal(e_prev, e), kb)
+                        ab = twist_terms(t_p, target, curvature_binormal(e_prev, e), kb)
                     total = wp.vec2(0.0)
                     if wp.static(SHUFFLE):  # (the same sums in the same order, through registers)
-                        d = int(1)
-                        while d < span:
-                            ab_from = wp.vec2(shfl_down(ab[0], d), shfl_down(ab[1], d))
-                            if active and i + d < end and wl + d < 32:
-                                ab += ab_from
-                            d = d * 2
-                        back = int(0)  # from the tube's first lane (within this warp)
-                        if active:
-                            back = i - start
-                        total = wp.vec2(shfl_up(ab[0], back), shfl_up(ab[1], back))
+                        ab = warp_suffix_sum2(ab, fwd)
+                        first = wp.max(back, 0)  # from the tube's first lane (within this warp)
+                        total = wp.vec2(shfl_up(ab[0], first), shfl_up(ab[1], first))
                     else:
                         sums[0, lane] = ab
                         rd = int(0)
-                        d = int(1)
-                        while d < span:
-                            if active and i + d < end:
-                                ab += sums[rd, lane + d]
-                            rd = 1 - rd
-                            sums[rd, lane] = ab
-                            d = d * 2
+                        for r in range(wp.static(BLOCK_ROUNDS)):
+                            d = 1 << r
+                            if d < span:
+                                if fwd >= d:
+                                    ab += sums[rd, lane + d]
+                                rd = 1 - rd
+                                sums[rd, lane] = ab
                         if has_prev and kb != 0.0 and free_tube:
                             total = sums[rd, lane - (i - start)]
                     if has_prev and kb != 0.0 and free_tube:
                         if total[0] != 0.0 or total[1] != 0.0:
                             psi = wp.atan2(total[1], total[0])
-                            target = twisted(wp.normalize(e_prev), target, wp.cos(psi), wp.sin(psi))
+                            target = twisted(t_p, target, wp.cos(psi), wp.sin(psi))
 
-            # 3. The bending stencil at i, its frame terms, the node terms, the line springs.
+            # 3. The bending stencil at i, its frame terms, the node terms.
             ga = zero
             gb = zero
             kappa = zero
+            # A curved tube's first edge: no stencil, but the twist its frame's carry from the
+            # rest direction puts into every later frame (springs.first_frame_gradient), the
+            # twist gradient below of the curvature binormal of (rest direction, first edge).
+            first_edge = False
+            if wp.static(CURVED):
+                first_edge = active and i == start and i < end - 1
             if wp.static(BENDING):
-                if kb != 0.0:
-                    ga, gb, kappa = bend_gradients(e_prev, e, target, kb)
+                if kb != 0.0 or first_edge:
+                    a_edge = e_prev
+                    if first_edge:
+                        a_edge = t_rest  # (kb = 0 there: no bending force)
+                    ga, gb, kappa = bend_gradients(a_edge, e, target, kb)
             grad_a = zero
             grad_b = zero
             if wp.static(CURVED):
@@ -442,12 +496,7 @@ def make_onchip_kernel(features: Features, block_dim: int, al_lines: int = 0, ma
                 # Suffix sums of mu along the tube: the later stencils' weight on this transport.
                 m_after = float(0.0)
                 if wp.static(SCAN_SHUFFLE):
-                    d = int(1)
-                    while d < span:
-                        mu_from = shfl_down(mu, d)
-                        if active and i + d < end and wl + d < 32:
-                            mu += mu_from
-                        d = d * 2
+                    mu = warp_suffix_sum(mu, fwd)
                     mu_later = float(0.0)
                     if wp.static(MIXED):
                         # Each warp's suffix sum from its first lane to the tube's end (or lane
@@ -468,55 +517,26 @@ def make_onchip_kernel(features: Features, block_dim: int, al_lines: int = 0, ma
                 else:
                     weights[0, lane] = mu
                     rd = int(0)
-                    d = int(1)
-                    while d < span:
-                        if active and i + d < end:
-                            mu += weights[rd, lane + d]
-                        rd = 1 - rd
-                        weights[rd, lane] = mu
-                        d = d * 2
+                    for r in range(wp.static(BLOCK_ROUNDS)):
+                        d = 1 << r
+                        if d < span:
+                            if fwd >= d:
+                                mu += weights[rd, lane + d]
+                            rd = 1 - rd
+                            weights[rd, lane] = mu
                     if has_next:
                         m_after = weights[rd, lane + 1]
-                if kb != 0.0:
+                if kb != 0.0 or first_edge:
                     ta, tb = twist_gradients(kappa, m_after, la, wp.length(e))
-                    grad_a += ta
+                    if kb != 0.0:
+                        grad_a += ta
                     grad_b = tb
-                if active and i == start and i < end - 1:
-                    g0 = first_frame_gradient(t_rest, e, m_after)
-                    f += g0
-                    to_next -= g0
             if wp.static(BENDING):
                 c_prev, c_mid, c_next = stencil_forces(ga, gb, grad_a, grad_b)
                 f += c_mid
                 to_prev += c_prev
                 to_next += c_next
             f += node_force(terms, x, v)
-            al_f = lines3()
-            al_next = lines3()
-            if wp.static(K > 0):
-                for m in range(K):
-                    if al_slot[m] >= 0:
-                        xm = al_x[m]
-                        lm = al_lo[m]
-                        d_rows = mat43()
-                        dv_rows = mat43()
-                        d_rows[0] = (x - xm) + (lo - lm)
-                        dv_rows[0] = v - al_v[m]
-                        if has_next:
-                            d_rows[1] = (nal_x[m] - xm) + (nal_lo[m] - lm)
-                            dv_rows[1] = nal_v[m] - al_v[m]
-                            d_rows[2] = (nx - xm) + (nlo - lm)
-                            dv_rows[2] = nv - al_v[m]
-                        if has_prev:
-                            d_rows[3] = (px - xm) + (plo - lm)
-                            dv_rows[3] = pv - al_v[m]
-                        fm, rows = al_point_forces(al_spr[m], d_rows, dv_rows, al_rest[m], ke, ke_prev, kd, kd_prev)
-                        al_f[m] = fm
-                        al_next[m] = rows[1]
-                        f += rows[0]
-                        to_next += rows[2]
-                        to_prev += rows[3]
-
             # 4. What this thread's terms put on its neighbours out, theirs on it in.
             if wp.static(SHUFFLE):
                 from_prev = shfl_up3(to_next, 1)
@@ -543,11 +563,11 @@ def make_onchip_kernel(features: Features, block_dim: int, al_lines: int = 0, ma
                             out[6 + 3 * m + k] = al_next[m, k]
                 con_buf[lane] = out
                 if has_prev:
-                    back = con_buf[lane - 1]
-                    f += con3(back, 3)
+                    from_prev_buf = con_buf[lane - 1]
+                    f += con3(from_prev_buf, 3)
                     if wp.static(K > 0):
                         for m in range(K):
-                            al_f[m] = al_f[m] + con3(back, 6 + 3 * m)
+                            al_f[m] = al_f[m] + con3(from_prev_buf, 6 + 3 * m)
                 if has_next:
                     f += con3(con_buf[lane + 1], 0)
 

@@ -13,7 +13,7 @@ structural spring, and its  :func:`spring_force`, spring_energy,   seg_rest_leng
 damping along it            spring_stiffness, spring_damping_*      seg_kd
 bending                     :func:`bend_gradients`,                node_bend_k
                             bend_jacobians, bend_energy
-curved rest shape (Bishop   :func:`rotate_minimal` / transport,     node_kappa_rest
+curved rest shape (Bishop   :func:`rotate_minimal`,                node_kappa_rest
 frame and its holonomy)     kappa_target, holonomy_stencil,
                             twist_gradients, first_frame_gradient
 returning spring, gravity,  :class:`NodeTerms` via                  node_anchor_k, node_anchor_kd,
@@ -42,7 +42,7 @@ from typing import NamedTuple
 
 import warp as wp
 
-from .frames import rotate_minimal, transport, twist_terms, twisted
+from .frames import rotate_minimal, twist_terms, twisted
 
 EPS = wp.constant(1.0e-12)
 
@@ -132,10 +132,9 @@ def spring_force(d: Vec, dv: Vec, rest_length: wp.Float, ke: wp.Float, kd: wp.Fl
     zero-length spring exerts no force (no direction to push along).
     """
     length = wp.length(d)
-    if length < type(length)(EPS):
-        return d * type(length)(0.0)
-    n = d / length
-    return n * (ke * (length - rest_length) + kd * wp.dot(dv, n))
+    n = d / wp.max(length, type(length)(EPS))
+    magnitude = ke * (length - rest_length) + kd * wp.dot(dv, n)
+    return n * wp.where(length < type(length)(EPS), type(length)(0.0), magnitude)
 
 
 @wp.func(inline=True)
@@ -254,11 +253,11 @@ def first_edge_normal(t: wp.vec3) -> wp.vec3:
 
 
 @wp.func(inline=True)
-def kappa_target(t: wp.vec3, u: wp.vec3, kappa_rest: wp.vec3) -> wp.vec3:
+def kappa_target(t: wp.vec3, u: wp.vec3, v: wp.vec3, kappa_rest: wp.vec3) -> wp.vec3:
     """Bending target [1] of a stencil: its rest curvature binormal, stored as (tangent, u, v)
     components in the rest Bishop frame of the stencil's first edge, rebuilt in that edge's
     current frame (unit tangent ``t``, Bishop normal ``u``, ``v = t x u``)."""
-    return t * kappa_rest[0] + u * kappa_rest[1] + wp.cross(t, u) * kappa_rest[2]
+    return t * kappa_rest[0] + u * kappa_rest[1] + v * kappa_rest[2]
 
 
 @wp.func(inline=True)
@@ -337,8 +336,8 @@ def curvature_targets(
     node_kappa_target_out: wp.array2d[wp.vec3],
 ):
     """Bending targets of one tube's interior nodes (:func:`kappa_target`), its Bishop normal
-    carried edge to edge in order (the sequential form of the on-chip kernel's scan of
-    :func:`transport`), each step's round-off taken out by keeping ``u`` unit and normal to ``t``.
+    carried edge to edge in order (the sequential form of the on-chip kernel's scan of turns,
+    :func:`~.frames.twist_between`), each step's round-off taken out by keeping ``u`` unit and normal to ``t``.
     A tube whose first edge may turn (:func:`first_edge_free`) has no clamp to fix its first
     frame's twist: the frame is twisted to the energy's minimum (:func:`twist_terms`), so a rigid
     turn of the whole tube changes nothing; there the stencils' ``mu`` sum to zero, so
@@ -351,7 +350,7 @@ def curvature_targets(
     free = first_edge_free(node_inv_mass, pw, start)
     ab = wp.vec2(0.0)
     for j in range(start + 1, end - 1):
-        target = kappa_target(t, u, node_kappa_rest[pw, j])
+        target = kappa_target(t, u, wp.cross(t, u), node_kappa_rest[pw, j])
         node_kappa_target_out[w, j] = target
         t_next = wp.normalize(node_delta(node_q, node_q_lo, w, j, j + 1))
         if free:

@@ -15,7 +15,12 @@ from __future__ import annotations
 
 import warp as wp
 
-__all__ = ["shfl_up", "shfl_down", "shfl_up3", "shfl_down3", "shfl_up_quat"]
+from .frames import turn_product
+
+#: Rounds of a Hillis-Steele scan over a warp's 32 lanes (strides 1, 2, 4, 8, 16).
+WARP_ROUNDS = 5
+
+__all__ = ["shfl_up", "shfl_down", "shfl_up3", "shfl_down3", "shfl_up2", "warp_prefix_turns", "warp_suffix_sum", "warp_suffix_sum2"]
 
 _UP = """
 #if defined(__CUDA_ARCH__)
@@ -55,6 +60,43 @@ def shfl_down3(x: wp.vec3, d: int) -> wp.vec3:
 
 
 @wp.func
-def shfl_up_quat(q: wp.quat, d: int) -> wp.quat:
-    return wp.quat(shfl_up(q[0], d), shfl_up(q[1], d), shfl_up(q[2], d), shfl_up(q[3], d))
+def shfl_up2(x: wp.vec2, d: int) -> wp.vec2:
+    return wp.vec2(shfl_up(x[0], d), shfl_up(x[1], d))
 
+
+@wp.func
+def warp_prefix_turns(z: wp.vec2, back: int) -> wp.vec2:
+    """The product of turns ``z`` (:func:`~.frames.turn_product`) over this lane and the ``back``
+    lanes before it (-1 on an idle lane), by a Hillis-Steele scan: every lane meets each round."""
+    p = z
+    for r in range(WARP_ROUNDS):
+        d = 1 << r
+        p_from = shfl_up2(p, d)
+        if back >= d:
+            p = turn_product(p_from, p)
+    return p
+
+
+@wp.func
+def warp_suffix_sum(x: float, fwd: int) -> float:
+    """The sum of ``x`` over this lane and the ``fwd`` lanes after it (-1 on an idle lane), by a
+    Hillis-Steele scan: every lane meets each round."""
+    s = x
+    for r in range(WARP_ROUNDS):
+        d = 1 << r
+        s_from = shfl_down(s, d)
+        if fwd >= d:
+            s += s_from
+    return s
+
+
+@wp.func
+def warp_suffix_sum2(x: wp.vec2, fwd: int) -> wp.vec2:
+    """:func:`warp_suffix_sum` of both components of ``x``."""
+    s = x
+    for r in range(WARP_ROUNDS):
+        d = 1 << r
+        s_from = wp.vec2(shfl_down(s[0], d), shfl_down(s[1], d))
+        if fwd >= d:
+            s += s_from
+    return s
