@@ -62,17 +62,23 @@ def al_spring_params(springs: wp.vec4i, this: float, prev: float) -> wp.vec4:
 
 
 @wp.func
+def al_spring_force(d: Mat43, dv: Mat43, rest_length: wp.vec4, ke: wp.vec4, kd: wp.vec4, s: int):
+    """Force [N] of a line point's spring ``s`` on the point (:func:`al_point_forces_with`)."""
+    return spring_force(d[s], dv[s], type(d[0, 0])(rest_length[s]), type(d[0, 0])(ke[s]), type(d[0, 0])(kd[s]))
+
+
+@wp.func
 def al_point_forces_with(d: Mat43, dv: Mat43, rest_length: wp.vec4, ke: wp.vec4, kd: wp.vec4):
     """Forces of one line point's springs: ``d[s]`` and ``dv[s]`` are neighbour ``s``'s position
     [m] and velocity [m/s] minus the point's, ``ke[s]``, ``kd[s]`` the spring's stiffness [N/m] and
     damping [N s/m] (:func:`al_spring_params`). Returns the force on the point [N] and, row ``s``,
-    the force on neighbour ``s`` (zero where there is no spring)."""
+    the force on neighbour ``s`` (zero where there is no spring). Every spring is evaluated (no
+    branch that would split a warp on CUDA; one that is not there has no stiffness and no damping,
+    so no force); :func:`al_point_forces` leaves out those that are not there."""
     r = type(d)()
     f = r[0]
     for s in range(AL_SPRINGS):
-        # Every spring evaluated (no branch a warp would split on): one that is not there has no
-        # stiffness and no damping, so no force.
-        fs = spring_force(d[s], dv[s], type(d[0, 0])(rest_length[s]), type(d[0, 0])(ke[s]), type(d[0, 0])(kd[s]))
+        fs = al_spring_force(d, dv, rest_length, ke, kd, s)
         f = f + fs
         r[s] = -fs
     return f, r
@@ -80,10 +86,19 @@ def al_point_forces_with(d: Mat43, dv: Mat43, rest_length: wp.vec4, ke: wp.vec4,
 
 @wp.func
 def al_point_forces(springs: wp.vec4i, d: Mat43, dv: Mat43, rest_length: wp.vec4, ke: float, ke_prev: float, kd: float, kd_prev: float):
-    """Forces of one line point's springs (:func:`al_springs`, :func:`al_point_forces_with`);
-    ``ke``, ``kd`` the stiffness [N/m] and damping [N s/m] of segment ``i``, ``ke_prev``,
-    ``kd_prev`` of segment ``i - 1``."""
-    return al_point_forces_with(d, dv, rest_length, al_spring_params(springs, ke, ke_prev), al_spring_params(springs, kd, kd_prev))
+    """:func:`al_point_forces_with` for the springs of :func:`al_springs`, those that are not there
+    left out (the per-tube kernels: a thread per tube); ``ke``, ``kd`` the stiffness [N/m] and
+    damping [N s/m] of segment ``i``, ``ke_prev``, ``kd_prev`` of segment ``i - 1``."""
+    ke4 = al_spring_params(springs, ke, ke_prev)
+    kd4 = al_spring_params(springs, kd, kd_prev)
+    r = type(d)()
+    f = r[0]
+    for s in range(AL_SPRINGS):
+        if springs[s] != 0:
+            fs = al_spring_force(d, dv, rest_length, ke4, kd4, s)
+            f = f + fs
+            r[s] = -fs
+    return f, r
 
 
 @wp.func

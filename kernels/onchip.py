@@ -267,7 +267,8 @@ def make_onchip_kernel(features: Features, block_dim: int, al_lines: int = 0, ma
             carry_m = wp.tile_zeros(shape=(B,), dtype=float, storage="shared")
         for step in range(substep_count):
             # 1. Positions (and velocities) out, neighbours' in: the previous node's (px, plo, pv)
-            # and the next's (nx, nlo, nv, and its line points'), this node's own at tube ends.
+            # and the next's (nx, nlo, nv, and its line points'); at a tube's ends whatever the
+            # lane beside holds (shuffles) or this node's own (shared memory), never used there.
             px = x
             plo = lo
             pv = v
@@ -296,17 +297,15 @@ def make_onchip_kernel(features: Features, block_dim: int, al_lines: int = 0, ma
                         t_al_lo[m] = shfl_down3(al_lo[m], 1)
                         if wp.static(SD):
                             t_al_v[m] = shfl_down3(al_v[m], 1)
-                if has_prev:
-                    px = sx
-                    plo = slo
-                    pv = sv
-                if has_next:
-                    nx = tx
-                    nlo = tlo
-                    nv = tv
-                    nal_x = t_al_x
-                    nal_lo = t_al_lo
-                    nal_v = t_al_v
+                px = sx
+                plo = slo
+                pv = sv
+                nx = tx
+                nlo = tlo
+                nv = tv
+                nal_x = t_al_x
+                nal_lo = t_al_lo
+                nal_v = t_al_v
             else:
                 own = pos_t()
                 for k in range(3):
@@ -347,8 +346,8 @@ def make_onchip_kernel(features: Features, block_dim: int, al_lines: int = 0, ma
                 pv = zero
                 nv = zero
                 nal_v = lines3()
-            e_prev = (x - px) + (lo - plo)  # edge i - 1 (zero at a tube's first node)
-            e = (nx - x) + (nlo - lo)  # edge i (zero at its last node)
+            e_prev = wp.where(has_prev, (x - px) + (lo - plo), zero)  # edge i - 1 (zero at a tube's first node)
+            e = wp.where(has_next, (nx - x) + (nlo - lo), zero)  # edge i (zero at its last node)
 
             f = zero
             to_prev = zero
@@ -481,18 +480,18 @@ def make_onchip_kernel(features: Features, block_dim: int, al_lines: int = 0, ma
             if wp.static(CURVED):
                 first_edge = active and i == start and i < end - 1
             if wp.static(BENDING):
-                if kb != 0.0 or first_edge:
-                    a_edge = e_prev
-                    if first_edge:
-                        a_edge = t_rest  # (kb = 0 there: no bending force)
-                    ga, gb, kappa = bend_gradients(a_edge, e, target, kb)
+                # On every lane (no branch to split the warp): where kb = 0 (a tube's ends, idle
+                # lanes) the gradients are zero, and kappa is used only where a stencil or a
+                # first edge is (zero edges give finite values: the lengths are floored).
+                ga, gb, kappa = bend_gradients(wp.where(first_edge, t_rest, e_prev), e, target, kb)
             grad_a = zero
             grad_b = zero
             if wp.static(CURVED):
-                mu = float(0.0)
                 la = wp.length(e_prev)
-                if kb != 0.0:
-                    grad_a, mu = holonomy_stencil(e_prev, la, kappa, target, kb)
+                stencil = kb != 0.0
+                grad_h, mu_h = holonomy_stencil(e_prev, la, kappa, target, kb)  # (NaN at a zero edge: not selected)
+                grad_a = wp.where(stencil, grad_h, zero)
+                mu = wp.where(stencil, mu_h, 0.0)
                 # Suffix sums of mu along the tube: the later stencils' weight on this transport.
                 m_after = float(0.0)
                 if wp.static(SCAN_SHUFFLE):
@@ -526,11 +525,9 @@ def make_onchip_kernel(features: Features, block_dim: int, al_lines: int = 0, ma
                             weights[rd, lane] = mu
                     if has_next:
                         m_after = weights[rd, lane + 1]
-                if kb != 0.0 or first_edge:
-                    ta, tb = twist_gradients(kappa, m_after, la, wp.length(e))
-                    if kb != 0.0:
-                        grad_a += ta
-                    grad_b = tb
+                ta, tb = twist_gradients(kappa, m_after, la, wp.length(e))
+                grad_a = wp.where(stencil, grad_a + ta, grad_a)
+                grad_b = wp.where(stencil or first_edge, tb, zero)
             if wp.static(BENDING):
                 c_prev, c_mid, c_next = stencil_forces(ga, gb, grad_a, grad_b)
                 f += c_mid
@@ -572,19 +569,20 @@ def make_onchip_kernel(features: Features, block_dim: int, al_lines: int = 0, ma
                     f += con3(con_buf[lane + 1], 0)
 
             # 5. Advance in registers.
-            if active:
-                if im == 0.0:
-                    x, v = pin_step(x_pin0, x_pin1, float(step + 1) / float(substep_count), x, dt)
-                    lo = zero
-                else:
-                    x, lo, v = advance(x, lo, v, f, im, alpha, dt)
-                if wp.static(K > 0):
-                    for m in range(K):
-                        if al_slot[m] >= 0:
-                            xm, lm, vm = advance(al_x[m], al_lo[m], al_v[m], al_f[m], inv_m, alpha, dt)
-                            al_x[m] = xm
-                            al_lo[m] = lm
-                            al_v[m] = vm
+            # (both steps on every lane and one chosen: a branch would split the warp all the same)
+            pinned = im == 0.0
+            x_pin, v_pin = pin_step(x_pin0, x_pin1, float(step + 1) / float(substep_count), x, dt)
+            x_free, lo_free, v_free = advance(x, lo, v, f, im, alpha, dt)
+            x = wp.where(active, wp.where(pinned, x_pin, x_free), x)
+            lo = wp.where(active, wp.where(pinned, zero, lo_free), lo)
+            v = wp.where(active, wp.where(pinned, v_pin, v_free), v)
+            if wp.static(K > 0):
+                for m in range(K):
+                    if al_slot[m] >= 0:
+                        xm, lm, vm = advance(al_x[m], al_lo[m], al_v[m], al_f[m], inv_m, alpha, dt)
+                        al_x[m] = xm
+                        al_lo[m] = lm
+                        al_v[m] = vm
         if active:
             state_out.node_q[w, i] = x
             state_out.node_q_lo[w, i] = lo

@@ -71,9 +71,7 @@ def warp_prefix_turns(z: wp.vec2, back: int) -> wp.vec2:
     p = z
     for r in range(WARP_ROUNDS):
         d = 1 << r
-        p_from = shfl_up2(p, d)
-        if back >= d:
-            p = turn_product(p_from, p)
+        p = turn_product(wp.where(back >= d, shfl_up2(p, d), wp.vec2(1.0, 0.0)), p)
     return p
 
 
@@ -84,9 +82,7 @@ def warp_suffix_sum(x: float, fwd: int) -> float:
     s = x
     for r in range(WARP_ROUNDS):
         d = 1 << r
-        s_from = shfl_down(s, d)
-        if fwd >= d:
-            s += s_from
+        s += wp.where(fwd >= d, shfl_down(s, d), 0.0)
     return s
 
 
@@ -96,7 +92,5 @@ def warp_suffix_sum2(x: wp.vec2, fwd: int) -> wp.vec2:
     s = x
     for r in range(WARP_ROUNDS):
         d = 1 << r
-        s_from = wp.vec2(shfl_down(s[0], d), shfl_down(s[1], d))
-        if fwd >= d:
-            s += s_from
+        s += wp.where(fwd >= d, wp.vec2(shfl_down(s[0], d), shfl_down(s[1], d)), wp.vec2(0.0))
     return s
