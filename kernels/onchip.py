@@ -240,8 +240,6 @@ def make_onchip_kernel(features: Features, block_dim: int, al_lines: int = 0, ma
                             al_ke[m] = al_spring_params(springs, ke, ke_prev)
                             al_kd[m] = al_spring_params(springs, kd, kd_prev)
 
-        has_prev = active and i > start
-        has_next = active and i < end - 1
         span = int(slot)  # the scans' rounds run while 2 ** round < the longest tube (or a warp)
         wl = lane % 32  # lane in its warp
         # How far a scan may reach back (to the tube's first node) and forward (to its last) from
@@ -251,6 +249,8 @@ def make_onchip_kernel(features: Features, block_dim: int, al_lines: int = 0, ma
         if active:
             back = i - start
             fwd = end - 1 - i
+        has_prev = back > 0
+        has_next = fwd > 0
         if wp.static(MIXED):
             back = wp.min(back, wl)
             fwd = wp.min(fwd, 31 - wl)
@@ -352,10 +352,9 @@ def make_onchip_kernel(features: Features, block_dim: int, al_lines: int = 0, ma
             f = zero
             to_prev = zero
             to_next = zero
-            if has_next:
-                fs = spring_force(e, nv - v, rest_len, ke, kd)
-                f += fs
-                to_next -= fs
+            fs = spring_force(e, nv - v, rest_len, ke, kd)  # (zero at a tube's last node: e = 0)
+            f += fs
+            to_next -= fs
             # The line springs next, while the neighbours' values are at hand (they are not kept
             # through the frames and the bending stencil).
             al_f = lines3()
