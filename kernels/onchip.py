@@ -128,9 +128,6 @@ def make_onchip_kernel(features: Features, block_dim: int, al_lines: int = 0, ma
     lines4 = wp.types.matrix((KL, 4), dtype=wp.float32)
     lines_i = wp.types.vector(length=KL, dtype=wp.int32)
     mat43 = wp.types.matrix((4, 3), dtype=wp.float32)
-    # Rounds of a scan within a block (Hillis-Steele, unrolled; shared memory; a round runs only
-    # while its stride is below the tube slot).
-    BLOCK_ROUNDS = max(1, (B - 1).bit_length())
     load_node, node_force, _, _, _, advance = make_node_terms(features)
 
     @wp.func
@@ -427,13 +424,13 @@ def make_onchip_kernel(features: Features, block_dim: int, al_lines: int = 0, ma
                 else:
                     turns[0, lane] = z
                     rd = int(0)
-                    for r in range(wp.static(BLOCK_ROUNDS)):
-                        d = 1 << r
-                        if d < span:  # (the same on every thread: each meets the barrier)
-                            if back >= d:
-                                z = turn_product(turns[rd, lane - d], z)
-                            rd = 1 - rd
-                            turns[rd, lane] = z
+                    d = int(1)
+                    while d < span:  # (the same on every thread: each meets the barrier)
+                        if back >= d:
+                            z = turn_product(turns[rd, lane - d], z)
+                        rd = 1 - rd
+                        turns[rd, lane] = z
+                        d = d * 2
                     if has_prev and kb != 0.0:
                         z_prev = turns[rd, lane - 1]
                 if has_prev and kb != 0.0:
@@ -454,13 +451,13 @@ def make_onchip_kernel(features: Features, block_dim: int, al_lines: int = 0, ma
                     else:
                         sums[0, lane] = ab
                         rd = int(0)
-                        for r in range(wp.static(BLOCK_ROUNDS)):
-                            d = 1 << r
-                            if d < span:
-                                if fwd >= d:
-                                    ab += sums[rd, lane + d]
-                                rd = 1 - rd
-                                sums[rd, lane] = ab
+                        d = int(1)
+                        while d < span:
+                            if fwd >= d:
+                                ab += sums[rd, lane + d]
+                            rd = 1 - rd
+                            sums[rd, lane] = ab
+                            d = d * 2
                         if has_prev and kb != 0.0 and free_tube:
                             total = sums[rd, lane - (i - start)]
                     if has_prev and kb != 0.0 and free_tube:
@@ -515,13 +512,13 @@ def make_onchip_kernel(features: Features, block_dim: int, al_lines: int = 0, ma
                 else:
                     weights[0, lane] = mu
                     rd = int(0)
-                    for r in range(wp.static(BLOCK_ROUNDS)):
-                        d = 1 << r
-                        if d < span:
-                            if fwd >= d:
-                                mu += weights[rd, lane + d]
-                            rd = 1 - rd
-                            weights[rd, lane] = mu
+                    d = int(1)
+                    while d < span:
+                        if fwd >= d:
+                            mu += weights[rd, lane + d]
+                        rd = 1 - rd
+                        weights[rd, lane] = mu
+                        d = d * 2
                     if has_next:
                         m_after = weights[rd, lane + 1]
                 ta, tb = twist_gradients(kappa, m_after, la, wp.length(e))
