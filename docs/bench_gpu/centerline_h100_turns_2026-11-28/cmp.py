@@ -8,8 +8,9 @@ import bench_centerline as bc
 from warp_tube.centerline import explicit
 from warp_tube.sim.simulation import Simulation
 regs = [int(r) for r in sys.argv[2:]] or [None]
+P = int(os.environ.get("POINTS", "32"))
 wp.init()
-n = Simulation(bc.scene(32, True), device="cpu", surface=False).substeps
+n = Simulation(bc.scene(P, True), device="cpu", surface=False).substeps
 for reg in regs:
     if reg is not None:
         explicit.ONCHIP_MAX_REGISTERS = reg
@@ -17,6 +18,6 @@ for reg in regs:
                                  ("line", {"assistant_line"}, (0, 1)), ("all_free", True, (0,))):
         if reg is not None and name not in ("all", "all_free"):
             continue
-        c = bc.substep_case("cuda:0", 32, extras, 5, worlds=65536, substeps=n, onchip=True, pinned=pinned)
+        c = bc.substep_case("cuda:0", P, extras, 5, worlds=65536, substeps=n, onchip=True, pinned=pinned)
         c.pop("reps_s", None)
         print(json.dumps({"tree": tree, "maxreg": reg, "case": name, **c}), flush=True)
