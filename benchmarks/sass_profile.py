@@ -5,7 +5,7 @@ that into machine code as Warp's CUDA build would (the same register cap), and t
 instructions are counted and, with ``--lines``, attributed to the kernel's source lines (the
 outermost line of ``kernels/onchip.py`` each instruction was inlined into). The static count of the
 loop follows what Nsight Compute measures per tube and substep (one warp a 32-point tube) to a few
-percent: code in branches no lane takes (a half turn in :func:`~warp_tube.kernels.frames.carried_twist`)
+percent: code in branches no lane takes (a half turn in :func:`~warp_tube.kernels.frames.rotate_minimal`)
 is counted but not run. It answers "did this change make the kernel shorter" in seconds; the speed
 itself is measured on a GPU (``bench_centerline.py``).
 

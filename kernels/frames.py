@@ -122,19 +122,9 @@ def carried_twist(a: wp.vec3, x: wp.vec3, b: wp.vec3, n: wp.vec3) -> wp.vec2:
     unit tangent ``a`` carried onto ``b`` by :func:`rotate_minimal`, as the unit complex number
     ``(cos, sin)``: ``p = cos n + sin (b x n)``. Turns compose by complex product
     (:func:`turn_product`), so a tube's Bishop normals are its edges' :func:`edge_normal` turned by
-    a scan of products: a pair of scalars where the frames' rotations would be quaternions.
-
-    The least rotation written as ``x - (b.x / (1 + a.b)) (a + b) + 2 (a.x) b`` and only its
-    components along ``n`` and ``b x n`` formed (the last term has none); the half turn of
-    :func:`rotate_minimal` where ``1 + a.b`` is below :data:`ANTIPARALLEL_EPS`."""
-    c = wp.dot(a, b)
-    m = wp.cross(b, n)
-    if c < -1.0 + ANTIPARALLEL_EPS:
-        k = least_aligned_normal(a)
-        kx2 = 2.0 * wp.dot(k, x)
-        return wp.vec2(kx2 * wp.dot(n, k) - wp.dot(n, x), kx2 * wp.dot(m, k) - wp.dot(m, x))
-    q = wp.dot(b, x) / (1.0 + c)
-    return wp.vec2(wp.dot(n, x) - q * wp.dot(n, a), wp.dot(m, x) - q * wp.dot(m, a))
+    a scan of products: a pair of scalars where the frames' rotations would be quaternions."""
+    p = rotate_minimal(a, b, x)
+    return wp.vec2(wp.dot(n, p), wp.dot(wp.cross(b, n), p))
 
 
 @wp.func(inline=True)
@@ -148,13 +138,9 @@ def turned(t: wp.vec3, n: wp.vec3, z: wp.vec2):
     """Normal ``n`` of unit tangent ``t`` turned about it by ``z`` (:func:`carried_twist`), ``z``
     normalised first (a product of many turns drifts from unit length by round-off). Returns the
     turned normal ``u`` and ``t x u``."""
-    zz = wp.dot(z, z)
-    c = z[0]
-    s = z[1]
-    if zz > 0.0:
-        inv = 1.0 / wp.sqrt(zz)
-        c = c * inv
-        s = s * inv
+    inv = 1.0 / wp.sqrt(wp.max(wp.dot(z, z), 1.0e-30))  # (a zero z, of degenerate edges, stays zero)
+    c = z[0] * inv
+    s = z[1] * inv
     m = wp.cross(t, n)
     return n * c + m * s, m * c - n * s
 
