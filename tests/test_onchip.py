@@ -206,6 +206,16 @@ def test_warp_alignment_of_layouts():
     assert SemiImplicitEulerSolver(model, onchip=True).onchip_exchange == "shared"
 
 
+def test_auto_pads_curved_tubes_to_whole_warps():
+    # Tubes that would cross a warp boundary in the compact layout are padded to shuffles on
+    # request, and under "auto" only when curved (measured faster there, slower when straight)
+    from warp_tube.centerline.explicit import pads_to_warps
+
+    assert pads_to_warps("shuffle", False) and pads_to_warps("shuffle", True)
+    assert pads_to_warps("auto", True) and not pads_to_warps("auto", False)
+    assert not pads_to_warps("shared", True) and not pads_to_warps("mixed", True)
+
+
 def run_with_lines(model, substeps=150, frames=2, **solver_args):
     """As :func:`run`, with the force's assistant line active from the start; also the lines'
     positions."""

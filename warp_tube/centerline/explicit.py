@@ -54,6 +54,17 @@ EXCHANGES = ("auto", "shuffle", "mixed", "shared")
 logger = logging.getLogger(__name__)
 
 
+def pads_to_warps(exchange: str, curved: bool) -> bool:
+    """Whether tubes of at most 32 points that the compact on-chip layout would let cross a warp
+    boundary are laid out one group to a slot of 1, 2, 4, ... 32 lanes instead (some lanes idle),
+    so that the exchange runs through warp shuffles: by request (``exchange="shuffle"``), and under
+    ``"auto"`` for curved tubes, whose two scans a substep make the padded shuffles faster than the
+    compact layout's shared memory (one H100, 65,536 tubes of 12, 20 and 24 points with every
+    feature: 1.16-1.42x; curved alone 1.32-1.62x); straight tubes keep the compact layout (the
+    minimal scene 1.18-1.39x faster there; BENCHMARKS.md, "Tubes that do not fill a warp")."""
+    return exchange == "shuffle" or (exchange == "auto" and bool(curved))
+
+
 def warp_aligned(tube_start: np.ndarray, group_start: np.ndarray, slot: int, copies: int) -> bool:
     """Whether every tube lies within one warp (32 threads) in the on-chip layout: the tubes of
     group ``g`` (node range ``group_start[g] .. group_start[g + 1]``) at lanes ``c * slot + (node -
@@ -97,7 +108,8 @@ class SemiImplicitEulerSolver:
             rest through shared memory; the order of a scan's products then depends on where a
             tube sits against warp boundaries, so a world's result can differ by round-off with
             its place in the block), "shared" through shared memory and block barriers; "auto"
-            (default) shuffles where the layout has every tube within a warp, else shared
+            (default) shuffles where the layout has every tube within a warp or curved tubes of
+            at most 32 points can be padded to whole warps (:func:`pads_to_warps`), else shared
             memory: in both a world computes the same whatever its place in the block, so a
             variant gives the same numbers in a batch and alone. All three exchange the same
             values and do the same arithmetic (the compiler's FMA contractions may differ:
@@ -153,7 +165,7 @@ class SemiImplicitEulerSolver:
         # takes the exchange its batch takes, and so the same arithmetic)
         aligned = warp_aligned(starts, group, slot, copies)
         exchange = self._exchange_request
-        if self.device.is_cuda and not aligned and slot <= 32 and exchange == "shuffle":
+        if self.device.is_cuda and not aligned and slot <= 32 and pads_to_warps(exchange, m.features.curved):
             # Groups of at most a warp: each copy in a slot of 1, 2, 4, ... 32 lanes, so that none
             # crosses a warp boundary (the lanes past a group's nodes idle)
             slot = 1 << (slot - 1).bit_length()
