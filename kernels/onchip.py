@@ -8,22 +8,24 @@ state and parameters into registers once, then for every substep
 
 1. writes its compensated position ``(q, q_lo)`` (with spring damping also its velocity; with
    assistant lines also theirs) into a shared-memory tile, and reads its neighbours';
-2. evaluates the terms it owns, each once, with the functions of :mod:`.springs`: structural
-   spring ``i`` and the springs of its line points first (:func:`~.assistant_line.al_point_forces_with`;
-   every spring of a point evaluated, one that is not there with no stiffness, so that no
-   branch splits a warp), while its neighbours' values are at hand, then
-3. with a curved rest shape, the Bishop normal of edge ``i - 1`` by a parallel prefix product
-   along its tube (a Hillis-Steele scan, ``ceil(log2(tube length))`` rounds) of turns about the
-   edges, unit complex numbers (:func:`~.frames.carried_twist`): each edge's turn from a normal
-   of its own (:func:`~.frames.edge_normal`) to the one the previous edge's normal carries onto
-   it (the rest normal at a tube's first edge), so that the product up to an edge turns its
-   normal into its Bishop normal: two numbers a round where a scan of the transports themselves
-   would carry quaternions. Then the bending stencil at ``i``, its frame terms (after the
-   stencil, the suffix sums of the stencils' holonomy weights ``mu`` the same way;
-   :func:`~.springs.curvature_targets` and :func:`~.springs.frame_forces` are the sequential
-   form of both) and its node terms; it writes what its terms put on its two neighbours into a
-   second tile and reads back what its neighbours' terms put on it;
-4. advances its node (pinned nodes follow their targets, lerped from ``pin_q_start`` to
+2. evaluates the terms it owns, each once, with the functions of :mod:`.springs`, first those
+   that need its neighbours' values (so that these are not kept through the rest): structural
+   spring ``i`` and the springs of its line points
+   (:func:`~.assistant_line.al_point_forces_with`; every spring of a point evaluated, one that is
+   not there with no stiffness, so that no branch splits a warp);
+3. with a curved rest shape, finds the Bishop normal of edge ``i - 1`` by a parallel prefix
+   product along its tube (a Hillis-Steele scan, ``ceil(log2(tube length))`` rounds) of turns
+   about the edges, unit complex numbers (:func:`~.frames.carried_twist`): each edge's turn from
+   a normal of its own (:func:`~.frames.edge_normal`) to the one the previous edge's normal
+   carries onto it (the rest normal at a tube's first edge), so that the product up to an edge
+   turns its normal into its Bishop normal: two numbers a round where a scan of the transports
+   themselves would carry quaternions;
+4. evaluates the bending stencil at ``i`` and its frame terms (after the stencil, the suffix sums
+   of the stencils' holonomy weights ``mu`` the same way; :func:`~.springs.curvature_targets` and
+   :func:`~.springs.frame_forces` are the sequential form of both) and its node terms; it writes
+   what its terms put on its two neighbours into a second tile and reads back what its
+   neighbours' terms put on it;
+5. advances its node (pinned nodes follow their targets, lerped from ``pin_q_start`` to
    ``pin_q_end`` over the frame) and its line points in registers;
 
 and after the last substep stores the state once. Writing an element of a shared tile ends in a
@@ -346,14 +348,14 @@ def make_onchip_kernel(features: Features, block_dim: int, al_lines: int = 0, ma
             e_prev = wp.where(has_prev, (x - px) + (lo - plo), zero)  # edge i - 1 (zero at a tube's first node)
             e = wp.where(has_next, (nx - x) + (nlo - lo), zero)  # edge i (zero at its last node)
 
+            # 2. The structural spring, then the line springs, while the neighbours' values are
+            # at hand (they are not kept through the frames and the bending stencil).
             f = zero
             to_prev = zero
             to_next = zero
             fs = spring_force(e, nv - v, rest_len, ke, kd)  # (zero at a tube's last node: e = 0)
             f += fs
             to_next -= fs
-            # The line springs next, while the neighbours' values are at hand (they are not kept
-            # through the frames and the bending stencil).
             al_f = lines3()
             al_next = lines3()
             if wp.static(K > 0):
@@ -380,7 +382,7 @@ def make_onchip_kernel(features: Features, block_dim: int, al_lines: int = 0, ma
                         to_next += rows[2]
                         to_prev += rows[3]
 
-            # 2. Curved rest shapes: the Bishop frame of edge i - 1, by a scan of turns. Each
+            # 3. Curved rest shapes: the Bishop frame of edge i - 1, by a scan of turns. Each
             # edge has a normal of its own (edge_normal); z is the turn about edge i from its
             # normal to the one edge i - 1's normal carries onto it (at a tube's first edge, the
             # rest normal's); the product of the turns up to edge i turns edge i's normal into its
@@ -465,7 +467,7 @@ def make_onchip_kernel(features: Features, block_dim: int, al_lines: int = 0, ma
                             psi = wp.atan2(total[1], total[0])
                             target = twisted(t_p, target, wp.cos(psi), wp.sin(psi))
 
-            # 3. The bending stencil at i, its frame terms, the node terms.
+            # 4. The bending stencil at i, its frame terms, the node terms.
             ga = zero
             gb = zero
             kappa = zero
@@ -530,7 +532,7 @@ def make_onchip_kernel(features: Features, block_dim: int, al_lines: int = 0, ma
                 to_prev += c_prev
                 to_next += c_next
             f += node_force(terms, x, v)
-            # 4. What this thread's terms put on its neighbours out, theirs on it in.
+            # 4 (end). What this thread's terms put on its neighbours out, theirs on it in.
             if wp.static(SHUFFLE):
                 from_prev = shfl_up3(to_next, 1)
                 from_next = shfl_down3(to_prev, 1)
