@@ -59,8 +59,12 @@ def machine_code(every: bool, arch: int, block: int, cuda_bin: str | None, work:
     with open(ptx, "rb") as src, open(clean, "wb") as dst:
         dst.write(src.read().replace(b"\0", b""))
     cubin = os.path.join(out, "kernel.cubin")
-    subprocess.run([tool("ptxas", cuda_bin), f"-arch=sm_{arch}", "-O3", clean, "-o", cubin], check=True)
-    return subprocess.run([tool("nvdisasm", cuda_bin), "-gi", "-c", cubin], check=True, capture_output=True, text=True).stdout
+    for cmd in ([tool("ptxas", cuda_bin), f"-arch=sm_{arch}", "-O3", clean, "-o", cubin], [tool("nvdisasm", cuda_bin), "-gi", "-c", cubin]):
+        run = subprocess.run(cmd, capture_output=True, text=True)
+        if run.returncode:
+            sys.exit(f"sass_profile: {os.path.basename(cmd[0])} failed ({run.stderr.strip()[-300:]}); "
+                     "it must read the PTX Warp writes (CUDA 12.8 or later for Warp 1.19)")
+    return run.stdout
 
 
 def parse(dis: str):

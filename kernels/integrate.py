@@ -26,7 +26,6 @@ import functools
 
 import warp as wp
 
-from .options import CUDA_OPTIONS
 from .assistant_line import al_point_forces, al_springs
 from .springs import (
     ControlArrays,
