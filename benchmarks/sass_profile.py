@@ -47,11 +47,11 @@ def tool(name: str, cuda_bin: str | None) -> str:
     return path
 
 
-def machine_code(every: bool, arch: int, block: int, cuda_bin: str | None, work: str) -> str:
+def machine_code(every: bool, arch: int, block: int, cuda_bin: str | None, work: str, free: bool = False) -> str:
     """The disassembly (with inlined source lines) of the shuffle-exchange on-chip kernel."""
     features = Features(*([True] * 8)) if every else Features()
     regs = ONCHIP_MAX_REGISTERS if every else None  # the cap Warp's launch applies where it takes more
-    kernel = make_onchip_kernel(features, block, 1 if every else 0, regs, "shuffle", False)
+    kernel = make_onchip_kernel(features, block, 1 if every else 0, regs, "shuffle", free and every)
     out = os.path.join(work, "every" if every else "minimal")
     wp.compile_aot_module(kernel.module, arch=arch, module_dir=out, use_ptx=True)
     (ptx,) = [os.path.join(out, f) for f in os.listdir(out) if f.endswith(".ptx")]
@@ -114,14 +114,15 @@ def main():
     ap.add_argument("--block", type=int, default=128, help="threads per block")
     ap.add_argument("--cuda-bin", default=None, help="folder with ptxas, cuobjdump and nvdisasm")
     ap.add_argument("--lines", type=int, default=0, help="also print this many costliest source lines")
+    ap.add_argument("--free", action="store_true", help="every feature with tubes free to turn at their start (one more scan)")
     a = ap.parse_args()
     wp.config.quiet = True
     wp.config.lineinfo = True
     wp.init()
-    res = {"arch": a.arch, "block": a.block, "warp": wp.config.version}
+    res = {"arch": a.arch, "block": a.block, "free_to_turn": a.free, "warp": wp.config.version}
     with tempfile.TemporaryDirectory() as work:
         for every in (False, True):
-            loop = substep_loop(*parse(machine_code(every, a.arch, a.block, a.cuda_bin, work)))
+            loop = substep_loop(*parse(machine_code(every, a.arch, a.block, a.cuda_bin, work, a.free)))
             ops = collections.Counter(re.sub(r"^@!?U?P\w+\s+", "", t).split()[0].split(".")[0] for _, t, _ in loop)
             name = "all_features" if every else "minimal"
             res[name] = {"loop_instructions": len(loop), "spill_loads": ops["LDL"], "spill_stores": ops["STL"],
