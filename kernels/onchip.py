@@ -464,8 +464,8 @@ def make_onchip_kernel(features: Features, block_dim: int, al_lines: int = 0, ma
                             total = sums[rd, lane - (i - start)]
                     if has_prev and kb != 0.0 and free_tube:
                         if total[0] != 0.0 or total[1] != 0.0:
-                            psi = wp.atan2(total[1], total[0])
-                            target = twisted(t_p, target, wp.cos(psi), wp.sin(psi))
+                            cs = total / wp.length(total)  # (cos, sin) of psi = atan2(B, A)
+                            target = twisted(t_p, target, cs[0], cs[1])
 
             # 4. The bending stencil at i, its frame terms, the node terms.
             ga = zero

@@ -359,12 +359,10 @@ def curvature_targets(
         u = wp.normalize(u - t_next * wp.dot(u, t_next))
         t = t_next
     if free and (ab[0] != 0.0 or ab[1] != 0.0):
-        psi = wp.atan2(ab[1], ab[0])
-        c = wp.cos(psi)
-        s = wp.sin(psi)
+        cs = ab / wp.length(ab)  # (cos, sin) of psi = atan2(B, A)
         for j in range(start + 1, end - 1):
             t_j = wp.normalize(node_delta(node_q, node_q_lo, w, j - 1, j))
-            node_kappa_target_out[w, j] = twisted(t_j, node_kappa_target_out[w, j], c, s)
+            node_kappa_target_out[w, j] = twisted(t_j, node_kappa_target_out[w, j], cs[0], cs[1])
 
 
 @wp.func
