@@ -239,7 +239,7 @@ def make_onchip_kernel(features: Features, block_dim: int, al_lines: int = 0, ma
                             al_ke[m] = al_spring_params(springs, ke, ke_prev)
                             al_kd[m] = al_spring_params(springs, kd, kd_prev)
 
-        span = int(slot)  # the scans' rounds run while 2 ** round < the longest tube (or a warp)
+        span = int(slot)  # shared-memory scans: rounds while their stride is below the tube slot
         wl = lane % 32  # lane in its warp
         # How far a scan may reach back (to the tube's first node) and forward (to its last) from
         # this lane; -1 on an idle lane. Through shuffles also no further than the warp's ends.

@@ -337,7 +337,8 @@ def curvature_targets(
 ):
     """Bending targets of one tube's interior nodes (:func:`kappa_target`), its Bishop normal
     carried edge to edge in order (the sequential form of the on-chip kernel's scan of turns,
-    :func:`~.frames.twist_between`), each step's round-off taken out by keeping ``u`` unit and normal to ``t``.
+    :func:`~.frames.carried_twist`), each step's round-off taken out by keeping ``u`` unit and normal
+    to ``t``.
     A tube whose first edge may turn (:func:`first_edge_free`) has no clamp to fix its first
     frame's twist: the frame is twisted to the energy's minimum (:func:`twist_terms`), so a rigid
     turn of the whole tube changes nothing; there the stencils' ``mu`` sum to zero, so
