@@ -63,32 +63,52 @@ def al_spring_params(springs: wp.vec4i, this: float, prev: float) -> wp.vec4:
 
 @wp.func
 def al_spring_force(d: Mat43, dv: Mat43, rest_length: wp.vec4, ke: wp.vec4, kd: wp.vec4, s: int):
-    """Force [N] of a line point's spring ``s`` on the point (:func:`al_point_forces_with`)."""
+    """Force [N] of a line point's spring ``s`` on the point (:func:`al_point_forces`)."""
     return spring_force(d[s], dv[s], type(d[0, 0])(rest_length[s]), type(d[0, 0])(ke[s]), type(d[0, 0])(kd[s]))
 
 
 @wp.func
-def al_point_forces_with(d: Mat43, dv: Mat43, rest_length: wp.vec4, ke: wp.vec4, kd: wp.vec4):
-    """Forces of one line point's springs: ``d[s]`` and ``dv[s]`` are neighbour ``s``'s position
-    [m] and velocity [m/s] minus the point's, ``ke[s]``, ``kd[s]`` the spring's stiffness [N/m] and
-    damping [N s/m] (:func:`al_spring_params`). Returns the force on the point [N] and, row ``s``,
-    the force on neighbour ``s`` (zero where there is no spring). Every spring is evaluated (no
-    branch that would split a warp on CUDA; one that is not there has no stiffness and no damping,
-    so no force); :func:`al_point_forces` leaves out those that are not there."""
-    r = type(d)()
-    f = r[0]
-    for s in range(AL_SPRINGS):
-        fs = al_spring_force(d, dv, rest_length, ke, kd, s)
-        f = f + fs
-        r[s] = -fs
-    return f, r
+def al_lane_diagonal(i: int, k: int, end: int) -> int:
+    """Which tractive spring crosses from node ``i`` of a tube (nodes ``..end-1``) pushed at node
+    ``k`` to node ``i + 1``: each such pair has exactly one (:func:`al_springs`): 1, the forward
+    spring ``P_i' - P_{i+1}`` (``i >= k``); 0, the backward spring of the next point,
+    ``P_{i+1}' - P_i`` (``i < k``); -1 at the tube's last node (none). Both have segment ``i``'s
+    stiffness and damping. The on-chip kernel's thread at node ``i`` evaluates the link and the
+    chord of line point ``P_i'`` and this spring (:func:`al_lane_forces`): three springs a
+    thread, where a point's own springs are four at the force point."""
+    if i >= end - 1:
+        return -1
+    if i >= k:
+        return 1
+    return 0
+
+
+@wp.func
+def al_lane_forces(d_link: wp.vec3, dv_link: wp.vec3, d_chord: wp.vec3, dv_chord: wp.vec3, d_diag: wp.vec3, dv_diag: wp.vec3,
+                   rest_length: wp.vec3, link_ke: float, link_kd: float, ke: float, kd: float):  # fmt: skip
+    """The three line springs of the on-chip thread at node ``i`` (:func:`al_lane_diagonal`), each
+    given as ``d = xb - xa`` [m] and ``dv = vb - va`` [m/s] from its first end: the link from
+    ``P_i'`` to ``P_i``, the chord from ``P_i'`` to ``P_{i+1}'`` and the tractive spring that
+    crosses to node ``i + 1`` (forward: from ``P_i'`` to ``P_{i+1}``; backward: from ``P_i`` to
+    ``P_{i+1}'``); ``rest_length`` [m] in that order, ``link_ke``, ``link_kd`` the link's
+    stiffness [N/m] and damping [N s/m] (segment ``i``'s, ``i - 1``'s at a tube's last node),
+    ``ke``, ``kd`` segment ``i``'s (zero at the last node: no chord, no tractive spring). Returns
+    each spring's force on its first end [N] (:func:`~.springs.spring_force`); every spring is
+    evaluated (no branch to split a warp; one with a zero ``d`` exerts none)."""
+    return (spring_force(d_link, dv_link, rest_length[0], link_ke, link_kd),
+            spring_force(d_chord, dv_chord, rest_length[1], ke, kd),
+            spring_force(d_diag, dv_diag, rest_length[2], ke, kd))  # fmt: skip
 
 
 @wp.func
 def al_point_forces(springs: wp.vec4i, d: Mat43, dv: Mat43, rest_length: wp.vec4, ke: float, ke_prev: float, kd: float, kd_prev: float):
-    """:func:`al_point_forces_with` for the springs of :func:`al_springs`, those that are not there
-    left out (the per-tube kernels: a thread per tube); ``ke``, ``kd`` the stiffness [N/m] and
-    damping [N s/m] of segment ``i``, ``ke_prev``, ``kd_prev`` of segment ``i - 1``."""
+    """Forces of one line point's springs (:func:`al_springs`; those that are not there left out):
+    ``d[s]`` and ``dv[s]`` are neighbour ``s``'s position [m] and velocity [m/s] minus the point's,
+    ``ke``, ``kd`` the stiffness [N/m] and damping [N s/m] of segment ``i``, ``ke_prev``,
+    ``kd_prev`` of segment ``i - 1``. Returns the force on the point [N] and, row ``s``, the force
+    on neighbour ``s`` (zero where there is no spring). The per-tube and implicit kernels' form (a
+    thread per tube); the on-chip kernel shares the springs among the threads of a tube
+    (:func:`al_lane_forces`)."""
     ke4 = al_spring_params(springs, ke, ke_prev)
     kd4 = al_spring_params(springs, kd, kd_prev)
     r = type(d)()

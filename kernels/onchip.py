@@ -10,9 +10,11 @@ state and parameters into registers once, then for every substep
    assistant lines also theirs) into a shared-memory tile, and reads its neighbours';
 2. evaluates the terms it owns, each once, with the functions of :mod:`.springs`, first those
    that need its neighbours' values (so that these are not kept through the rest): structural
-   spring ``i`` and the springs of its line points
-   (:func:`~.assistant_line.al_point_forces_with`; every spring of a point evaluated, one that is
-   not there with no stiffness, so that no branch splits a warp);
+   spring ``i`` and three springs of each of its line points: the link and the chord of ``P_i'``
+   and the tractive spring that crosses to node ``i + 1`` (:func:`~.assistant_line.al_lane_forces`:
+   a line point's own springs are four at the force point, so each is evaluated where its
+   tractive springs cross; every thread evaluates all three, one that is not there with no
+   stiffness, so that no branch splits a warp);
 3. with a curved rest shape, finds the Bishop normal of edge ``i - 1`` by a parallel prefix
    product along its tube (a Hillis-Steele scan, ``ceil(log2(tube length))`` rounds) of turns
    about the edges, unit complex numbers (:func:`~.frames.carried_twist`): each edge's turn from
@@ -64,7 +66,7 @@ import warp as wp
 from .frames import carried_twist, edge_normal, turn_product, turned, twist_terms, twisted
 from .options import CUDA_OPTIONS
 from .warp_shuffle import shfl_down, shfl_down3, shfl_up, shfl_up2, shfl_up3, warp_prefix_turns, warp_suffix_sum, warp_suffix_sum2
-from .assistant_line import al_point_forces_with, al_spring_params, al_springs
+from .assistant_line import al_lane_diagonal, al_lane_forces
 from .springs import (
     ControlArrays,
     Features,
@@ -127,9 +129,7 @@ def make_onchip_kernel(features: Features, block_dim: int, al_lines: int = 0, ma
     pos_t = wp.types.vector(length=POS, dtype=wp.float32)
     con_t = wp.types.vector(length=CON, dtype=wp.float32)
     lines3 = wp.types.matrix((KL, 3), dtype=wp.float32)
-    lines4 = wp.types.matrix((KL, 4), dtype=wp.float32)
     lines_i = wp.types.vector(length=KL, dtype=wp.int32)
-    mat43 = wp.types.matrix((4, 3), dtype=wp.float32)
     load_node, node_force, _, _, _, advance = make_node_terms(features)
 
     @wp.func
@@ -184,14 +184,17 @@ def make_onchip_kernel(features: Features, block_dim: int, al_lines: int = 0, ma
         kd_prev = float(0.0)
         kb = float(0.0)
         terms = NodeTerms()
-        # Assistant-line points at this node, one row per line: state, springs, rest lengths, slot.
+        # Assistant-line points at this node, one row per line: state, the rest lengths of the
+        # thread's three springs (link, chord, the tractive spring crossing to node i + 1), which
+        # way that one goes (al_lane_diagonal), slot.
         al_x = lines3()
         al_lo = lines3()
         al_v = lines3()
-        al_rest = lines4()
-        al_ke = lines4()
-        al_kd = lines4()
+        al_rest = lines3()
+        al_dir = lines_i(-1)
         al_slot = lines_i(-1)
+        link_ke = float(0.0)  # the link's stiffness and damping: segment i's, i - 1's at the last node
+        link_kd = float(0.0)
         if active:
             pw = w % model.node_mass.shape[0]
             t = node_tube[i]
@@ -225,6 +228,8 @@ def make_onchip_kernel(features: Features, block_dim: int, al_lines: int = 0, ma
                 if wp.static(FREE):
                     free_tube = first_edge_free(model.node_inv_mass, pw, start)
             if wp.static(K > 0):
+                link_ke = wp.where(i + 1 < end, ke, ke_prev)
+                link_kd = wp.where(i + 1 < end, kd, kd_prev)
                 for m in range(K):
                     a = model.tube_al_force[t, m]
                     if a >= 0:
@@ -234,10 +239,14 @@ def make_onchip_kernel(features: Features, block_dim: int, al_lines: int = 0, ma
                             al_x[m] = state_in.al_q[w, p]
                             al_lo[m] = state_in.al_q_lo[w, p]
                             al_v[m] = state_in.al_qd[w, p]
-                            al_rest[m] = wp.vec4(control.al_link_length[w, p], control.al_chord_length[w, p], control.al_fwd_length[w, p], control.al_bwd_length[w, p])
-                            springs = al_springs(i, model.force_node[a], start, end)
-                            al_ke[m] = al_spring_params(springs, ke, ke_prev)
-                            al_kd[m] = al_spring_params(springs, kd, kd_prev)
+                            way = al_lane_diagonal(i, model.force_node[a], end)
+                            diagonal = float(0.0)
+                            if way == 1:
+                                diagonal = control.al_fwd_length[w, p]
+                            elif way == 0:
+                                diagonal = control.al_bwd_length[w, p + 1]
+                            al_dir[m] = way
+                            al_rest[m] = wp.vec3(control.al_link_length[w, p], control.al_chord_length[w, p], diagonal)
 
         span = int(slot)  # shared-memory scans: rounds while their stride is below the tube slot
         wl = lane % 32  # lane in its warp
@@ -265,12 +274,11 @@ def make_onchip_kernel(features: Features, block_dim: int, al_lines: int = 0, ma
             carry_z = wp.tile_zeros(shape=(B,), dtype=wp.vec2, storage="shared")
             carry_m = wp.tile_zeros(shape=(B,), dtype=float, storage="shared")
         for step in range(substep_count):
-            # 1. Positions (and velocities) out, neighbours' in: the previous node's (px, plo, pv)
-            # and the next's (nx, nlo, nv, and its line points'); at a tube's ends whatever the
+            # 1. Positions (and velocities) out, neighbours' in: the previous node's position (px,
+            # plo) and the next's (nx, nlo, nv, and its line points'); at a tube's ends whatever the
             # lane beside holds (shuffles) or this node's own (shared memory), never used there.
             px = x
             plo = lo
-            pv = v
             nx = x
             nlo = lo
             nv = v
@@ -282,10 +290,8 @@ def make_onchip_kernel(features: Features, block_dim: int, al_lines: int = 0, ma
                 slo = shfl_up3(lo, 1)
                 tx = shfl_down3(x, 1)
                 tlo = shfl_down3(lo, 1)
-                sv = v
                 tv = v
                 if wp.static(SD):
-                    sv = shfl_up3(v, 1)
                     tv = shfl_down3(v, 1)
                 t_al_x = lines3()
                 t_al_lo = lines3()
@@ -298,7 +304,6 @@ def make_onchip_kernel(features: Features, block_dim: int, al_lines: int = 0, ma
                             t_al_v[m] = shfl_down3(al_v[m], 1)
                 px = sx
                 plo = slo
-                pv = sv
                 nx = tx
                 nlo = tlo
                 nv = tv
@@ -324,8 +329,6 @@ def make_onchip_kernel(features: Features, block_dim: int, al_lines: int = 0, ma
                     prev = pos_buf[lane - 1]
                     px = get3(prev, 0)
                     plo = get3(prev, 3)
-                    if wp.static(SD):
-                        pv = get3(prev, 6)
                 if has_next:
                     nxt = pos_buf[lane + 1]
                     nx = get3(nxt, 0)
@@ -342,7 +345,6 @@ def make_onchip_kernel(features: Features, block_dim: int, al_lines: int = 0, ma
                             if wp.static(SD):
                                 nal_v[m] = get3(nxt, NODE * (m + 1) + 6)
             if wp.static(not SD):  # velocities enter only with spring damping
-                pv = zero
                 nv = zero
                 nal_v = lines3()
             e_prev = wp.where(has_prev, (x - px) + (lo - plo), zero)  # edge i - 1 (zero at a tube's first node)
@@ -361,26 +363,24 @@ def make_onchip_kernel(features: Features, block_dim: int, al_lines: int = 0, ma
             if wp.static(K > 0):
                 for m in range(K):
                     if al_slot[m] >= 0:
-                        xm = al_x[m]
-                        lm = al_lo[m]
-                        d_rows = mat43()
-                        dv_rows = mat43()
-                        d_rows[0] = (x - xm) + (lo - lm)
-                        dv_rows[0] = v - al_v[m]
-                        if has_next:
-                            d_rows[1] = (nal_x[m] - xm) + (nal_lo[m] - lm)
-                            dv_rows[1] = nal_v[m] - al_v[m]
-                            d_rows[2] = (nx - xm) + (nlo - lm)
-                            dv_rows[2] = nv - al_v[m]
-                        if has_prev:
-                            d_rows[3] = (px - xm) + (plo - lm)
-                            dv_rows[3] = pv - al_v[m]
-                        fm, rows = al_point_forces_with(d_rows, dv_rows, al_rest[m], al_ke[m], al_kd[m])
-                        al_f[m] = fm
-                        al_next[m] = rows[1]
-                        f += rows[0]
-                        to_next += rows[2]
-                        to_prev += rows[3]
+                        # The link (point to node i), the chord (to point i + 1) and the tractive
+                        # spring crossing to node i + 1: forward from the point to that node,
+                        # backward from node i to point i + 1 (differences taken from the link's
+                        # and the chord's and the edge; zero where there is no next node).
+                        d_link = (x - al_x[m]) + (lo - al_lo[m])
+                        dv_link = v - al_v[m]
+                        d_chord = wp.where(has_next, (nal_x[m] - al_x[m]) + (nal_lo[m] - al_lo[m]), zero)
+                        dv_chord = nal_v[m] - al_v[m]
+                        forward = al_dir[m] == 1
+                        d_diag = wp.where(has_next, wp.where(forward, e + d_link, d_chord - d_link), zero)
+                        dv_diag = wp.where(forward, (nv - v) + dv_link, dv_chord - dv_link)
+                        f_link, f_chord, f_diag = al_lane_forces(d_link, dv_link, d_chord, dv_chord, d_diag, dv_diag, al_rest[m], link_ke, link_kd, ke, kd)
+                        f_fwd = wp.where(forward, f_diag, zero)  # on the point; on node i + 1 against it
+                        f_bwd = f_diag - f_fwd  # on node i; on point i + 1 against it
+                        al_f[m] = f_link + f_chord + f_fwd
+                        al_next[m] = -(f_chord + f_bwd)
+                        f += f_bwd - f_link
+                        to_next -= f_fwd
 
             # 3. Curved rest shapes: the Bishop frame of edge i - 1, by a scan of turns. Each
             # edge has a normal of its own (edge_normal); z is the turn about edge i from its
