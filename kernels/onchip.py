@@ -71,7 +71,6 @@ from .springs import (
     ControlArrays,
     Features,
     ModelArrays,
-    NodeTerms,
     StateArrays,
     bend_gradients,
     curvature_binormal,
@@ -163,27 +162,16 @@ def make_onchip_kernel(features: Features, block_dim: int, al_lines: int = 0, ma
         active = c < worlds_per_block and w < state_in.node_q.shape[0] and i < group_node_start[g + 1]
 
         zero = wp.vec3(0.0)
-        x = zero
-        lo = zero
-        v = zero
-        x_pin0 = zero
-        x_pin1 = zero
         t_rest = wp.vec3(1.0, 0.0, 0.0)
         u_rest = wp.vec3(0.0, 1.0, 0.0)
         kappa_rest = zero
         free_tube = False
-        start = int(0)
-        end = int(0)
-        im = float(0.0)
-        inv_m = float(0.0)
-        alpha = float(0.0)
         rest_len = float(0.0)
         ke = float(0.0)
         kd = float(0.0)
         ke_prev = float(0.0)
         kd_prev = float(0.0)
         kb = float(0.0)
-        terms = NodeTerms()
         # Assistant-line points at this node, one row per line: state, the rest lengths of the
         # thread's three springs (link, chord, the tractive spring crossing to node i + 1), which
         # way that one goes (al_lane_diagonal), slot.
@@ -195,58 +183,63 @@ def make_onchip_kernel(features: Features, block_dim: int, al_lines: int = 0, ma
         al_slot = lines_i(-1)
         link_ke = float(0.0)  # the link's stiffness and damping: segment i's, i - 1's at the last node
         link_kd = float(0.0)
-        if active:
-            pw = w % model.node_mass.shape[0]
-            t = node_tube[i]
-            start = model.tube_node_start[t]
-            end = model.tube_node_start[t + 1]
-            x = state_in.node_q[w, i]
-            lo = state_in.node_q_lo[w, i]
-            v = state_in.node_qd[w, i]
-            im = model.node_inv_mass[pw, i]
-            inv_m = 1.0 / model.node_mass[pw, i]
-            alpha = model.node_damping[pw, i]
-            x_pin0 = control.pin_q_start[w, i]
-            x_pin1 = control.pin_q_end[w, i]
-            terms = load_node(model, control, w, pw, i)
-            if i + 1 < end:
-                rest_len = model.seg_rest_length[pw, i]
-                ke = model.seg_ke[pw, i]
-                if wp.static(SD):
-                    kd = model.seg_kd[pw, i]
-            if i > start:
-                ke_prev = model.seg_ke[pw, i - 1]
-                if wp.static(SD):
-                    kd_prev = model.seg_kd[pw, i - 1]
-            if wp.static(BENDING):
-                if i > start and i < end - 1:
-                    kb = model.node_bend_k[pw, i]
-            if wp.static(CURVED):
-                t_rest = wp.normalize(model.node_rest_q[pw, start + 1] - model.node_rest_q[pw, start])
-                u_rest = first_edge_normal(t_rest)
-                kappa_rest = model.node_kappa_rest[pw, i]
-                if wp.static(FREE):
-                    free_tube = first_edge_free(model.node_inv_mass, pw, start)
-            if wp.static(K > 0):
-                link_ke = wp.where(i + 1 < end, ke, ke_prev)
-                link_kd = wp.where(i + 1 < end, kd, kd_prev)
-                for m in range(K):
-                    a = model.tube_al_force[t, m]
-                    if a >= 0:
-                        if control.al_active[w, a] != 0:
-                            p = model.al_start[a] + (i - start)
-                            al_slot[m] = p
-                            al_x[m] = state_in.al_q[w, p]
-                            al_lo[m] = state_in.al_q_lo[w, p]
-                            al_v[m] = state_in.al_qd[w, p]
-                            way = al_lane_diagonal(i, model.force_node[a], end)
-                            diagonal = float(0.0)
-                            if way == 1:
-                                diagonal = control.al_fwd_length[w, p]
-                            elif way == 0:
-                                diagonal = control.al_bwd_length[w, p + 1]
-                            al_dir[m] = way
-                            al_rest[m] = wp.vec3(control.al_link_length[w, p], control.al_chord_length[w, p], diagonal)
+        # An idle lane loads the values of a real node (the last world's, the group's last node):
+        # none of them reaches an active lane (every exchange is read under has_prev, has_next or a
+        # scan's reach, all false or -1 on an idle lane) and nothing is stored from it, and loading
+        # them unconditionally spares the substep loop a choice of each by `active`.
+        wc = wp.min(w, state_in.node_q.shape[0] - 1)
+        ic = wp.min(i, group_node_start[g + 1] - 1)
+        pw = wc % model.node_mass.shape[0]
+        t = node_tube[ic]
+        start = model.tube_node_start[t]
+        end = model.tube_node_start[t + 1]
+        x = state_in.node_q[wc, ic]
+        lo = state_in.node_q_lo[wc, ic]
+        v = state_in.node_qd[wc, ic]
+        im = model.node_inv_mass[pw, ic]
+        inv_m = 1.0 / model.node_mass[pw, ic]
+        alpha = model.node_damping[pw, ic]
+        x_pin0 = control.pin_q_start[wc, ic]
+        x_pin1 = control.pin_q_end[wc, ic]
+        terms = load_node(model, control, wc, pw, ic)
+        if ic + 1 < end:
+            rest_len = model.seg_rest_length[pw, ic]
+            ke = model.seg_ke[pw, ic]
+            if wp.static(SD):
+                kd = model.seg_kd[pw, ic]
+        if ic > start:
+            ke_prev = model.seg_ke[pw, ic - 1]
+            if wp.static(SD):
+                kd_prev = model.seg_kd[pw, ic - 1]
+        if wp.static(BENDING):
+            if ic > start and ic < end - 1:
+                kb = model.node_bend_k[pw, ic]
+        if wp.static(CURVED):
+            t_rest = wp.normalize(model.node_rest_q[pw, start + 1] - model.node_rest_q[pw, start])
+            u_rest = first_edge_normal(t_rest)
+            kappa_rest = model.node_kappa_rest[pw, ic]
+            if wp.static(FREE):
+                free_tube = first_edge_free(model.node_inv_mass, pw, start)
+        if wp.static(K > 0):
+            link_ke = wp.where(ic + 1 < end, ke, ke_prev)
+            link_kd = wp.where(ic + 1 < end, kd, kd_prev)
+            for m in range(K):
+                a = model.tube_al_force[t, m]
+                if a >= 0:
+                    if control.al_active[wc, a] != 0:
+                        p = model.al_start[a] + (ic - start)
+                        al_slot[m] = p
+                        al_x[m] = state_in.al_q[wc, p]
+                        al_lo[m] = state_in.al_q_lo[wc, p]
+                        al_v[m] = state_in.al_qd[wc, p]
+                        way = al_lane_diagonal(ic, model.force_node[a], end)
+                        diagonal = float(0.0)
+                        if way == 1:
+                            diagonal = control.al_fwd_length[wc, p]
+                        elif way == 0:
+                            diagonal = control.al_bwd_length[wc, p + 1]
+                        al_dir[m] = way
+                        al_rest[m] = wp.vec3(control.al_link_length[wc, p], control.al_chord_length[wc, p], diagonal)
 
         span = int(slot)  # shared-memory scans: rounds while their stride is below the tube slot
         wl = lane % 32  # lane in its warp
