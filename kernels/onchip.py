@@ -267,9 +267,11 @@ def make_onchip_kernel(features: Features, block_dim: int, al_lines: int = 0, ma
             carry_z = wp.tile_zeros(shape=(B,), dtype=wp.vec2, storage="shared")
             carry_m = wp.tile_zeros(shape=(B,), dtype=float, storage="shared")
         for step in range(substep_count):
-            # 1. Positions (and velocities) out, neighbours' in: the previous node's position (px,
-            # plo) and the next's (nx, nlo, nv, and its line points'); at a tube's ends whatever the
-            # lane beside holds (shuffles) or this node's own (shared memory), never used there.
+            # 1. Positions (and velocities) out, neighbours' in: the next node's (nx, nlo, nv, and
+            # its line points') and, through shared memory, the previous node's position (px, plo;
+            # through shuffles edge i - 1 comes from the lane before instead); at a tube's ends
+            # whatever the lane beside holds (shuffles) or this node's own (shared memory), never
+            # used there.
             px = x
             plo = lo
             nx = x
@@ -279,8 +281,6 @@ def make_onchip_kernel(features: Features, block_dim: int, al_lines: int = 0, ma
             nal_lo = al_lo
             nal_v = al_v
             if wp.static(SHUFFLE):
-                sx = shfl_up3(x, 1)
-                slo = shfl_up3(lo, 1)
                 tx = shfl_down3(x, 1)
                 tlo = shfl_down3(lo, 1)
                 tv = v
@@ -295,8 +295,6 @@ def make_onchip_kernel(features: Features, block_dim: int, al_lines: int = 0, ma
                         t_al_lo[m] = shfl_down3(al_lo[m], 1)
                         if wp.static(SD):
                             t_al_v[m] = shfl_down3(al_v[m], 1)
-                px = sx
-                plo = slo
                 nx = tx
                 nlo = tlo
                 nv = tv
@@ -340,8 +338,11 @@ def make_onchip_kernel(features: Features, block_dim: int, al_lines: int = 0, ma
             if wp.static(not SD):  # velocities enter only with spring damping
                 nv = zero
                 nal_v = lines3()
-            e_prev = wp.where(has_prev, (x - px) + (lo - plo), zero)  # edge i - 1 (zero at a tube's first node)
             e = wp.where(has_next, (nx - x) + (nlo - lo), zero)  # edge i (zero at its last node)
+            if wp.static(SHUFFLE):  # edge i - 1 (zero at a tube's first node): the lane before's e, the same bits
+                e_prev = wp.where(has_prev, shfl_up3(e, 1), zero)
+            else:
+                e_prev = wp.where(has_prev, (x - px) + (lo - plo), zero)
 
             # 2. The structural spring, then the line springs, while the neighbours' values are
             # at hand (they are not kept through the frames and the bending stencil).
