@@ -16,11 +16,12 @@ LENGTHS = (16, 11, 3, 40)  # curves of one prim: a 3-point tube, and one longer 
 
 
 def batch_model(world_count=WORLDS, lengths=LENGTHS, curved=False, spring_damping=0.0, assistant_line=False, device="cpu",
-                curve_all=False, clamp_all=False):  # fmt: skip
+                curve_all=False, clamp_all=False, force_at=None):  # fmt: skip
     """Straight tubes of different lengths in one prim, with pins at both ends of the first, an
     anchor, gravity, mass damping and a point force; segment stiffness and damping vary by world.
     ``clamp_all``: every tube's first two points pinned too (curved tubes that cannot turn, whose
-    first frames the clamps fix: what every exchange runs)."""
+    first frames the clamps fix: what every exchange runs). ``force_at``: the pushed point's index
+    in the last tube (default its middle)."""
     pts = []
     for k, n in enumerate(lengths):
         s = np.linspace(0.0, 0.02 * (n - 1), n)
@@ -34,7 +35,8 @@ def batch_model(world_count=WORLDS, lengths=LENGTHS, curved=False, spring_dampin
         pinned=sorted({0, 1, int(starts[1] - 1)} | ({int(p) for a in starts[1:-1] for p in (a, a + 1)} if clamp_all else set())),
         anchors=anchors,
     )  # fmt: skip
-    force = ForceSpec("/World/F", 0, int(starts[-2] + lengths[-1] // 2), [0.0], [[0.0, 0.0, 0.01]], assistant_line=assistant_line)
+    at = lengths[-1] // 2 if force_at is None else force_at
+    force = ForceSpec("/World/F", 0, int(starts[-2] + at), [0.0], [[0.0, 0.0, 0.01]], assistant_line=assistant_line)
     scene = Scene((tube,), (force,), settings=SimulationSettings(gravity=(0.0, -9.81, 0.0)))
     model = build_model(scene, world_count=world_count, device=device)
     # Parameters per world (rows read at w % rows): both kernels must pick the world's row.
@@ -235,6 +237,25 @@ def test_onchip_with_active_lines_matches_per_tube(clamp_all):
     q_ref, _, al_ref, _ = run_with_lines(batch_model(**kw), onchip=False)
     q, _, al, solver = run_with_lines(batch_model(**kw), onchip=True)
     assert solver.onchip and np.abs(al_ref).max() > 0.1  # the lines exist (not the zeros of unused slots)
+    np.testing.assert_allclose(q, q_ref, rtol=0, atol=1e-6)
+    np.testing.assert_allclose(al, al_ref, rtol=0, atol=1e-6)
+
+
+@pytest.mark.parametrize("force_at", [0, 1, 6, 7])
+def test_onchip_line_springs_at_a_tube_s_ends_match_per_tube(force_at):
+    # The on-chip kernel evaluates each tractive spring on the thread of the edge it crosses
+    # (forward at and after the force point, the next point's backward spring before it), the
+    # per-tube kernel by line point; a push at a tube's first or last point (and next to them)
+    # makes every tractive spring of the tube forward or backward, and the force point's own
+    # four springs sit at the tube's end. Curved, spring-damped, unclamped 8-point tube with its
+    # line active from the start, on the CPU's blocks, 150 substeps: the same positions to
+    # float32 round-off (measured 3e-8 to 9e-8 m, positions ~0.3 m); 1e-6 m as above.
+    kw = dict(lengths=(16, 8), curved=True, spring_damping=1e-4, assistant_line=True, curve_all=True, force_at=force_at)
+    q_ref, _, al_ref, _ = run_with_lines(batch_model(**kw), onchip=False)
+    q, _, al, solver = run_with_lines(batch_model(**kw), onchip=True)
+    assert solver.onchip and np.abs(al_ref).max() > 0.1
+    moved = np.abs(q_ref - batch_model(**kw).host.node_rest_q[None]).max()
+    assert moved > 1e-4, moved  # the push and the line moved the tube: the comparison is not of rest states
     np.testing.assert_allclose(q, q_ref, rtol=0, atol=1e-6)
     np.testing.assert_allclose(al, al_ref, rtol=0, atol=1e-6)
 
