@@ -134,15 +134,27 @@ def turn_product(a: wp.vec2, b: wp.vec2) -> wp.vec2:
 
 
 @wp.func(inline=True)
+def unit_turn(z: wp.vec2) -> wp.vec2:
+    """Turn ``z`` (:func:`carried_twist`) normalised: a product of many turns drifts from unit
+    length by round-off (a zero ``z``, of degenerate edges, stays zero)."""
+    return z * (1.0 / wp.sqrt(wp.max(wp.dot(z, z), 1.0e-30)))
+
+
+@wp.func(inline=True)
 def turned(t: wp.vec3, n: wp.vec3, z: wp.vec2):
-    """Normal ``n`` of unit tangent ``t`` turned about it by ``z`` (:func:`carried_twist`), ``z``
-    normalised first (a product of many turns drifts from unit length by round-off). Returns the
-    turned normal ``u`` and ``t x u``."""
-    inv = 1.0 / wp.sqrt(wp.max(wp.dot(z, z), 1.0e-30))  # (a zero z, of degenerate edges, stays zero)
-    c = z[0] * inv
-    s = z[1] * inv
+    """Normal ``n`` of unit tangent ``t`` turned about it by ``z`` (:func:`unit_turn` of it).
+    Returns the turned normal ``u`` and ``t x u``."""
+    c = unit_turn(z)
     m = wp.cross(t, n)
-    return n * c + m * s, m * c - n * s
+    return n * c[0] + m * c[1], m * c[0] - n * c[1]
+
+
+@wp.func(inline=True)
+def turned_components(k: wp.vec3, c: wp.vec2) -> wp.vec3:
+    """Components ``k`` of a vector in the frame ``(t, u, t x u)`` whose normal ``u`` is ``n``
+    turned by unit turn ``c`` (:func:`turned`), as components in ``(t, n, t x n)``: the
+    vector without the turned frame itself."""
+    return wp.vec3(k[0], c[0] * k[1] - c[1] * k[2], c[1] * k[1] + c[0] * k[2])
 
 
 @wp.func

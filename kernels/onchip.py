@@ -63,7 +63,7 @@ import functools
 
 import warp as wp
 
-from .frames import carried_twist, edge_normal, turn_product, turned, twist_terms, twisted
+from .frames import carried_twist, edge_normal, turn_product, turned_components, twist_terms, twisted, unit_turn
 from .options import CUDA_OPTIONS
 from .warp_shuffle import shfl_down, shfl_down3, shfl_up, shfl_up2, shfl_up3, warp_prefix_turns, warp_suffix_sum, warp_suffix_sum2
 from .assistant_line import al_lane_diagonal, al_lane_forces
@@ -430,8 +430,8 @@ def make_onchip_kernel(features: Features, block_dim: int, al_lines: int = 0, ma
                     if has_prev and kb != 0.0:
                         z_prev = turns[rd, lane - 1]
                 if has_prev and kb != 0.0:
-                    u, v_frame = turned(t_p, n_p, z_prev)
-                    target = kappa_target(t_p, u, v_frame, kappa_rest)
+                    # (the rest curvature's components turned instead of the frame: the same target)
+                    target = kappa_target(t_p, n_p, wp.cross(t_p, n_p), turned_components(kappa_rest, unit_turn(z_prev)))
                 if wp.static(FREE):
                     # A tube whose first edge may turn: every target twisted by the angle that
                     # minimises its bending energy, the stencils' (A, B) summed over the tube by a

@@ -1,5 +1,5 @@
 """The on-chip kernel's Bishop frames by a product of turns (kernels/frames.py: edge_normal,
-carried_twist, turn_product, turned) against the frames carried edge to edge by the least rotation
+carried_twist, turn_product, turned, turned_components) against the frames carried edge to edge by the least rotation
 (rotate_minimal, the sequential form the per-tube kernel uses), on curves chosen to reach the
 formulas' edges: tangents turned back on the previous one (the half turn), tangents crossing the
 plane z = 0 (where edge_normal jumps) and pointing straight down."""
@@ -8,7 +8,8 @@ import numpy as np
 import pytest
 import warp as wp
 
-from warp_tube.kernels.frames import carried_twist, edge_normal, rotate_minimal, turn_product, turned
+from warp_tube.kernels.frames import carried_twist, edge_normal, rotate_minimal, turn_product, turned, turned_components, unit_turn
+from warp_tube.kernels.springs import kappa_target
 
 
 @wp.kernel(enable_backward=False)
@@ -81,3 +82,33 @@ def test_turns_give_the_frames_the_least_rotation_carries(name):
     # 1.1e-6 after the 200 edges of the helix); 1e-5 is some 100 ulp of a unit vector, where a turn
     # composed the wrong way round or of the wrong sign is off by O(1).
     np.testing.assert_allclose(by_turns, by_rotation, rtol=0, atol=1e-5)
+
+
+@wp.kernel(enable_backward=False)
+def targets_both_ways(t: wp.array[wp.vec3], z: wp.array[wp.vec2], k: wp.array[wp.vec3], by_frame: wp.array[wp.vec3],
+                      by_components: wp.array[wp.vec3]):  # fmt: skip
+    i = wp.tid()
+    n = edge_normal(t[i])
+    u, v = turned(t[i], n, z[i])
+    by_frame[i] = kappa_target(t[i], u, v, k[i])
+    by_components[i] = kappa_target(t[i], n, wp.cross(t[i], n), turned_components(k[i], unit_turn(z[i])))
+
+
+def test_turned_components_give_the_target_the_turned_frame_gives():
+    # The on-chip kernel rebuilds a bending target from the rest curvature's components turned by
+    # the edge's turn, in the edge's own frame (t, n, t x n), instead of from the turned frame:
+    # the same vector. Random unit tangents (some straight down, where edge_normal switches),
+    # turns of any length (normalised by both), components up to 3 in size: measured 4.8e-7
+    # apart; 2e-6 is ~8 ulp of the largest, where a sign or a swapped component is off by O(1).
+    rng = np.random.default_rng(5)
+    t = rng.normal(0.0, 1.0, (400, 3))
+    t[:4] = [[0.0, 0.0, -1.0], [0.0, 0.0, 1.0], [1e-4, 0.0, -1.0], [1.0, 0.0, 0.0]]
+    t /= np.linalg.norm(t, axis=1, keepdims=True)
+    z = rng.normal(0.0, 1.0, (400, 2)) * rng.uniform(0.5, 2.0, (400, 1))
+    k = rng.uniform(-3.0, 3.0, (400, 3))
+    arrays = [wp.array(a.astype(np.float32), dtype=d, device="cpu") for a, d in ((t, wp.vec3), (z, wp.vec2), (k, wp.vec3))]
+    out = [wp.zeros(400, dtype=wp.vec3, device="cpu") for _ in range(2)]
+    wp.launch(targets_both_ways, dim=400, inputs=arrays, outputs=out, device="cpu")
+    by_frame, by_components = (o.numpy().astype(np.float64) for o in out)
+    assert np.abs(by_frame).max() > 1.0  # targets of the components' size
+    np.testing.assert_allclose(by_components, by_frame, rtol=0, atol=2e-6)
