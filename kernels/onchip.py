@@ -565,9 +565,9 @@ def make_onchip_kernel(features: Features, block_dim: int, al_lines: int = 0, ma
             pinned = im == 0.0
             x_pin, v_pin = pin_step(x_pin0, x_pin1, float(step + 1) / float(substep_count), x, dt)
             x_free, lo_free, v_free = advance(x, lo, v, f, im, alpha, dt)
-            x = wp.where(active, wp.where(pinned, x_pin, x_free), x)
-            lo = wp.where(active, wp.where(pinned, zero, lo_free), lo)
-            v = wp.where(active, wp.where(pinned, v_pin, v_free), v)
+            x = wp.where(pinned, x_pin, x_free)  # (an idle lane steps too: nothing of it is read or stored)
+            lo = wp.where(pinned, zero, lo_free)
+            v = wp.where(pinned, v_pin, v_free)
             if wp.static(K > 0):
                 for m in range(K):
                     if al_slot[m] >= 0:
