@@ -391,14 +391,9 @@ def make_onchip_kernel(features: Features, block_dim: int, al_lines: int = 0, ma
                 else:
                     t_p = wp.normalize(e_prev)
                     n_p = edge_normal(t_p)
-                z = wp.vec2(1.0, 0.0)
-                if active and i < end - 1:
-                    t_from = t_rest
-                    n_from = u_rest
-                    if i > start:
-                        t_from = t_p
-                        n_from = n_p
-                    z = carried_twist(t_from, n_from, t_e, n_e)
+                # (on every lane, the last node's and idle lanes' turn chosen away: no branch)
+                z = carried_twist(wp.where(has_prev, t_p, t_rest), wp.where(has_prev, n_p, u_rest), t_e, n_e)
+                z = wp.where(has_next, z, wp.vec2(1.0, 0.0))
                 z_prev = z
                 if wp.static(SCAN_SHUFFLE):
                     z = warp_prefix_turns(z, back)
