@@ -424,16 +424,16 @@ def make_onchip_kernel(features: Features, block_dim: int, al_lines: int = 0, ma
                         d = d * 2
                     if has_prev and kb != 0.0:
                         z_prev = turns[rd, lane - 1]
-                if has_prev and kb != 0.0:
-                    # (the rest curvature's components turned instead of the frame: the same target)
-                    target = kappa_target(t_p, n_p, wp.cross(t_p, n_p), turned_components(kappa_rest, unit_turn(z_prev)))
+                # A stencil's target on every lane, chosen where there is a stencil (the rest
+                # curvature's components turned instead of the frame: the same target).
+                has_stencil = has_prev and kb != 0.0
+                target = wp.where(has_stencil, kappa_target(t_p, n_p, wp.cross(t_p, n_p), turned_components(kappa_rest, unit_turn(z_prev))), zero)
                 if wp.static(FREE):
                     # A tube whose first edge may turn: every target twisted by the angle that
                     # minimises its bending energy, the stencils' (A, B) summed over the tube by a
                     # suffix scan and read at its first node (springs.curvature_targets).
-                    ab = wp.vec2(0.0)
-                    if has_prev and kb != 0.0 and free_tube:
-                        ab = twist_terms(t_p, target, curvature_binormal(e_prev, e), kb)
+                    turns_here = has_stencil and free_tube
+                    ab = wp.where(turns_here, twist_terms(t_p, target, curvature_binormal(e_prev, e), kb), wp.vec2(0.0))
                     total = wp.vec2(0.0)
                     if wp.static(SHUFFLE):  # (the same sums in the same order, through registers)
                         ab = warp_suffix_sum2(ab, fwd)
@@ -451,10 +451,8 @@ def make_onchip_kernel(features: Features, block_dim: int, al_lines: int = 0, ma
                             d = d * 2
                         if has_prev and kb != 0.0 and free_tube:
                             total = sums[rd, lane - (i - start)]
-                    if has_prev and kb != 0.0 and free_tube:
-                        if total[0] != 0.0 or total[1] != 0.0:
-                            cs = total / wp.length(total)  # (cos, sin) of psi = atan2(B, A)
-                            target = twisted(t_p, target, cs[0], cs[1])
+                    cs = total / wp.length(total)  # (cos, sin) of psi = atan2(B, A) (NaN for a zero total: not chosen)
+                    target = wp.where(turns_here and (total[0] != 0.0 or total[1] != 0.0), twisted(t_p, target, cs[0], cs[1]), target)
 
             # 4. The bending stencil at i, its frame terms, the node terms.
             ga = zero
