@@ -452,7 +452,8 @@ def make_onchip_kernel(features: Features, block_dim: int, al_lines: int = 0, ma
                         if has_prev and kb != 0.0 and free_tube:
                             total = sums[rd, lane - (i - start)]
                     cs = total / wp.length(total)  # (cos, sin) of psi = atan2(B, A) (NaN for a zero total: not chosen)
-                    target = wp.where(turns_here and (total[0] != 0.0 or total[1] != 0.0), twisted(t_p, target, cs[0], cs[1]), target)
+                    turned_target = wp.where(total[0] != 0.0 or total[1] != 0.0, twisted(t_p, target, cs[0], cs[1]), target)
+                    target = wp.where(turns_here, turned_target, target)
 
             # 4. The bending stencil at i, its frame terms, the node terms.
             ga = zero
