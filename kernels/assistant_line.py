@@ -54,20 +54,6 @@ def al_springs(i: int, k: int, start: int, end: int) -> wp.vec4i:
 
 
 @wp.func
-def al_spring_params(springs: wp.vec4i, this: float, prev: float) -> wp.vec4:
-    """A parameter of each of a line point's springs (:func:`al_springs`) from that of segment
-    ``i`` (``this``) and ``i - 1`` (``prev``): stiffness [N/m] or damping [N s/m], zero where
-    there is no spring."""
-    return wp.vec4(al_segment(springs[0], this, prev), al_segment(springs[1], this, prev), al_segment(springs[2], this, prev), al_segment(springs[3], this, prev))
-
-
-@wp.func
-def al_spring_force(d: Mat43, dv: Mat43, rest_length: wp.vec4, ke: wp.vec4, kd: wp.vec4, s: int):
-    """Force [N] of a line point's spring ``s`` on the point (:func:`al_point_forces`)."""
-    return spring_force(d[s], dv[s], type(d[0, 0])(rest_length[s]), type(d[0, 0])(ke[s]), type(d[0, 0])(kd[s]))
-
-
-@wp.func
 def al_lane_diagonal(i: int, k: int, end: int) -> int:
     """Which tractive spring crosses from node ``i`` of a tube (nodes ``..end-1``) pushed at node
     ``k`` to node ``i + 1``: each such pair has exactly one (:func:`al_springs`): 1, the forward
@@ -109,13 +95,14 @@ def al_point_forces(springs: wp.vec4i, d: Mat43, dv: Mat43, rest_length: wp.vec4
     on neighbour ``s`` (zero where there is no spring). The per-tube and implicit kernels' form (a
     thread per tube); the on-chip kernel shares the springs among the threads of a tube
     (:func:`al_lane_forces`)."""
-    ke4 = al_spring_params(springs, ke, ke_prev)
-    kd4 = al_spring_params(springs, kd, kd_prev)
     r = type(d)()
     f = r[0]
     for s in range(AL_SPRINGS):
         if springs[s] != 0:
-            fs = al_spring_force(d, dv, rest_length, ke4, kd4, s)
+            fs = spring_force(
+                d[s], dv[s], type(d[0, 0])(rest_length[s]),
+                type(d[0, 0])(al_segment(springs[s], ke, ke_prev)), type(d[0, 0])(al_segment(springs[s], kd, kd_prev)),
+            )  # fmt: skip
             f = f + fs
             r[s] = -fs
     return f, r
@@ -149,10 +136,7 @@ def al_point_energy(springs: wp.vec4i, d: Mat43, d0: Mat43, rest_length: wp.vec4
 
 @wp.func
 def al_segment(code: int, this: float, prev: float) -> float:
-    """The parameter of segment ``i`` (code 1) or ``i - 1`` (code 2) (:func:`al_springs`); zero
-    where there is no spring (code 0)."""
+    """The parameter of segment ``i`` (code 1) or ``i - 1`` (code 2) (:func:`al_springs`)."""
     if code == 2:
         return prev
-    if code == 0:
-        return type(this)(0.0)
     return this

@@ -141,19 +141,10 @@ def unit_turn(z: wp.vec2) -> wp.vec2:
 
 
 @wp.func(inline=True)
-def turned(t: wp.vec3, n: wp.vec3, z: wp.vec2):
-    """Normal ``n`` of unit tangent ``t`` turned about it by ``z`` (:func:`unit_turn` of it).
-    Returns the turned normal ``u`` and ``t x u``."""
-    c = unit_turn(z)
-    m = wp.cross(t, n)
-    return n * c[0] + m * c[1], m * c[0] - n * c[1]
-
-
-@wp.func(inline=True)
 def turned_components(k: wp.vec3, c: wp.vec2) -> wp.vec3:
-    """Components ``k`` of a vector in the frame ``(t, u, t x u)`` whose normal ``u`` is ``n``
-    turned by unit turn ``c`` (:func:`turned`), as components in ``(t, n, t x n)``: the
-    vector without the turned frame itself."""
+    """Components ``k`` of a vector in the frame ``(t, u, t x u)`` whose normal ``u`` is normal
+    ``n`` of unit tangent ``t`` turned about it by unit turn ``c`` (``u = c[0] n + c[1] t x n``),
+    as components in ``(t, n, t x n)``: the vector without forming the turned frame."""
     return wp.vec3(k[0], c[0] * k[1] - c[1] * k[2], c[1] * k[1] + c[0] * k[2])
 
 

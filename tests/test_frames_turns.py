@@ -1,5 +1,5 @@
 """The on-chip kernel's Bishop frames by a product of turns (kernels/frames.py: edge_normal,
-carried_twist, turn_product, turned, turned_components) against the frames carried edge to edge by the least rotation
+carried_twist, turn_product, unit_turn, turned_components) against the frames carried edge to edge by the least rotation
 (rotate_minimal, the sequential form the per-tube kernel uses), on curves chosen to reach the
 formulas' edges: tangents turned back on the previous one (the half turn), tangents crossing the
 plane z = 0 (where edge_normal jumps) and pointing straight down."""
@@ -8,8 +8,17 @@ import numpy as np
 import pytest
 import warp as wp
 
-from warp_tube.kernels.frames import carried_twist, edge_normal, rotate_minimal, turn_product, turned, turned_components, unit_turn
+from warp_tube.kernels.frames import carried_twist, edge_normal, rotate_minimal, turn_product, turned_components, unit_turn
 from warp_tube.kernels.springs import kappa_target
+
+
+@wp.func
+def turned(t: wp.vec3, n: wp.vec3, z: wp.vec2):
+    """Normal ``n`` of unit tangent ``t`` turned about it by turn ``z`` (normalised): the turned
+    normal ``u`` and ``t x u``, the Bishop frame the scan of turns stands for."""
+    c = unit_turn(z)
+    m = wp.cross(t, n)
+    return n * c[0] + m * c[1], m * c[0] - n * c[1]
 
 
 @wp.kernel(enable_backward=False)
