@@ -31,8 +31,9 @@ state and parameters into registers once, then for every substep
    ``pin_q_end`` over the frame) and its line points in registers;
 
 and after the last substep stores the state once. Writing an element of a shared tile ends in a
-block barrier (Warp), and every thread of the block writes each tile once a round (inactive
-lanes write zeros), so each exchange costs one barrier and no tile is overwritten while read.
+block barrier (Warp), and every thread of the block writes each tile once a round (an idle
+lane, past its block's tubes or worlds, writes the values of a real node that no active lane
+reads), so each exchange costs one barrier and no tile is overwritten while read.
 
 With ``exchange="shuffle"`` (CUDA, where the host's layout puts every tube within one warp of
 32 lanes) the same exchanges go through registers instead (:mod:`.warp_shuffle`): each lane
@@ -395,6 +396,7 @@ def make_onchip_kernel(features: Features, block_dim: int, al_lines: int = 0, ma
                 z = carried_twist(wp.where(has_prev, t_p, t_rest), wp.where(has_prev, n_p, u_rest), t_e, n_e)
                 z = wp.where(has_next, z, wp.vec2(1.0, 0.0))
                 z_prev = z
+                has_stencil = has_prev and kb != 0.0  # (a stencil at i: edges i - 1 and i)
                 if wp.static(SCAN_SHUFFLE):
                     z = warp_prefix_turns(z, back)
                     carried = wp.vec2(1.0, 0.0)
@@ -422,11 +424,10 @@ def make_onchip_kernel(features: Features, block_dim: int, al_lines: int = 0, ma
                         rd = 1 - rd
                         turns[rd, lane] = z
                         d = d * 2
-                    if has_prev and kb != 0.0:
+                    if has_stencil:
                         z_prev = turns[rd, lane - 1]
                 # A stencil's target on every lane, chosen where there is a stencil (the rest
                 # curvature's components turned instead of the frame: the same target).
-                has_stencil = has_prev and kb != 0.0
                 target = wp.where(has_stencil, kappa_target(t_p, n_p, wp.cross(t_p, n_p), turned_components(kappa_rest, unit_turn(z_prev))), zero)
                 if wp.static(FREE):
                     # A tube whose first edge may turn: every target twisted by the angle that
@@ -449,7 +450,7 @@ def make_onchip_kernel(features: Features, block_dim: int, al_lines: int = 0, ma
                             rd = 1 - rd
                             sums[rd, lane] = ab
                             d = d * 2
-                        if has_prev and kb != 0.0 and free_tube:
+                        if turns_here:
                             total = sums[rd, lane - (i - start)]
                     cs = total / wp.length(total)  # (cos, sin) of psi = atan2(B, A) (NaN for a zero total: not chosen)
                     turned_target = wp.where(total[0] != 0.0 or total[1] != 0.0, twisted(t_p, target, cs[0], cs[1]), target)
@@ -466,9 +467,10 @@ def make_onchip_kernel(features: Features, block_dim: int, al_lines: int = 0, ma
             if wp.static(CURVED):
                 first_edge = active and i == start and i < end - 1
             if wp.static(BENDING):
-                # On every lane (no branch to split the warp): where kb = 0 (a tube's ends, idle
-                # lanes) the gradients are zero, and kappa is used only where a stencil or a
-                # first edge is (zero edges give finite values: the lengths are floored).
+                # On every lane (no branch to split the warp): where kb = 0 (a tube's ends) the
+                # gradients are zero, an idle lane's are never read, and kappa is used only where
+                # a stencil or a first edge is (zero edges give finite values: the lengths are
+                # floored).
                 ga, gb, kappa = bend_gradients(wp.where(first_edge, t_rest, e_prev), e, target, kb)
             grad_a = zero
             grad_b = zero
