@@ -110,3 +110,39 @@ def test_a_source_that_does_not_fit_its_columns_is_refused():
             assert "does not fit" in str(e)
         else:
             raise AssertionError(f"columns {cols} taken for a source of 4")
+
+
+def test_windows_buffers_reused_once_copied_back(monkeypatch):
+    """A window copied back gives its device buffers to a later window (of this store or the next
+    chunk's) instead of new ones; the frames are the same. With one window in flight at a time,
+    every third window waits for the first's copy and takes its buffers: two sets for four windows."""
+    monkeypatch.setattr(framestore, "MAX_WINDOWS_IN_FLIGHT", 1)
+    monkeypatch.setattr(framestore, "_window_memory", lambda device: 1e9)  # (room for windows in flight)
+    monkeypatch.setattr(framestore, "_free_windows", {})
+    taken = []
+    window_buffers = framestore._window_buffers
+
+    def counted(device, shapes):
+        b = window_buffers(device, shapes)
+        taken.append(id(b))
+        return b
+
+    monkeypatch.setattr(framestore, "_window_buffers", counted)
+    host = {"centerline": np.zeros((7, 2, 5, 3), dtype=np.float32)}
+    ref = frames(5, 7, 2, 5)
+    store = FrameStore(host, "cpu", window_bytes=2 * 2 * 5 * 12, staged=True)  # windows of 2 frames
+    for f in range(7):
+        store.store(f, "centerline", wp.array(ref[f], dtype=wp.vec3, device="cpu"))
+    store.finish().result()
+    assert np.array_equal(host["centerline"], ref)
+    assert len(taken) == 4 and len(set(taken)) == 2, taken  # (4 windows: frames 0-1, 2-3, 4-5, 6)
+    # the next store of these shapes starts in a kept window, and writes the same frames
+    again = FrameStore(host, "cpu", window_bytes=2 * 2 * 5 * 12, staged=True)
+    assert id(again.buffers) in taken
+    host["centerline"][:] = 0.0
+    for f in range(7):
+        again.store(f, "centerline", wp.array(ref[f], dtype=wp.vec3, device="cpu"))
+    again.finish().result()
+    assert np.array_equal(host["centerline"], ref)
+    framestore.release_windows()
+    assert framestore._free_windows == {}
