@@ -165,7 +165,7 @@ def warn_forced(variants, choices) -> None:
 
 def checked_run_choices(variants, keep=None) -> list:
     """Each variant's integrator and substeps alone; a variant whose settings no integrator takes
-    (e.g. implicit Euler with an assistant line) is a bad row, reported with the others.
+    (a timeStep that makes more substeps a frame than any run takes) is a bad row, reported with the others.
     ``keep``: a :class:`~warp_tube.batch.nodes.KeptNodes` for their per-node parameters, or None."""
     from .variants import MAX_PROBLEMS
 
