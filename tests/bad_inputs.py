@@ -357,6 +357,7 @@ def cases() -> list[Case]:
     ext("-o with a non-USD extension", ["mesh.ply", "-o", "scene.json"])
     ext("-o in a folder that does not exist", ["mesh.ply", "-o", "nowhere/s.usda"])
     ext("--hubs 1", ["mesh.ply", "-o", "s.usda", "--hubs", "1"])
+    ext("--hubs 2 (both hubs at the ends)", ["mesh.ply", "-o", "s.usda", "--hubs", "2"])
     ext("--spokes 2", ["mesh.ply", "-o", "s.usda", "--spokes", "2"])
     ext("--scale with two values", ["mesh.ply", "-o", "s.usda", "--scale", "1", "2"])
     ext("--scale 0", ["mesh.ply", "-o", "s.usda", "--scale", "0"])

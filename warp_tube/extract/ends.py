@@ -124,6 +124,17 @@ def is_terminal(dm: dmap.DistanceMap, voxel: int, loop: BoundaryLoop | FlatCut) 
     return int((np.bincount(label) >= max(3, 0.05 * len(shell))).sum()) <= 1
 
 
+def _reversed(p_a: np.ndarray, p_b: np.ndarray) -> bool:
+    """Whether the tube from ``p_a`` to ``p_b`` (its two ends) runs backwards: its ends are taken in
+    the order of their coordinates along the axis they lie farthest apart on. Which end a search
+    reached first hangs on round-off (the two ways between them are equally long): taken as it
+    came, a mesh and the same mesh saved again in another format, or with its vertices moved by a
+    nanometre, gave a tube run the other way, its spokes and push turned with it."""
+    d = np.asarray(p_b, dtype=np.float64) - np.asarray(p_a, dtype=np.float64)
+    k = int(np.argmax(np.abs(d)))
+    return bool(d[k] < 0.0)
+
+
 def choose_ends(dm: dmap.DistanceMap, loops: list[BoundaryLoop], cuts: list[FlatCut] = ()) -> EndChoice:
     """The tube's two ends (see the module).
 
@@ -178,6 +189,8 @@ def choose_ends(dm: dmap.DistanceMap, loops: list[BoundaryLoop], cuts: list[Flat
         d_a = dmap.shortest_tree(dm.length_graph, a)[0]
         b = int(np.argmax(np.where(np.isfinite(d_a), d_a, -1.0)))
         end_a = end_b = None
+    if _reversed(dm.points[a], dm.points[b]):
+        a, b, end_a, end_b = b, a, end_b, end_a
     used = [e for e in (end_a, end_b) if e is not None]
     return EndChoice(
         a, b, end_a, end_b, [cand[i] for i in terminal if isinstance(cand[i], BoundaryLoop)],

@@ -413,7 +413,7 @@ def _unfolded(mesh: trimesh.Trimesh) -> np.ndarray:
     return np.einsum("ij,ij->i", side[0], side[1]) < 0.0
 
 
-def flat_cuts(mesh: trimesh.Trimesh, min_area: float, angle_deg: float = 1.0) -> list[FlatCut]:
+def flat_cuts(mesh: trimesh.Trimesh, min_area: float, angle_deg: float = 1.0, depth=None) -> list[FlatCut]:
     """Planar patches of ``mesh`` of at least ``min_area``, largest first.
 
     Faces are grouped with their neighbours when their normals differ by less than ``angle_deg``
@@ -425,7 +425,10 @@ def flat_cuts(mesh: trimesh.Trimesh, min_area: float, angle_deg: float = 1.0) ->
     cut across a tube of five sides or more has three faces at least), groups whose bordering faces
     turn less than about 53 degrees away from them on average (a facet of a faceted wall, not a seal
     meeting the wall at a crease), patches much longer than wide (area below 0.3 pi times the
-    square of their largest distance from the centre: flat strips of a straight wall), and the
+    square of their largest distance from the centre, the ``reach``: flat strips of a straight
+    wall; but where ``depth`` is given, one of area down to 0.1 pi reach^2 that the mesh lies
+    behind for two reaches or more along its normal is kept: the seal of a flattened tube, up to
+    about 10:1, against a strip of a prism's wall, whose tube is narrower than the strip is long), and the
     terraces of a staircase (a surface made of voxel faces, whose rounded tip has a flat top):
     patches with faces parallel to them all round, just out of their plane
     (:func:`_is_terrace`; a seal meets the tube's wall there, across it).
@@ -486,8 +489,22 @@ def flat_cuts(mesh: trimesh.Trimesh, min_area: float, angle_deg: float = 1.0) ->
     for p in patches:
         reach = float(np.linalg.norm(p["corners"] - p["centre"], axis=1).max())
         # A cut across a tube is about as wide as it is long (a disc or an ellipse); a flat strip
-        # of a faceted wall is long and thin.
-        if p["faces"] >= _SEAL_FACES and p["area"] >= min_area and p["area"] >= 0.3 * np.pi * reach**2 and \
-                not _is_terrace(p, n, area, c, cos):  # fmt: skip
-            out.append(FlatCut(p["centre"], p["normal"], p["area"], float(np.sqrt(p["area"] / np.pi))))
+        # of a faceted wall is long and thin, and so is the seal of a flattened tube: the mesh
+        # behind the seal runs along the tube, behind the strip only across it.
+        if p["faces"] < _SEAL_FACES or p["area"] < min_area or p["area"] < 0.1 * np.pi * reach**2 or \
+                _is_terrace(p, n, area, c, cos):  # fmt: skip
+            continue
+        if p["area"] < 0.3 * np.pi * reach**2 and (depth is None or _depth_behind(p, reach, depth) < 2.0 * reach):
+            continue
+        out.append(FlatCut(p["centre"], p["normal"], p["area"], float(np.sqrt(p["area"] / np.pi))))
     return sorted(out, key=lambda x: -x.area)
+
+
+def _depth_behind(patch: dict, reach: float, depth) -> float:
+    """How far the mesh lies behind flat ``patch`` along its normal: the longer of the rays from
+    just off its centre along the normal either way (``depth(origins, dirs)``: hit distances, -1 on
+    a miss)."""
+    c, nrm = patch["centre"], patch["normal"]
+    eps = 1e-3 * reach
+    hits = np.asarray(depth(np.stack([c + eps * nrm, c - eps * nrm]), np.stack([nrm, -nrm])), dtype=np.float64)
+    return float(hits.max())

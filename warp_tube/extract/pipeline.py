@@ -75,19 +75,28 @@ _MAX_EDGE_FRACTION = 1.0 / 32.0
 
 
 def _refined(m: trimesh.Trimesh) -> trimesh.Trimesh:
-    """A coarse ``m`` (its median edge longer than :data:`_MAX_EDGE_FRACTION` of its bounds'
-    diagonal) with every edge longer than that split: the same surface, finer triangles. The
+    """A coarse ``m`` with every edge longer than :data:`_MAX_EDGE_FRACTION` of its bounds'
+    diagonal split: the same surface, finer triangles. Coarse: half the edges' total length is in
+    edges longer than that (their length-weighted median), as in a box of 12 triangles, or a
+    cylinder or capsule whose wall has vertices at its end rings only (whatever its length: its few
+    long edges hold most of the length, however many short ones its rings and caps have). The
     extraction samples the wall at the mesh's vertices (the radius estimate, the fit of the rebuilt
-    surface): a box of 12 triangles, or a cylinder with vertices at its end rings only, is then
-    sampled as a fine mesh of the same shape would be. Any other mesh comes back as it is (a fine
-    mesh's few long edges, e.g. across a flat cut, are left alone)."""
+    surface): such a mesh is then sampled as a fine mesh of the same shape would be. Any other mesh
+    comes back as it is (a fine mesh's few long edges, e.g. across a flat cut, are left alone)."""
     limit = _MAX_EDGE_FRACTION * float(np.linalg.norm(m.bounds[1] - m.bounds[0]))
-    if not len(m.edges_unique) or float(np.median(m.edges_unique_length)) <= limit:
+    if not len(m.edges_unique) or _weighted_median(np.asarray(m.edges_unique_length, dtype=np.float64)) <= limit:
         return m
     v, f = trimesh.remesh.subdivide_to_size(m.vertices, m.faces, max_edge=limit, max_iter=16)
     out = trimesh.Trimesh(v, f, process=False)
     out.merge_vertices()  # (the new vertices on an edge two faces share, once)
     return out
+def _weighted_median(lengths: np.ndarray) -> float:
+    """The length-weighted median of ``lengths``: half their total is in lengths at least this."""
+    x = np.sort(lengths)
+    total = np.cumsum(x)
+    return float(x[np.searchsorted(total, 0.5 * total[-1])])
+
+
 AUTO_FIDELITY = (0.03, 0.12, 0.35)
 """Default hub count: from one hub per mean radius, 1.5 times more until the mesh's vertices (ends
 and side branches left out) lie within these fractions of the mean radius (mean, 99th percentile,
@@ -260,7 +269,7 @@ def extract_centerline(
 
     Args:
         mesh: the tube surface [mesh units]; open or capped ends, either face orientation.
-        hubs: number of hubs N >= 2. Default: from :func:`default_hub_count` (one per mean radius)
+        hubs: number of hubs N >= 3. Default: from :func:`default_hub_count` (one per mean radius)
             up, 1.5 times more each try, until the simulator's rest surface meets
             :data:`AUTO_FIDELITY` both ways (at most :data:`MAX_AUTO_HUBS`). With a given count
             that misses the bounds of the README (4 % / 15 % / 40 %), a warning names the figures.
@@ -283,8 +292,10 @@ def extract_centerline(
     t_start = time.perf_counter()
     timings: dict[str, float] = {}
     src = source or str(getattr(mesh, "metadata", {}).get("file_name", "<mesh>"))
-    if hubs is not None and int(hubs) < 2:
-        raise SceneError(f"hubs {hubs}: expected an integer >= 2")
+    if hubs is not None and int(hubs) < 3:
+        # (two hubs are the tube's two ends, where its section is not measured: rays across a cut
+        # or an open end meet no wall)
+        raise SceneError(f"hubs {hubs}: expected an integer >= 3 (the tube's radius is measured at hubs between its ends)")
     if spokes is not None and not 3 <= int(spokes) <= 1024:
         raise SceneError(f"spokes {spokes}: expected an integer from 3 to 1024")
     spokes = None if spokes is None else int(spokes)
@@ -331,7 +342,8 @@ def extract_centerline(
     if opened is not None:
         choice, graph = opened.choice, opened.graph
     else:
-        choice, graph = choose_ends(dm, end_size, flat_cuts(m, _CUT_AREA * np.pi * r_med**2)), dm.centred_graph
+        cuts = flat_cuts(m, _CUT_AREA * np.pi * r_med**2, depth=lambda o, d: q.rays(q.closed, o, d, 2.0 * diag))
+        choice, graph = choose_ends(dm, end_size, cuts), dm.centred_graph
     if choice.others:  # openings that are not ends are part of the tube's wall: closed, like holes
         q = MeshQueries(*cap_loops(m, holes + choice.others), closed_v, closed_f, device, raw=(m.vertices, m.faces))
     cdist, pred, _ = dmap.shortest_tree(graph, choice.a)
