@@ -7,6 +7,7 @@ import pytest
 import trimesh
 
 from warp_tube.extract.pipeline import extract_centerline
+from warp_tube.extract.tube_check import tube_warnings
 from warp_tube.extract.usd import section_radius
 from warp_tube.scene.spec import SceneError
 
@@ -129,3 +130,36 @@ def test_two_hubs_are_refused():
     mesh = trimesh.creation.cylinder(radius=0.01, height=0.2, sections=32)
     with pytest.raises(SceneError, match=r"hubs 2: expected an integer >= 3"):
         extract_centerline(mesh, hubs=2)
+
+
+def test_faces_of_no_area_along_an_edge_are_no_pieces(caplog):
+    """A face of no area on an edge of the mesh (its third corner on that edge) joins the mesh at
+    the edge only, a third face there, and fell into a component of its own: the extraction warned
+    of "3 connected components" of a mesh in one piece. Such pieces are dropped without a warning
+    (an info line counts them); the tube is as without them (1e-9 m)."""
+    import logging
+
+    mesh = trimesh.creation.cylinder(radius=0.01, height=0.2, sections=32)
+    v, f = np.asarray(mesh.vertices), np.asarray(mesh.faces)
+    extra_v, extra_f = [], []
+    for a, b, _ in f[::17][:5]:
+        extra_v.append(0.5 * (v[a] + v[b]))
+        extra_f.append([a, len(v) + len(extra_v) - 1, b])
+    slivered = trimesh.Trimesh(np.vstack([v, extra_v]), np.vstack([f, extra_f]), process=False)
+    with caplog.at_level(logging.INFO, logger="warp_tube"):
+        tube = extract_centerline(slivered, hubs=9)
+    assert not [r for r in caplog.records if r.levelno >= logging.WARNING and "component" in r.getMessage()]
+    assert any("of no area left out" in r.getMessage() for r in caplog.records)
+    plain = extract_centerline(mesh, hubs=9)
+    np.testing.assert_allclose(tube.points, plain.points, atol=1e-9)
+
+
+def test_a_stub_s_unmeasured_fit_is_said_for_what_it_is():
+    """A cylinder two radii long, finely meshed: the fit leaves out the mesh within one end radius
+    of either end, here all of it. The warning said to subdivide the mesh (it was fine already);
+    it now says the tube is no longer than its two end radii."""
+    mesh = trimesh.creation.cylinder(radius=1.0, height=2.0, sections=48)
+    v, f = trimesh.remesh.subdivide_to_size(mesh.vertices, mesh.faces, 0.1)
+    tube = extract_centerline(trimesh.Trimesh(v, f))
+    said = " ".join(tube_warnings(tube, tube.fidelity))  # (as `warp-tube extract` checks what it wrote)
+    assert "no more than its two end radii" in said and "subdivide" not in said, said

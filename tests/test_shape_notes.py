@@ -46,7 +46,11 @@ STRAIGHT = np.stack([np.arange(21.0), np.zeros(21), np.zeros(21)], 1)
     ("fold 170", _with_points(_folded(170.0)), ["turns by 170 degrees at point 10", "132x stiffer"]),
     ("fold 150", _with_points(_folded(150.0)), []),  # (15x: measured to settle within 0.05% of a fine step)
     # points in metres in a centimetre stage: 0.2 cm long, 2 cm wide
-    ("points in metres", _with_points(STRAIGHT * 0.01), ["curve 0 is 0.002 m long and 0.02 m wide: shorter than its diameter"]),
+    ("points in metres", _with_points(STRAIGHT * 0.01), ["curve 0 is 0.002 m long and 0.02 m wide: shorter than its diameter",
+                                                          "are the points and widths in the same units"]),
+    # a stub 1.6 cm long and 2 cm wide, as made (a unit's mix-up is off by 10x or more): no unit asked about
+    ("a stub", _with_points(STRAIGHT * 0.08), ["curve 0 is 0.016 m long and 0.02 m wide: shorter than its diameter (a body "
+                                               "this stubby is modelled only roughly by a centerline"]),
     # 1 km from the origin in cm: float32 steps of 1e5 x 2^-23 = 0.0119 cm, 1.2% of a 1 cm segment
     ("far from the origin", _with_points(STRAIGHT + [1e5, 0.0, 0.0]), ["float32 points carry them in steps of 1.2% of a segment"]),
     # the same tube placed there by its parent's transform (double precision): nothing to warn of
@@ -66,6 +70,13 @@ def test_a_rest_shape_that_will_not_simulate_as_meant_is_warned_of(case, text, w
     if not words:
         for w in ("turns by", "shorter than its diameter", "float32 points", "a returning spring on a pinned", "both authored"):
             assert w not in said, (case, said)
+
+
+def test_a_stub_is_not_taken_for_a_units_mix_up(tmp_path, caplog):
+    """A tube 0.8 of its diameter long is a stub as made: units mixed up would put it 10x or more
+    off (centimetres for metres: 100x), so the warning does not ask about units (it did)."""
+    said = _messages(tmp_path, _with_points(STRAIGHT * 0.08), caplog)
+    assert "shorter than its diameter" in said and "same units" not in said, said
 
 
 @pytest.mark.parametrize("name", ["default.usda", "cantilever.usda", "intestine.usda"])

@@ -70,7 +70,16 @@ def largest_component(mesh: trimesh.Trimesh, labels: np.ndarray, source: str) ->
         v = mesh.vertices[np.unique(mesh.faces[labels == c])]
         return f"{counted(faces[c], 'face', fmt=',')}, {float(np.linalg.norm(np.ptp(v, axis=0))):.3g} m across"
 
-    dropped = order[1:]
+    # Pieces of no area (degenerate faces along an edge of the mesh, which join it at that edge
+    # only, a third face there) are no part of the surface: dropped without a warning.
+    flat = area[order[1:]] <= 1e-9 * total
+    none = order[1:][flat]
+    if len(none):
+        log.info("%s: %s of no area left out (degenerate faces joined to the mesh at an edge only)", source,
+                 counted(int(faces[none].sum()), "face", fmt=","))  # fmt: skip
+    dropped = order[1:][~flat]
+    if not len(dropped):
+        return keep
     if len(dropped) <= 3:
         left = "; ".join(described(int(c)) for c in dropped)
     else:
@@ -81,6 +90,6 @@ def largest_component(mesh: trimesh.Trimesh, labels: np.ndarray, source: str) ->
         pieces = ("; the mesh falls into many small pieces: are its triangles' shared corners apart (each triangle "
                   "its own corners, not welded)?")  # fmt: skip
     log.warning("%s: %s; kept the largest by surface area (%s, %.3g%% of the area); left out: %s%s", source,
-                counted(len(area), "connected component", fmt=","), described(keep), 100.0 * area[keep] / total,
+                counted(1 + len(dropped), "connected component", fmt=","), described(keep), 100.0 * area[keep] / total,
                 left, pieces)  # fmt: skip
     return keep

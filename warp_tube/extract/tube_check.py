@@ -60,11 +60,19 @@ def tube_warnings(tube, fidelity=None, automatic_hubs: bool = True, units: str =
     r = float(tube.radius.mean())
     length = tube.length
     if fidelity is not None and fidelity.to_surface.counted == 0:
-        out.append(
-            "the fit of the rebuilt surface could not be measured: no mesh vertex lies away from the tube's ends "
-            "(a mesh with vertices only at its end rings, such as a plain cylinder, has none); subdivide the mesh "
-            "along its length" + (" or pass --hubs N" if automatic_hubs else "")
-        )
+        if tube.length <= tube.ends[0].radius + tube.ends[1].radius:
+            # (the fit leaves out the mesh within one end radius of either end: here all of it)
+            out.append(
+                f"the fit of the rebuilt surface could not be measured: the tube is {tube.length:.3g} {units} long between "
+                f"its end hubs, no more than its two end radii ({tube.ends[0].radius:.3g} and {tube.ends[1].radius:.3g} "
+                f"{units}), within which the fit leaves the mesh out"
+            )
+        else:
+            out.append(
+                "the fit of the rebuilt surface could not be measured: no mesh vertex lies away from the tube's ends "
+                "(a mesh with vertices only at its end rings, such as a plain cylinder, has none); subdivide the mesh "
+                "along its length" + (" or pass --hubs N" if automatic_hubs else "")
+            )
     per_radius = (tube.hubs - 1) * r / length if length > 0 else math.inf
     if automatic_hubs and per_radius > MAX_HUBS_PER_RADIUS:
         out.append(

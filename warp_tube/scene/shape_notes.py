@@ -5,7 +5,8 @@
   160, x131 at 170): the tube creeps, settles short or blows up near the fold (the stability bound is that of
   a straight tube). Points around the turn (a fold whose radius is at least the tube's) fix it.
 - A tube shorter than its diameter: points and widths in different units, as a rule (points in
-  metres in a centimetre stage).
+  metres in a centimetre stage), where it is shorter than a quarter of it; else a stub, which a
+  centerline (a slender rod) models only roughly.
 - Coordinates far from the origin for the spacing of the points: ``point3f`` is float32, whose
   steps at a coordinate ``x`` are ``x 2^-23``; where they exceed :data:`FLOAT32_SHARE` of the
   shortest segment the rest lengths are off by that much before the run starts.
@@ -79,8 +80,12 @@ def warn_about_shape(where: str, local: np.ndarray, world_m: np.ndarray, counts:
     short = length < diameter
     if short.any():
         c = int(np.argmax(short))
-        log.warning("%s: curve %d is %.3g m long and %.3g m wide: shorter than its diameter (are the points and widths "
-                    "in the same units, the stage's metersPerUnit?)", where, c, length[c], diameter[c])  # fmt: skip
+        # (points and widths in different units are off by 10x or more; a tube about as long as it
+        # is wide is what its author made: a stub, which the slender rod of a centerline fits roughly)
+        why = ("are the points and widths in the same units, the stage's metersPerUnit?" if length[c] < 0.25 * diameter[c]
+               else "a body this stubby is modelled only roughly by a centerline, a slender rod")  # fmt: skip
+        log.warning("%s: curve %d is %.3g m long and %.3g m wide: shorter than its diameter (%s)", where, c, length[c],
+                    diameter[c], why)  # fmt: skip
     seg_local = np.linalg.norm(np.diff(local, axis=0), axis=1)[inside] if len(seg) else np.zeros(0)
     if len(seg_local):
         step = float(np.abs(local).max()) * 2.0**-23
