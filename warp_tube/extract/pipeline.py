@@ -90,6 +90,8 @@ def _refined(m: trimesh.Trimesh) -> trimesh.Trimesh:
     out = trimesh.Trimesh(v, f, process=False)
     out.merge_vertices()  # (the new vertices on an edge two faces share, once)
     return out
+
+
 def _weighted_median(lengths: np.ndarray) -> float:
     """The length-weighted median of ``lengths``: half their total is in lengths at least this."""
     x = np.sort(lengths)
