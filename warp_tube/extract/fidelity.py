@@ -182,7 +182,7 @@ class Fidelity:
 
     Attributes:
         to_surface: from the input's vertices to the surface (branches and ends left out).
-        to_input: from the surface's vertices to the input (all of them).
+        to_input: from the surface's vertices to the input (those across a side branch's mouth left out).
         rings_to_input: from the body rings' vertices to the input (caps left out): what the hub
             count can change.
         mean_radius: mean spoke length [mesh units].
@@ -234,16 +234,23 @@ def measured_vertices(points, radius_first: float, radius_last: float, vertices,
     step = 0.125 * min(radius_first, radius_last)
     dist_line, arc = nearest_on_polyline(verts, line, step)
     total = arclength(line)[-1]
-    keep = (arc > radius_first) & (arc < total - radius_last)
+    keep = (arc > radius_first) & (arc < total - radius_last) & off_branches(verts, dist_line, branch_paths, step)
+    for point, normal, radius in seals:
+        rel = verts - np.asarray(point)
+        keep &= ~((np.abs(rel @ np.asarray(normal)) <= 0.02 * radius) & (np.linalg.norm(rel, axis=1) <= 2.0 * radius))
+    return keep
+
+
+def off_branches(verts: np.ndarray, dist_line: np.ndarray, branch_paths, step: float) -> np.ndarray:
+    """Which points ``verts`` (V, 3) lie no nearer to a side branch's path than to the centerline
+    (their distances from it ``dist_line``, (V,)), bool (V,); ``step``: the paths' sampling."""
+    keep = np.ones(len(verts), dtype=bool)
     for path in branch_paths:
         path = np.asarray(path, dtype=np.float64).reshape(-1, 3)
         if len(path) > 1:
             keep &= ~(nearest_on_polyline(verts, path, step)[0] < dist_line)
         elif len(path) == 1:
             keep &= ~(np.linalg.norm(verts - path[0], axis=1) < dist_line)
-    for point, normal, radius in seals:
-        rel = verts - np.asarray(point)
-        keep &= ~((np.abs(rel @ np.asarray(normal)) <= 0.02 * radius) & (np.linalg.norm(rel, axis=1) <= 2.0 * radius))
     return keep
 
 
@@ -256,7 +263,9 @@ def fidelity_of(
     Args:
         points, spoke_lengths, reference_normal, caps: the tube as the scene holds it.
         tips: the two points where the mesh ends, shape (2, 3) (default: the end hubs).
-        branch_paths: side branches' paths (their vertices are not counted towards the surface).
+        branch_paths: side branches' paths, a bridged one's from the centerline point where it
+            leaves (their vertices are not counted towards the surface, nor the surface's vertices
+            nearer to them than to the centerline, across their mouths, towards the mesh).
         seals: the planes of flat faces sealing cut ends (see :func:`measured_vertices`).
         surface: the frame-0 surface when already built (:func:`rest_surface`).
         wall: ``(vertices, triangles)`` the surface's vertices are measured against (default: the
@@ -270,13 +279,19 @@ def fidelity_of(
     keep = measured_vertices(points, end_r[0], end_r[-1], vertices, tips, branch_paths, seals)
     d_in = mesh_distances(np.asarray(vertices)[keep], surf.points, surf.faces, device)
     d_out = mesh_distances(surf.points, *(wall if wall is not None else (vertices, faces)), device)
+    # (the surface across a side branch's mouth has no wall of the tube to meet: left out as the
+    # branch's own vertices are the other way)
+    line = points if tips is None else np.concatenate([np.asarray(tips[0])[None], points, np.asarray(tips[1])[None]])
+    step = 0.125 * min(end_r[0], end_r[-1])
+    out = off_branches(surf.points, nearest_on_polyline(surf.points, line, step)[0], branch_paths, step) \
+        if len(branch_paths) else np.ones(len(d_out), dtype=bool)  # fmt: skip
     ring = surf.ring_lengths(points)
     ratios = ring.max(axis=1) / np.maximum(ring.min(axis=1), 1e-300)
     body = surf.hubs * surf.spokes
     return Fidelity(
         to_surface=Distances.of(d_in, radius, int((~keep).sum())),
-        to_input=Distances.of(d_out, radius),
-        rings_to_input=Distances.of(d_out[:body], radius, len(d_out) - body),
+        to_input=Distances.of(d_out[out], radius, int((~out).sum())),
+        rings_to_input=Distances.of(d_out[:body][out[:body]], radius, len(d_out) - int(out[:body].sum())),
         mean_radius=radius,
         end_ratios=(float(ratios[0]), float(ratios[-1])),
         guard_moved=float(surf.guard_moves().max() / radius),
@@ -306,7 +321,9 @@ def surface_fidelity(tube: ExtractedTube, mesh: trimesh.Trimesh, device=None, *,
             through the public API).
     """
     tips = np.stack([e.tip for e in tube.ends])
+    paths = [np.vstack([tube.points[b.junction_hub][None], b.path]) if b.bridged else b.path
+             for b in tube.branch_details]  # (as the extraction measured them)
     return fidelity_of(tube.points, tube.spoke_lengths, tube.reference_normal, tube.caps, mesh.vertices, mesh.faces,
-                       tips=tips, branch_paths=[b.path for b in tube.branch_details], device=device, surface=surface,
+                       tips=tips, branch_paths=paths, device=device, surface=surface,
                        seals=[e.seal for e in tube.ends if e.seal is not None],
                        wall=closed_openings(tube, mesh))  # fmt: skip

@@ -61,7 +61,7 @@ from .mesh_io import BoundaryLoop, boundary_loops, cap_loops, clean_mesh, flat_c
 from .polyline import arclength, project_points, resample, resample_spline, smooth
 from .queries import MeshQueries
 from .scale import rough_scale, tube_scale
-from .sections import measure_spokes, open_rays, recentre, recentre_hubs
+from .sections import bridged_branch, measure_spokes, open_rays, recentre, recentre_hubs
 
 __all__ = ["ExtractedTube", "TubeEnd", "Branch", "Opening", "extract_centerline", "default_hub_count", "AUTO_FIDELITY"]
 
@@ -90,6 +90,12 @@ def _refined(m: trimesh.Trimesh) -> trimesh.Trimesh:
     out = trimesh.Trimesh(v, f, process=False)
     out.merge_vertices()  # (the new vertices on an edge two faces share, once)
     return out
+
+
+def _branch_radius(q: MeshQueries, path: np.ndarray, diag: float) -> float:
+    """A side branch's radius [mesh units]: the largest distance from the wall of its points
+    (``path``: its inside voxels beyond the tube's cover, or the points of a cut one)."""
+    return float(q.distance(path, diag).max()) if len(path) else 0.0
 
 
 def _weighted_median(lengths: np.ndarray) -> float:
@@ -148,11 +154,14 @@ class Branch:
         junction_hub: index of the hub nearest to where the branch's centre path meets the tube.
         length: branch centre-path length from the junction to its tip [mesh units].
         path: the branch's centre path beyond the main tube's surface [mesh units], shape (k, 3).
+        bridged: the tube's sections by its junction were bridged over its mouth
+            (:func:`~warp_tube.extract.sections.bridged_branch`).
     """
 
     junction_hub: int
     length: float
     path: np.ndarray
+    bridged: bool = False
 
 
 @dataclass(frozen=True)
@@ -397,6 +406,12 @@ def extract_centerline(
     dense_spokes, _ = measure_spokes(q, dense, d_ref, 16, diag)
     found = find_branches(dm, voxel_path, dense, dense_spokes.max(axis=1), np.median(dense_spokes, axis=1),
                           choice.others)
+    r_dense = np.median(dense_spokes, axis=1)
+    bridged = [fb for fb in found
+               if bridged_branch(fb.length, _branch_radius(q, fb.path, diag), float(np.median(r_dense)))]  # fmt: skip
+    if bridged:  # the hubs' sections by such a branch's junction leave its mouth out
+        at = np.array([fb.junction for fb in bridged])
+        q.junctions = (dense[at], r_dense[at])
     timings["branches"] = time.perf_counter() - t0
 
     t0 = time.perf_counter()
@@ -405,9 +420,12 @@ def extract_centerline(
     max_hubs = int(min(MAX_AUTO_HUBS, max(8, np.floor(length / (_MIN_SPACING * r_med)) + 1)))
     tips = np.stack([ends[0][1], ends[1][1]])
     branch_paths = [fb.path for fb in found]
+    # (a bridged branch's path from the axis: its root, in its mouth, counts with the branch, not
+    # with the tube's wall that the surface runs across it)
+    rooted = [np.vstack([dense[fb.junction][None], fb.path]) if any(fb is b for b in bridged) else fb.path for fb in found]
     verts = np.asarray(m.vertices)
     end_radius = dense_spokes.mean(axis=1)
-    counted = measured_vertices(dense, end_radius[0], end_radius[-1], verts, tips, branch_paths, seals)
+    counted = measured_vertices(dense, end_radius[0], end_radius[-1], verts, tips, rooted, seals)
     n = int(hubs) if hubs is not None else default_hub_count(length, r_med)
     tried = []
     while True:
@@ -440,7 +458,7 @@ def extract_centerline(
     kept = rings.keep_guard_clear(q, rings.rest_rings(q, points, spokes, caps, diag, device, turn), caps, diag,
                                   verts[counted], device, turn)  # fmt: skip
     points, spoke_len, ref, valid = kept.points, kept.lengths, kept.reference_normal, kept.valid
-    fid = fidelity_of(points, spoke_len, ref, caps, m.vertices, m.faces, tips=tips, branch_paths=branch_paths,
+    fid = fidelity_of(points, spoke_len, ref, caps, m.vertices, m.faces, tips=tips, branch_paths=rooted,
                       seals=seals, device=device, wall=cap_loops(m, choice.others))  # fmt: skip
     ring = None if opened is None else ring_cut(m, points, spoke_len, tips, branch_paths)
     timings["hubs"] = time.perf_counter() - t0
@@ -453,7 +471,7 @@ def extract_centerline(
             log.info("%s: the rest of the closed ring, from hub %d, %.4g long: left out of the tube", src, jh,
                      fb.length)
             continue
-        branches.append(Branch(jh, fb.length, fb.path + shift))
+        branches.append(Branch(jh, fb.length, fb.path + shift, any(fb is b for b in bridged)))
         log.info("%s: side branch (%s) at hub %d, %.4g long: left out of the tube", src, fb.kind, jh, fb.length)
     openings = _openings(choice.others, spoke_len, hub_tree, src)
     radius = spoke_len.mean(axis=1)

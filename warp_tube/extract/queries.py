@@ -40,6 +40,10 @@ class MeshQueries:
         #: whether the tube's sections are flat (:mod:`warp_tube.extract.flat`): ray hits on their long
         #: sides belong to them (:func:`warp_tube.extract.sections.ring_hits`)
         self.flat = False
+        #: where long, narrow side branches leave the tube: ``(centres (k, 3), reach (k,))`` [mesh
+        #: units], or None; sections within reach of one are not measured but bridged
+        #: (:func:`warp_tube.extract.sections.near_junction`)
+        self.junctions = None
 
     def _mesh(self, v, f):
         pts = wp.array(np.asarray(v, dtype=np.float32), dtype=wp.vec3, device=self.device)

@@ -36,7 +36,7 @@ from ..scene.shape_notes import turning_angles
 from .polyline import resample_spline, smooth, tangents
 from .queries import MeshQueries
 
-__all__ = ["OUTLIER_RATIO", "wall_hits", "ring_hits", "open_rays", "fill_around", "section_offsets", "recentre", "measure_spokes",
+__all__ = ["OUTLIER_RATIO", "BRIDGED_LENGTH", "BRIDGED_WIDTH", "bridged_branch", "near_junction", "wall_hits", "ring_hits", "open_rays", "fill_around", "section_offsets", "recentre", "measure_spokes",
            "plane_basis", "recentre_hubs", "fit_polygon", "FIT_RAYS"]
 
 OUTLIER_RATIO = 2.5
@@ -99,7 +99,41 @@ def ring_hits(q: MeshQueries, points: np.ndarray, dirs: np.ndarray, diag: float)
     valid &= t <= OUTLIER_RATIO * np.where(np.isnan(med), np.inf, med)[:, None]
     if getattr(q, "flat", False):
         valid |= wall & _across(t, wall, dfb)
+    valid[near_junction(q, points)] = False  # (bridged from the sections on either side)
     return t, valid, dfb
+
+
+BRIDGED_LENGTH = 3.0
+"""A side branch at least this many of the tube's radii long (from its junction) and at most
+:data:`BRIDGED_WIDTH` of the tube's radius has the tube's sections within one radius of its junction
+bridged over its mouth (:func:`near_junction`). Shorter ones (a stub, a pouch of the wall: 1.3-1.8
+radii on the colon and the coronary arteries of ``../shared/data/meshes``) and wider ones (loops of
+a coiled tube touching it, as in the jejunum there) are measured as they are: bridging those made
+their fit worse (largest misses 20 -> 40 %, 27 -> 71 %)."""
+BRIDGED_WIDTH = 0.8
+"""See :data:`BRIDGED_LENGTH` (a vessel's side branch is narrower than its trunk)."""
+
+
+def bridged_branch(length: float, width: float, radius: float) -> bool:
+    """Whether a side branch ``length`` long and ``width`` in radius, leaving a tube of ``radius``
+    (all in one unit), has the tube's sections bridged over its mouth (:data:`BRIDGED_LENGTH`)."""
+    return bool(length >= BRIDGED_LENGTH * radius and width <= BRIDGED_WIDTH * radius)
+
+
+def near_junction(q: MeshQueries, points: np.ndarray) -> np.ndarray:
+    """Which ``points`` lie within reach of a side branch's junction (``MeshQueries.junctions``),
+    bool (n,). Their sections are not measured: rays there run into the branch's mouth, by less
+    than :data:`OUTLIER_RATIO` where the branch is narrow or leaves at a slant, and pulled a hub
+    towards it (0.28 radii, its ring 13 % wider, for a branch of 0.6 the tube's radius at 45
+    degrees); the tube's wall is taken to run across the mouth as it runs on either side
+    (:func:`recentre_hubs`, :func:`measure_spokes`)."""
+    out = np.zeros(len(points), dtype=bool)
+    near = getattr(q, "junctions", None)
+    if near is not None and len(near[0]) and len(points):
+        centres, reach = near
+        d = np.linalg.norm(np.asarray(points, dtype=np.float64)[:, None, :] - centres[None], axis=2)
+        out = (d <= reach[None]).any(axis=1)
+    return out
 
 
 def _across(t: np.ndarray, wall: np.ndarray, dfb: np.ndarray) -> np.ndarray:
@@ -360,4 +394,21 @@ def recentre_hubs(q: MeshQueries, points: np.ndarray, diag: float, scale: float,
             offset = gaussian_filter1d(offset, sigma, axis=0, mode="nearest")
             offset[~move] = 0.0
         p += offset
-    return p
+    return _bridged(p, near_junction(q, p))
+
+
+def _bridged(p: np.ndarray, skip: np.ndarray) -> np.ndarray:
+    """Hubs ``p`` with those of ``skip`` (near a side branch's junction) moved onto the cubic spline
+    through the others (by hub index), where at least two hubs on each side of them remain."""
+    if not skip.any():
+        return p
+    from scipy.interpolate import CubicSpline
+
+    keep = np.flatnonzero(~skip)
+    inner = np.flatnonzero(skip)
+    inner = inner[(inner > keep[1]) & (inner < keep[-2])] if len(keep) >= 4 else inner[:0]
+    if len(inner) == 0:
+        return p
+    out = p.copy()
+    out[inner] = CubicSpline(keep, p[keep], axis=0)(inner)
+    return out
