@@ -227,9 +227,7 @@ def measured_vertices(points, radius_first: float, radius_last: float, vertices,
     that seal a cut end (``seals``: ``(point, unit normal, radius)`` of each; within 2 % of the radius
     of the plane and two radii of the point), which a trimmed end leaves open.
     """
-    line = np.asarray(points, dtype=np.float64)
-    if tips is not None:
-        line = np.concatenate([np.asarray(tips[0])[None], line, np.asarray(tips[1])[None]])
+    line = _with_tips(points, tips)
     verts = np.asarray(vertices, dtype=np.float64)
     step = 0.125 * min(radius_first, radius_last)
     dist_line, arc = nearest_on_polyline(verts, line, step)
@@ -239,6 +237,23 @@ def measured_vertices(points, radius_first: float, radius_last: float, vertices,
         rel = verts - np.asarray(point)
         keep &= ~((np.abs(rel @ np.asarray(normal)) <= 0.02 * radius) & (np.linalg.norm(rel, axis=1) <= 2.0 * radius))
     return keep
+
+
+def _with_tips(points, tips) -> np.ndarray:
+    """The centerline ``points`` (n, 3), extended by ``tips`` (the two points where the mesh ends)
+    when given."""
+    line = np.asarray(points, dtype=np.float64)
+    if tips is None:
+        return line
+    return np.concatenate([np.asarray(tips[0], dtype=np.float64)[None], line, np.asarray(tips[1], dtype=np.float64)[None]])
+
+
+def measured_branch_path(path: np.ndarray, root: np.ndarray, bridged: bool) -> np.ndarray:
+    """A side branch's path as the fit leaves it out: ``path`` (k, 3), beyond the tube's wall, or
+    for a branch whose mouth the tube's sections were bridged over, from ``root``, the centerline
+    point where it leaves (its root, in its mouth, counts with the branch, not with the tube's
+    wall that the surface runs across it)."""
+    return np.vstack([np.asarray(root, dtype=np.float64)[None], path]) if bridged else path
 
 
 def off_branches(verts: np.ndarray, dist_line: np.ndarray, branch_paths, step: float) -> np.ndarray:
@@ -281,9 +296,8 @@ def fidelity_of(
     d_out = mesh_distances(surf.points, *(wall if wall is not None else (vertices, faces)), device)
     # (the surface across a side branch's mouth has no wall of the tube to meet: left out as the
     # branch's own vertices are the other way)
-    line = points if tips is None else np.concatenate([np.asarray(tips[0])[None], points, np.asarray(tips[1])[None]])
     step = 0.125 * min(end_r[0], end_r[-1])
-    out = off_branches(surf.points, nearest_on_polyline(surf.points, line, step)[0], branch_paths, step) \
+    out = off_branches(surf.points, nearest_on_polyline(surf.points, _with_tips(points, tips), step)[0], branch_paths, step) \
         if len(branch_paths) else np.ones(len(d_out), dtype=bool)  # fmt: skip
     ring = surf.ring_lengths(points)
     ratios = ring.max(axis=1) / np.maximum(ring.min(axis=1), 1e-300)
@@ -321,8 +335,7 @@ def surface_fidelity(tube: ExtractedTube, mesh: trimesh.Trimesh, device=None, *,
             through the public API).
     """
     tips = np.stack([e.tip for e in tube.ends])
-    paths = [np.vstack([tube.points[b.junction_hub][None], b.path]) if b.bridged else b.path
-             for b in tube.branch_details]  # (as the extraction measured them)
+    paths = [measured_branch_path(b.path, tube.points[b.junction_hub], b.bridged) for b in tube.branch_details]
     return fidelity_of(tube.points, tube.spoke_lengths, tube.reference_normal, tube.caps, mesh.vertices, mesh.faces,
                        tips=tips, branch_paths=paths, device=device, surface=surface,
                        seals=[e.seal for e in tube.ends if e.seal is not None],

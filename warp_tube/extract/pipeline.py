@@ -56,7 +56,7 @@ from .branches import find_branches
 from .closed_ring import RingCut, is_closed_ring, open_ring, ring_cut
 from .flat import ALIGN_ASPECT, SPOKES, default_spokes, long_axis_turn, section_aspect, turned_normal
 from .ends import choose_ends, cut_closed_tail, fit_closed_end, settle_end, trim_open_end
-from .fidelity import Distances, Fidelity, fidelity_of, measured_vertices, mesh_distances, plain_surface
+from .fidelity import Distances, Fidelity, fidelity_of, measured_branch_path, measured_vertices, mesh_distances, plain_surface
 from .mesh_io import BoundaryLoop, boundary_loops, cap_loops, clean_mesh, flat_cuts
 from .polyline import arclength, project_points, resample, resample_spline, smooth
 from .queries import MeshQueries
@@ -407,10 +407,9 @@ def extract_centerline(
     found = find_branches(dm, voxel_path, dense, dense_spokes.max(axis=1), np.median(dense_spokes, axis=1),
                           choice.others)
     r_dense = np.median(dense_spokes, axis=1)
-    bridged = [fb for fb in found
-               if bridged_branch(fb.length, _branch_radius(q, fb.path, diag), float(np.median(r_dense)))]  # fmt: skip
-    if bridged:  # the hubs' sections by such a branch's junction leave its mouth out
-        at = np.array([fb.junction for fb in bridged])
+    bridged = [bridged_branch(fb.length, _branch_radius(q, fb.path, diag), float(np.median(r_dense))) for fb in found]
+    if any(bridged):  # the hubs' sections by such a branch's junction leave its mouth out
+        at = np.array([fb.junction for fb, b in zip(found, bridged) if b])
         q.junctions = (dense[at], r_dense[at])
     timings["branches"] = time.perf_counter() - t0
 
@@ -420,9 +419,7 @@ def extract_centerline(
     max_hubs = int(min(MAX_AUTO_HUBS, max(8, np.floor(length / (_MIN_SPACING * r_med)) + 1)))
     tips = np.stack([ends[0][1], ends[1][1]])
     branch_paths = [fb.path for fb in found]
-    # (a bridged branch's path from the axis: its root, in its mouth, counts with the branch, not
-    # with the tube's wall that the surface runs across it)
-    rooted = [np.vstack([dense[fb.junction][None], fb.path]) if any(fb is b for b in bridged) else fb.path for fb in found]
+    rooted = [measured_branch_path(fb.path, dense[fb.junction], b) for fb, b in zip(found, bridged)]
     verts = np.asarray(m.vertices)
     end_radius = dense_spokes.mean(axis=1)
     counted = measured_vertices(dense, end_radius[0], end_radius[-1], verts, tips, rooted, seals)
@@ -471,7 +468,7 @@ def extract_centerline(
             log.info("%s: the rest of the closed ring, from hub %d, %.4g long: left out of the tube", src, jh,
                      fb.length)
             continue
-        branches.append(Branch(jh, fb.length, fb.path + shift, any(fb is b for b in bridged)))
+        branches.append(Branch(jh, fb.length, fb.path + shift, bridged[k]))
         log.info("%s: side branch (%s) at hub %d, %.4g long: left out of the tube", src, fb.kind, jh, fb.length)
     openings = _openings(choice.others, spoke_len, hub_tree, src)
     radius = spoke_len.mean(axis=1)

@@ -36,8 +36,9 @@ from ..scene.shape_notes import turning_angles
 from .polyline import resample_spline, smooth, tangents
 from .queries import MeshQueries
 
-__all__ = ["OUTLIER_RATIO", "BRIDGED_LENGTH", "BRIDGED_WIDTH", "bridged_branch", "near_junction", "wall_hits", "ring_hits", "open_rays", "fill_around", "section_offsets", "recentre", "measure_spokes",
-           "plane_basis", "recentre_hubs", "fit_polygon", "FIT_RAYS"]
+__all__ = ["OUTLIER_RATIO", "BRIDGED_LENGTH", "BRIDGED_WIDTH", "bridged_branch", "near_junction", "wall_hits", "ring_hits",
+           "open_rays", "fill_around", "section_offsets", "recentre", "measure_spokes", "plane_basis", "recentre_hubs",
+           "fit_polygon", "FIT_RAYS"]
 
 OUTLIER_RATIO = 2.5
 """A hit longer than this times the median of its ring's valid hits does not belong to the section,
