@@ -117,14 +117,34 @@ def edge_normal(t: wp.vec3) -> wp.vec3:
 
 
 @wp.func(inline=True)
-def carried_twist(a: wp.vec3, x: wp.vec3, b: wp.vec3, n: wp.vec3) -> wp.vec2:
-    """The turn about unit tangent ``b`` from its unit normal ``n`` to ``p``, the normal ``x`` of
-    unit tangent ``a`` carried onto ``b`` by :func:`rotate_minimal`, as the unit complex number
-    ``(cos, sin)``: ``p = cos n + sin (b x n)``. Turns compose by complex product
-    (:func:`turn_product`), so a tube's Bishop normals are its edges' :func:`edge_normal` turned by
-    a scan of products: a pair of scalars where the frames' rotations would be quaternions."""
-    p = rotate_minimal(a, b, x)
-    return wp.vec2(wp.dot(n, p), wp.dot(wp.cross(b, n), p))
+def edge_binormal(t: wp.vec3) -> wp.vec3:
+    """``t x edge_normal(t)`` for unit ``t``: the second vector of the same basis (Duff et al.),
+    without a cross product; ``(0, 1, 0)`` for a zero ``t``."""
+    sign = wp.sign(t[2])
+    a = -1.0 / (sign + t[2])
+    return wp.vec3(t[0] * t[1] * a, sign + t[1] * t[1] * a, -t[1])
+
+
+@wp.func(inline=True)
+def carried_twist(a: wp.vec3, x: wp.vec3, b: wp.vec3, n: wp.vec3, m: wp.vec3) -> wp.vec2:
+    """The turn about unit tangent ``b`` from its unit normal ``n`` (``m = b x n``) to ``p``, the
+    normal ``x`` of unit tangent ``a`` carried onto ``b`` by the least rotation
+    (:func:`rotate_minimal`), as the unit complex number ``(cos, sin)``: ``p = cos n + sin m``.
+    Turns compose by complex product (:func:`turn_product`), so a tube's Bishop normals are its
+    edges' :func:`edge_normal` turned by a scan of products: a pair of scalars where the frames'
+    rotations would be quaternions.
+
+    For ``x`` normal to ``a`` the least rotation is ``p = x - (x . b) / (1 + a . b) (a + b)`` (it
+    keeps what is normal to both tangents and turns the rest in their plane), so that
+    ``n . p = n . x - s n . a`` and ``m . p = m . x - s m . a`` with ``s = (x . b) / (1 + a . b)``
+    (``n . b = m . b = 0``); a half turn (``1 + a . b`` below :data:`ANTIPARALLEL_EPS`) takes
+    :func:`rotate_minimal`'s."""
+    c = wp.dot(a, b)
+    if c < -1.0 + ANTIPARALLEL_EPS:
+        p = rotate_minimal(a, b, x)
+        return wp.vec2(wp.dot(n, p), wp.dot(m, p))
+    s = wp.dot(x, b) / (1.0 + c)
+    return wp.vec2(wp.dot(n, x) - s * wp.dot(n, a), wp.dot(m, x) - s * wp.dot(m, a))
 
 
 @wp.func(inline=True)

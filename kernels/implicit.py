@@ -47,6 +47,7 @@ from .springs import (
     bend_jacobians,
     curvature_targets,
     frame_forces,
+    frame_left,
     make_node_terms,
     node_terms_have_blocks,
     pin_step,
@@ -549,8 +550,9 @@ def make_implicit_kernel(features: Features, al_lines: int = 0):
                     state_out.al_q[w, ref[1]] = state_in.al_q[w, ref[1]]
                     state_out.al_q_lo[w, ref[1]] = state_in.al_q_lo[w, ref[1]]
                     state_out.al_qd[w, ref[1]] = state_in.al_qd[w, ref[1]]
+        inv_count = 1.0 / float(substep_count)
         for step in range(substep_count):
-            frac = float(step + 1) / float(substep_count)
+            left = frame_left(step, substep_count, inv_count)
             # Start of the substep: x0, v0; the first iterate y = x0, v_it = 0, pins at their targets.
             for u in range(start * PER_NODE, end * PER_NODE):
                 ref = unknown(model, control, w, t, start, u)
@@ -562,7 +564,7 @@ def make_implicit_kernel(features: Features, al_lines: int = 0):
                 scratch.v_it[w, u] = wp.vec3d(wp.float64(0.0))
                 i = ref[1]
                 if ref[0] == 0 and model.node_inv_mass[pw, i] == 0.0:
-                    x_pin, v_pin = pin_step(control.pin_q_start[w, i], control.pin_q_end[w, i], frac, x0, h)
+                    x_pin, v_pin = pin_step(control.pin_q_start[w, i], control.pin_q_end[w, i], left, x0, wp.float64(1.0) / h)
                     state_out.node_qd[w, i] = wp.vec3(v_pin)
                     state_out.node_q[w, i] = x_pin
                     state_out.node_q_lo[w, i] = wp.vec3(0.0)

@@ -35,6 +35,7 @@ from .springs import (
     bend_gradients,
     curvature_targets,
     frame_forces,
+    frame_left,
     make_node_terms,
     node_delta,
     pack,
@@ -137,8 +138,10 @@ def make_kernels(features: Features):
                         state_out.al_q[w, p] = state_in.al_q[w, p]
                         state_out.al_q_lo[w, p] = state_in.al_q_lo[w, p]
                         state_out.al_qd[w, p] = state_in.al_qd[w, p]
+        inv_count = 1.0 / float(substep_count)
+        inv_dt = 1.0 / dt
         for step in range(substep_count):
-            frac = float(step + 1) / float(substep_count)
+            left = frame_left(step, substep_count, inv_count)
             if wp.static(CURVED):
                 curvature_targets(w, pw, start, end, node_q, node_q_lo, model.node_rest_q, model.node_kappa_rest, model.node_bend_k,
                                   model.node_inv_mass, node_kappa_target)
@@ -186,7 +189,7 @@ def make_kernels(features: Features):
             for i in range(start, end):
                 im = node_inv_mass[pw, i]
                 if im == 0.0:
-                    x_new, v_new = pin_step(control.pin_q_start[w, i], control.pin_q_end[w, i], frac, node_q[w, i], dt)
+                    x_new, v_new = pin_step(control.pin_q_start[w, i], control.pin_q_end[w, i], left, node_q[w, i], inv_dt)
                     node_qd[w, i] = v_new
                     node_q[w, i] = x_new
                     node_q_lo[w, i] = wp.vec3(0.0)

@@ -64,7 +64,7 @@ import functools
 
 import warp as wp
 
-from .frames import carried_twist, edge_normal, turn_product, turned_components, twist_terms, twisted, unit_turn
+from .frames import carried_twist, edge_binormal, edge_normal, turn_product, turned_components, twist_terms, twisted, unit_turn
 from .options import CUDA_OPTIONS
 from .warp_shuffle import shfl_down, shfl_down3, shfl_up, shfl_up2, shfl_up3, warp_prefix_turns, warp_suffix_sum, warp_suffix_sum2
 from .assistant_line import al_lane_diagonal, al_lane_forces
@@ -73,10 +73,12 @@ from .springs import (
     Features,
     ModelArrays,
     StateArrays,
-    bend_gradients,
-    curvature_binormal,
+    bend_gradients_unit,
+    curvature_binormal_unit,
+    edge_tangent,
     first_edge_free,
     first_edge_normal,
+    frame_left,
     holonomy_stencil,
     kappa_target,
     make_node_terms,
@@ -267,6 +269,8 @@ def make_onchip_kernel(features: Features, block_dim: int, al_lines: int = 0, ma
         if wp.static(CURVED and MIXED):
             carry_z = wp.tile_zeros(shape=(B,), dtype=wp.vec2, storage="shared")
             carry_m = wp.tile_zeros(shape=(B,), dtype=float, storage="shared")
+        inv_count = 1.0 / float(substep_count)
+        inv_dt = 1.0 / dt
         for step in range(substep_count):
             # 1. Positions (and velocities) out, neighbours' in: the next node's (nx, nlo, nv, and
             # its line points') and, through shared memory, the previous node's position (px, plo;
@@ -340,10 +344,48 @@ def make_onchip_kernel(features: Features, block_dim: int, al_lines: int = 0, ma
                 nv = zero
                 nal_v = lines3()
             e = wp.where(has_next, (nx - x) + (nlo - lo), zero)  # edge i (zero at its last node)
-            if wp.static(SHUFFLE):  # edge i - 1 (zero at a tube's first node): the lane before's e, the same bits
-                e_prev = wp.where(has_prev, shfl_up3(e, 1), zero)
-            else:
-                e_prev = wp.where(has_prev, (x - px) + (lo - plo), zero)
+            # Bending: each edge's unit tangent and reciprocal length once, edge i - 1's (zero at a
+            # tube's first node through shared memory; through shuffles whatever the lane before
+            # holds, never used there) from the lane before (the same bits) or from e_prev; with a
+            # curved rest shape also each edge's own normal and binormal (edge_normal).
+            t_e = zero
+            ilb = float(0.0)
+            t_p = zero
+            ila = float(0.0)
+            n_e = zero
+            m_e = zero
+            n_p = zero
+            m_p = zero
+            if wp.static(BENDING):
+                t_e, ilb = edge_tangent(e)
+                if wp.static(CURVED):
+                    n_e = edge_normal(t_e)
+                    m_e = edge_binormal(t_e)
+                if wp.static(SHUFFLE):
+                    t_p = shfl_up3(t_e, 1)
+                    ila = shfl_up(ilb, 1)
+                    if wp.static(CURVED):
+                        n_p = shfl_up3(n_e, 1)
+                        m_p = shfl_up3(m_e, 1)
+                else:
+                    t_p, ila = edge_tangent(wp.where(has_prev, (x - px) + (lo - plo), zero))
+                    if wp.static(CURVED):
+                        n_p = edge_normal(t_p)
+                        m_p = edge_binormal(t_p)
+            # A curved tube's first edge: no stencil, but the twist its frame's carry from the
+            # rest direction puts into every later frame (springs.first_frame_gradient), the
+            # twist gradient below of the curvature binormal of (rest direction, first edge).
+            first_edge = False
+            if wp.static(CURVED):
+                first_edge = active and i == start and i < end - 1
+            t_a = t_p
+            kappa = zero
+            q = float(0.0)
+            if wp.static(BENDING):
+                # On every lane (no branch to split the warp): kappa is used only where a stencil
+                # or a first edge is (zero edges give finite values: the lengths are floored).
+                t_a = wp.where(first_edge, t_rest, t_p)
+                kappa, q = curvature_binormal_unit(t_a, t_e)
 
             # 2. The structural spring, then the line springs, while the neighbours' values are
             # at hand (they are not kept through the frames and the bending stencil).
@@ -361,13 +403,13 @@ def make_onchip_kernel(features: Features, block_dim: int, al_lines: int = 0, ma
                         # The link (point to node i), the chord (to point i + 1) and the tractive
                         # spring crossing to node i + 1: forward from the point to that node,
                         # backward from node i to point i + 1 (differences taken from the link's
-                        # and the chord's and the edge; zero where there is no next node).
+                        # and the chord's and the edge; where there is no next node ke = kd = 0).
                         d_link = (x - al_x[m]) + (lo - al_lo[m])
                         dv_link = v - al_v[m]
-                        d_chord = wp.where(has_next, (nal_x[m] - al_x[m]) + (nal_lo[m] - al_lo[m]), zero)
+                        d_chord = (nal_x[m] - al_x[m]) + (nal_lo[m] - al_lo[m])
                         dv_chord = nal_v[m] - al_v[m]
                         forward = al_dir[m] == 1
-                        d_diag = wp.where(has_next, wp.where(forward, e + d_link, d_chord - d_link), zero)
+                        d_diag = wp.where(forward, e + d_link, d_chord - d_link)
                         dv_diag = wp.where(forward, (nv - v) + dv_link, dv_chord - dv_link)
                         f_link, f_chord, f_diag = al_lane_forces(d_link, dv_link, d_chord, dv_chord, d_diag, dv_diag, al_rest[m], link_ke, link_kd, ke, kd)
                         f_fwd = wp.where(forward, f_diag, zero)  # on the point; on node i + 1 against it
@@ -384,16 +426,8 @@ def make_onchip_kernel(features: Features, block_dim: int, al_lines: int = 0, ma
             # Bishop normal.
             target = zero
             if wp.static(CURVED):
-                t_e = wp.normalize(e)
-                n_e = edge_normal(t_e)
-                if wp.static(SHUFFLE):  # edge i - 1's, from the lane before (the same bits)
-                    t_p = shfl_up3(t_e, 1)
-                    n_p = shfl_up3(n_e, 1)
-                else:
-                    t_p = wp.normalize(e_prev)
-                    n_p = edge_normal(t_p)
                 # (on every lane, the last node's and idle lanes' turn chosen away: no branch)
-                z = carried_twist(wp.where(has_prev, t_p, t_rest), wp.where(has_prev, n_p, u_rest), t_e, n_e)
+                z = carried_twist(wp.where(has_prev, t_p, t_rest), wp.where(has_prev, n_p, u_rest), t_e, n_e, m_e)
                 z = wp.where(has_next, z, wp.vec2(1.0, 0.0))
                 z_prev = z
                 has_stencil = has_prev and kb != 0.0  # (a stencil at i: edges i - 1 and i)
@@ -426,15 +460,16 @@ def make_onchip_kernel(features: Features, block_dim: int, al_lines: int = 0, ma
                         d = d * 2
                     if has_stencil:
                         z_prev = turns[rd, lane - 1]
-                # A stencil's target on every lane, chosen where there is a stencil (the rest
-                # curvature's components turned instead of the frame: the same target).
-                target = wp.where(has_stencil, kappa_target(t_p, n_p, wp.cross(t_p, n_p), turned_components(kappa_rest, unit_turn(z_prev))), zero)
+                # A stencil's target on every lane (the rest curvature's components turned instead
+                # of the frame: the same target); where there is no stencil kb = 0 and what it
+                # meets is multiplied by kb (finite on every lane: the lengths are floored).
+                target = kappa_target(t_p, n_p, m_p, turned_components(kappa_rest, unit_turn(z_prev)))
                 if wp.static(FREE):
                     # A tube whose first edge may turn: every target twisted by the angle that
                     # minimises its bending energy, the stencils' (A, B) summed over the tube by a
                     # suffix scan and read at its first node (springs.curvature_targets).
                     turns_here = has_stencil and free_tube
-                    ab = wp.where(turns_here, twist_terms(t_p, target, curvature_binormal(e_prev, e), kb), wp.vec2(0.0))
+                    ab = wp.where(turns_here, twist_terms(t_p, target, kappa, kb), wp.vec2(0.0))
                     total = wp.vec2(0.0)
                     if wp.static(SHUFFLE):  # (the same sums in the same order, through registers)
                         ab = warp_suffix_sum2(ab, fwd)
@@ -459,27 +494,15 @@ def make_onchip_kernel(features: Features, block_dim: int, al_lines: int = 0, ma
             # 4. The bending stencil at i, its frame terms, the node terms.
             ga = zero
             gb = zero
-            kappa = zero
-            # A curved tube's first edge: no stencil, but the twist its frame's carry from the
-            # rest direction puts into every later frame (springs.first_frame_gradient), the
-            # twist gradient below of the curvature binormal of (rest direction, first edge).
-            first_edge = False
-            if wp.static(CURVED):
-                first_edge = active and i == start and i < end - 1
             if wp.static(BENDING):
                 # On every lane (no branch to split the warp): where kb = 0 (a tube's ends) the
-                # gradients are zero, an idle lane's are never read, and kappa is used only where
-                # a stencil or a first edge is (zero edges give finite values: the lengths are
-                # floored).
-                ga, gb, kappa = bend_gradients(wp.where(first_edge, t_rest, e_prev), e, target, kb)
+                # gradients are zero and an idle lane's are never read.
+                ga, gb = bend_gradients_unit(t_a, t_e, ila, ilb, kappa, q, target, kb)
             grad_a = zero
             grad_b = zero
             if wp.static(CURVED):
-                la = wp.length(e_prev)
                 stencil = kb != 0.0
-                grad_h, mu_h = holonomy_stencil(e_prev, la, kappa, target, kb)  # (NaN at a zero edge: not selected)
-                grad_a = wp.where(stencil, grad_h, zero)
-                mu = wp.where(stencil, mu_h, 0.0)
+                grad_a, mu = holonomy_stencil(t_p, ila, kappa, target, kb)  # (zero where kb = 0)
                 # Suffix sums of mu along the tube: the later stencils' weight on this transport.
                 m_after = float(0.0)
                 if wp.static(SCAN_SHUFFLE):
@@ -513,7 +536,7 @@ def make_onchip_kernel(features: Features, block_dim: int, al_lines: int = 0, ma
                         d = d * 2
                     if has_next:
                         m_after = weights[rd, lane + 1]
-                ta, tb = twist_gradients(kappa, m_after, la, wp.length(e))
+                ta, tb = twist_gradients(kappa, m_after, ila, ilb)
                 grad_a = wp.where(stencil, grad_a + ta, grad_a)
                 grad_b = wp.where(stencil or first_edge, tb, zero)
             if wp.static(BENDING):
@@ -559,7 +582,7 @@ def make_onchip_kernel(features: Features, block_dim: int, al_lines: int = 0, ma
             # 5. Advance in registers.
             # (both steps on every lane and one chosen: a branch would split the warp all the same)
             pinned = im == 0.0
-            x_pin, v_pin = pin_step(x_pin0, x_pin1, float(step + 1) / float(substep_count), x, dt)
+            x_pin, v_pin = pin_step(x_pin0, x_pin1, frame_left(step, substep_count, inv_count), x, inv_dt)
             x_free, lo_free, v_free = advance(x, lo, v, f, im, alpha, dt)
             x = wp.where(pinned, x_pin, x_free)  # (an idle lane steps too: nothing of it is read or stored)
             lo = wp.where(pinned, zero, lo_free)

@@ -11,14 +11,16 @@ term                        functions                              parameters
 =========================== ====================================== ==============================
 structural spring, and its  :func:`spring_force`, spring_energy,   seg_rest_length, seg_ke,
 damping along it            spring_stiffness, spring_damping_*      seg_kd
-bending                     :func:`bend_gradients`,                node_bend_k
+bending                     :func:`bend_gradients` (its unit form  node_bend_k
+                            bend_gradients_unit from edge_tangent
+                            and curvature_binormal_unit),
                             bend_jacobians, bend_energy
 curved rest shape (Bishop   :func:`rotate_minimal`,                node_kappa_rest
 frame and its holonomy)     kappa_target, holonomy_stencil,
                             twist_gradients, first_frame_gradient
 returning spring, gravity,  :class:`NodeTerms` via                  node_anchor_k, node_anchor_kd,
 point force                 :func:`make_node_terms`                 gravity, node_f_ext
-pins                        :func:`pin_step`                        node_inv_mass 0, pin targets
+pins                        :func:`pin_step`, frame_left           node_inv_mass 0, pin targets
 mass damping                ``advance`` of make_node_terms          node_damping
 assistant line: link,       :mod:`.assistant_line`: al_springs,    control.al_* rest lengths,
 chord, tractive springs     al_point_forces, al_spring_block,      seg_ke, seg_kd
@@ -129,12 +131,13 @@ def spring_force(d: Vec, dv: Vec, rest_length: wp.Float, ke: wp.Float, kd: wp.Fl
     ``dv = vb - va`` [m/s].
 
     Hookean along the spring, ``ke * (|d| - L)``, plus damping along it, ``kd * dv . d_hat``. A
-    zero-length spring exerts no force (no direction to push along).
+    zero-length spring exerts no force (no direction to push along): ``d_hat`` is ``d`` over its
+    length floored at ``EPS``, zero for a zero ``d`` (and shorter than 1 for a spring shorter than
+    ``EPS``, which pushes with at most ``ke L``).
     """
     length = wp.length(d)
-    n = d / wp.max(length, type(length)(EPS))
-    magnitude = ke * (length - rest_length) + kd * wp.dot(dv, n)
-    return n * wp.where(length < type(length)(EPS), type(length)(0.0), magnitude)
+    n = d * (type(length)(1.0) / wp.max(length, type(length)(EPS)))
+    return n * (ke * (length - rest_length) + kd * wp.dot(dv, n))
 
 
 @wp.func(inline=True)
@@ -189,13 +192,6 @@ def curvature_binormal_terms(a: Vec, b: Vec):
 
 
 @wp.func(inline=True)
-def curvature_binormal(a: Vec, b: Vec):
-    """Discrete curvature binormal of edges ``a``, ``b`` [1] (:func:`curvature_binormal_terms`)."""
-    kb, inv, la, lb = curvature_binormal_terms(a, b)
-    return kb
-
-
-@wp.func(inline=True)
 def bend_geometry(a: Vec, b: Vec):
     """The curvature binormal of edges ``a``, ``b`` and what its derivatives are made of: returns
     ``(kb, 1/D, wa, wb)`` with ``wa = |b|/|a| a + b`` and ``wb = |a|/|b| b + a``, so that
@@ -206,18 +202,59 @@ def bend_geometry(a: Vec, b: Vec):
 
 
 @wp.func(inline=True)
+def edge_tangent(d: Vec):
+    """Unit tangent of edge ``d`` [m] and its reciprocal length [1/m], the length floored at
+    ``EPS`` (a zero edge: a zero tangent)."""
+    length = wp.length(d)
+    inv = type(length)(1.0) / wp.max(length, type(length)(EPS))
+    return d * inv, inv
+
+
+@wp.func(inline=True)
+def curvature_binormal_unit(ta: Vec, tb: Vec):
+    """Curvature binormal ``kb = 2 ta x tb / (1 + ta . tb)`` [1] of edges of unit tangents ``ta``,
+    ``tb`` (:func:`curvature_binormal_terms` with the lengths taken out), the denominator floored
+    at 1e-6 so that a fold stays finite. Returns ``(kb, 1 / (1 + ta . tb))``."""
+    c = wp.dot(ta, tb)
+    q = type(c)(1.0) / wp.max(type(c)(1.0) + c, type(c)(1.0e-6))
+    return wp.cross(ta, tb) * (type(c)(2.0) * q), q
+
+
+@wp.func(inline=True)
+def curvature_binormal(a: Vec, b: Vec):
+    """Discrete curvature binormal of edges ``a``, ``b`` [m] (:func:`curvature_binormal_unit`)."""
+    ta, ila = edge_tangent(a)
+    tb, ilb = edge_tangent(b)
+    kb, q = curvature_binormal_unit(ta, tb)
+    return kb
+
+
+@wp.func(inline=True)
+def bend_gradients_unit(ta: Vec, tb: Vec, ila: wp.Float, ilb: wp.Float, kb: Vec, q: wp.Float, kb_target: Vec, k: wp.Float):
+    """:func:`bend_gradients` from the edges' unit tangents ``ta``, ``tb`` and reciprocal lengths
+    ``ila``, ``ilb`` [1/m] (:func:`edge_tangent`) and their :func:`curvature_binormal_unit`
+    ``(kb, q)``: with ``D = |a||b| (1 + ta . tb)``, ``ga = (2 tb x g - (ta + tb) kb . g) q / |a|``
+    and ``gb = -(2 ta x g + (ta + tb) kb . g) q / |b|``."""
+    g = (kb - kb_target) * k
+    s = (ta + tb) * wp.dot(kb, g)
+    two = type(k)(2.0)
+    ga = (wp.cross(tb, g) * two - s) * (q * ila)
+    gb = (wp.cross(ta, g) * (-two) - s) * (q * ilb)
+    return ga, gb
+
+
+@wp.func(inline=True)
 def bend_gradients(a: Vec, b: Vec, kb_target: Vec, k: wp.Float):
-    """Bending forces of edges ``a``, ``b`` for energy ``k/2 |kb - kb_target|^2``.
+    """Bending forces of edges ``a``, ``b`` [m] for energy ``k/2 |kb - kb_target|^2``.
 
     With ``g = k (kb - kb_target)`` returns ``ga = (dkb/da)^T g``, ``gb = (dkb/db)^T g`` and
-    ``kb``; the stencil nodes (prev, mid, next) get ``(+ga, gb - ga, -gb)``.
+    ``kb``; the stencil nodes (prev, mid, next) get ``(+ga, gb - ga, -gb)``
+    (:func:`bend_gradients_unit`, which the on-chip kernel calls with tangents it has at hand).
     """
-    kb, inv, wa, wb = bend_geometry(a, b)
-    g = (kb - kb_target) * k
-    kg = wp.dot(kb, g)
-    two = type(k)(2.0)
-    ga = (wp.cross(b, g) * two - wa * kg) * inv
-    gb = (wp.cross(a, g) * (-two) - wb * kg) * inv
+    ta, ila = edge_tangent(a)
+    tb, ilb = edge_tangent(b)
+    kb, q = curvature_binormal_unit(ta, tb)
+    ga, gb = bend_gradients_unit(ta, tb, ila, ilb, kb, q, kb_target, k)
     return ga, gb, kb
 
 
@@ -261,10 +298,10 @@ def kappa_target(t: wp.vec3, u: wp.vec3, v: wp.vec3, kappa_rest: wp.vec3) -> wp.
 
 
 @wp.func(inline=True)
-def holonomy_stencil(a: wp.vec3, la: float, kb: wp.vec3, target: wp.vec3, k: float):
+def holonomy_stencil(ta: wp.vec3, ila: float, kb: wp.vec3, target: wp.vec3, k: float):
     """The force of a bending target's dependence on the shape, for the stencil of edges ``a``
-    (length ``la``), ``b`` (curvature binormal ``kb``, target ``T`` in the Bishop frame of ``a``,
-    coefficient ``k``).
+    (unit tangent ``ta``, reciprocal length ``ila`` [1/m]), ``b`` (curvature binormal ``kb``,
+    target ``T`` in the Bishop frame of ``a``, coefficient ``k``).
 
     The frame follows its edge with angular velocity ``t x dt + dpsi t``. With ``g = k (kb - T)``
     and ``h = T x g`` the energy changes by ``(t x h) . da / |a|`` and by ``mu dpsi``,
@@ -272,20 +309,19 @@ def holonomy_stencil(a: wp.vec3, la: float, kb: wp.vec3, target: wp.vec3, k: flo
     ``mu`` weights the twist that every earlier transport puts into this frame (see
     :func:`twist_gradients`).
     """
-    ta = a / la
     h = wp.cross(target, (kb - target) * k)
-    return wp.cross(ta, h) / la, -wp.dot(ta, h)
+    return wp.cross(ta, h) * ila, -wp.dot(ta, h)
 
 
 @wp.func(inline=True)
-def twist_gradients(kb: wp.vec3, m_after: float, la: float, lb: float):
+def twist_gradients(kb: wp.vec3, m_after: float, ila: float, ilb: float):
     """Gradient [N] from the twist the transport at a stencil (curvature binormal ``kb``, edges of
-    lengths ``la``, ``lb``) puts into every later frame: the transport adds
+    reciprocal lengths ``ila``, ``ilb`` [1/m]) puts into every later frame: the transport adds
     ``-kb / 2 . (da / |a| + db / |b|)`` to their twist (discrete parallel-transport holonomy), and
     ``m_after`` is the sum of the later stencils' ``mu``. Returns the gradients with respect to
     ``a`` and ``b``."""
     tw = kb * (-0.5 * m_after)
-    return tw / la, tw / lb
+    return tw * ila, tw * ilb
 
 
 @wp.func
@@ -299,8 +335,12 @@ def first_frame_gradient(t_rest: wp.vec3, e0: wp.vec3, m_total: float) -> wp.vec
 def stencil_forces(ga: wp.vec3, gb: wp.vec3, grad_a: wp.vec3, grad_b: wp.vec3):
     """Forces on a stencil's (prev, mid, next) nodes [N] from bending gradients ``ga``, ``gb``
     (:func:`bend_gradients`) and the frames' gradients with respect to its edges ``grad_a``,
-    ``grad_b`` (:func:`holonomy_stencil`, :func:`twist_gradients`; zero for a straight tube)."""
-    return ga + grad_a, gb - ga - grad_a + grad_b, -gb - grad_b
+    ``grad_b`` (:func:`holonomy_stencil`, :func:`twist_gradients`; zero for a straight tube):
+    ``ga + grad_a``, ``gb - ga - grad_a + grad_b``, ``-gb - grad_b``, the middle one formed as
+    minus the sum of the others (the three sum to zero to the last bit)."""
+    f_prev = ga + grad_a
+    f_next = -(gb + grad_b)
+    return f_prev, -(f_prev + f_next), f_next
 
 
 @wp.func
@@ -390,9 +430,11 @@ def frame_forces(
         j = end - 2 - jj
         a = node_delta(node_q, node_q_lo, w, j - 1, j)
         b = node_delta(node_q, node_q_lo, w, j, j + 1)
-        kb, inv, la, lb = curvature_binormal_terms(a, b)
-        grad, mu = holonomy_stencil(a, la, kb, node_kappa_target[w, j], node_bend_k[pw, j])
-        ta, tb = twist_gradients(kb, m_sum, la, lb)
+        t_a, ila = edge_tangent(a)
+        t_b, ilb = edge_tangent(b)
+        kb, q = curvature_binormal_unit(t_a, t_b)
+        grad, mu = holonomy_stencil(t_a, ila, kb, node_kappa_target[w, j], node_bend_k[pw, j])
+        ta, tb = twist_gradients(kb, m_sum, ila, ilb)
         f_prev, f_mid, f_next = stencil_forces(wp.vec3(0.0), wp.vec3(0.0), grad + ta, tb)
         node_f_out[w, j - 1] = node_f_out[w, j - 1] + f_prev
         node_f_out[w, j] = node_f_out[w, j] + f_mid
@@ -481,18 +523,27 @@ def stability_rows_kernel(lines: int, tube_node_start: wp.array[int], m: Stabili
 
 
 @wp.func
-def pin_step(x_start: wp.vec3, x_end: wp.vec3, frac: float, x: Vec, dt: wp.Float):
+def pin_step(x_start: wp.vec3, x_end: wp.vec3, left: float, x: Vec, inv_dt: wp.Float):
     """A pinned node's substep: its target [m], lerped over the frame from ``x_start`` to
-    ``x_end`` (``frac`` of the way at the substep's end), and the velocity [m/s] that takes it there
-    from ``x`` in ``dt`` [s] (in the precision of ``x``).
+    ``x_end`` (``left``, the fraction of the frame left after the substep, is 0 at its last), and
+    the velocity [m/s] that takes it there from ``x`` in a substep of ``1 / inv_dt`` [s] (in the
+    precision of ``x``); :func:`frame_left` gives ``left``.
 
-    The target is ``x_end - (1 - frac) (x_end - x_start)``: exactly ``x_end`` at the frame's end
-    (``frac`` = 1: the next frame starts from it) and exactly where it is for a pin that holds
+    The target is ``x_end - left (x_end - x_start)``: exactly ``x_end`` at the frame's end
+    (``left`` = 0: the next frame starts from it) and exactly where it is for a pin that holds
     (``wp.lerp``'s ``x_start (1 - frac) + x_end frac`` wandered by a float32 step between
     substeps for a pin that holds: 1 um at 10 m from the origin, whose velocity of ulp / dt shook
     the tube)."""
-    x_new = x_end - (x_end - x_start) * (1.0 - frac)
-    return x_new, (type(x)(x_new) - x) / dt
+    x_new = x_end - (x_end - x_start) * left
+    return x_new, (type(x)(x_new) - x) * inv_dt
+
+
+@wp.func
+def frame_left(step: int, substep_count: int, inv_count: float) -> float:
+    """The fraction of a frame of ``substep_count`` substeps left after substep ``step`` (from 0):
+    ``(substep_count - step - 1) inv_count`` with ``inv_count = 1 / substep_count``, exactly 0
+    after the last."""
+    return float(substep_count - step - 1) * inv_count
 
 
 # -- node terms: returning spring, gravity, point force; mass damping -------------------------
@@ -560,9 +611,8 @@ def make_node_terms(features: Features):
     @wp.func
     def force(p: NodeTerms, x: Vec, v: Vec):
         f = type(x)(p.f_applied)
-        if wp.static(ANCHORS):
-            if p.anchor_k > 0.0:
-                f = f - (x - type(x)(p.anchor_q)) * type(x[0])(p.anchor_k) - v * type(x[0])(p.anchor_kd)
+        if wp.static(ANCHORS):  # (on every node: one without a returning spring has k = kd = 0)
+            f = f - (x - type(x)(p.anchor_q)) * type(x[0])(p.anchor_k) - v * type(x[0])(p.anchor_kd)
         return f
 
     @wp.func

@@ -8,7 +8,7 @@ import numpy as np
 import pytest
 import warp as wp
 
-from warp_tube.kernels.frames import carried_twist, edge_normal, rotate_minimal, turn_product, turned_components, unit_turn
+from warp_tube.kernels.frames import carried_twist, edge_binormal, edge_normal, rotate_minimal, turn_product, turned_components, unit_turn
 from warp_tube.kernels.springs import kappa_target
 
 
@@ -32,11 +32,11 @@ def bishop_both_ways(t: wp.array[wp.vec3], t_rest: wp.vec3, u_rest: wp.vec3, by_
         u = wp.normalize(u - t[i] * wp.dot(u, t[i]))
         by_rotation[i] = u
     # By turns: each edge's own normal turned by the product of the turns up to it.
-    z = carried_twist(t_rest, u_rest, t[0], edge_normal(t[0]))
+    z = carried_twist(t_rest, u_rest, t[0], edge_normal(t[0]), edge_binormal(t[0]))
     u0, v0 = turned(t[0], edge_normal(t[0]), z)
     by_turns[0] = u0
     for i in range(1, t.shape[0]):
-        z = turn_product(z, carried_twist(t[i - 1], edge_normal(t[i - 1]), t[i], edge_normal(t[i])))
+        z = turn_product(z, carried_twist(t[i - 1], edge_normal(t[i - 1]), t[i], edge_normal(t[i]), edge_binormal(t[i])))
         ui, vi = turned(t[i], edge_normal(t[i]), z)
         by_turns[i] = ui
 
@@ -121,3 +121,26 @@ def test_turned_components_give_the_target_the_turned_frame_gives():
     by_frame, by_components = (o.numpy().astype(np.float64) for o in out)
     assert np.abs(by_frame).max() > 1.0  # targets of the components' size
     np.testing.assert_allclose(by_components, by_frame, rtol=0, atol=2e-6)
+
+
+@wp.kernel(enable_backward=False)
+def binormal_both_ways(t: wp.array[wp.vec3], by_cross: wp.array[wp.vec3], by_formula: wp.array[wp.vec3]):
+    i = wp.tid()
+    by_cross[i] = wp.cross(t[i], edge_normal(t[i]))
+    by_formula[i] = edge_binormal(t[i])
+
+
+def test_edge_binormal_is_the_tangent_cross_its_normal():
+    # edge_binormal gives t x edge_normal(t) from Duff et al.'s second basis vector, without the
+    # cross product: random unit tangents and those where the formula switches sign (z = 0,
+    # straight down, straight up). Measured 1.2e-7 apart; 1e-6 is a few ulp of a unit vector,
+    # where a sign or a swapped component is off by O(1).
+    rng = np.random.default_rng(8)
+    t = rng.normal(0.0, 1.0, (400, 3))
+    t[:5] = [[0.0, 0.0, -1.0], [0.0, 0.0, 1.0], [1e-4, 0.0, -1.0], [1.0, 0.0, 0.0], [0.6, -0.8, 0.0]]
+    t /= np.linalg.norm(t, axis=1, keepdims=True)
+    out = [wp.zeros(400, dtype=wp.vec3, device="cpu") for _ in range(2)]
+    wp.launch(binormal_both_ways, dim=400, inputs=[wp.array(t.astype(np.float32), dtype=wp.vec3, device="cpu")], outputs=out, device="cpu")
+    by_cross, by_formula = (o.numpy().astype(np.float64) for o in out)
+    np.testing.assert_allclose(np.linalg.norm(by_formula, axis=1), 1.0, atol=1e-6)
+    np.testing.assert_allclose(by_formula, by_cross, rtol=0, atol=1e-6)
