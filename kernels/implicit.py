@@ -38,15 +38,17 @@ import functools
 import warp as wp
 
 from .assistant_line import al_point_energy, al_point_forces, al_spring_block, al_springs
+from .bending import (
+    bend_energy,
+    bend_jacobians,
+    curvature_targets,
+    frame_forces,
+)
 from .springs import (
     ControlArrays,
     Features,
     ModelArrays,
     StateArrays,
-    bend_energy,
-    bend_jacobians,
-    curvature_targets,
-    frame_forces,
     frame_left,
     make_node_terms,
     node_terms_have_blocks,
@@ -477,7 +479,7 @@ def make_implicit_kernel(features: Features, al_lines: int = 0):
                 if f0 and f2:
                     scratch.mat_l[w, u0, 2 * PER_NODE - 1] = scratch.mat_l[w, u0, 2 * PER_NODE - 1] + wp.transpose(j2) * j0 * hk
         if wp.static(CURVED):
-            # The targets move with the shape: their exact force (springs.frame_forces).
+            # The targets move with the shape: their exact force (bending.frame_forces).
             for i in range(start, end):
                 scratch.node_f_frame[w, i] = wp.vec3(0.0)
             frame_forces(w, pw, start, end, state.node_q, state.node_q_lo, model.node_rest_q, model.node_bend_k, scratch.node_kappa_target, scratch.node_f_frame)

@@ -5,8 +5,8 @@ kernel ``substeps``: one thread per (world, tube) runs a whole frame's substeps 
 round trip to Python between them (the CPU path: a launch costs ~15 us there, a substep of a
 20-point tube well under that; on CUDA, the path of tubes longer than the on-chip kernel's block).
 Each spring and stencil of :mod:`.springs` is evaluated once and added to all its nodes; the
-curved frames are carried along the tube in order (:func:`~.springs.curvature_targets`,
-:func:`~.springs.frame_forces`).
+curved frames are carried along the tube in order (:func:`~.bending.curvature_targets`,
+:func:`~.bending.frame_forces`).
 
 Features a scene does not use are compiled out with ``wp.static``: a straight tube with no anchors,
 gravity, damping or assistant line evaluates only its structural and bending springs.
@@ -27,14 +27,16 @@ import functools
 import warp as wp
 
 from .assistant_line import al_point_forces, al_springs
+from .bending import (
+    bend_gradients,
+    curvature_targets,
+    frame_forces,
+)
 from .springs import (
     ControlArrays,
     Features,
     ModelArrays,
     StateArrays,
-    bend_gradients,
-    curvature_targets,
-    frame_forces,
     frame_left,
     make_node_terms,
     node_delta,

@@ -23,8 +23,8 @@ state and parameters into registers once, then for every substep
    turns its normal into its Bishop normal: two numbers a round where a scan of the transports
    themselves would carry quaternions;
 4. evaluates the bending stencil at ``i`` and its frame terms (after the stencil, the suffix sums
-   of the stencils' holonomy weights ``mu`` the same way; :func:`~.springs.curvature_targets` and
-   :func:`~.springs.frame_forces` are the sequential form of both) and its node terms; it writes
+   of the stencils' holonomy weights ``mu`` the same way; :func:`~.bending.curvature_targets` and
+   :func:`~.bending.frame_forces` are the sequential form of both) and its node terms; it writes
    what its terms put on its two neighbours into a second tile and reads back what its
    neighbours' terms put on it;
 5. advances its node (pinned nodes follow their targets, lerped from ``pin_q_start`` to
@@ -68,25 +68,9 @@ from .frames import carried_twist, edge_binormal, edge_normal, turn_product, tur
 from .options import CUDA_OPTIONS
 from .warp_shuffle import shfl_down, shfl_down3, shfl_up, shfl_up2, shfl_up3, warp_prefix_turns, warp_suffix_sum, warp_suffix_sum2
 from .assistant_line import al_lane_diagonal, al_lane_forces
-from .springs import (
-    ControlArrays,
-    Features,
-    ModelArrays,
-    StateArrays,
-    bend_gradients_unit,
-    curvature_binormal_unit,
-    edge_tangent,
-    first_edge_free,
-    first_edge_normal,
-    frame_left,
-    holonomy_stencil,
-    kappa_target,
-    make_node_terms,
-    pin_step,
-    spring_force,
-    stencil_forces,
-    twist_gradients,
-)
+from .bending import (bend_gradients_unit, curvature_binormal_unit, edge_tangent, first_edge_free, first_edge_normal, holonomy_stencil,
+                      kappa_target, stencil_forces, twist_gradients)  # fmt: skip
+from .springs import ControlArrays, Features, ModelArrays, StateArrays, frame_left, make_node_terms, pin_step, spring_force
 
 #: Largest block (threads = nodes) of the on-chip kernel; longer tubes need another path.
 MAX_BLOCK_DIM = 1024
@@ -102,7 +86,7 @@ def make_onchip_kernel(features: Features, block_dim: int, al_lines: int = 0, ma
     shuffles; CUDA, no tube spanning two warps) or "mixed" (CUDA: the scans of a curved tube by
     warp shuffles with one shared-memory carry between warps, the rest through shared memory).
     ``twist_free``: some curved tube's first edge may turn, so its first frame is twisted to the
-    bending energy's minimum (:func:`~.springs.curvature_targets`; shared memory or shuffles,
+    bending energy's minimum (:func:`~.bending.curvature_targets`; shared memory or shuffles,
     not mixed)."""
     features = Features(*(bool(v) for v in features))
     if not 1 <= block_dim <= MAX_BLOCK_DIM:
@@ -132,6 +116,7 @@ def make_onchip_kernel(features: Features, block_dim: int, al_lines: int = 0, ma
     con_t = wp.types.vector(length=CON, dtype=wp.float32)
     lines3 = wp.types.matrix((KL, 3), dtype=wp.float32)
     lines_i = wp.types.vector(length=KL, dtype=wp.int32)
+    lines4 = wp.types.matrix((KL, 4), dtype=wp.float32)
     load_node, node_force, _, _, _, advance = make_node_terms(features)
 
     @wp.func
@@ -176,16 +161,17 @@ def make_onchip_kernel(features: Features, block_dim: int, al_lines: int = 0, ma
         kd_prev = float(0.0)
         kb = float(0.0)
         # Assistant-line points at this node, one row per line: state, the rest lengths of the
-        # thread's three springs (link, chord, the tractive spring crossing to node i + 1), which
-        # way that one goes (al_lane_diagonal), slot.
+        # thread's three springs (link, chord, the tractive spring crossing to node i + 1), their
+        # stiffnesses and dampings (the link's, then the chord's and the tractive spring's: zero
+        # where the line is not there, so that its springs are evaluated without a branch and
+        # exert nothing), which way the tractive spring goes (al_lane_diagonal), slot.
         al_x = lines3()
         al_lo = lines3()
         al_v = lines3()
         al_rest = lines3()
+        al_k = lines4()
         al_dir = lines_i(-1)
         al_slot = lines_i(-1)
-        link_ke = float(0.0)  # the link's stiffness and damping: segment i's, i - 1's at the last node
-        link_kd = float(0.0)
         # An idle lane loads the values of a real node (the last world's, the group's last node):
         # none of them reaches an active lane (every exchange is read under has_prev, has_next or a
         # scan's reach, all false or -1 on an idle lane) and nothing is stored from it, and loading
@@ -224,6 +210,7 @@ def make_onchip_kernel(features: Features, block_dim: int, al_lines: int = 0, ma
             if wp.static(FREE):
                 free_tube = first_edge_free(model.node_inv_mass, pw, start)
         if wp.static(K > 0):
+            # the link's stiffness and damping: segment i's, i - 1's at the last node
             link_ke = wp.where(ic + 1 < end, ke, ke_prev)
             link_kd = wp.where(ic + 1 < end, kd, kd_prev)
             for m in range(K):
@@ -242,6 +229,7 @@ def make_onchip_kernel(features: Features, block_dim: int, al_lines: int = 0, ma
                         elif way == 0:
                             diagonal = control.al_bwd_length[wc, p + 1]
                         al_dir[m] = way
+                        al_k[m] = wp.vec4(link_ke, link_kd, ke, kd)
                         al_rest[m] = wp.vec3(control.al_link_length[wc, p], control.al_chord_length[wc, p], diagonal)
 
         span = int(slot)  # shared-memory scans: rounds while their stride is below the tube slot
@@ -373,7 +361,7 @@ def make_onchip_kernel(features: Features, block_dim: int, al_lines: int = 0, ma
                         n_p = edge_normal(t_p)
                         m_p = edge_binormal(t_p)
             # A curved tube's first edge: no stencil, but the twist its frame's carry from the
-            # rest direction puts into every later frame (springs.first_frame_gradient), the
+            # rest direction puts into every later frame (bending.first_frame_gradient), the
             # twist gradient below of the curvature binormal of (rest direction, first edge).
             first_edge = False
             if wp.static(CURVED):
@@ -385,7 +373,7 @@ def make_onchip_kernel(features: Features, block_dim: int, al_lines: int = 0, ma
                 # On every lane (no branch to split the warp): kappa is used only where a stencil
                 # or a first edge is (zero edges give finite values: the lengths are floored).
                 t_a = wp.where(first_edge, t_rest, t_p)
-                kappa, q = curvature_binormal_unit(t_a, t_e)
+                kappa, q = curvature_binormal_unit(t_a, t_e, wp.where(first_edge, 1.0, ila), ilb)
 
             # 2. The structural spring, then the line springs, while the neighbours' values are
             # at hand (they are not kept through the frames and the bending stencil).
@@ -399,25 +387,24 @@ def make_onchip_kernel(features: Features, block_dim: int, al_lines: int = 0, ma
             al_next = lines3()
             if wp.static(K > 0):
                 for m in range(K):
-                    if al_slot[m] >= 0:
-                        # The link (point to node i), the chord (to point i + 1) and the tractive
-                        # spring crossing to node i + 1: forward from the point to that node,
-                        # backward from node i to point i + 1 (differences taken from the link's
-                        # and the chord's and the edge; where there is no next node ke = kd = 0).
-                        d_link = (x - al_x[m]) + (lo - al_lo[m])
-                        dv_link = v - al_v[m]
-                        d_chord = (nal_x[m] - al_x[m]) + (nal_lo[m] - al_lo[m])
-                        dv_chord = nal_v[m] - al_v[m]
-                        forward = al_dir[m] == 1
-                        d_diag = wp.where(forward, e + d_link, d_chord - d_link)
-                        dv_diag = wp.where(forward, (nv - v) + dv_link, dv_chord - dv_link)
-                        f_link, f_chord, f_diag = al_lane_forces(d_link, dv_link, d_chord, dv_chord, d_diag, dv_diag, al_rest[m], link_ke, link_kd, ke, kd)
-                        f_fwd = wp.where(forward, f_diag, zero)  # on the point; on node i + 1 against it
-                        f_bwd = f_diag - f_fwd  # on node i; on point i + 1 against it
-                        al_f[m] = f_link + f_chord + f_fwd
-                        al_next[m] = -(f_chord + f_bwd)
-                        f += f_bwd - f_link
-                        to_next -= f_fwd
+                    # The link (point to node i), the chord (to point i + 1) and the tractive
+                    # spring crossing to node i + 1: forward from the point to that node,
+                    # backward from node i to point i + 1 (differences taken from the link's
+                    # and the chord's and the edge; where there is no next node ke = kd = 0).
+                    d_link = (x - al_x[m]) + (lo - al_lo[m])
+                    dv_link = v - al_v[m]
+                    d_chord = (nal_x[m] - al_x[m]) + (nal_lo[m] - al_lo[m])
+                    dv_chord = nal_v[m] - al_v[m]
+                    forward = al_dir[m] == 1
+                    d_diag = wp.where(forward, e + d_link, d_chord - d_link)
+                    dv_diag = wp.where(forward, (nv - v) + dv_link, dv_chord - dv_link)
+                    f_link, f_chord, f_diag = al_lane_forces(d_link, dv_link, d_chord, dv_chord, d_diag, dv_diag, al_rest[m], al_k[m, 0], al_k[m, 1], al_k[m, 2], al_k[m, 3])
+                    f_fwd = wp.where(forward, f_diag, zero)  # on the point; on node i + 1 against it
+                    f_bwd = f_diag - f_fwd  # on node i; on point i + 1 against it
+                    al_f[m] = f_link + f_chord + f_fwd
+                    al_next[m] = -(f_chord + f_bwd)
+                    f += f_bwd - f_link
+                    to_next -= f_fwd
 
             # 3. Curved rest shapes: the Bishop frame of edge i - 1, by a scan of turns. Each
             # edge has a normal of its own (edge_normal); z is the turn about edge i from its
@@ -467,7 +454,7 @@ def make_onchip_kernel(features: Features, block_dim: int, al_lines: int = 0, ma
                 if wp.static(FREE):
                     # A tube whose first edge may turn: every target twisted by the angle that
                     # minimises its bending energy, the stencils' (A, B) summed over the tube by a
-                    # suffix scan and read at its first node (springs.curvature_targets).
+                    # suffix scan and read at its first node (bending.curvature_targets).
                     turns_here = has_stencil and free_tube
                     ab = wp.where(turns_here, twist_terms(t_p, target, kappa, kb), wp.vec2(0.0))
                     total = wp.vec2(0.0)
@@ -588,12 +575,11 @@ def make_onchip_kernel(features: Features, block_dim: int, al_lines: int = 0, ma
             lo = wp.where(pinned, zero, lo_free)
             v = wp.where(pinned, v_pin, v_free)
             if wp.static(K > 0):
-                for m in range(K):
-                    if al_slot[m] >= 0:
-                        xm, lm, vm = advance(al_x[m], al_lo[m], al_v[m], al_f[m], inv_m, alpha, dt)
-                        al_x[m] = xm
-                        al_lo[m] = lm
-                        al_v[m] = vm
+                for m in range(K):  # (a line that is not there steps too: nothing of it is stored)
+                    xm, lm, vm = advance(al_x[m], al_lo[m], al_v[m], al_f[m], inv_m, alpha, dt)
+                    al_x[m] = xm
+                    al_lo[m] = lm
+                    al_v[m] = vm
         if active:
             state_out.node_q[w, i] = x
             state_out.node_q_lo[w, i] = lo

@@ -9,7 +9,7 @@ import pytest
 import warp as wp
 
 from warp_tube.kernels.frames import carried_twist, edge_binormal, edge_normal, rotate_minimal, turn_product, turned_components, unit_turn
-from warp_tube.kernels.springs import kappa_target
+from warp_tube.kernels.bending import kappa_target
 
 
 @wp.func
@@ -23,7 +23,7 @@ def turned(t: wp.vec3, n: wp.vec3, z: wp.vec2):
 
 @wp.kernel(enable_backward=False)
 def bishop_both_ways(t: wp.array[wp.vec3], t_rest: wp.vec3, u_rest: wp.vec3, by_rotation: wp.array[wp.vec3], by_turns: wp.array[wp.vec3]):
-    # Sequentially, as springs.curvature_targets: each normal carried from the previous edge's by
+    # Sequentially, as bending.curvature_targets: each normal carried from the previous edge's by
     # the least rotation, its round-off taken out (kept unit and normal to its edge).
     u = rotate_minimal(t_rest, t[0], u_rest)
     by_rotation[0] = u

@@ -81,7 +81,7 @@ def warp_aligned(tube_start: np.ndarray, group_start: np.ndarray, slot: int, cop
 def twist_free(model: TubeModel) -> bool:
     """Whether a curved tube of ``model`` has a first edge that may turn (not both of its nodes
     pinned): its first frame is twisted to the bending energy's minimum
-    (:func:`warp_tube.kernels.springs.curvature_targets`)."""
+    (:func:`warp_tube.kernels.bending.curvature_targets`)."""
     if not (model.features.curved and model.features.bending):
         return False
     starts = np.asarray(model.host.tube_node_start, dtype=np.int64)
