@@ -19,6 +19,20 @@ from .springs import EPS, Vec, node_delta
 
 
 @wp.func(inline=True)
+def curvature_binormal_terms(a: Vec, b: Vec):
+    """Curvature binormal ``kb = 2 a x b / D`` of edges ``a``, ``b`` [m], ``D = |a||b| + a.b``
+    floored at ``1e-6 |a||b| + EPS`` so that a fold stays finite; its length is ``2 tan(phi / 2)``
+    for the turning angle ``phi``. Returns ``(kb, 1/D, |a|, |b|)``. (:func:`curvature_binormal_unit`
+    is the same from unit tangents; this form's divisions do not wait on one another, which the
+    CPU's per-tube loop runs faster.)"""
+    la = wp.length(a)
+    lb = wp.length(b)
+    den = wp.max(la * lb + wp.dot(a, b), type(la)(1.0e-6) * la * lb + type(la)(EPS))
+    inv = type(la)(1.0) / den
+    return wp.cross(a, b) * (type(la)(2.0) * inv), inv, la, lb
+
+
+@wp.func(inline=True)
 def edge_tangent(d: Vec):
     """Unit tangent of edge ``d`` [m] and its reciprocal length [1/m], the length floored at
     ``EPS`` (a zero edge: a zero tangent)."""
@@ -42,9 +56,7 @@ def curvature_binormal_unit(ta: Vec, tb: Vec, ila: wp.Float, ilb: wp.Float):
 @wp.func(inline=True)
 def curvature_binormal(a: Vec, b: Vec):
     """Discrete curvature binormal of edges ``a``, ``b`` [m] (:func:`curvature_binormal_unit`)."""
-    ta, ila = edge_tangent(a)
-    tb, ilb = edge_tangent(b)
-    kb, q = curvature_binormal_unit(ta, tb, ila, ilb)
+    kb, inv, la, lb = curvature_binormal_terms(a, b)
     return kb
 
 
@@ -67,29 +79,28 @@ def bend_gradients(a: Vec, b: Vec, kb_target: Vec, k: wp.Float):
     """Bending forces of edges ``a``, ``b`` [m] for energy ``k/2 |kb - kb_target|^2``.
 
     With ``g = k (kb - kb_target)`` returns ``ga = (dkb/da)^T g``, ``gb = (dkb/db)^T g`` and
-    ``kb``; the stencil nodes (prev, mid, next) get ``(+ga, gb - ga, -gb)``
-    (:func:`bend_gradients_unit`, which the on-chip kernel calls with tangents it has at hand).
+    ``kb``; the stencil nodes (prev, mid, next) get ``(+ga, gb - ga, -gb)``. The per-tube kernel's
+    form; :func:`bend_gradients_unit` is the same from unit tangents, which the on-chip kernel has
+    at hand (``tests/test_forces.py`` checks both against the energy's gradient).
     """
-    ta, ila = edge_tangent(a)
-    tb, ilb = edge_tangent(b)
-    kb, q = curvature_binormal_unit(ta, tb, ila, ilb)
-    ga, gb = bend_gradients_unit(ta, tb, ila, ilb, kb, q, kb_target, k)
+    kb, inv, wa, wb = bend_geometry(a, b)
+    g = (kb - kb_target) * k
+    kg = wp.dot(kb, g)
+    two = type(k)(2.0)
+    ga = (wp.cross(b, g) * two - wa * kg) * inv
+    gb = (wp.cross(a, g) * (-two) - wb * kg) * inv
     return ga, gb, kb
 
 
 @wp.func(inline=True)
 def bend_geometry(a: Vec, b: Vec):
-    """The curvature binormal of edges ``a``, ``b`` [m] (:func:`curvature_binormal_unit`) and what
-    its derivatives are made of: returns ``(kb, 1/D, wa, wb)`` with ``D = |a||b| (1 + ta . tb)``
-    (floored as there), ``wa = |b|/|a| a + b`` and ``wb = |a|/|b| b + a``, so that
+    """The curvature binormal of edges ``a``, ``b`` [m] and what its derivatives are made of:
+    returns ``(kb, 1/D, wa, wb)`` with ``D`` of :func:`curvature_binormal_terms`,
+    ``wa = |b|/|a| a + b`` and ``wb = |a|/|b| b + a``, so that
     ``dkb/da = -(2 [b]x + kb wa^T) / D`` and ``dkb/db = (2 [a]x - kb wb^T) / D``."""
-    la = wp.length(a)
-    lb = wp.length(b)
-    ila = type(la)(1.0) / wp.max(la, type(la)(EPS))
-    ilb = type(la)(1.0) / wp.max(lb, type(la)(EPS))
-    kb, q = curvature_binormal_unit(a * ila, b * ilb, ila, ilb)
-    s = a * ila + b * ilb
-    return kb, q * ila * ilb, s * lb, s * la
+    kb, inv, la, lb = curvature_binormal_terms(a, b)
+    eps = type(la)(EPS)
+    return kb, inv, a * (lb / wp.max(la, eps)) + b, b * (la / wp.max(lb, eps)) + a
 
 
 @wp.func(inline=True)
@@ -249,12 +260,10 @@ def frame_forces(
     (:func:`first_frame_gradient`). With these the bending force is the exact gradient of the
     energy."""
     m_sum = float(0.0)
+    t_b, ilb = edge_tangent(node_delta(node_q, node_q_lo, w, end - 2, end - 1))  # (each edge's once)
     for jj in range(end - start - 2):
         j = end - 2 - jj
-        a = node_delta(node_q, node_q_lo, w, j - 1, j)
-        b = node_delta(node_q, node_q_lo, w, j, j + 1)
-        t_a, ila = edge_tangent(a)
-        t_b, ilb = edge_tangent(b)
+        t_a, ila = edge_tangent(node_delta(node_q, node_q_lo, w, j - 1, j))
         kb, q = curvature_binormal_unit(t_a, t_b, ila, ilb)
         grad, mu = holonomy_stencil(t_a, ila, kb, node_kappa_target[w, j], node_bend_k[pw, j])
         ta, tb = twist_gradients(kb, m_sum, ila, ilb)
@@ -263,6 +272,8 @@ def frame_forces(
         node_f_out[w, j] = node_f_out[w, j] + f_mid
         node_f_out[w, j + 1] = node_f_out[w, j + 1] + f_next
         m_sum += mu
+        t_b = t_a
+        ilb = ila
     g0 = first_frame_gradient(wp.normalize(node_rest_q[pw, start + 1] - node_rest_q[pw, start]), node_delta(node_q, node_q_lo, w, start, start + 1), m_sum)
     node_f_out[w, start + 1] = node_f_out[w, start + 1] - g0
     node_f_out[w, start] = node_f_out[w, start] + g0
