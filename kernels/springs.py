@@ -358,8 +358,9 @@ def make_node_terms(features: Features):
     @wp.func
     def force(p: NodeTerms, x: Vec, v: Vec):
         f = type(x)(p.f_applied)
-        if wp.static(ANCHORS):  # (on every node: one without a returning spring has k = kd = 0)
-            f = f - (x - type(x)(p.anchor_q)) * type(x[0])(p.anchor_k) - v * type(x[0])(p.anchor_kd)
+        if wp.static(ANCHORS):
+            if p.anchor_k > 0.0:
+                f = f - (x - type(x)(p.anchor_q)) * type(x[0])(p.anchor_k) - v * type(x[0])(p.anchor_kd)
         return f
 
     @wp.func
