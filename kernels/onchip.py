@@ -117,7 +117,7 @@ def make_onchip_kernel(features: Features, block_dim: int, al_lines: int = 0, ma
     lines3 = wp.types.matrix((KL, 3), dtype=wp.float32)
     lines_i = wp.types.vector(length=KL, dtype=wp.int32)
     lines4 = wp.types.matrix((KL, 4), dtype=wp.float32)
-    load_node, node_force, _, _, _, advance = make_node_terms(features)
+    load_node, node_force, _, _, _, advance = make_node_terms(features, lanes=True)
 
     @wp.func
     def get3(e: pos_t, off: int) -> wp.vec3:

@@ -320,8 +320,14 @@ def node_terms_have_blocks(features: Features) -> bool:
 
 
 @functools.cache
-def make_node_terms(features: Features):
+def make_node_terms(features: Features, lanes: bool = False):
     """The node terms specialised to ``features`` (unused terms compiled out); cached.
+
+    ``lanes``: the form for a kernel whose nodes run side by side in the lanes of a warp (the
+    on-chip kernel): the returning spring evaluated on every node (one without it has
+    ``k = kd = 0``), where a branch would run both ways in any warp holding an anchored node; by
+    default it is skipped where ``k`` is 0 (the per-tube kernel's nodes run one after the other).
+    The same force either way.
 
     Returns ``(load, force, energy, stiffness, damping, advance)``:
 
@@ -337,6 +343,7 @@ def make_node_terms(features: Features):
     GRAVITY = features.gravity
     EXTERNAL = features.external
     MASS_DAMPING = features.mass_damping
+    LANES = bool(lanes)
 
     @wp.func(inline=True)
     def load(model: ModelArrays, control: ControlArrays, w: int, pw: int, i: int) -> NodeTerms:
@@ -358,7 +365,9 @@ def make_node_terms(features: Features):
     @wp.func
     def force(p: NodeTerms, x: Vec, v: Vec):
         f = type(x)(p.f_applied)
-        if wp.static(ANCHORS):
+        if wp.static(ANCHORS and LANES):
+            f = f - (x - type(x)(p.anchor_q)) * type(x[0])(p.anchor_k) - v * type(x[0])(p.anchor_kd)
+        if wp.static(ANCHORS and not LANES):
             if p.anchor_k > 0.0:
                 f = f - (x - type(x)(p.anchor_q)) * type(x[0])(p.anchor_k) - v * type(x[0])(p.anchor_kd)
         return f
