@@ -260,19 +260,20 @@ def frame_forces(
     (:func:`first_frame_gradient`). With these the bending force is the exact gradient of the
     energy."""
     m_sum = float(0.0)
+    t_b, ilb = edge_tangent(node_delta(node_q, node_q_lo, w, end - 2, end - 1))  # (each edge's once)
     for jj in range(end - start - 2):
         j = end - 2 - jj
-        a = node_delta(node_q, node_q_lo, w, j - 1, j)
-        kb, inv, la, lb = curvature_binormal_terms(a, node_delta(node_q, node_q_lo, w, j, j + 1))
-        ila = 1.0 / wp.max(la, EPS)  # (divisions that do not wait on one another: the CPU's form)
-        ilb = 1.0 / wp.max(lb, EPS)
-        grad, mu = holonomy_stencil(a * ila, ila, kb, node_kappa_target[w, j], node_bend_k[pw, j])
+        t_a, ila = edge_tangent(node_delta(node_q, node_q_lo, w, j - 1, j))
+        kb, q = curvature_binormal_unit(t_a, t_b, ila, ilb)
+        grad, mu = holonomy_stencil(t_a, ila, kb, node_kappa_target[w, j], node_bend_k[pw, j])
         ta, tb = twist_gradients(kb, m_sum, ila, ilb)
         f_prev, f_mid, f_next = stencil_forces(wp.vec3(0.0), wp.vec3(0.0), grad + ta, tb)
         node_f_out[w, j - 1] = node_f_out[w, j - 1] + f_prev
         node_f_out[w, j] = node_f_out[w, j] + f_mid
         node_f_out[w, j + 1] = node_f_out[w, j + 1] + f_next
         m_sum += mu
+        t_b = t_a
+        ilb = ila
     g0 = first_frame_gradient(wp.normalize(node_rest_q[pw, start + 1] - node_rest_q[pw, start]), node_delta(node_q, node_q_lo, w, start, start + 1), m_sum)
     node_f_out[w, start + 1] = node_f_out[w, start + 1] - g0
     node_f_out[w, start] = node_f_out[w, start] + g0
