@@ -46,6 +46,7 @@ from .recorder import Recorder
 from .cluster import SchedulerLost, check_dask, check_scheduler_address, dask_client, run_dask
 from .execute import SimWorkers, run_here, run_pooled
 from .framestore import release_windows
+from .worlds import release_builders
 from .folder import (check_inputs_not_outputs, check_out_dir, named_files, named_paths, outputs_kept, remove_stray_partials,
                      scene_dependencies, scene_files)
 from .writer_pool import INLINE_WRITE_S, Writers, inline_write_seconds, writer_count
@@ -288,6 +289,7 @@ def _batch_pools(scene, out_dir, table, tab, devices, sim_workers, t_start, lock
         # (each step whatever the one before raised, in the reverse order: a second Ctrl-C in the writers' end had left the lock)
         with contextlib.ExitStack() as ends:
             ends.callback(release_windows)  # (the device buffers kept for the frames' windows)
+            ends.callback(release_builders)  # (the surface builders kept for the next chunk)
             ends.callback(thaw, frozen_before)  # (the batch's objects, kept out of the collector's passes)
             ends.callback(lock.release)  # (after the writers: their files are complete or gone)
             if recorder is not None:

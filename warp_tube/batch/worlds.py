@@ -152,12 +152,29 @@ def _topology(scene: Scene, device: str) -> TubeModel:
     return one
 
 
+#: the surface builders of the last chunk built (:func:`_surface_builders`), by what they were made of
+_BUILDERS: dict = {}
+
+
+def release_builders() -> None:
+    """Drop the surface builders kept for the next chunk (their device arrays); at a batch's end."""
+    _BUILDERS.clear()
+
+
 def _surface_builders(scenes, prim_start, device):
-    """Per tube prim, a SurfaceBuilder over all worlds, as ``Simulation`` builds one per prim."""
+    """Per tube prim, a SurfaceBuilder over all worlds, as ``Simulation`` builds one per prim.
+
+    A chunk whose prims are made of the same things as the last chunk's (world count, rest points
+    and spoke lengths shared by its worlds, as a table of plain values makes them) takes the last
+    chunk's builders again: their arrays are written afresh each frame, and its frames are stored
+    after the last chunk's on the same device."""
     from ..surface.builder import SurfaceBuilder
 
     out = []
     W = len(scenes)
+    key = _builders_key(scenes, prim_start, device)
+    if key is not None and key in _BUILDERS:
+        return _BUILDERS[key]
     for k, t in enumerate(scenes[0].tubes):
         specs = [s.tubes[k] for s in scenes]
         if all(u.spoke_lengths is None and u.radius is t.radius for u in specs):  # the variants share the radii
@@ -180,7 +197,25 @@ def _surface_builders(scenes, prim_start, device):
                 world_count=W, device=device,
             )  # fmt: skip
         )
+    _BUILDERS.clear()
+    if key is not None:
+        _BUILDERS[key] = out
     return out
+
+
+def _builders_key(scenes, prim_start, device):
+    """What :func:`_surface_builders` makes its builders of, or None where the worlds' rest points
+    or spoke lengths differ (or are not the first scene's own arrays)."""
+    first = scenes[0].tubes
+    parts = [str(wp.get_device(device)), len(scenes), tuple(prim_start.tolist())]
+    for k, t in enumerate(first):
+        if t.spoke_lengths is not None or not all(s.tubes[k].points is t.points and s.tubes[k].radius is t.radius
+                                                  and s.tubes[k].spoke_lengths is None for s in scenes):  # fmt: skip
+            return None
+        p = t.params
+        parts.append((t.points.tobytes(), t.radius.tobytes(), tuple(t.curve_counts.tolist()), p.spokes, p.frames, p.caps,
+                      None if p.reference_normal is None else tuple(np.asarray(p.reference_normal, dtype=float).tolist())))  # fmt: skip
+    return tuple(parts)
 
 
 def initial_state(worlds: Worlds):
