@@ -55,7 +55,8 @@ def curvature_binormal_unit(ta: Vec, tb: Vec, ila: wp.Float, ilb: wp.Float):
 
 @wp.func(inline=True)
 def curvature_binormal(a: Vec, b: Vec):
-    """Discrete curvature binormal of edges ``a``, ``b`` [m] (:func:`curvature_binormal_unit`)."""
+    """Discrete curvature binormal of edges ``a``, ``b`` [m] (:func:`curvature_binormal_terms`; the
+    same as :func:`curvature_binormal_unit`)."""
     kb, inv, la, lb = curvature_binormal_terms(a, b)
     return kb
 

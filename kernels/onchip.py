@@ -332,10 +332,11 @@ def make_onchip_kernel(features: Features, block_dim: int, al_lines: int = 0, ma
                 nv = zero
                 nal_v = lines3()
             e = wp.where(has_next, (nx - x) + (nlo - lo), zero)  # edge i (zero at its last node)
-            # Bending: each edge's unit tangent and reciprocal length once, edge i - 1's (zero at a
-            # tube's first node through shared memory; through shuffles whatever the lane before
-            # holds, never used there) from the lane before (the same bits) or from e_prev; with a
-            # curved rest shape also each edge's own normal and binormal (edge_normal).
+            # Bending: each edge's unit tangent and reciprocal length once; edge i - 1's from the
+            # lane before (shuffles: the same bits; whatever that lane holds at a tube's first node,
+            # never used there) or from the previous node's position (shared memory: zero at a
+            # tube's first node); with a curved rest shape also each edge's own normal and binormal
+            # (edge_normal, edge_binormal).
             t_e = zero
             ilb = float(0.0)
             t_p = zero

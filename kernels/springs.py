@@ -365,10 +365,11 @@ def make_node_terms(features: Features, lanes: bool = False):
     @wp.func
     def force(p: NodeTerms, x: Vec, v: Vec):
         f = type(x)(p.f_applied)
-        if wp.static(ANCHORS and LANES):
-            f = f - (x - type(x)(p.anchor_q)) * type(x[0])(p.anchor_k) - v * type(x[0])(p.anchor_kd)
-        if wp.static(ANCHORS and not LANES):
-            if p.anchor_k > 0.0:
+        if wp.static(ANCHORS):
+            anchored = True  # (lanes: on every node, a constant the compiler takes the branch out for)
+            if wp.static(not LANES):
+                anchored = p.anchor_k > 0.0
+            if anchored:
                 f = f - (x - type(x)(p.anchor_q)) * type(x[0])(p.anchor_k) - v * type(x[0])(p.anchor_kd)
         return f
 
