@@ -404,10 +404,10 @@ def extract_centerline(
     length = float(arclength(dense)[-1])
     d_ref = initial_normal(hub_tangents(dense)[0])
     dense_spokes, _ = measure_spokes(q, dense, d_ref, 16, diag)
-    found = find_branches(dm, voxel_path, dense, dense_spokes.max(axis=1), np.median(dense_spokes, axis=1),
-                          choice.others)
     r_dense = np.median(dense_spokes, axis=1)
-    bridged = [bridged_branch(fb.length, _branch_radius(q, fb.path, diag), float(np.median(r_dense))) for fb in found]
+    found = find_branches(dm, voxel_path, dense, dense_spokes.max(axis=1), r_dense, choice.others)
+    r_tube = float(np.median(r_dense))
+    bridged = [bridged_branch(fb.length, _branch_radius(q, fb.path, diag), r_tube) for fb in found]
     if any(bridged):  # the hubs' sections by such a branch's junction leave its mouth out
         at = np.array([fb.junction for fb, b in zip(found, bridged) if b])
         q.junctions = (dense[at], r_dense[at])
