@@ -17,6 +17,10 @@ Output arrays (stage units, float32), for ``F`` written frames and ``W`` worlds:
 - ``centerline``: (F, W, N, 3), all tube prims' points of a world in prim and curve order;
 - ``points``, ``normals``: (F, W, V, 3), all prims' surface vertices of a world in prim order;
 - ``extent``: (F, W, prims, 2, 3), each prim's surface bounds ``[min, max]``.
+
+The surface's three are made where they are asked for (:func:`surface_outputs`): USD outputs write
+all three, the arrays layout the points alone, so its chunks neither store nor copy back the
+normals and extents.
 """
 
 from __future__ import annotations
@@ -42,7 +46,7 @@ from .plan import RunChoice
 from .rows import Rows
 from .worlds import build_worlds, initial_state
 
-__all__ = ["ChunkRun", "simulate_chunk", "output_frames", "chunk_shapes"]
+__all__ = ["ChunkRun", "simulate_chunk", "output_frames", "chunk_shapes", "surface_outputs", "SURFACE_OUTPUTS"]
 
 TIMERS = ("build_s", "kernels_s", "launch_s", "sync_s", "readback_s", "control_s", "checks_s", "copy_s", "flush_wait_s",
           "rerun_s")  # fmt: skip
@@ -53,14 +57,31 @@ def output_frames(frames: int, every: int) -> list[int]:
     return list(range(0, frames, every))
 
 
-def chunk_shapes(scenes: list[Scene], frames: int, every: int, surface: bool, vertex_count: int | None) -> dict:
-    """Shapes of a chunk's output arrays (see the module docstring)."""
+#: the surface's output arrays: vertices [stage units], unit normals, each prim's bounds [stage units]
+SURFACE_OUTPUTS = ("points", "normals", "extent")
+
+
+def surface_outputs(surface) -> tuple[str, ...]:
+    """The surface's output arrays asked for by ``surface``: True for all of
+    :data:`SURFACE_OUTPUTS`, False (or empty) for none, or the names of some of them."""
+    if surface is True:
+        return SURFACE_OUTPUTS
+    if not surface:
+        return ()
+    unknown = sorted(set(surface) - set(SURFACE_OUTPUTS))
+    if unknown:
+        raise ValueError(f"surface outputs {unknown}: expected some of {list(SURFACE_OUTPUTS)}")
+    return tuple(n for n in SURFACE_OUTPUTS if n in surface)
+
+
+def chunk_shapes(scenes: list[Scene], frames: int, every: int, surface, vertex_count: int | None) -> dict:
+    """Shapes of a chunk's output arrays (see the module docstring); ``surface`` as
+    :func:`surface_outputs` takes it, ``vertex_count`` a world's surface vertices (or None without)."""
     F, W = len(output_frames(frames, every)), len(scenes)
     N = sum(len(t.points) for t in scenes[0].tubes)
     out = {"centerline": (F, W, N, 3)}
-    if surface:
-        out.update(points=(F, W, vertex_count, 3), normals=(F, W, vertex_count, 3),
-                   extent=(F, W, len(scenes[0].tubes), 2, 3))  # fmt: skip
+    shapes = {"points": (F, W, vertex_count, 3), "normals": (F, W, vertex_count, 3), "extent": (F, W, len(scenes[0].tubes), 2, 3)}
+    out.update((name, shapes[name]) for name in surface_outputs(surface))
     return out
 
 
@@ -94,7 +115,7 @@ class ChunkRun:
     ready: cf.Future = field(default_factory=done_future)
 
 
-def simulate_chunk(scenes: list[Scene], choice: RunChoice, device: str, frames: int, every: int, surface: bool,
+def simulate_chunk(scenes: list[Scene], choice: RunChoice, device: str, frames: int, every: int, surface,
                    allocate=None, progress=None, per_node: dict | None = None) -> ChunkRun:  # fmt: skip
     """Simulate ``scenes`` (one group) as worlds and return their output frames.
 
@@ -104,7 +125,8 @@ def simulate_chunk(scenes: list[Scene], choice: RunChoice, device: str, frames: 
         device: Warp device name.
         frames: frames to simulate, frame 0 (rest) included.
         every: write every ``every``-th frame.
-        surface: compute the surface of the written frames.
+        surface: rebuild the surface of the written frames and store the outputs
+            :func:`surface_outputs` reads from it (True: points, normals and extents), or not (False).
         allocate: callable ``{name: shape} -> {name: float32 array}`` for the output arrays
             (default: in memory).
         progress: callable taking a number of variant-frames just simulated, or None.
@@ -251,13 +273,17 @@ def _store_frame(worlds, state, store: FrameStore, f_out: int, mpu: float, surfa
 
 
 def _surface_frame(worlds, state, store: FrameStore, f_out: int, mpu: float) -> None:
-    """Rebuild every prim's surface and store it as written frame ``f_out``."""
+    """Rebuild every prim's surface and store it as written frame ``f_out`` (the outputs ``store``
+    holds: :func:`surface_outputs`)."""
+    normals, extent = "normals" in store.buffers, "extent" in store.buffers
     for p, b in enumerate(worlds.surfaces):
         pts, nrm = b.compute(state.node_q)
         cols = slice(int(worlds.vertex_start[p]), int(worlds.vertex_start[p + 1]))
         store.store(f_out, "points", pts, mpu, columns=cols)  # as Simulation.surface
-        store.store(f_out, "normals", nrm, 1.0, columns=cols)
-        store.store(f_out, "extent", b.extent(), mpu, prim=p)
+        if normals:
+            store.store(f_out, "normals", nrm, 1.0, columns=cols)
+        if extent:
+            store.store(f_out, "extent", b.extent(), mpu, prim=p)
 
 
 def _reset_worlds(state, rest32, rest, dead) -> None:
@@ -306,8 +332,10 @@ def _run_alone(scene: Scene, w: int, device: str, frames: int, every: int, surfa
             if surface:
                 parts = sim.surface()
                 arrays["points"][f_out, w] = np.concatenate([p for p, _, _ in parts])
-                arrays["normals"][f_out, w] = np.concatenate([nrm for _, nrm, _ in parts])
-                arrays["extent"][f_out, w] = np.stack([e for _, _, e in parts])
+                if "normals" in arrays:
+                    arrays["normals"][f_out, w] = np.concatenate([nrm for _, nrm, _ in parts])
+                if "extent" in arrays:
+                    arrays["extent"][f_out, w] = np.stack([e for _, _, e in parts])
             written += 1
             f_out += 1
     for a in arrays.values():

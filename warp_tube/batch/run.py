@@ -39,7 +39,7 @@ from ..scene.spec import SceneError
 from ..scene.usd import MAX_FRAMES
 from ..sim.budget import whole_number
 from ..sim.output import unwritten_frames
-from .engine import output_frames
+from .engine import SURFACE_OUTPUTS, output_frames
 from .result import BatchResult, _strained
 from .bookkeeping import PROCESS_VARIANTS, Bookkeeper
 from .recorder import Recorder
@@ -401,7 +401,9 @@ def _run_batch(scene, out_dir, table, tab, devices, writer_pool, sim_workers, t_
         if on_chunk is not None:
             on_chunk(chunk_id)
 
-    context = dict(variants=variants, plan=plan, choices=choices, kept=kept, frames=n_frames, every=every, surface=surface,
+    # the surface's arrays the chunks make: the arrays layout writes its points alone
+    parts = (("points",) if layout == "arrays" else SURFACE_OUTPUTS) if surface else ()
+    context = dict(variants=variants, plan=plan, choices=choices, kept=kept, frames=n_frames, every=every, surface=parts,
                    spec=spec, writers=writer_pool, device=device, scheduler=scheduler, bar=bar, finish=finish)  # fmt: skip
     try:
         if not todo:
