@@ -115,7 +115,8 @@ def test_a_source_that_does_not_fit_its_columns_is_refused():
 def test_windows_buffers_reused_once_copied_back(monkeypatch):
     """A window copied back gives its device buffers to a later window (of this store or the next
     chunk's) instead of new ones; the frames are the same. With one window in flight at a time,
-    every third window waits for the first's copy and takes its buffers: two sets for four windows."""
+    a window takes the buffers of one copied back: at most two sets for four windows (one, where
+    each copy back ends before the next window starts: the copying thread's timing)."""
     monkeypatch.setattr(framestore, "MAX_WINDOWS_IN_FLIGHT", 1)
     monkeypatch.setattr(framestore, "_window_memory", lambda device: 1e9)  # (room for windows in flight)
     monkeypatch.setattr(framestore, "_free_windows", {})
@@ -135,7 +136,7 @@ def test_windows_buffers_reused_once_copied_back(monkeypatch):
         store.store(f, "centerline", wp.array(ref[f], dtype=wp.vec3, device="cpu"))
     store.finish().result()
     assert np.array_equal(host["centerline"], ref)
-    assert len(taken) == 4 and len(set(taken)) == 2, taken  # (4 windows: frames 0-1, 2-3, 4-5, 6)
+    assert len(taken) == 4 and len(set(taken)) <= 2, taken  # (4 windows: frames 0-1, 2-3, 4-5, 6)
     # the next store of these shapes starts in a kept window, and writes the same frames
     again = FrameStore(host, "cpu", window_bytes=2 * 2 * 5 * 12, staged=True)
     assert id(again.buffers) in taken
