@@ -51,8 +51,8 @@ def collect(tmp_path, monkeypatch, plain: bool):
 
 def test_plain_columns_give_the_scenes_the_stage_gives(tmp_path, monkeypatch, caplog):
     calls = []
-    scenes_of = variants_mod.PlainColumns.scenes
-    monkeypatch.setattr(variants_mod.PlainColumns, "scenes", lambda self, columns: calls.append(scenes_of(self, columns)) or calls[-1])
+    rows_of = variants_mod.PlainColumns.rows
+    monkeypatch.setattr(variants_mod.PlainColumns, "rows", lambda self, columns: calls.append(rows_of(self, columns)) or calls[-1])
     fast, fast_problems = collect(tmp_path, monkeypatch, plain=True)
     # rows 0, 1 and 6 made from the base scene (the rows whose cells all read plainly, at once: the
     # first call, without row 5, whose force is no float32); the others read through the stage
@@ -68,8 +68,8 @@ def test_plain_columns_give_the_scenes_the_stage_gives(tmp_path, monkeypatch, ca
     assert fast_log == slow_log and any("anchorStiffness 0" in msg for msg in slow_log)
     for k, (a, b) in enumerate(zip(fast.variants, slow.variants)):
         assert (a is None) == (b is None), k
-        if a is not None:
-            same(a, b, f"row {k}")
+        if a is not None:  # (each with its scene made: a plain one's is made when asked for)
+            same(a._replace(source=a.scene), b._replace(source=b.scene), f"row {k}")
     # the float3 force was stored as float32 and read back as such
     assert fast.variants[1].scene.forces[0].values[0, 0] == float(np.float32(0.0123456789))
 
@@ -200,6 +200,46 @@ def test_plain_variants_take_the_shortcuts_to_the_same_choices_and_keys(tmp_path
     other = tmp_path / "other.csv"
     other.write_text("/World/Bowel.warptube:spokes\n8\n12\n")
     assert not collect_variants(str(SCENE), read_table(str(other)))[0].plain
+
+
+def test_plain_variants_are_planned_and_built_from_their_columns(tmp_path):
+    """A table of plain values keeps its rows as columns: planning (run choices, per-node
+    parameters) and a chunk's build (forces per world, surfaces) read them without making the
+    variants' scenes, and give what the scenes made one by one give, bit for bit."""
+    from warp_tube.batch.control import WorldControl
+    from warp_tube.batch.fastread import PlainScenes
+    from warp_tube.batch.plan import run_choices
+    from warp_tube.batch.worlds import build_worlds, combined_tubes, initial_state, release_builders, scenes_node_parameters
+    from warp_tube.model.tube import node_parameters
+
+    good = [r for r in ROWS if not r[0].startswith("-") and r[0] != "1e14" and "1e39" not in r[4] and r[3] != "0"]
+    table = tmp_path / "plain.csv"
+    table.write_text(",".join(HEADER) + "\n" + "\n".join(",".join(f'"{c}"' if "," in c else c for c in r) for r in good) + "\n")
+    variants, problems = collect_variants(str(SCENE), read_table(str(table)))
+    assert not problems and variants.plain and len(variants) == len(good) >= 3
+    lazy = variants.scenes(range(len(variants)))
+    assert isinstance(lazy, PlainScenes)
+    rows = lazy.rows
+    choices = run_choices(lazy, plain=True)
+    per_node = scenes_node_parameters(lazy)
+    worlds = build_worlds(lazy, "cpu", True, per_node=None)
+    state, _, control = initial_state(worlds)
+    forces = WorldControl(worlds, control, 1 / 24).forces_at(0.5)
+    assert set(rows._made) == {0}  # (the first scene alone: the layout, settings and stage every one shares)
+    eager = [v.scene for v in variants.variants]  # every scene made
+    assert choices == run_choices(eager)
+    general = node_parameters(combined_tubes(eager))[0]
+    assert per_node.keys() == general.keys()
+    for name, a in general.items():
+        np.testing.assert_array_equal(per_node[name], a, err_msg=name)
+    release_builders()  # (a builder of their own: not the one the lazy chunk left)
+    worlds_eager = build_worlds(eager, "cpu", True)
+    assert worlds_eager.surfaces[0] is not worlds.surfaces[0]
+    _, _, control_eager = initial_state(worlds_eager)
+    np.testing.assert_array_equal(forces, WorldControl(worlds_eager, control_eager, 1 / 24).forces_at(0.5))
+    assert forces[:, 0].tolist() == [list(s.forces[0].values[0]) for s in eager]
+    for a, b in zip(worlds.surfaces[0].compute(state.node_q), worlds_eager.surfaces[0].compute(state.node_q)):
+        np.testing.assert_array_equal(a.numpy(), b.numpy())
 
 
 @pytest.mark.parametrize("text, type_name, why", [

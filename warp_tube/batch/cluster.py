@@ -96,7 +96,7 @@ def run_dask(todo, context, result) -> None:
     futures = {}
     try:
         for c in todo:
-            scenes = [context["variants"].variants[i].scene for i in c.indices]
+            scenes = context["variants"].scenes(c.indices)
             tasks = write_tasks(c, context, 1)
             payload = (scenes, context["choices"][c.indices[0]], context["frames"], context["every"], context["surface"],
                        context["device"], tasks)  # fmt: skip

@@ -18,6 +18,7 @@ from operator import attrgetter, is_
 import numpy as np
 
 from ..sim.assistant_lines import AssistantLines
+from .fastread import PlainScenes
 from .worlds import Worlds
 
 __all__ = ["WorldControl", "interpolate"]
@@ -63,8 +64,13 @@ class WorldControl:
         # Per model force: worlds grouped by their sample times, with their values (the times
         # read once per array: variants made from one scene share it).
         self._forces = []
+        scenes = worlds.scenes
+        plain = isinstance(scenes, PlainScenes)  # (every world's samples at the same times: from the columns)
         for a, k in enumerate(order):
-            fs = [s.forces[k] for s in worlds.scenes]
+            if plain:
+                self._forces.append([(scenes.force_times(k), np.arange(W), scenes.force_values(k))])
+                continue
+            fs = [s.forces[k] for s in scenes]
             times_of = list(map(attrgetter("times"), fs))
             if all(map(is_, times_of, repeat(times_of[0]))):  # (one array: variants made from one scene)
                 self._forces.append([(times_of[0], np.arange(W), np.stack(list(map(attrgetter("values"), fs))))])
@@ -87,7 +93,7 @@ class WorldControl:
         self._pins = []
         for k, t in enumerate(worlds.scenes[0].tubes):
             if t.pin_track is not None:
-                tracks = [s.tubes[k].pin_track for s in worlds.scenes]
+                tracks = [t.pin_track] * W if plain else [s.tubes[k].pin_track for s in scenes]  # (plain: the base's)
                 F = max(len(tr) for tr in tracks)  # (a shorter track holds its last frame, as it would alone)
                 track = np.stack([np.concatenate([tr, np.repeat(tr[-1:], F - len(tr), axis=0)]) for tr in tracks])
                 self._pins.append((worlds.prim_start[k] + t.pinned, track))

@@ -349,7 +349,7 @@ def run_here(todo, device, context, result) -> None:
 
     try:
         for chunk in todo:
-            scenes = [context["variants"].variants[i].scene for i in chunk.indices]
+            scenes = context["variants"].scenes(chunk.indices)
             choice = context["choices"][chunk.indices[0]]
             allocate = None
             if pool is not None and ring is None:
@@ -448,7 +448,7 @@ def run_pooled(todo, devices, workers: SimWorkers, context, result) -> None:
     sims = workers.pool
     buffers = None
     if not by_workers:
-        first = [context["variants"].variants[i].scene for i in todo[0].indices]
+        first = context["variants"].scenes(todo[0].indices)
         shapes = chunk_shapes(first, context["frames"], context["every"], context["surface"], context["spec"].vertices)
         buffers = buffer_folder(sum(4 * math.prod(s) for s in shapes.values()) * len(devices), context["spec"].work_dir)
     queue_chunks = list(todo)
@@ -490,14 +490,14 @@ def run_pooled(todo, devices, workers: SimWorkers, context, result) -> None:
     def submit_sim():
         while by_workers and queue_chunks and len(simulating) + len(writing) < 3 * len(devices):
             c = queue_chunks.pop(0)
-            scenes = [context["variants"].variants[i].scene for i in c.indices]
+            scenes = context["variants"].scenes(c.indices)
             tasks = write_tasks(c, context, threads)
             payload = (c.id, scenes, context["choices"][c.indices[0]], context["frames"], context["every"], context["surface"],
                        tasks, threads)  # fmt: skip
             simulating[sims.submit(_sim_write_task, payload)] = c
         while queue_chunks and free_slots and len(simulating) + len(writing) < 2 * len(devices):
             c = queue_chunks.pop(0)
-            scenes = [context["variants"].variants[i].scene for i in c.indices]
+            scenes = context["variants"].scenes(c.indices)
             slot_of[c.id] = free_slots.pop()
             payload = (scenes, context["choices"][c.indices[0]], context["frames"], context["every"], context["surface"], buffers,
                        slot_of[c.id])  # fmt: skip

@@ -134,7 +134,9 @@ def run_choices(scenes: list[Scene], block: int | None = None, plain: bool = Fal
         for b in range(0, len(members), size):
             idx = members[b : b + size]
             one = one or _topology(scenes[idx[0]])
-            for i, choice in zip(idx, _choices_of([scenes[i] for i in idx], one, idx, keep)):
+            # (plain: every scene in order, a slice; of PlainScenes, one that makes no scene)
+            part = scenes[idx[0] : idx[-1] + 1] if plain else [scenes[i] for i in idx]
+            for i, choice in zip(idx, _choices_of(part, one, idx, keep)):
                 out[i] = choice
     for i, key in enumerate(keys):  # (the scenes equal to an earlier one)
         if out[i] is None:
@@ -157,18 +159,19 @@ def _choices_of(scenes: list[Scene], one, indices, keep) -> list[RunChoice]:
     discretised in one build (kept in ``keep`` as those of ``indices``, unless None)."""
     from ..centerline.policy import decide_integrator, decide_integrators, implicit_cost_ratio, substeps_for
     from ..centerline.stability import critical_time_steps
-    from ..model.tube import node_parameters
-    from .worlds import combined_tubes
+    from .fastread import PlainScenes
+    from .worlds import scenes_node_parameters
 
-    combined = combined_tubes(scenes)
-    per_node, _ = node_parameters(combined)  # every scene's nodes, scene after scene
+    per_node = scenes_node_parameters(scenes)  # every scene's nodes, scene after scene
     if keep is not None:
         keep.add(indices, per_node)
     h = SimpleNamespace(**per_node, tube_al_force=one.host.tube_al_force)
     tubes = len(scenes[0].tubes)
-    if len(combined.tubes) == tubes * len(scenes) and all(map(eq, map(len, map(attrgetter("tubes"), scenes)), repeat(tubes))):
-        # (each scene's largest: of its row of tubes)
-        damping = np.fromiter(map(attrgetter("params.spring_damping"), combined.tubes), np.float64, len(combined.tubes))
+    plain = isinstance(scenes, PlainScenes)  # (their columns read, the scenes not made)
+    if plain:  # (each scene's largest: of its row of tubes)
+        damping = scenes.materials(("spring_damping",)).reshape(len(scenes), tubes).max(axis=1)
+    elif all(map(eq, map(len, map(attrgetter("tubes"), scenes)), repeat(tubes))):
+        damping = np.fromiter((t.params.spring_damping for s in scenes for t in s.tubes), np.float64, tubes * len(scenes))
         damping = damping.reshape(len(scenes), tubes).max(axis=1)
     else:
         damping = np.array([max([t.params.spring_damping for t in s.tubes], default=0.0) for s in scenes])
@@ -179,14 +182,16 @@ def _choices_of(scenes: list[Scene], one, indices, keep) -> list[RunChoice]:
     seg_min = np.where(np.isfinite(seg_min), seg_min, 0.0).tolist()
     settings, stage = scenes[0].settings, scenes[0].stage
     frame_dt = stage.frame_dt
-    shared = (all(map(is_, map(attrgetter("settings"), scenes), repeat(settings)))
-              or all(s.settings == settings for s in scenes)) \
-        and (all(map(is_, map(attrgetter("stage"), scenes), repeat(stage))) or all(s.stage.frame_dt == frame_dt for s in scenes))  # fmt: skip
+    shared = plain or ((all(map(is_, map(attrgetter("settings"), scenes), repeat(settings)))
+                        or all(s.settings == settings for s in scenes))
+                       and (all(map(is_, map(attrgetter("stage"), scenes), repeat(stage)))
+                            or all(s.stage.frame_dt == frame_dt for s in scenes)))  # fmt: skip
     decided = decide_integrators(settings, bounds, frame_dt, cost) if shared else None
     if decided is not None:  # (every scene's choice at once: made as RunChoice._make makes it)
         implicit, substeps, dt = decided
         names = map(("semiImplicitEuler", "implicitEuler").__getitem__, implicit.tolist())
-        why = zip(map(attrgetter("settings"), scenes), bounds.tolist(), repeat(frame_dt), repeat(cost))
+        each = repeat(settings) if plain else map(attrgetter("settings"), scenes)  # (plain: the base's, every one)
+        why = zip(each, bounds.tolist(), repeat(frame_dt), repeat(cost))
         return list(map(tuple.__new__, repeat(RunChoice), zip(names, substeps.tolist(), dt.tolist(), seg_min, why)))
     out = []
     for scene, hc, seg in zip(scenes, bounds.tolist(), seg_min):

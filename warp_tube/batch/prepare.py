@@ -169,7 +169,7 @@ def checked_run_choices(variants, keep=None) -> list:
     ``keep``: a :class:`~warp_tube.batch.nodes.KeptNodes` for their per-node parameters, or None."""
     from .variants import MAX_PROBLEMS
 
-    scenes = [v.scene for v in variants.variants]
+    scenes = variants.scenes(range(len(variants.variants)))  # (plain ones: their columns, the scenes not made)
     try:
         return run_choices(scenes, plain=variants.plain, keep=keep)
     except SceneError:

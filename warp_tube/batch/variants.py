@@ -19,15 +19,17 @@ from __future__ import annotations
 
 import itertools
 import logging
+from collections.abc import Sequence
 from dataclasses import dataclass, replace
 from itertools import repeat
+from operator import itemgetter
 from typing import NamedTuple
 
 import numpy as np
 
 from ..scene.attributes import attributes_of
 from ..scene.spec import Scene, SceneError
-from .fastread import PlainColumns, may_be_plain
+from .fastread import PlainColumns, PlainRow, may_be_plain, plain_scenes
 from .kinds import check_kinds
 from .warned import HeldWarnings, merged_warnings, say_warnings, warned_where
 from .table import Table
@@ -70,7 +72,8 @@ class Variant(NamedTuple):
         row: its table row, or None without a table.
         cells: the row's cells (empty without a table).
         selection: the chosen variant of each expanded variantSet.
-        scene: the variant's validated scene.
+        source: the variant's validated scene, or for a variant made by plain values its
+            :class:`~warp_tube.batch.fastread.PlainRow` (the scene made when first asked for).
     """
 
     index: int
@@ -78,7 +81,16 @@ class Variant(NamedTuple):
     row: int | None
     cells: tuple[str, ...]
     selection: tuple[str, ...]
-    scene: Scene
+    source: Scene | PlainRow
+
+    @property
+    def scene(self) -> Scene:
+        """The variant's validated scene."""
+        s = self.source
+        return s.scene if type(s) is PlainRow else s
+
+
+SOURCE = itemgetter(5)  # (Variant.source)
 
 
 @dataclass(frozen=True)
@@ -99,6 +111,14 @@ class Variants:
 
     def __len__(self) -> int:
         return len(self.variants)
+
+    def scenes(self, indices) -> Sequence[Scene]:
+        """The scenes of the variants at ``indices`` (batch indices, in their order): where they
+        were all made by plain values from one table read, a
+        :class:`~warp_tube.batch.fastread.PlainScenes` (each made when asked for, the columns at
+        hand), else a list."""
+        sources = list(map(SOURCE, map(self.variants.__getitem__, indices)))
+        return plain_scenes(sources) or [s.scene if type(s) is PlainRow else s for s in sources]
 
     def parameter_columns(self) -> list[str]:
         """The summary's parameter columns: the table's headers, then ``/PRIM{SET}`` per axis."""
@@ -346,7 +366,7 @@ def collect_variants(scene_path: str, table: Table | None = None, variant_sets: 
 
 def _plain_scenes(plain: PlainColumns, table: Table, columns) -> list:
     """Per row of ``table``, its variant made from the base scene by ``plain`` (all rows at
-    once), or None where the row must go through the stage (a cell not written plainly, or one
+    once: a :class:`~warp_tube.batch.fastread.PlainRow`), or None where the row must go through the stage (a cell not written plainly, or one
     the reader would refuse or warn about: that path parses it again and names the problem)."""
     parsed, whole = [], 0
     for j, (col, (_, type_name, _)) in enumerate(zip(table.columns, columns)):
@@ -372,7 +392,7 @@ def _plain_scenes(plain: PlainColumns, table: Table, columns) -> list:
         return [None] * len(table.rows)
     if len(rows) < len(table.rows):
         parsed = [col[rows] if isinstance(col, np.ndarray) else [col[r] for r in rows] for col in parsed]
-    made = plain.scenes(parsed)
+    made = plain.rows(parsed)
     out: list = [None] * len(table.rows)
     for r, scene in zip(rows, made):
         out[r] = scene
@@ -442,7 +462,7 @@ def _collect(scene_path, table, variant_sets, extract, progress, held):
             problems.append((-1, f"{context}: {e}" if chosen else str(e)))
             continue
         if table is None:
-            out[c] = Variant(index=c, name=f"variant_{c:0{width}d}", row=None, cells=(), selection=combo, scene=base)
+            out[c] = Variant(index=c, name=f"variant_{c:0{width}d}", row=None, cells=(), selection=combo, source=base)
             done += 1
             continue
         kinds = check_kinds(stage, table)

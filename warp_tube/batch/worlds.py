@@ -19,10 +19,11 @@ from operator import attrgetter
 import numpy as np
 import warp as wp
 
-from ..model.tube import TubeModel, build_model, model_features, node_parameters, rest_is_curved
+from ..model.tube import MATERIALS, TubeModel, build_model, model_features, node_parameters, rest_is_curved
 from ..scene.spec import Scene, replace_checked
+from .fastread import PlainScenes
 
-__all__ = ["Worlds", "WorldArrays", "build_worlds", "combined_tubes"]
+__all__ = ["Worlds", "WorldArrays", "build_worlds", "combined_tubes", "scenes_node_parameters"]
 
 
 @dataclass(frozen=True)
@@ -49,6 +50,18 @@ def combined_tubes(scenes: list[Scene]) -> Scene:
     parameters (:func:`~warp_tube.model.tube.node_parameters`) of them all are made from."""
     tubes = tuple(chain.from_iterable(map(attrgetter("tubes"), scenes)))
     return replace_checked(scenes[0], tubes=tubes, forces=())  # (the scenes' prims repeat: not one scene's)
+
+
+def scenes_node_parameters(scenes) -> dict:
+    """The per-node parameters of every scene's tubes, scene after scene
+    (:func:`~warp_tube.model.tube.node_parameters` of :func:`combined_tubes`); for
+    :class:`~warp_tube.batch.fastread.PlainScenes` from their columns, without making the scenes:
+    the base scene's prims, repeated, with each scene's materials."""
+    if isinstance(scenes, PlainScenes):
+        base = scenes.base
+        combined = replace_checked(base, tubes=base.tubes * len(scenes), forces=())
+        return node_parameters(combined, materials=scenes.materials(MATERIALS))[0]
+    return node_parameters(combined_tubes(scenes))[0]
 
 
 @dataclass
@@ -101,7 +114,7 @@ def build_worlds(scenes: list[Scene], device: str, surface: bool, per_node: dict
     one = _topology(scenes[0], device)  # the topology every world shares
     N = one.node_count
     if per_node is None:
-        per_node, _ = node_parameters(combined_tubes(scenes))  # every world's nodes, world after world
+        per_node = scenes_node_parameters(scenes)  # every world's nodes, world after world
         if len(per_node["node_mass"]) != W * N:
             raise ValueError(f"variants of one group have {len(per_node['node_mass'])} nodes in all, expected {W} x {N}")
         per_node = {f.name: per_node[f.name].reshape((W, N) + per_node[f.name].shape[1:]) for f in dataclasses.fields(WorldArrays)}
@@ -126,7 +139,8 @@ def build_worlds(scenes: list[Scene], device: str, surface: bool, per_node: dict
     if surface:
         surfaces = _surface_builders(scenes, prim_start, device)
         vertex_start = np.concatenate([[0], np.cumsum([b.vertex_count for b in surfaces])])
-    return Worlds(scenes=list(scenes), model=model, host=host, prim_start=prim_start, surfaces=surfaces,
+    scenes = scenes if isinstance(scenes, PlainScenes) else list(scenes)  # (plain ones: made when asked for)
+    return Worlds(scenes=scenes, model=model, host=host, prim_start=prim_start, surfaces=surfaces,
                   vertex_start=vertex_start)  # fmt: skip
 
 
@@ -175,8 +189,9 @@ def _surface_builders(scenes, prim_start, device):
     key = _builders_key(scenes, prim_start, device)
     if key is not None and key in _BUILDERS:
         return _BUILDERS[key]
+    plain = isinstance(scenes, PlainScenes)  # (whose worlds share the base scene's geometry)
     for k, t in enumerate(scenes[0].tubes):
-        specs = [s.tubes[k] for s in scenes]
+        specs = [t] * W if plain else [s.tubes[k] for s in scenes]
         if all(u.spoke_lengths is None and u.radius is t.radius for u in specs):  # the variants share the radii
             lengths = np.repeat(t.radius[:, None], t.params.spokes, axis=1)
         else:
@@ -208,9 +223,10 @@ def _builders_key(scenes, prim_start, device):
     or spoke lengths differ (or are not the first scene's own arrays)."""
     first = scenes[0].tubes
     parts = [str(wp.get_device(device)), len(scenes), tuple(prim_start.tolist())]
+    plain = isinstance(scenes, PlainScenes)  # (whose worlds share the base scene's geometry)
     for k, t in enumerate(first):
-        if t.spoke_lengths is not None or not all(s.tubes[k].points is t.points and s.tubes[k].radius is t.radius
-                                                  and s.tubes[k].spoke_lengths is None for s in scenes):  # fmt: skip
+        if t.spoke_lengths is not None or not (plain or all(s.tubes[k].points is t.points and s.tubes[k].radius is t.radius
+                                                            and s.tubes[k].spoke_lengths is None for s in scenes)):  # fmt: skip
             return None
         p = t.params
         parts.append((t.points.tobytes(), t.radius.tobytes(), tuple(t.curve_counts.tolist()), p.spokes, p.frames, p.caps,

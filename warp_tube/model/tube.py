@@ -253,12 +253,16 @@ class TubeModel:
 #: a tube prim's geometry arrays (TubeSpec fields): prims holding the same objects share them
 _GEOMETRY = ("points", "radius", "curve_counts", "pinned", "anchors")
 #: the TubeParams fields node_parameters reads, each prim's in one pass
-_MATERIALS = ("density", "youngs_modulus", "stretch_stiffness", "bend_stiffness", "damping", "spring_damping", "anchor_stiffness")
+MATERIALS = ("density", "youngs_modulus", "stretch_stiffness", "bend_stiffness", "damping", "spring_damping", "anchor_stiffness")
 
 
-def node_parameters(scene: Scene) -> tuple[dict, bool]:
+def node_parameters(scene: Scene, materials: np.ndarray | None = None) -> tuple[dict, bool]:
     """The per-node arrays of every curve of ``scene`` (prims in order, each prim's curves in
     order), for all curves at once, and whether any rest shape is curved.
+
+    ``materials``: each prim's ``TubeParams`` fields :data:`MATERIALS` (NaN for None), (prims,
+    len(MATERIALS)) float64, in place of the prims' own params (a batch's variants made by plain
+    values, whose prims are the base scene's, repeated), or None to read them from the prims.
 
     Returns a dict of NumPy arrays, N = nodes, C = curves, T = prims: ``node_rest_q`` (N, 3) [m],
     ``node_mass`` [kg] (half of each adjacent segment's cylinder), ``node_inv_mass`` [1/kg] (0
@@ -301,7 +305,7 @@ def node_parameters(scene: Scene) -> tuple[dict, bool]:
     def material(name: str):
         """Parameter ``name`` of each prim [its unit] (NaN for None): a scalar where every prim has
         the same value, else per row (rows, 1) where the rows are prims, or (1, nodes) over one row."""
-        v = materials[:, _MATERIALS.index(name)]
+        v = materials[:, MATERIALS.index(name)]
         if np.all((v == v[0]) | (np.isnan(v) & np.isnan(v[0]))):
             return v[0]
         return v[:, None] if shared else np.repeat(v, sizes)[None]
@@ -326,8 +330,8 @@ def node_parameters(scene: Scene) -> tuple[dict, bool]:
         out[:, :-1] = a
         return out.reshape(-1)
 
-    params = [s.params for s in specs]
-    materials = np.array(list(map(attrgetter(*_MATERIALS), params)), dtype=np.float64).reshape(P, -1)  # (None as NaN)
+    if materials is None:
+        materials = np.array(list(map(attrgetter(*MATERIALS), (s.params for s in specs))), dtype=np.float64).reshape(P, -1)  # (None as NaN)
     density = material("density")
     youngs = material("youngs_modulus")
     stretch = material("stretch_stiffness")
