@@ -294,6 +294,9 @@ def cases() -> list[Case]:
     bad("a projective transform over the tube", scene(('def Xform "World"\n{\n', 'def Xform "World"\n{\n    matrix4d xformOp:transform = '
                                                        '((1, 0, 0, 0), (0, 1, 0, 0), (0, 0, 1, 0.5), (0, 0, 0, 1))\n'
                                                        '    uniform token[] xformOpOrder = ["xformOp:transform"]\n')))
+    bad("a tube placed 50 km from the origin by a transform (float32 steps of 60% of its 1 cm segments)",
+        scene(('def Xform "World"\n{\n', 'def Xform "World"\n{\n    double3 xformOp:translate = (5000000, 0, 0)\n'
+                                           '    uniform token[] xformOpOrder = ["xformOp:translate"]\n')))
     bad("metersPerUnit 1e-38 (outside nanometres to 1000 km)", scene(("metersPerUnit = 0.01", "metersPerUnit = 1e-38")))
     bad("a blocked force sample (None)", scene(("            24: (0, 0.02, 0),\n", "            1: None,\n            24: (0, 0.02, 0),\n")))
     bad("springDamping 1e38", scene(("warptube:damping = 2", "warptube:damping = 2\n        double warptube:springDamping = 1e38")))

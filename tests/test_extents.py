@@ -133,8 +133,9 @@ def test_batch_files_and_grid_centerlines_have_usds_extent_at_every_frame(tmp_pa
 def test_an_extracted_tube_far_from_the_origin_is_placed_by_a_translate(tmp_path, caplog):
     """A mesh 500 m from its origin (a scan in scanner coordinates): float32 points there step by
     6e-5 m, 0.8% of its 8 mm segments, which the scene's own check warns of. The scene holds the points
-    about their middle and a double-precision translate: no warning, and the tube reads back in
-    world space as extracted (float32 of coordinates within 4 cm of the middle: 4e-9 m)."""
+    about their middle and a double-precision translate: the tube reads back in world space as
+    extracted (float32 of coordinates within 4 cm of the middle: 4e-9 m), and only the world's
+    float32 steps, in which the simulation holds and writes its positions, are warned of."""
     from warp_tube.extract.pipeline import extract_centerline
     from warp_tube.extract.usd import write_scene
     from warp_tube.scene.usd import load_scene
@@ -150,6 +151,7 @@ def test_an_extracted_tube_far_from_the_origin_is_placed_by_a_translate(tmp_path
     assert [op.GetOpName() for op in ops] == ["xformOp:translate"] and ops[0].GetPrecision() == UsdGeom.XformOp.PrecisionDouble
     with caplog.at_level("WARNING"):
         read = load_scene(str(path)).tubes[0]
-    assert not [r for r in caplog.records if "float32" in r.getMessage()], caplog.text
+    said = [r.getMessage() for r in caplog.records if "float32" in r.getMessage()]
+    assert len(said) == 1 and "placed up to 500 m from the origin" in said[0] and "float32 world coordinates" in said[0], said
     np.testing.assert_allclose(read.points, tube.points, rtol=0, atol=1e-8)
     assert_extents_as_usd_computes_them(path, None, prims=1)  # (the extent in the prim's own space)

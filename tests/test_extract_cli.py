@@ -150,3 +150,33 @@ def test_a_closed_stdout_keeps_the_scene_and_exits_141(tmp_cwd, capsys, monkeypa
     assert "cannot write" not in capsys.readouterr().err
     assert Usd.Stage.Open(str(tmp_cwd / "helix.usda")).GetPrimAtPath("/World")
     assert sorted(p.name for p in tmp_cwd.iterdir()) == ["helix.ply", "helix.usda", "sink"]
+
+
+@pytest.mark.parametrize("offset, refused", [(500.0, False), (2e4, True)])
+def test_a_mesh_far_from_its_origin_is_placed_by_a_translate_or_refused(offset, refused, tmp_cwd, capsys):
+    """A tube far from its mesh's origin (a scan in scanner coordinates) is written about its
+    middle, placed by a double-precision translate; but the simulation holds positions as
+    float32 world coordinates, so where their steps exceed a tenth of a segment the mesh is
+    refused (exit 2, naming it, nothing written) rather than simulated as a quantised tube.
+    Steps: offset x 2^-23 over the hubs' ~1 cm spacing: 500 m -> 0.6% (written, warned),
+    2e4 m -> ~24% (refused)."""
+    import trimesh
+
+    mesh = trimesh.creation.cylinder(radius=0.01, height=0.2, sections=24)
+    mesh.apply_translation([offset, 0.5 * offset, 0.0])
+    mesh.export(tmp_cwd / "far.stl")
+    code = main(["extract", "far.stl", "-o", "far.usda", "--hubs", "21"])
+    err = capsys.readouterr().err
+    if refused:
+        assert code == 2 and not (tmp_cwd / "far.usda").exists()
+        assert "far.stl: the tube lies up to 2e+04 m from the mesh's origin" in err and "translate the mesh nearer" in err, err
+        return
+    assert code == 0, err
+    st = Usd.Stage.Open(str(tmp_cwd / "far.usda"))
+    prim = next(p for p in st.Traverse() if p.IsA(UsdGeom.BasisCurves))
+    local = np.array(prim.GetAttribute("points").Get(), dtype=np.float64)
+    assert np.abs(local).max() < 0.2  # (about the middle of the hubs)
+    world = UsdGeom.Xformable(prim).ComputeLocalToWorldTransform(0).Transform
+    centre = np.array(world(tuple(local.mean(axis=0).tolist())))
+    np.testing.assert_allclose(centre, [offset, 0.5 * offset, 0.0], atol=1e-3)  # (within 1 mm: the hubs' middle)
+    assert "float32 world coordinates, in steps of" in err, err  # (warned: 0.6% of a segment)

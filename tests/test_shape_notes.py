@@ -53,9 +53,15 @@ STRAIGHT = np.stack([np.arange(21.0), np.zeros(21), np.zeros(21)], 1)
                                                "this stubby is modelled only roughly by a centerline"]),
     # 1 km from the origin in cm: float32 steps of 1e5 x 2^-23 = 0.0119 cm, 1.2% of a 1 cm segment
     ("far from the origin", _with_points(STRAIGHT + [1e5, 0.0, 0.0]), ["float32 points carry them in steps of 1.2% of a segment"]),
-    # the same tube placed there by its parent's transform (double precision): nothing to warn of
+    # the same tube placed there by its parent's transform (double precision): the points are exact, but the
+    # simulation holds them, and writes them, as float32 world coordinates: 1,000 m x 2^-23 = 0.0119 cm, 1.2%
     ("placed by a transform", _with_points(STRAIGHT).replace('def Xform "World"\n{', 'def Xform "World"\n{\n    double3 '
-     'xformOp:translate = (100000, 0, 0)\n    uniform token[] xformOpOrder = ["xformOp:translate"]'), []),
+     'xformOp:translate = (100000, 0, 0)\n    uniform token[] xformOpOrder = ["xformOp:translate"]'),
+     ["placed up to 1e+03 m from the origin", "float32 world coordinates, in steps of 1.2% of a segment"]),
+    # placed near the origin by a transform from points authored far away: the points' own steps are warned of
+    ("authored far, placed near", _with_points(STRAIGHT + [1e5, 0.0, 0.0]).replace('def Xform "World"\n{', 'def Xform "World"'
+     '\n{\n    double3 xformOp:translate = (-100000, 0, 0)\n    uniform token[] xformOpOrder = ["xformOp:translate"]'),
+     ["float32 points carry them in steps of 1.2% of a segment"]),
     # both widths and primvars:widths, other values: USD takes the primvar; the other is said to be ignored
     ("both widths", _with_points(STRAIGHT).replace('float[] widths = [2] (interpolation = "constant")', 'float[] widths = [2] '
      '(interpolation = "constant")\n        float[] primvars:widths = [0.5] (interpolation = "constant")'),
@@ -86,3 +92,22 @@ def test_the_example_scenes_get_no_shape_warning(name, caplog):
     said = " ".join(r.getMessage() for r in caplog.records)
     for w in ("turns by", "shorter than its diameter", "float32 points", "a returning spring on a pinned"):
         assert w not in said, (name, said)
+
+
+@pytest.mark.parametrize("offset, refused", [(4e5, False), (1e6, True)])
+def test_a_tube_placed_where_float32_cannot_hold_it_is_refused(offset, refused, tmp_path):
+    """The simulation's positions and its output are float32 world coordinates: a tube placed so far
+    from the origin (here by its parent's transform, in centimetres) that float32 steps by more
+    than a tenth of its 1 cm segments is refused, naming the distance and the steps; short of that
+    it is warned of. Steps: offset [cm] x 0.01 m x 2^-23 over 0.01 m: 4e5 cm -> 4.8%, 1e6 cm -> 11.9%."""
+    from warp_tube.scene.spec import SceneError
+
+    text = _with_points(STRAIGHT).replace('def Xform "World"\n{', 'def Xform "World"\n{\n    double3 xformOp:translate = '
+                                          f'({offset!r}, 0, 0)\n    uniform token[] xformOpOrder = ["xformOp:translate"]')
+    (tmp_path / "s.usda").write_text(text)
+    if refused:
+        with pytest.raises(SceneError, match=r"/World/Tube.points: placed up to 1e\+04 m from the origin .* steps there are "
+                                             r"11.9% of a segment: expected at most 10%"):
+            load_scene(str(tmp_path / "s.usda"))
+    else:
+        assert load_scene(str(tmp_path / "s.usda")).tubes[0].points[0, 0] == 4e3  # [m]

@@ -6,7 +6,11 @@ import logging
 import os
 from dataclasses import dataclass, field
 
+import numpy as np
+
 from ..scene.files import USD_EXTENSIONS, output_path
+from ..scene.shape_notes import FLOAT32_REFUSE, float32_steps
+from ..scene.spec import SceneError
 from ..runtime.progress import Phase
 from .fidelity import Fidelity
 from .mesh_io import load_mesh
@@ -96,6 +100,12 @@ def extract_to_scene(mesh_path, output, *, hubs=None, spokes=None, scale=None, d
     for w in found:
         log.warning("%s: %s", mesh_path, w)
     warnings += found
+    share, reach, shortest = float32_steps(np.asarray(tube.points, dtype=np.float64), [len(tube.points)])  # [m]
+    if share > FLOAT32_REFUSE:  # (what the written scene's check would refuse, named for the mesh)
+        raise SceneError(f"{mesh_path}: the tube lies up to {reach:.3g} m from the mesh's origin with hubs {shortest:.3g} m "
+                         f"apart: the simulation holds positions as float32 world coordinates, whose steps there are "
+                         f"{100.0 * share:.3g}% of a segment (at most {100.0 * FLOAT32_REFUSE:g}% is taken); translate the "
+                         f"mesh nearer its origin (its shape does not depend on where it lies)")  # fmt: skip
     with Phase(f"writing {os.path.basename(output)}", enabled=progress):
         write_scene(tube, staging or output, meters_per_unit=1.0, inputs=[mesh_path], final_name=output)
     log.info("%s: %d hubs x %d spokes, %.4g m, %s -> %s (%.2f s)", mesh_path, tube.hubs, tube.spokes, tube.length,

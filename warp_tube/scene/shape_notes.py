@@ -9,7 +9,10 @@
   centerline (a slender rod) models only roughly.
 - Coordinates far from the origin for the spacing of the points: ``point3f`` is float32, whose
   steps at a coordinate ``x`` are ``x 2^-23``; where they exceed :data:`FLOAT32_SHARE` of the
-  shortest segment the rest lengths are off by that much before the run starts.
+  shortest segment the rest lengths are off by that much before the run starts. The same holds in
+  the world: the simulation holds positions and writes its output as float32 world coordinates, so
+  a tube placed far from the origin by its transforms is warned of the same way, and refused
+  (:func:`check_world_precision`) where those steps exceed :data:`FLOAT32_REFUSE` of a segment.
 - Anchors on pinned points: their returning springs do nothing.
 """
 
@@ -19,7 +22,7 @@ import logging
 
 import numpy as np
 
-__all__ = ["warn_about_shape", "turning_angles", "SHARP_TURN_DEG", "FLOAT32_SHARE"]
+__all__ = ["warn_about_shape", "check_world_precision", "turning_angles", "SHARP_TURN_DEG", "FLOAT32_SHARE", "FLOAT32_REFUSE"]
 
 log = logging.getLogger("warp_tube.scene.usd")
 
@@ -27,6 +30,41 @@ log = logging.getLogger("warp_tube.scene.usd")
 SHARP_TURN_DEG = 155.0
 #: float32 steps of the points' coordinates beyond this fraction of the shortest segment are warned of
 FLOAT32_SHARE = 1e-3
+#: float32 steps of the world coordinates beyond this fraction of the shortest segment are refused:
+#: the rest shape and every position of the run move in steps of a tenth of a segment or more
+FLOAT32_REFUSE = 0.1
+
+
+def float32_steps(points: np.ndarray, counts: np.ndarray) -> tuple[float, float, float]:
+    """``(share, reach, shortest)``: float32's step at the points' largest coordinate
+    (``reach``, their unit) over the shortest segment within a curve (``shortest``), or 0 where
+    no segment has a length."""
+    counts = np.asarray(counts, dtype=np.int64)
+    inside = np.ones(max(len(points) - 1, 0), dtype=bool)
+    inside[(np.cumsum(counts) - 1)[:-1]] = False  # from one curve's last point to the next curve's first
+    seg = np.linalg.norm(np.diff(points, axis=0), axis=1)[inside] if len(points) > 1 else np.zeros(0)
+    seg = seg[seg > 0.0]
+    if not len(seg):
+        return 0.0, 0.0, 0.0
+    reach, shortest = float(np.abs(points).max()), float(seg.min())
+    return reach * 2.0**-23 / shortest, reach, shortest
+
+
+def check_world_precision(where: str, world_m: np.ndarray, counts: np.ndarray) -> None:
+    """Refuse a tube whose world coordinates [m] (n, 3) are so far from the origin for its
+    segments that float32, in which the simulation holds them and its output is written, steps
+    by more than :data:`FLOAT32_REFUSE` of a segment (``where``: "FILE: PRIM.points").
+
+    Raises:
+        SceneError: naming the distance, the shortest segment and the steps."""
+    from .spec import SceneError
+
+    share, reach, shortest = float32_steps(world_m, counts)
+    if share > FLOAT32_REFUSE:
+        raise SceneError(f"{where}: placed up to {reach:.3g} m from the origin with segments as short as {shortest:.3g} m: "
+                         f"the simulation holds positions, and writes them, as float32 world coordinates, whose steps there "
+                         f"are {100.0 * share:.3g}% of a segment: expected at most {100.0 * FLOAT32_REFUSE:g}%; move the "
+                         f"scene (its points or transforms) nearer the origin")  # fmt: skip
 
 
 def turning_angles(p: np.ndarray) -> np.ndarray:
@@ -86,15 +124,18 @@ def warn_about_shape(where: str, local: np.ndarray, world_m: np.ndarray, counts:
                else "a body this stubby is modelled only roughly by a centerline, a slender rod")  # fmt: skip
         log.warning("%s: curve %d is %.3g m long and %.3g m wide: shorter than its diameter (%s)", where, c, length[c],
                     diameter[c], why)  # fmt: skip
-    seg_local = np.linalg.norm(np.diff(local, axis=0), axis=1)[inside] if len(seg) else np.zeros(0)
-    if len(seg_local):
-        step = float(np.abs(local).max()) * 2.0**-23
-        shortest = float(seg_local.min())
-        if shortest > 0.0 and step > FLOAT32_SHARE * shortest:
-            log.warning("%s: coordinates up to %.3g from the origin with segments as short as %.3g (stage units): float32 "
-                        "points carry them in steps of %.2g%% of a segment, so the rest lengths are off by that much; author "
-                        "the points near the origin and place the tube with a transform", where,
-                        float(np.abs(local).max()), shortest, 100.0 * step / shortest)  # fmt: skip
+    share, reach, shortest = float32_steps(local, counts)
+    if share > FLOAT32_SHARE:
+        log.warning("%s: coordinates up to %.3g from the origin with segments as short as %.3g (stage units): float32 "
+                    "points carry them in steps of %.2g%% of a segment, so the rest lengths are off by that much; author "
+                    "the points, and place the tube, nearer the origin", where, reach, shortest, 100.0 * share)  # fmt: skip
+    else:
+        share, reach, shortest = float32_steps(world_m, counts)
+        if share > FLOAT32_SHARE:  # (placed there by its transforms)
+            log.warning("%s: placed up to %.3g m from the origin with segments as short as %.3g m: the simulation holds "
+                        "positions, and writes them, as float32 world coordinates, in steps of %.2g%% of a segment there, so "
+                        "the rest lengths and the motion are off by that much; move the scene nearer the origin", where,
+                        reach, shortest, 100.0 * share)  # fmt: skip
     both = np.intersect1d(np.asarray(pinned, dtype=np.int64), np.asarray(anchors, dtype=np.int64))
     if len(both):
         log.warning("%s: %s pinned: a returning spring on a pinned point does nothing", anchors_where,

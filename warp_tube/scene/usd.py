@@ -35,7 +35,7 @@ from .spec import (
 from ..runtime.log_filters import same_for_many
 from .opening import open_stage, usd_error_in_user_terms
 from .transforms import section_scale, to_world, warn_about_layer_units, warn_about_transforms
-from .shape_notes import warn_about_shape
+from .shape_notes import check_world_precision, warn_about_shape
 from .save import save_scene
 
 log = logging.getLogger(__name__)
@@ -304,15 +304,17 @@ def _read_tube(file: str, prim, info: StageInfo, frame_times, varying: dict | No
     if pattr.GetNumTimeSamples() > 1 and len(pinned):
         times = pin_frame_times(frame_times, pattr.GetTimeSamples()[-1])
         pin_track = moving_pin_track(r, prim, pattr, times, pts, pinned, mpu, file)
-    warn_about_shape(r.where("points"), pts, world * mpu, counts, radius, pinned, idx["warptube:anchorPoints"],
-                     r.where("warptube:anchorPoints"))  # fmt: skip
     try:
-        return TubeSpec(
+        spec = TubeSpec(
             path=str(prim.GetPath()), points=world * mpu, curve_counts=counts, radius=radius, params=params,
             pinned=pinned, anchors=idx["warptube:anchorPoints"], spoke_lengths=sl, pin_track=pin_track,
         )  # fmt: skip
     except SceneError as e:
         raise SceneError(f"{file}: {e}") from None
+    check_world_precision(r.where("points"), world * mpu, counts)  # (after the points' own checks)
+    warn_about_shape(r.where("points"), pts, world * mpu, counts, radius, pinned, idx["warptube:anchorPoints"],
+                     r.where("warptube:anchorPoints"))  # fmt: skip
+    return spec
 
 
 def pin_frame_times(frame_times: list, last_sample: float) -> list:

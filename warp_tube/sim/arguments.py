@@ -6,7 +6,7 @@ from __future__ import annotations
 
 import os
 
-from ..scene.shape_notes import warn_about_shape
+from ..scene.shape_notes import check_world_precision, warn_about_shape
 from ..scene.spec import Scene, SceneError
 
 __all__ = ["checked_scene", "checked_output"]
@@ -14,14 +14,17 @@ __all__ = ["checked_scene", "checked_output"]
 
 def checked_scene(scene) -> Scene:
     """``scene`` itself; TypeError where it is not a :class:`Scene` (a path: ``load_scene`` reads
-    one). A scene built in Python (``source`` ``"<python>"``) is warned of as the USD reader warns
-    of a stage's tubes (:func:`warp_tube.scene.shape_notes.warn_about_shape`)."""
+    one). A scene built in Python (``source`` ``"<python>"``) is checked and warned of as the USD
+    reader checks a stage's tubes (:func:`warp_tube.scene.shape_notes.check_world_precision`,
+    :func:`~warp_tube.scene.shape_notes.warn_about_shape`): SceneError where float32 world
+    coordinates cannot hold its points."""
     if not isinstance(scene, Scene):
         hint = " (a scene file: warp_tube.load_scene(path) reads it)" if isinstance(scene, (str, os.PathLike)) else ""
         raise TypeError(f"scene: a {type(scene).__name__}: expected a warp_tube.Scene{hint}")
     if scene.source == "<python>":
         mpu = scene.stage.meters_per_unit
         for t in scene.tubes:
+            check_world_precision(f"{t.path}.points", t.points, t.curve_counts)
             warn_about_shape(f"{t.path}.points", t.points / mpu, t.points, t.curve_counts, t.radius, t.pinned, t.anchors,
                              f"{t.path}.anchorPoints")  # fmt: skip
     return scene
