@@ -372,6 +372,28 @@ def test_interrupt_and_resume_end_with_the_same_files(tmp_path, monkeypatch, rec
     assert sorted(p.name for p in part.iterdir()) == names
 
 
+def test_a_stopped_batch_leaves_no_temporary_file(tmp_path):
+    """A writer process stopped mid-file (a SIGTERM to the batch's process group reaches it, which
+    Ctrl-C does not) leaves its hidden temporary file; the batch removes what is left once its
+    writers are gone, and keeps its finished variants for --resume. Here a file of that name is
+    left in the folder while the batch runs, and the batch is stopped after its first chunk."""
+    table = write_table(tmp_path / "t.csv", [E], [(str(80000 + 10000 * k),) for k in range(4)])
+    out = tmp_path / "out"
+
+    def stop(chunk_id):
+        (out / ".variant_00003.tmp-99999.usdc").write_bytes(b"half a file")  # (as a killed writer leaves it)
+        (out / "grid").mkdir(exist_ok=True)
+        (out / "grid" / ".chunk_00001.tmp-99999.usdc").write_bytes(b"half a file")
+        raise KeyboardInterrupt
+
+    with pytest.raises(BatchInterrupted):
+        run_batch(str(DEFAULT), str(out), str(table), frames=3, chunk=2, writers=0, on_chunk=stop)
+    left = sorted(p.name for p in out.rglob("*") if ".tmp-" in p.name)
+    assert left == [], left
+    assert "variant_00000.usdc" in {p.name for p in out.glob("variant_*.usdc")}  # (the finished chunk's, kept)
+    assert run_batch(str(DEFAULT), str(out), str(table), frames=3, writers=0, resume=True).ok == 4
+
+
 def test_resume_refuses_other_options(tmp_path):
     table = write_table(tmp_path / "t.csv", [E], [("100000",), ("90000",)])
     out = tmp_path / "out"

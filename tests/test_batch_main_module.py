@@ -47,6 +47,23 @@ def test_a_script_calling_the_batch_unguarded_is_refused_with_one_message(tmp_pa
         assert not out.exists()  # nothing written, no .batch left
 
 
+def test_an_unguarded_script_is_refused_whatever_its_batch_size(tmp_path):
+    """A batch too small to start processes is refused all the same from an unguarded script (a
+    script that worked on a small table would otherwise be refused on a larger one); with
+    workers=1 and writers=0 it runs."""
+    table = tmp_path / "two.csv"
+    table.write_text(f"{E}\n100000\n120000\n")
+    out = tmp_path / "out"
+    script = tmp_path / "small.py"
+    script.write_text(f"from warp_tube.batch import run_batch\nr = {_call(out, table)}\nprint('ok', r.ok)\n")
+    p = _python([str(script)], tmp_path)
+    assert p.returncode != 0 and f'{script}, line 2: run_batch is called outside if __name__ == "__main__"' in p.stderr, p.stderr[-3000:]
+    assert not out.exists()
+    script.write_text(f"from warp_tube.batch import run_batch\nr = {_call(out, table, workers=1, writers=0)}\nprint('ok', r.ok)\n")
+    p = _python([str(script)], tmp_path)
+    assert p.returncode == 0 and "ok 2" in p.stdout, p.stderr[-3000:]
+
+
 def test_an_unguarded_call_inside_a_function_is_found_and_a_guarded_one_runs(tmp_path):
     table = _table(tmp_path)
     out = tmp_path / "out"

@@ -189,6 +189,11 @@ def run_batch(scene: str, out_dir: str, table: str | None = None, *, variant_set
         if not (isinstance(value, (str, os.PathLike)) or (value is None and name == "table")):
             hint = " (a Scene object: write it with warp_tube.scene.usd.save_scene, then pass the file)" if name == "scene" else ""
             raise SceneError(f"run_batch: {name} is a {type(value).__name__}: expected a path{hint}")
+    if scheduler is None and not (workers == 1 and writers == 0):
+        # A script calling the batch outside if __name__ == "__main__": refused whether or not this
+        # batch starts processes (a small table's may not; the same script on a larger one would).
+        asked = "worker" if workers not in (None, 1) else "writer" if writers not in (None, 0) or layout != "arrays" else "worker"
+        may_start_processes(asked, False)
     if variant_sets is not None and not isinstance(variant_sets, str):
         variant_sets = ",".join(str(v) for v in variant_sets) or None
     elif variant_sets is not None and not variant_sets.strip():
@@ -292,6 +297,9 @@ def _batch_pools(scene, out_dir, table, tab, devices, sim_workers, t_start, lock
             ends.callback(release_builders)  # (the surface builders kept for the next chunk)
             ends.callback(thaw, frozen_before)  # (the batch's objects, kept out of the collector's passes)
             ends.callback(lock.release)  # (after the writers: their files are complete or gone)
+            # Stopped: what a writer killed mid-file left (a SIGTERM to the process group reaches the
+            # writer processes too, which Ctrl-C and a hangup do not stop), once every writer is gone.
+            ends.callback(lambda: result is None and remove_stray_partials(out_dir))
             if recorder is not None:
                 # (after the records it was given are made; when the batch ended, they are back: drained)
                 ends.callback(lambda: recorder.close(wait=result is None))
