@@ -83,6 +83,22 @@ def _plain_cylinder(path: Path):
     trimesh.creation.cylinder(radius=0.01, height=0.2, sections=32).export(path)
 
 
+def _obj_index_past_the_vertices(path: Path):
+    """A cylinder as OBJ with one more face, whose last index is past the last vertex."""
+    import trimesh
+
+    m = trimesh.creation.cylinder(radius=0.01, height=0.2, sections=16)
+    lines = [f"v {x!r} {y!r} {z!r}" for x, y, z in m.vertices.tolist()] + [f"f {a} {b} {c}" for a, b, c in (m.faces + 1).tolist()]
+    path.write_text("\n".join(lines + ["f 1 2 99999"]) + "\n")
+
+
+def _glb_point_cloud(path: Path):
+    """A valid glTF binary holding a point cloud alone (no triangles)."""
+    import trimesh
+
+    path.write_bytes(trimesh.Scene(trimesh.PointCloud(trimesh.creation.cylinder(radius=0.01, height=0.2).vertices)).export(file_type="glb"))
+
+
 def _truncated(path: Path):
     data = (path.parent / "out.usdc").read_bytes()
     path.write_bytes(data[: len(data) // 3])
@@ -355,6 +371,8 @@ def cases() -> list[Case]:
     ext("text that is not a mesh", ["bad.ply", "-o", "s.usda"], files={"bad.ply": "not a mesh\n"})
     ext("empty mesh file", ["empty.stl", "-o", "s.usda"], files={"empty.stl": b""})
     ext("a point cloud (no faces)", ["pts.ply", "-o", "s.usda"], files={"pts.ply": POINT_CLOUD})
+    ext("an OBJ face index past the last vertex", ["oob.obj", "-o", "s.usda"], files={"oob.obj": _obj_index_past_the_vertices})
+    ext("a glTF binary holding a point cloud alone", ["pts.glb", "-o", "s.usda"], files={"pts.glb": _glb_point_cloud})
     ext("-o the mesh itself", ["mesh.ply", "-o", "mesh.ply"])
     ext("-o a .usda link to the mesh", ["mesh.ply", "-o", "alias.usda"], files={"alias.usda": _symlink_to("mesh.ply")})
     ext("-o with a non-USD extension", ["mesh.ply", "-o", "scene.json"])

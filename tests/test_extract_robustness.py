@@ -422,3 +422,36 @@ def test_obj_relative_indices_count_back_from_the_vertices_read_so_far(tmp_path)
         got = np.sort(loaded[name].vertices[loaded[name].faces].reshape(len(mesh.faces), -1), axis=0)
         want = np.sort(loaded["plain"].vertices[loaded["plain"].faces].reshape(len(mesh.faces), -1), axis=0)
         np.testing.assert_allclose(got, want, atol=1e-12)
+
+
+@pytest.mark.parametrize("case", ["two closed segments", "a wall inside an open tube"])
+def test_a_wall_across_the_tube_is_left_out_and_the_tube_kept_whole(case, caplog):
+    """A mesh whose faces meet three to an edge all round the tube: two closed segments of one tube
+    exported end to end (their touching caps one wall once welded), or an open tube with a disk
+    across its bore on a ring of its wall. The tube's two sides go on through that ring (their
+    normals agree), the wall does not: it is left out, named, and the tube extracted whole
+    (0.2 m; it fell apart at the wall and one half, 0.1 m, was kept)."""
+    if case == "two closed segments":
+        a = trimesh.creation.cylinder(radius=0.01, height=0.1, sections=32)
+        a.apply_translation([0, 0, 0.05])
+        b = a.copy()
+        b.apply_translation([0, 0, 0.1])
+        mesh = trimesh.util.concatenate([a, b])
+    else:  # rings of 32 points at z = 0, 0.1 and 0.2 m, the wall between them, a disk on the middle ring
+        n = 32
+        t = 2.0 * np.pi * np.arange(n) / n
+        verts = np.concatenate([np.c_[0.01 * np.cos(t), 0.01 * np.sin(t), np.full(n, z)] for z in (0.0, 0.1, 0.2)] + [[[0.0, 0.0, 0.1]]])
+        faces = []
+        for r in (0, 1):
+            for j in range(n):
+                p, q = r * n + j, r * n + (j + 1) % n
+                faces += [[p, q, q + n], [p, q + n, p + n]]
+        faces += [[3 * n, n + j, n + (j + 1) % n] for j in range(n)]
+        mesh = trimesh.Trimesh(verts, np.asarray(faces), process=False)
+    with caplog.at_level(logging.WARNING):
+        clean = clean_mesh(mesh, "m.stl")
+    said = " ".join(r.getMessage() for r in caplog.records)
+    assert "1 piece of them touching it (a wall inside the tube" in said, said
+    assert np.ptp(clean.vertices[:, 2]) == pytest.approx(0.2)  # (the whole tube, both sides of the wall)
+    extracted = extract_centerline(clean, hubs=21)
+    assert extracted.length == pytest.approx(0.2, abs=0.01)  # (end hubs trimmed where a capped end rounds off: within 1 cm)

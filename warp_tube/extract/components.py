@@ -12,7 +12,7 @@ from scipy.sparse.csgraph import connected_components
 
 from .wording import counted
 
-__all__ = ["weld", "largest_component", "WELD"]
+__all__ = ["weld", "largest_component", "surface_labels", "WELD"]
 
 log = logging.getLogger(__name__)
 
@@ -56,6 +56,51 @@ def weld(mesh: trimesh.Trimesh) -> None:
     mesh.remove_unreferenced_vertices()
 
 
+def surface_labels(mesh: trimesh.Trimesh) -> np.ndarray:
+    """Each face's piece of ``mesh`` (faces that share an edge, on and on), (F,) int from 0.
+
+    Where two faces share an edge they are one surface. Where three or more do (a wall across the
+    tube joined to it along its whole rim; two closed segments of one organ exported end to end,
+    their touching caps one wall once welded), the faces there pair up by how straight the surface
+    goes on through the edge: the pair whose normals agree best (and point within 90 degrees of
+    each other), then the next of the others. The tube's two sides are then one piece and the wall
+    one of its own (trimesh's ``face_adjacency`` takes edges of two faces only: the tube fell
+    apart at the wall, and one half was kept)."""
+    F = len(mesh.faces)
+    edges = np.sort(np.asarray(mesh.faces, dtype=np.int64)[:, [0, 1, 1, 2, 2, 0]].reshape(-1, 2), axis=1)
+    face_of = np.repeat(np.arange(F, dtype=np.int64), 3)
+    key = edges[:, 0] * (int(edges.max()) + 1 if len(edges) else 1) + edges[:, 1]
+    order = np.argsort(key, kind="stable")
+    k = key[order]
+    starts = np.flatnonzero(np.r_[True, k[1:] != k[:-1]]) if len(k) else np.zeros(0, dtype=np.int64)
+    counts = np.diff(np.r_[starts, len(k)])
+    two = starts[counts == 2]
+    a, b = [face_of[order[two]]], [face_of[order[two + 1]]]
+    many = np.flatnonzero(counts >= 3)
+    if len(many):
+        tri = np.asarray(mesh.triangles, dtype=np.float64)
+        n = np.cross(tri[:, 1] - tri[:, 0], tri[:, 2] - tri[:, 0])
+        n /= np.maximum(np.linalg.norm(n, axis=1, keepdims=True), 1e-300)  # (a face of no area: 0, paired with none)
+        extra_a, extra_b = [], []
+        for s0, c in zip(starts[many].tolist(), counts[many].tolist()):
+            fs = np.unique(face_of[order[s0 : s0 + c]])
+            d = n[fs] @ n[fs].T
+            np.fill_diagonal(d, -np.inf)
+            while True:
+                i, j = np.unravel_index(int(np.argmax(d)), d.shape)
+                if not d[i, j] > 0.0:
+                    break
+                extra_a.append(fs[i])
+                extra_b.append(fs[j])
+                d[[i, j], :] = -np.inf
+                d[:, [i, j]] = -np.inf
+        a.append(np.asarray(extra_a, dtype=np.int64))
+        b.append(np.asarray(extra_b, dtype=np.int64))
+    a, b = np.concatenate(a), np.concatenate(b)
+    g = sp.coo_matrix((np.ones(len(a)), (a, b)), shape=(F, F))
+    return connected_components(g, directed=False)[1]
+
+
 def largest_component(mesh: trimesh.Trimesh, labels: np.ndarray, source: str) -> int:
     """The component of ``mesh`` (face ``labels``) with the largest surface area, the others named
     in a warning. Area, not the count of faces: a finely meshed twig has more faces than a coarsely
@@ -86,6 +131,10 @@ def largest_component(mesh: trimesh.Trimesh, labels: np.ndarray, source: str) ->
         left = (f"{len(dropped):,} others, {100.0 * area[dropped].sum() / total:.3g}% of the area, the largest "
                 f"{described(int(dropped[0]))}")  # fmt: skip
     pieces = ""
+    kept_vertices = np.unique(mesh.faces[labels == keep])
+    walls = [int(c) for c in dropped if np.isin(mesh.faces[labels == c], kept_vertices).any()]
+    if walls:  # (joined to the kept piece where three or more faces share an edge)
+        pieces = f"; {counted(len(walls), 'piece')} of them touching it (a wall inside the tube, or pieces exported together?)"
     if len(area) > 100 and area[keep] < 0.5 * total:  # the soup of an STL whose corners do not meet, as a rule
         pieces = ("; the mesh falls into many small pieces: are its triangles' shared corners apart (each triangle "
                   "its own corners, not welded)?")  # fmt: skip

@@ -22,7 +22,7 @@ from scipy.sparse.csgraph import connected_components
 
 from ..scene.files import not_a_file
 from ..scene.spec import SceneError
-from .components import largest_component, weld
+from .components import largest_component, surface_labels, weld
 from .hollow import outer_wall
 from .loops import BoundaryLoop, boundary_loops, cap_loops
 from .wording import counted
@@ -113,11 +113,11 @@ def clean_mesh(mesh: trimesh.Trimesh, source: str, scale=(1.0, 1.0, 1.0), max_si
     out.remove_unreferenced_vertices()
     if len(out.faces) == 0:
         raise SceneError(f"{source}: every face has zero area: expected a tube surface")
-    labels = trimesh.graph.connected_component_labels(out.face_adjacency, node_count=len(out.faces))
+    labels = surface_labels(out)
     wall, _ = outer_wall(out, source, labels)
     if wall is not out:  # (a hollow tube's outer wall: its own pieces)
         out = wall
-        labels = trimesh.graph.connected_component_labels(out.face_adjacency, node_count=len(out.faces))
+        labels = surface_labels(out)
     if labels.max() > 0:
         keep = largest_component(out, labels, source)
         out.update_faces(labels == keep)
@@ -231,6 +231,28 @@ def _obj_made_absolute(path: str) -> bytes | None:
     return b"\n".join(out) + b"\n"
 
 
+def _obj_index_problem(source) -> str | None:
+    """What is wrong with an OBJ's face indices (``source``: its path, or its text with relative
+    indices made absolute), or None where they are within its vertices (1-based)."""
+    data = source if isinstance(source, bytes) else open(source, "rb").read()
+    vertices, low, high = 0, None, None
+    for line in data.splitlines():
+        words = line.split()
+        if not words:
+            continue
+        if words[0] == b"v":
+            vertices += 1
+        elif words[0] == b"f":
+            for ref in words[1:]:
+                head = ref.split(b"/", 1)[0]
+                if head.lstrip(b"-").isdigit():
+                    k = int(head)
+                    low, high = (k, k) if low is None else (min(low, k), max(high, k))
+    if low is None or (1 <= low and high <= vertices):
+        return None
+    return f"face indices span {low}..{high}: expected 1..{vertices} (the file's vertices)"
+
+
 def load_mesh(path, scale=(1.0, 1.0, 1.0)) -> trimesh.Trimesh:
     """Read a triangle mesh file (STL, PLY, OBJ, ... as trimesh reads them) and clean it.
 
@@ -271,6 +293,9 @@ def load_mesh(path, scale=(1.0, 1.0, 1.0)) -> trimesh.Trimesh:
         kind = _FORMATS.get(file_type, file_type.upper())
         real = _sniff(path)
         hint = f": its content is {real[0]}: rename it to .{real[1]}" if real and real[1] != file_type else ""
+        bad = _obj_index_problem(relative if relative is not None else path) if file_type == "obj" and not hint else None
+        if bad:
+            raise SceneError(f"{path}: {bad}") from None
         raise SceneError(f"{path}: not a readable {kind} mesh: the file is damaged, truncated or not {kind}{hint}") from None
     if isinstance(mesh, trimesh.Scene) or not hasattr(mesh, "faces"):
         raise SceneError(f"{path}: holds no triangle faces: expected a surface mesh")
@@ -279,8 +304,10 @@ def load_mesh(path, scale=(1.0, 1.0, 1.0)) -> trimesh.Trimesh:
         if real and real[1] != file_type:  # e.g. an OFF file named .obj reads as an OBJ with nothing in it
             raise SceneError(f"{path}: no mesh read as {_FORMATS.get(file_type, file_type.upper())}: its content is "
                              f"{real[0]}: rename it to .{real[1]}")  # fmt: skip
-        try:
-            points = len(trimesh.load(path, process=False).vertices)  # as the file has them (a point cloud)
+        try:  # as the file has them (a point cloud; a glTF's: a scene of them)
+            loaded = trimesh.load(path, process=False)
+            parts = loaded.geometry.values() if isinstance(loaded, trimesh.Scene) else [loaded]
+            points = sum(len(getattr(g, "vertices", ())) for g in parts)
         except Exception:
             points = 0
         if points:
