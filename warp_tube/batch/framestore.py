@@ -35,7 +35,7 @@ import warp as wp
 from ..kernels.frame_store import store_scaled_kernel
 from ..runtime.replay import CAPTURE_LOCK
 
-__all__ = ["FrameStore", "WINDOW_BYTES", "STAGING_BYTES", "done_future", "release_windows"]
+__all__ = ["FrameStore", "WINDOW_BYTES", "STAGING_BYTES", "done_future", "release_windows", "prepare_copies"]
 
 #: device memory a window of frames may take on a CUDA device [bytes]
 WINDOW_BYTES = 2 << 30
@@ -134,6 +134,24 @@ def done_future(value=None) -> cf.Future:
     f = cf.Future()
     f.set_result(value)
     return f
+
+
+def prepare_copies(device) -> None:
+    """Set up the copying thread for ``device`` ahead of the first window (a CUDA device; nothing
+    on the CPU): its stream and its page-locked staging buffer, on that thread, while the caller
+    goes on (reading the variants). Allocating the staging buffer took 0.13-0.16 s on an H200 host,
+    and the simulating thread waited for it at the first window's hand-over."""
+    device = wp.get_device(device)
+    if not device.is_cuda:
+        return
+
+    def prepare() -> None:
+        with CAPTURE_LOCK:
+            if str(device) not in _flush_streams:
+                _flush_streams[str(device)] = _copy_stream(device)
+        _staging_buffer(device, STAGING_BYTES)
+
+    _flush_thread().submit(prepare)  # (the windows' copies, on the same thread, come after it)
 
 
 def _staging_buffer(device, nbytes: int) -> np.ndarray:

@@ -45,7 +45,7 @@ from .bookkeeping import PROCESS_VARIANTS, Bookkeeper
 from .recorder import Recorder
 from .cluster import SchedulerLost, check_dask, check_scheduler_address, dask_client, run_dask
 from .execute import SimWorkers, run_here, run_pooled
-from .framestore import release_windows
+from .framestore import prepare_copies, release_windows
 from .worlds import release_builders
 from .folder import (check_inputs_not_outputs, check_out_dir, named_files, named_paths, outputs_kept, remove_stray_partials,
                      scene_dependencies, scene_files)
@@ -319,6 +319,8 @@ def _run_batch(scene, out_dir, table, tab, devices, writer_pool, sim_workers, t_
     work folder and lock removed, as ``run`` keeps a complete output, not left half done."""
 
     bar = Progress(progress)
+    if len(devices) == 1 and not scheduler:  # (simulated in this process: its copying set up meanwhile)
+        prepare_copies(devices[0])
     readers = writer_pool.pool if writer_pool.processes else None  # idle until the first chunk is simulated
     try:
         variants, choices, kept = prepare_batch(scene, tab, variant_sets, bar, readers, writer_pool.count,
