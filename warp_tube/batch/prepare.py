@@ -36,10 +36,12 @@ PREPARE_ROWS_PER_PROCESS = 1024
 #: at most this many processes read a table
 PREPARE_PROCESSES = 16
 
-#: a table of plain values (:mod:`warp_tube.batch.fastread`) costs about this many times less a row
-#: (~0.1 ms against a few ms), so a process reading part of it, which pays for its start (importing
-#: usd-core and Warp, ~2 s) and for handing its variants back, needs this many times more rows
-PLAIN_ROWS_FACTOR = 32
+#: a table of plain values (:mod:`warp_tube.batch.fastread`, kept as columns) costs 10-15 us a row,
+#: a few hundred times less than rows read through the stage, so a process reading part of it, which
+#: pays for its start (importing usd-core and Warp, ~2 s) and for handing its variants back, needs this
+#: many times more rows: none short of 4 million rows (the 2-core CPU: 300,000 plain rows read in one
+#: process in 1.9-3.1 s, in two in 5.4-6.5 s; 1,000,000 rows in 8.1 s against 18.5 s)
+PLAIN_ROWS_FACTOR = 2048
 
 
 def _prepare_part(scene: str, table, variant_sets):
