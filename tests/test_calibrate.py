@@ -93,3 +93,27 @@ def test_a_push_that_would_pass_the_force_limit_is_held_there(tmp_path):
     stage = Usd.Stage.Open(str(path))
     force = stage.GetAttributeAtPath("/World/Push.warptube:force").Get()
     assert abs(force[2]) <= 1e9 and abs(force[2]) > 0.99e9, force
+
+
+def test_only_the_run_whose_push_is_written_is_warned_of(tmp_path, caplog, monkeypatch):
+    """Each trial run's warnings are held and only those of the run whose push is written are said
+    (a trial with a push far from the one kept, the straight-beam estimate 30x too large for a
+    stub, strained the tube as the written scene never does). The runs here answer in proportion
+    (a stand-in for the simulation, warning of the push it ran): the second run meets the target
+    and is kept; the first one's warning is not said."""
+    import warp_tube.sim.calibrate as calibrate
+
+    path = _hairpin_scene(tmp_path / "hairpin.usda")
+    log = logging.getLogger("warp_tube.sim.simulation")
+
+    def proportional(scene, frames):
+        push = float(np.abs(scene.forces[0].values).max())
+        log.warning("a run pushed with %.6g N", push)
+        return 1e3 * push  # [m]
+
+    monkeypatch.setattr(calibrate, "largest_displacement", proportional)
+    with caplog.at_level(logging.WARNING, logger="warp_tube.sim.simulation"):
+        size = size_push(str(path))
+    said = [r.getMessage() for r in caplog.records if "a run pushed with" in r.getMessage()]
+    assert size is not None and size.runs == 2 and size.factor != 1.0, size
+    assert said == [f"{calibrate.SAID}a run pushed with {size.force_n:.6g} N"], said
