@@ -15,7 +15,7 @@ from typing import NamedTuple
 import numpy as np
 
 __all__ = ["Range", "RANGES", "METERS_PER_UNIT", "RADIUS_M", "GRAVITY", "TIME_STEP", "out_of_range", "expected", "number_text",
-           "check_attribute", "lengths_outside"]
+           "check_attribute", "lengths_outside", "check_scene_ranges"]
 
 
 class Range(NamedTuple):
@@ -100,3 +100,43 @@ def lengths_outside(values_m, what: str) -> str | None:
         if out_of_range(v, RADIUS_M):
             return f"{what} of {number_text(v)} m (after the transforms and metersPerUnit)"
     return None
+
+
+#: TubeParams fields and the scene attributes whose ranges they take
+_PARAMS = {"youngs_modulus": "warptube:youngsModulus", "density": "warptube:density",
+           "stretch_stiffness": "warptube:stretchStiffness", "bend_stiffness": "warptube:bendStiffness",
+           "damping": "warptube:damping", "spring_damping": "warptube:springDamping",
+           "anchor_stiffness": "warptube:anchorStiffness"}  # fmt: skip
+
+
+def check_scene_ranges(scene) -> None:
+    """The ranges a scene read from USD is held to, for a :class:`~warp_tube.scene.spec.Scene`
+    built in Python (the reader checks each attribute as it reads it): each tube's parameters,
+    radii and spoke lengths, the stage's metersPerUnit, the forced time step and gravity.
+
+    Raises:
+        SceneError: naming the tube (or setting), the field, the value and its range."""
+    from .spec import SceneError
+
+    def refuse(where: str, found: str, r: Range) -> None:
+        raise SceneError(f"{scene.source}: {where}: found {found}: expected {expected(r)}")
+
+    mpu = scene.stage.meters_per_unit
+    if out_of_range(mpu, METERS_PER_UNIT):
+        refuse("stage.meters_per_unit", number_text(mpu), METERS_PER_UNIT)
+    step = scene.settings.time_step
+    if step is not None and out_of_range(step, TIME_STEP):
+        refuse("settings.time_step", f"{number_text(step)} s", TIME_STEP)
+    g = scene.settings.gravity
+    if g is not None and out_of_range(float(np.linalg.norm(g)), GRAVITY):
+        refuse("settings.gravity", f"a magnitude of {number_text(float(np.linalg.norm(g)))} m/s^2", GRAVITY)
+    for t in scene.tubes:
+        for field, attr in _PARAMS.items():
+            v = getattr(t.params, field)
+            if v is not None and out_of_range(v, RANGES[attr]):
+                refuse(f"tube {t.path}: params.{field}", number_text(v), RANGES[attr])
+        for what, values in (("a radius", t.radius), ("a spoke length", t.spoke_lengths)):
+            outside = None if values is None else lengths_outside(values, what)
+            if outside:
+                raise SceneError(f"{scene.source}: tube {t.path}: {outside.replace(' (after the transforms and metersPerUnit)', '')}: "
+                                 f"expected {expected(RADIUS_M)}")  # fmt: skip

@@ -22,8 +22,11 @@ def save_scene(scene: Scene, path: str) -> None:
     scene's own file; an existing file there is replaced only by the complete stage.
 
     Raises:
+        TypeError: ``scene`` is not a :class:`Scene`.
         SceneError: a path that cannot be written (named with the reason).
     """
+    if not isinstance(scene, Scene):
+        raise TypeError(f"save_scene: scene is a {type(scene).__name__}: expected a warp_tube.Scene (load_scene reads a file)")
     inputs = [scene.source] if scene.source and os.path.exists(scene.source) else []
     target = output_path(path, USD_EXTENSIONS, inputs=inputs, what="scene")
 

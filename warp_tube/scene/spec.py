@@ -95,6 +95,15 @@ class StageInfo:
         return 1.0 / self.time_codes_per_second
 
 
+def three_finite(value) -> np.ndarray | None:
+    """``value`` as three finite numbers, (3,) float64, or None where it is not that."""
+    try:
+        v = np.asarray(value, dtype=np.float64)
+    except (TypeError, ValueError):
+        return None
+    return v if v.shape == (3,) and np.isfinite(v).all() else None
+
+
 @dataclass(frozen=True)
 class SimulationSettings:
     """Solver settings.
@@ -112,14 +121,13 @@ class SimulationSettings:
     def __post_init__(self):
         if self.integrator not in INTEGRATORS:
             raise SceneError(f"integrator {self.integrator!r}: expected one of {', '.join(INTEGRATORS)}")
+        if self.time_step is not None:
+            number("timeStep", self.time_step)
         if self.time_step is not None and not (math.isfinite(self.time_step) and self.time_step > 0.0):
             raise SceneError(f"timeStep {self.time_step!r}: expected a positive finite number of seconds")
         if self.gravity is not None:
-            try:
-                g = np.asarray(self.gravity, dtype=np.float64)
-            except (TypeError, ValueError):
-                g = np.full(1, np.nan)
-            if g.shape != (3,) or not np.isfinite(g).all():
+            g = three_finite(self.gravity)
+            if g is None:
                 raise SceneError(f"gravity {self.gravity!r}: expected three finite numbers [m/s^2] or None")
             object.__setattr__(self, "gravity", tuple(float(x) for x in g))
 
@@ -139,6 +147,19 @@ def number(name: str, v) -> None:
     """A SceneError naming ``name`` unless ``v`` is a real number (not a bool or a string)."""
     if isinstance(v, bool) or not isinstance(v, (int, float, np.integer, np.floating)):
         raise SceneError(f"{name} {v!r}: expected a number")
+
+
+def _reals(values, what: str) -> np.ndarray:
+    """``values`` as a float64 array, or a SceneError naming ``what`` where they are not real
+    numbers (text, complex numbers, objects)."""
+    try:
+        a = np.asarray(values)
+    except (TypeError, ValueError):  # (ragged nesting)
+        raise SceneError(f"{what}: a {type(values).__name__} that is no array: expected real numbers") from None
+    if a.dtype.kind not in "biuf":  # (bool, integers, floats: not complex, text or objects)
+        found = {"U": "text", "S": "text", "c": "complex numbers", "O": "objects"}.get(a.dtype.kind, str(a.dtype))
+        raise SceneError(f"{what}: {found}: expected real numbers")
+    return np.asarray(a, dtype=np.float64)  # (the same array where it is one already: variants share their geometry by identity)
 
 
 @dataclass(frozen=True)
@@ -199,6 +220,12 @@ class TubeParams:
             raise SceneError(f"spokes {self.spokes!r}: expected an integer from 3 to 1024")
         if self.frames not in FRAME_MODES:
             raise SceneError(f"frames {self.frames!r}: expected one of {', '.join(FRAME_MODES)}")
+        if not isinstance(self.caps, (bool, np.bool_)):
+            raise SceneError(f"caps {self.caps!r}: expected True or False")
+        if self.reference_normal is not None:
+            n = three_finite(self.reference_normal)
+            if n is None or not np.linalg.norm(n) > 0.0:
+                raise SceneError(f"referenceNormal {self.reference_normal!r}: expected three finite numbers, not all 0, or None")
 
     def axial_stiffness(self, radius: np.ndarray) -> np.ndarray:
         """EA [N] for cross-section radii ``radius`` [m]."""
@@ -245,19 +272,24 @@ class TubeSpec:
         check_prim_path(self.path, "tube")
         if not isinstance(self.params, TubeParams):
             raise SceneError(f"tube {self.path}: params {type(self.params).__name__}: expected a TubeParams")
-        pts = np.asarray(self.points, dtype=np.float64)
         where = f"tube {self.path}"
+        pts = _reals(self.points, f"{where}: points")
         if pts.ndim != 2 or pts.shape[1] != 3 or len(pts) < 2:
             raise SceneError(f"{where}: points shape {pts.shape}: expected (P >= 2, 3)")
         if not np.isfinite(pts).all():
             bad = int(np.argwhere(~np.isfinite(pts).all(axis=1))[0, 0])
             raise SceneError(f"{where}: points[{bad}] = {pts[bad].tolist()}: expected finite values")
-        counts = np.asarray(self.curve_counts, dtype=np.int64)
+        counts = self.curve_counts
+        if not (isinstance(counts, np.ndarray) and counts.dtype.kind in "iu"):  # (an integer array: taken as it is)
+            counts = _reals(counts, f"{where}: curveVertexCounts")
+            if not np.array_equal(counts, np.round(counts)):
+                raise SceneError(f"{where}: curveVertexCounts {counts.tolist()!r}: expected whole numbers of points")
+        counts = np.asarray(counts, dtype=np.int64)
         if counts.ndim != 1 or counts.sum() != len(pts) or (counts < 2).any():
             raise SceneError(
                 f"{where}: curveVertexCounts {counts.tolist()}: expected counts >= 2 summing to {len(pts)} points"
             )
-        rad = np.asarray(self.radius, dtype=np.float64)
+        rad = _reals(self.radius, f"{where}: radius")
         if rad.size == 1:  # one radius for every point
             rad = np.full(len(pts), float(rad.reshape(-1)[0]))
         if rad.shape != (len(pts),):
@@ -339,8 +371,14 @@ class ForceSpec:
 
     def __post_init__(self):
         check_prim_path(self.path, "force")
-        t = np.asarray(self.times, dtype=np.float64).reshape(-1)
-        v = np.asarray(self.values, dtype=np.float64).reshape(-1, 3)
+        t = _reals(self.times, f"force {self.path}: times").reshape(-1)
+        v = _reals(self.values, f"force {self.path}: values")
+        if v.shape == (3,):
+            v = v.reshape(1, 3)
+        if v.ndim != 2 or v.shape[1] != 3:
+            raise SceneError(f"force {self.path}: values shaped {v.shape}: expected (samples, 3) [N]")
+        if not isinstance(self.assistant_line, (bool, np.bool_)):
+            raise SceneError(f"force {self.path}: assistant_line {self.assistant_line!r}: expected True or False")
         if len(t) != len(v) or len(t) == 0:
             raise SceneError(f"force {self.path}: {len(t)} times for {len(v)} values")
         if not (np.isfinite(t).all() and np.isfinite(v).all()):
@@ -383,6 +421,15 @@ class Scene:
     source: str = "<python>"
 
     def __post_init__(self):
+        for name, items, kind in (("tubes", self.tubes, TubeSpec), ("forces", self.forces, ForceSpec)):
+            if not isinstance(items, (tuple, list)) or not all(isinstance(x, kind) for x in items):
+                got = type(items).__name__ if not isinstance(items, (tuple, list)) else \
+                    f"a {type(items).__name__} holding a {type(next(x for x in items if not isinstance(x, kind))).__name__}"
+                raise SceneError(f"{self.source}: {name}: {got}: expected a tuple of {kind.__name__}")
+            object.__setattr__(self, name, tuple(items))
+        for name, value, kind in (("settings", self.settings, SimulationSettings), ("stage", self.stage, StageInfo)):
+            if not isinstance(value, kind):
+                raise SceneError(f"{self.source}: {name}: a {type(value).__name__}: expected a {kind.__name__}")
         if not self.tubes:
             raise SceneError(
                 f"{self.source}: no tube: expected a BasisCurves prim carrying warptube: attributes "

@@ -6,10 +6,13 @@ from __future__ import annotations
 
 import os
 
+import numpy as np
+
+from ..scene.ranges import check_scene_ranges
 from ..scene.shape_notes import check_world_precision, warn_about_shape
 from ..scene.spec import Scene, SceneError
 
-__all__ = ["checked_scene", "checked_output"]
+__all__ = ["checked_scene", "checked_output", "checked_progress"]
 
 
 def checked_scene(scene) -> Scene:
@@ -22,6 +25,7 @@ def checked_scene(scene) -> Scene:
         hint = " (a scene file: warp_tube.load_scene(path) reads it)" if isinstance(scene, (str, os.PathLike)) else ""
         raise TypeError(f"scene: a {type(scene).__name__}: expected a warp_tube.Scene{hint}")
     if scene.source == "<python>":
+        check_scene_ranges(scene)
         mpu = scene.stage.meters_per_unit
         for t in scene.tubes:
             check_world_precision(f"{t.path}.points", t.points, t.curve_counts)
@@ -31,7 +35,19 @@ def checked_scene(scene) -> Scene:
 
 
 def checked_output(output):
-    """A run's ``output``: None (no file) or a non-empty path; SceneError for an empty name."""
+    """A run's ``output``: None (no file) or a non-empty path; SceneError for an empty name,
+    TypeError for anything else than a path."""
+    if output is not None and not isinstance(output, (str, os.PathLike)):
+        raise TypeError(f"output {output!r}: a {type(output).__name__}: expected a file path (str or os.PathLike) or None")
     if output is not None and os.fspath(output) == "":
         raise SceneError("output '': an empty file name: expected a .usdc, .usda or .usd path, or None for no file")
     return output
+
+
+def checked_progress(progress):
+    """A run's ``progress``: None, True or False, or a function ``progress(done, total)``;
+    TypeError for anything else."""
+    if progress is None or isinstance(progress, (bool, np.bool_)) or callable(progress):
+        return progress
+    raise TypeError(f"progress {progress!r}: a {type(progress).__name__}: expected None, True or False, or a function "
+                    "progress(done, total)")

@@ -74,7 +74,8 @@ class FrameControl:
             here, before any step).
         """
         idx = self.force_index(force)
-        v = _numbers(vector, f"set_force({force!r}): vector {vector!r}: expected three numbers [N]")
+        shown = repr(vector) if len(repr(vector)) <= 80 else repr(vector)[:77] + "..."
+        v = _numbers(vector, f"set_force({force!r}): vector {shown}: expected three numbers of at most 1e9 N")
         if v.shape not in ((3,), (1, 3)):
             raise ValueError(f"set_force({force!r}): vector of shape {v.shape}: expected three numbers [N]")
         if not np.isfinite(v).all():
@@ -178,7 +179,7 @@ def _numbers(value, message: str) -> np.ndarray:
         if isinstance(value, (list, tuple)) and any(isinstance(x, (bool, np.bool_)) for x in np.asarray(value, dtype=object).flat):
             raise TypeError  # ((True, 0, 0) is an int array to NumPy)
         return np.asarray(value, dtype=np.float64)
-    except (TypeError, ValueError):
+    except (TypeError, ValueError, OverflowError):  # (OverflowError: an integer beyond any float, 10**400)
         raise ValueError(message) from None
 
 

@@ -36,7 +36,7 @@ from .checks import FrameChecks
 from .control import FrameControl
 from .output import frame_range, open_writer, unwritten_frames
 from .proximity import ContactMonitor
-from .arguments import checked_output, checked_scene
+from .arguments import checked_output, checked_progress, checked_scene
 from .notes import model_notes, strain_message
 from .summary import RunSummary
 
@@ -424,7 +424,7 @@ class Simulation(RunBudget):
         """
 
         with self._lock:
-            return self._run(frames, checked_output(output), progress, whole_number("every", every), setup_time)
+            return self._run(frames, checked_output(output), checked_progress(progress), whole_number("every", every), setup_time)
 
     def _run(self, frames, output, progress, every: int, setup_time: float) -> RunSummary:
         from ..runtime.interrupts import stopped_by
