@@ -531,6 +531,9 @@ def stiffness_sets_scene(tmp_path):
     scene = tmp_path / "sets.usda"
     Sdf.Layer.FindOrOpen(str(DEFAULT)).Export(str(scene))
     st = Usd.Stage.Open(str(scene))
+    # (the prim's own youngsModulus cleared: a local opinion is stronger than a variant's, and every
+    # choice would give the scene's 1e5 Pa)
+    st.GetPrimAtPath("/World/Tube").GetAttribute("warptube:youngsModulus").Clear()
     vset = st.GetPrimAtPath("/World/Tube").GetVariantSets().AddVariantSet("stiffness")
     for name, e in (("soft", 6e4), ("stiff", 3e5)):
         vset.AddVariant(name)
@@ -557,6 +560,32 @@ def test_a_column_that_sets_what_a_crossed_variant_set_sets_is_warned_of(tmp_pat
         assert len(said) == (1 if warned else 0), said
         if warned:
             assert E in said[0] and "/World/Tube{stiffness}" in said[0]
+
+
+def test_a_variant_set_whose_choices_give_one_scene_is_warned_of(tmp_path, caplog):
+    """A variantSet setting an attribute the prim also authors itself changes nothing (a local
+    opinion is stronger than a variant's): its choices give the same scene, which is said once,
+    naming it; a variantSet whose choices differ is not warned of."""
+    from pxr import Sdf, Usd
+
+    from warp_tube.batch.variants import prepare_variants
+
+    working = stiffness_sets_scene(tmp_path)
+    inert = tmp_path / "inert.usda"
+    Sdf.Layer.FindOrOpen(str(working)).Export(str(inert))
+    st = Usd.Stage.Open(str(inert))
+    st.GetPrimAtPath("/World/Tube").GetAttribute("warptube:youngsModulus").Set(1e5)  # (a local opinion again)
+    st.GetRootLayer().Save()
+    for scene, warned in ((working, False), (inert, True)):
+        caplog.clear()
+        with caplog.at_level("WARNING", logger="warp_tube.batch.warned"):
+            variants = prepare_variants(str(scene), None, "all")
+        said = [r.getMessage() for r in caplog.records if "choices give the same scene" in r.getMessage()]
+        moduli = [v.scene.tubes[0].params.youngs_modulus for v in variants.variants]
+        assert moduli == ([1e5, 1e5] if warned else [6e4, 3e5])
+        assert said == (["variantSet /World/Tube{stiffness}: its 2 choices give the same scene: what it sets is decided by "
+                         "a stronger opinion (the attribute authored on the prim itself, or in a stronger layer), so its "
+                         "variants are the same simulation"] if warned else []), said
 
 
 def test_points_from_files_and_variant_sets(tmp_path):

@@ -31,7 +31,7 @@ from ..scene.attributes import attributes_of
 from ..scene.spec import Scene, SceneError
 from .fastread import PlainColumns, PlainRow, may_be_plain, plain_scenes
 from .kinds import check_kinds
-from .warned import HeldWarnings, merged_warnings, say_warnings, warned_where
+from .warned import HeldWarnings, merged_warnings, say_warnings, warn_same_choices, warned_where
 from .table import Table
 from .values import CONTRACT_TYPES, parse_plain, parse_plain_array, parse_value
 
@@ -441,6 +441,7 @@ def _collect(scene_path, table, variant_sets, extract, progress, held):
     if table is not None and axes and table.first_row == 0:  # (once, not per part of the table)
         _warn_overridden(stage, axes, table)
     combos = list(itertools.product(*[a.choices for a in axes]))
+    bases: dict = {}  # each combination's scene, as read with no table row
     n_rows = len(table.rows) if table is not None else 1
     total_rows = (table.first_row + n_rows) if table is not None else 1
     width = name_width(total_rows * len(combos))
@@ -461,6 +462,7 @@ def _collect(scene_path, table, variant_sets, extract, progress, held):
         except SceneError as e:
             problems.append((-1, f"{context}: {e}" if chosen else str(e)))
             continue
+        bases[combo] = base
         if table is None:
             out[c] = Variant(index=c, name=f"variant_{c:0{width}d}", row=None, cells=(), selection=combo, source=base)
             done += 1
@@ -555,5 +557,7 @@ def _collect(scene_path, table, variant_sets, extract, progress, held):
                 progress(done)
         if len(problems) > 10 * MAX_PROBLEMS:
             break
+    if table is None or table.first_row == 0:  # (once, not per part of the table)
+        warn_same_choices(axes, bases)
     plain = not axes and table is not None and made is not None and all(m is not None for m in made) and not problems
     return Variants(scene_path=scene_path, table=table, axes=tuple(axes), variants=tuple(out), plain=plain), problems

@@ -8,11 +8,14 @@ per row or with no row named.
 
 from __future__ import annotations
 
+import dataclasses
 import logging
+
+import numpy as np
 
 from .table import Table
 
-__all__ = ["HeldWarnings", "warned_where", "say_warnings", "merged_warnings"]
+__all__ = ["HeldWarnings", "warned_where", "say_warnings", "merged_warnings", "warn_same_choices", "same_scene"]
 
 log = logging.getLogger(__name__)
 
@@ -84,3 +87,42 @@ def merged_warnings(parts) -> tuple:
         for w in part.warnings:
             held.add(*w)
     return tuple((m, *h) for m, h in held.held.items())
+
+
+def warn_same_choices(axes: list, bases: dict) -> None:
+    """Warn of a crossed variantSet (``axes``: :class:`~warp_tube.batch.variants.VariantSetAxis`)
+    whose choices all give the same scene (``bases``: each
+    combination's scene, by its choices): what it sets is decided by a stronger opinion (the
+    attribute authored on the prim itself, or in a stronger layer), so its variants are one."""
+    for k, axis in enumerate(axes):
+        if len(axis.choices) < 2:
+            continue
+        first = next(iter(bases), None)
+        if first is None:
+            return
+        row = [bases.get(first[:k] + (choice,) + first[k + 1:]) for choice in axis.choices]
+        if any(b is None for b in row) or not all(same_scene(row[0], b) for b in row[1:]):
+            continue
+        log.warning("variantSet %s: its %d choices give the same scene: what it sets is decided by a stronger opinion "
+                    "(the attribute authored on the prim itself, or in a stronger layer), so its variants are the same "
+                    "simulation", axis.label, len(axis.choices))  # fmt: skip
+
+
+def same_scene(a, b) -> bool:
+    """Whether two scenes (or parts of them) are equal field for field, arrays element for
+    element (where they came from, ``source``, aside)."""
+    if a is b:
+        return True
+    if dataclasses.is_dataclass(a):
+        return type(a) is type(b) and all(same_scene(getattr(a, f.name), getattr(b, f.name))
+                                          for f in dataclasses.fields(a) if f.name != "source")  # fmt: skip
+    if isinstance(a, (tuple, list)):
+        return isinstance(b, (tuple, list)) and len(a) == len(b) and all(map(same_scene, a, b))
+    if isinstance(a, np.ndarray) or isinstance(b, np.ndarray):
+        return np.shape(a) == np.shape(b) and bool(np.array_equal(a, b))
+    if isinstance(a, dict):
+        return isinstance(b, dict) and a.keys() == b.keys() and all(same_scene(a[key], b[key]) for key in a)
+    try:
+        return bool(a == b)
+    except (TypeError, ValueError):
+        return False
