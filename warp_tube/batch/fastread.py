@@ -164,12 +164,6 @@ class PlainRows:
         self.times.flags.writeable = False  # shared by every row's constant forces
         self._made: dict = {}
 
-    def __len__(self) -> int:
-        for columns in (*self.tube_fields.values(), self.force_values):
-            for a in columns.values():
-                return len(a)
-        return 0
-
     def __getstate__(self) -> dict:
         return {**self.__dict__, "_made": {}}  # (the scenes made are made again where needed)
 
@@ -262,5 +256,3 @@ def plain_scenes(sources: list) -> PlainScenes | None:
     if not sources or set(map(type, sources)) != {PlainRow} or len(set(map(id, map(attrgetter("rows"), sources)))) != 1:
         return None
     return PlainScenes(sources[0].rows, np.fromiter(map(attrgetter("r"), sources), np.int64, len(sources)))
-
-

@@ -91,15 +91,15 @@ def merged_warnings(parts) -> tuple:
 
 def warn_same_choices(axes: list, bases: dict) -> None:
     """Warn of a crossed variantSet (``axes``: :class:`~warp_tube.batch.variants.VariantSetAxis`)
-    whose choices all give the same scene (``bases``: each
-    combination's scene, by its choices): what it sets is decided by a stronger opinion (the
+    whose choices all give the same scene (``bases``: each combination's scene, by its choices):
+    what it sets is decided by a stronger opinion (the
     attribute authored on the prim itself, or in a stronger layer), so its variants are one."""
+    first = next(iter(bases), None)  # (the other sets' choices each row keeps)
+    if first is None:
+        return
     for k, axis in enumerate(axes):
         if len(axis.choices) < 2:
             continue
-        first = next(iter(bases), None)
-        if first is None:
-            return
         row = [bases.get(first[:k] + (choice,) + first[k + 1:]) for choice in axis.choices]
         if any(b is None for b in row) or not all(same_scene(row[0], b) for b in row[1:]):
             continue

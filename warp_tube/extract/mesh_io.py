@@ -234,7 +234,11 @@ def _obj_made_absolute(path: str) -> bytes | None:
 def _obj_index_problem(source) -> str | None:
     """What is wrong with an OBJ's face indices (``source``: its path, or its text with relative
     indices made absolute), or None where they are within its vertices (1-based)."""
-    data = source if isinstance(source, bytes) else open(source, "rb").read()
+    if isinstance(source, bytes):
+        data = source
+    else:
+        with open(source, "rb") as f:
+            data = f.read()
     vertices, low, high = 0, None, None
     for line in data.splitlines():
         words = line.split()

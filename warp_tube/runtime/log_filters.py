@@ -11,7 +11,7 @@ import contextlib
 import logging
 import re
 
-__all__ = ["silenced", "once_each", "renamed", "same_for_many"]
+__all__ = ["silenced", "held", "once_each", "renamed", "same_for_many"]
 
 
 @contextlib.contextmanager
@@ -28,6 +28,12 @@ def _filtered(name: str, keep):
 def silenced(name: str):
     """Logger ``name`` passes nothing inside the block."""
     return _filtered(name, lambda record: False)
+
+
+def held(name: str, records: list):
+    """Logger ``name`` passes nothing inside the block: its records are kept in ``records``, for
+    the caller to pass on those it chooses."""
+    return _filtered(name, lambda record: records.append(record) or False)
 
 
 def once_each(name: str, prefix: str = "", key=None):

@@ -91,14 +91,14 @@ def check_attribute(where: str, name: str, v: float) -> None:
         raise SceneError(f"{where}: found {number_text(v)}: expected {expected(RANGES[name])}")
 
 
-def lengths_outside(values_m, what: str) -> str | None:
+def lengths_outside(values_m, what: str, after: str = " (after the transforms and metersPerUnit)") -> str | None:
     """What a message names where the least or the largest of ``values_m`` (radii or spoke lengths
     [m], after the transforms and metersPerUnit) lies outside :data:`RADIUS_M`: ``"{what} of 1e-12
     m (after ...)"``; None where both lie inside."""
     a = np.asarray(values_m, dtype=np.float64)
     for v in (float(a.min()), float(a.max())):
         if out_of_range(v, RADIUS_M):
-            return f"{what} of {number_text(v)} m (after the transforms and metersPerUnit)"
+            return f"{what} of {number_text(v)} m{after}"
     return None
 
 
@@ -136,7 +136,6 @@ def check_scene_ranges(scene) -> None:
             if v is not None and out_of_range(v, RANGES[attr]):
                 refuse(f"tube {t.path}: params.{field}", number_text(v), RANGES[attr])
         for what, values in (("a radius", t.radius), ("a spoke length", t.spoke_lengths)):
-            outside = None if values is None else lengths_outside(values, what)
+            outside = None if values is None else lengths_outside(values, what, after="")
             if outside:
-                raise SceneError(f"{scene.source}: tube {t.path}: {outside.replace(' (after the transforms and metersPerUnit)', '')}: "
-                                 f"expected {expected(RADIUS_M)}")  # fmt: skip
+                raise SceneError(f"{scene.source}: tube {t.path}: {outside}: expected {expected(RADIUS_M)}")

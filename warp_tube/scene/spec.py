@@ -422,10 +422,12 @@ class Scene:
 
     def __post_init__(self):
         for name, items, kind in (("tubes", self.tubes, TubeSpec), ("forces", self.forces, ForceSpec)):
-            if not isinstance(items, (tuple, list)) or not all(isinstance(x, kind) for x in items):
-                got = type(items).__name__ if not isinstance(items, (tuple, list)) else \
-                    f"a {type(items).__name__} holding a {type(next(x for x in items if not isinstance(x, kind))).__name__}"
-                raise SceneError(f"{self.source}: {name}: {got}: expected a tuple of {kind.__name__}")
+            if not isinstance(items, (tuple, list)):
+                raise SceneError(f"{self.source}: {name}: {type(items).__name__}: expected a tuple of {kind.__name__}")
+            other = next((x for x in items if not isinstance(x, kind)), None)
+            if other is not None:
+                raise SceneError(f"{self.source}: {name}: a {type(items).__name__} holding a {type(other).__name__}: "
+                                 f"expected a tuple of {kind.__name__}")  # fmt: skip
             object.__setattr__(self, name, tuple(items))
         for name, value, kind in (("settings", self.settings, SimulationSettings), ("stage", self.stage, StageInfo)):
             if not isinstance(value, kind):

@@ -18,7 +18,6 @@ wide tube is not pushed farther than a quarter of its length).
 
 from __future__ import annotations
 
-import contextlib
 import logging
 import re
 from dataclasses import dataclass
@@ -106,6 +105,7 @@ def size_push(path: str, force_path: str = "/World/Push", radii: float = 2.0, fr
     """
     import dataclasses
 
+    from ..runtime.log_filters import held
     from ..scene.usd import load_scene
 
     scene = load_scene(path)
@@ -118,12 +118,12 @@ def size_push(path: str, force_path: str = "/World/Push", radii: float = 2.0, fr
     # What each run warns of is held, and said only for the run whose push is written: a trial
     # with a push far from the one kept (the straight-beam estimate, 30x too large for a stub)
     # may strain the tube as the scene as written never will.
-    held: dict = {}  # factor -> the warnings of its run
+    run_warnings: dict = {}  # factor -> the warnings of its run
 
     def moved(factor: float) -> float:
         scaled = dataclasses.replace(force, values=force.values * factor)
-        records = held.setdefault(factor, [])
-        with _held(("warp_tube.sim.simulation", "warp_tube.centerline.policy"), records):
+        records = run_warnings.setdefault(factor, [])
+        with held("warp_tube.sim.simulation", records), held("warp_tube.centerline.policy", records):
             return largest_displacement(dataclasses.replace(scene, forces=(*scene.forces[:k], scaled, *scene.forces[k + 1:])), frames)
 
     kept = 1.0
@@ -132,29 +132,11 @@ def size_push(path: str, force_path: str = "/World/Push", radii: float = 2.0, fr
         kept = size.factor if size is not None else 1.0
         return size
     finally:
-        _say(held.get(kept, ()))
+        _say(run_warnings.get(kept, ()))
 
 
 #: before a warning of the sizing's run: what it is, a run of the scene no one asked for
 SAID = "while sizing the push, a run of the scene: "
-
-
-@contextlib.contextmanager
-def _held(names, records: list):
-    """The records of loggers ``names`` held in ``records`` (not passed on) inside the block."""
-
-    def hold(record) -> bool:
-        records.append(record)
-        return False
-
-    loggers = [logging.getLogger(n) for n in names]
-    for lg in loggers:
-        lg.addFilter(hold)
-    try:
-        yield
-    finally:
-        for lg in loggers:
-            lg.removeFilter(hold)
 
 
 def _say(records) -> None:
